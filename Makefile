@@ -1,0 +1,24 @@
+# Set-up and the two jobs of the README. Only python3 (>= 3.10) is needed; the virtual
+# environment is made and filled on first use.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+
+.PHONY: demo test lint clean
+
+$(BIN)/diffdrive: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $@
+
+demo: $(BIN)/diffdrive            ## the main job on the built-in example
+	$(BIN)/diffdrive
+
+test: $(BIN)/diffdrive            ## linter, then the whole test suite
+	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff format --check src tests benchmarks
+	$(BIN)/python -m pytest
+
+clean:
+	rm -rf $(VENV) .pytest_cache .hypothesis .ruff_cache build src/*.egg-info

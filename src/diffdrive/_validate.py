@@ -1,0 +1,24 @@
+"""Checks for scalar inputs: one place that words the errors the same way everywhere."""
+
+from __future__ import annotations
+
+import math
+
+
+def finite(name: str, value: object) -> float:
+    """``value`` as a float; ``ValueError`` naming ``name`` if it is NaN or infinite."""
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be finite, got {number}")
+    return number
+
+
+def positive(name: str, value: object) -> float:
+    """``value`` as a float; ``ValueError`` naming ``name`` unless it is finite and > 0."""
+    number = finite(name, value)
+    if number <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {number}")
+    return number

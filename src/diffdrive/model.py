@@ -1,0 +1,188 @@
+"""The differential-drive robot: geometry and kinematics on scalar values.
+
+Conventions (see docs/conventions.md): body x forward, y left; the left wheel is on +y; the
+reference point lies ``axle_offset`` m ahead of the axle midpoint. With wheel angular
+velocities ``wl``, ``wr`` (rad/s):
+
+    vx    = (r_r*wr + r_l*wl) / 2
+    omega = (r_r*wr - r_l*wl) / track_width
+    vy    = axle_offset * omega        (no lateral slip at the wheels)
+
+The Modern Robotics form (seeds 001, 004) builds the same maps from each wheel's frame:
+``h_matrix`` (body twist to wheel velocities), ``constraint_matrix`` (no lateral slip) and
+``f_matrix`` (wheel velocities back to the body twist, honouring both).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from diffdrive._validate import finite, positive
+from diffdrive.types import Pose, Twist, WheelVelocities
+
+__all__ = ["DiffDrive"]
+
+
+@dataclass(frozen=True, slots=True, init=False)
+class DiffDrive:
+    """A two-wheeled differential-drive robot.
+
+    Give either ``wheel_radius`` (both wheels) or ``left_wheel_radius`` and
+    ``right_wheel_radius`` (m), the ``track_width`` between the wheel contact points (m; the
+    seeds' half-track ``b``, ``d``, ``D``, ``L`` is half of it), and optionally the
+    ``axle_offset`` (m) of the reference point ahead of the axle midpoint.
+    """
+
+    left_wheel_radius: float
+    right_wheel_radius: float
+    track_width: float
+    axle_offset: float
+
+    def __init__(
+        self,
+        wheel_radius: float | None = None,
+        track_width: float | None = None,
+        *,
+        left_wheel_radius: float | None = None,
+        right_wheel_radius: float | None = None,
+        axle_offset: float = 0.0,
+    ) -> None:
+        sides = (left_wheel_radius, right_wheel_radius)
+        if wheel_radius is not None:
+            if any(side is not None for side in sides):
+                raise ValueError(
+                    "give either wheel_radius or left_wheel_radius and right_wheel_radius, not both"
+                )
+            left = right = positive("wheel_radius", wheel_radius)
+        elif all(side is not None for side in sides):
+            left = positive("left_wheel_radius", left_wheel_radius)
+            right = positive("right_wheel_radius", right_wheel_radius)
+        else:
+            raise ValueError("give wheel_radius, or both left_wheel_radius and right_wheel_radius")
+        if track_width is None:
+            raise ValueError("track_width is required")
+        object.__setattr__(self, "left_wheel_radius", left)
+        object.__setattr__(self, "right_wheel_radius", right)
+        object.__setattr__(self, "track_width", positive("track_width", track_width))
+        object.__setattr__(self, "axle_offset", finite("axle_offset", axle_offset))
+
+    @property
+    def wheel_radius(self) -> float:
+        """The mean of the two wheel radii, m (the radius itself when they are equal)."""
+        return 0.5 * (self.left_wheel_radius + self.right_wheel_radius)
+
+    # -- (v, omega) form: seeds 002 and 003 -------------------------------------------------
+
+    def to_twist(self, wheels: WheelVelocities) -> Twist:
+        """Body twist of the reference point from the wheel velocities (forward kinematics)."""
+        left = self.left_wheel_radius * wheels.left
+        right = self.right_wheel_radius * wheels.right
+        omega = (right - left) / self.track_width
+        return Twist(0.5 * (right + left), self.axle_offset * omega, omega)
+
+    def to_wheel_velocities(self, twist: Twist) -> WheelVelocities:
+        """Wheel velocities that drive ``twist`` (inverse kinematics).
+
+        A differential drive cannot choose ``vy``: it is ``axle_offset * omega``. The given
+        ``vy`` is not used (it is the part of the twist the wheels cannot produce; see
+        ``constraint_matrix``).
+        """
+        half_turn = 0.5 * self.track_width * twist.omega
+        return WheelVelocities(
+            (twist.vx - half_turn) / self.left_wheel_radius,
+            (twist.vx + half_turn) / self.right_wheel_radius,
+        )
+
+    def to_twist_matrix(self) -> np.ndarray:
+        """2x2 matrix from ``[wl, wr]`` to ``[vx, omega]`` (seed 003's kinematic equation)."""
+        r_l, r_r, w = self.left_wheel_radius, self.right_wheel_radius, self.track_width
+        return np.array([[r_l / 2.0, r_r / 2.0], [-r_l / w, r_r / w]])
+
+    def to_wheel_velocities_matrix(self) -> np.ndarray:
+        """2x2 matrix from ``[vx, omega]`` to ``[wl, wr]`` (seed 003's inverse kinematics)."""
+        r_l, r_r, half = self.left_wheel_radius, self.right_wheel_radius, self.track_width / 2
+        return np.array([[1.0 / r_l, -half / r_l], [1.0 / r_r, half / r_r]])
+
+    # -- turning: seed 002 ------------------------------------------------------------------
+
+    def turning_radius(self, wheels: WheelVelocities) -> float:
+        """Signed radius of the axle midpoint's path, m: ``v/omega`` (seed 002's ``R``).
+
+        Positive when turning left (centre on +y), ``+-inf`` when driving straight, ``0`` when
+        spinning in place, and NaN when the robot stands still (no centre exists).
+        """
+        twist = self.to_twist(wheels)
+        if twist.omega != 0.0:
+            return twist.vx / twist.omega
+        return math.copysign(math.inf, twist.vx) if twist.vx != 0.0 else math.nan
+
+    def instantaneous_center(self, wheels: WheelVelocities) -> tuple[float, float]:
+        """The instantaneous centre of curvature in the body frame, ``(x, y)`` in m.
+
+        It lies on the axle line, ``(-axle_offset, turning_radius)``: ``y`` is infinite when
+        driving straight and NaN when standing still.
+        """
+        return (-self.axle_offset, self.turning_radius(wheels))
+
+    # -- Modern Robotics form: seeds 001 and 004 ---------------------------------------------
+
+    def wheel_frames(self) -> tuple[Pose, Pose]:
+        """The (left, right) wheel frames in the body frame: position m, heading rad.
+
+        Both wheels roll along body x, at ``x = -axle_offset`` and ``y = +-track_width/2``
+        (seed 001's ``T_b1``, ``T_b2``; seed 004's ``T_bl``, ``T_br`` with its sides swapped).
+        """
+        half = 0.5 * self.track_width
+        return (Pose(-self.axle_offset, half, 0.0), Pose(-self.axle_offset, -half, 0.0))
+
+    def _radii(self) -> tuple[float, float]:
+        return (self.left_wheel_radius, self.right_wheel_radius)
+
+    def h_matrix(self) -> np.ndarray:
+        """2x3 ``H`` with ``[wl, wr] = H @ V_b``, ``V_b = (omega, vx, vy)`` in Modern Robotics
+        order.
+
+        Row i is ``(1/r_i) * [x_i sin(b_i) - y_i cos(b_i), cos(b_i), sin(b_i)]`` for wheel i
+        at ``(x_i, y_i)`` rolling along heading ``b_i``: its rolling speed, by the adjoint map
+        ``V_i = [Ad_T_ib] V_b``.
+        """
+        rows = []
+        for frame, radius in zip(self.wheel_frames(), self._radii(), strict=True):
+            c, s = math.cos(frame.theta), math.sin(frame.theta)
+            rows.append([(frame.x * s - frame.y * c) / radius, c / radius, s / radius])
+        return np.array(rows)
+
+    def constraint_matrix(self) -> np.ndarray:
+        """2x3 ``Q`` with ``Q @ V_b = 0`` for every twist the wheels allow (no lateral slip).
+
+        Row i is the sideways velocity of wheel i in its own frame:
+        ``[x_i cos(b_i) + y_i sin(b_i), -sin(b_i), cos(b_i)]``. With ``axle_offset = D`` both
+        rows are ``[-D, 0, 1]``, i.e. ``vy = D*omega``.
+        """
+        rows = []
+        for frame in self.wheel_frames():
+            c, s = math.cos(frame.theta), math.sin(frame.theta)
+            rows.append([frame.x * c + frame.y * s, -s, c])
+        return np.array(rows)
+
+    def f_matrix(self) -> np.ndarray:
+        """3x2 ``F`` with ``V_b = F @ [wl, wr]``, Modern Robotics order: the true inverse.
+
+        ``F = N (H N)^-1``, where the columns of ``N`` span the twists that satisfy the
+        no-slip constraint. So ``H F = I`` and ``Q F = 0`` for any axle offset. With the
+        reference point on the axle it equals seed 004's pseudo-inverse ``H^T (H H^T)^-1``;
+        with an offset the pseudo-inverse returns ``vy = 0`` and breaks the constraint.
+        """
+        q = self.constraint_matrix()
+        _, singular, vt = np.linalg.svd(q)
+        rank = int(np.sum(singular > 1e-12 * max(1.0, singular[0])))
+        null_space = vt[rank:].T  # 3 x 2 for a differential drive
+        return null_space @ np.linalg.inv(self.h_matrix() @ null_space)
+
+    def pseudo_inverse_matrix(self) -> np.ndarray:
+        """3x2 ``H+ = H^T (H H^T)^-1`` of seed 004. Right only when ``axle_offset == 0``."""
+        h = self.h_matrix()
+        return h.T @ np.linalg.inv(h @ h.T)

@@ -1,0 +1,67 @@
+"""Scalar value types: construction checks, array conversion, wheel-angle bookkeeping."""
+
+import math
+
+import numpy as np
+import pytest
+
+from diffdrive import Pose, Twist, WheelPositions, WheelVelocities
+
+
+@pytest.mark.parametrize("cls", [Pose, Twist, WheelPositions, WheelVelocities])
+def test_round_trip_through_arrays(cls):
+    value = cls(*range(1, len(cls.__dataclass_fields__) + 1))
+    array = value.to_array()
+    assert array.dtype == np.float64
+    assert cls.from_array(array) == value
+
+
+def test_from_array_names_the_expected_and_actual_shape():
+    with pytest.raises(ValueError, match=r"expects shape \(3,\) \[x, y, theta\], got \(2,\)"):
+        Pose.from_array([1.0, 2.0])
+    with pytest.raises(ValueError, match=r"expects shape \(2,\) \[left, right\], got \(1, 2\)"):
+        WheelVelocities.from_array([[1.0, 2.0]])
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_fields_are_refused_with_their_name(bad):
+    with pytest.raises(ValueError, match=r"Twist\.omega must be finite"):
+        Twist(1.0, 0.0, bad)
+    with pytest.raises(ValueError, match=r"WheelPositions\.left must be finite"):
+        WheelPositions(bad, 0.0)
+
+
+def test_non_numbers_are_refused():
+    with pytest.raises(TypeError, match=r"Pose\.x must be a real number"):
+        Pose("one", 0.0, 0.0)
+
+
+def test_fields_become_plain_floats():
+    pose = Pose(np.float32(1.5), 2, np.int64(3))
+    assert all(type(v) is float for v in (pose.x, pose.y, pose.theta))
+
+
+def test_values_are_immutable_and_hashable():
+    pose = Pose(1.0, 2.0, 3.0)
+    with pytest.raises(AttributeError):
+        pose.x = 0.0  # type: ignore[misc]
+    assert {pose: 1}[Pose(1.0, 2.0, 3.0)] == 1
+
+
+def test_wheel_positions_accumulate_velocity_times_dt():
+    # Seed 001, eq. 5-6: theta_L = u_L*dt + theta_L,old.
+    after = WheelPositions(1.0, -2.0).advance(WheelVelocities(3.0, 4.0), 0.5)
+    assert after == WheelPositions(2.5, 0.0)
+
+
+def test_wheel_velocities_from_two_readings():
+    before, after = WheelPositions(1.0, 2.0), WheelPositions(1.5, 1.0)
+    assert WheelVelocities.from_positions(before, after, 0.25) == WheelVelocities(2.0, -4.0)
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.1, math.nan, math.inf])
+def test_wheel_angle_bookkeeping_refuses_bad_dt(dt):
+    with pytest.raises(ValueError, match="dt must be"):
+        WheelPositions().advance(WheelVelocities(1.0, 1.0), dt)
+    with pytest.raises(ValueError, match="dt must be"):
+        WheelVelocities.from_positions(WheelPositions(), WheelPositions(1.0, 1.0), dt)
