@@ -16,8 +16,8 @@ demo: $(BIN)/diffdrive            ## the main job on the built-in example
 	$(BIN)/diffdrive
 
 test: $(BIN)/diffdrive            ## linter, then the whole test suite
-	$(BIN)/ruff check src tests benchmarks
-	$(BIN)/ruff format --check src tests benchmarks
+	$(BIN)/ruff check
+	$(BIN)/ruff format --check
 	$(BIN)/python -m pytest
 
 clean:
