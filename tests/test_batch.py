@@ -276,3 +276,13 @@ def test_output_shapes_follow_the_input(shape):
     assert batch.to_wheel_velocities(ROBOT, np.zeros((*shape, 3))).shape == (*shape, 2)
     assert batch.turning_radius(ROBOT, np.ones((*shape, 2))).shape == shape
     assert batch.to_matrix(np.zeros((*shape, 3))).shape == (*shape, 3, 3)
+
+
+@given(geometry(), batch_of(2))
+def test_every_batch_twist_is_F_times_the_wheels_and_does_not_slip(params, wheels):
+    robot = DiffDrive(**params)
+    twists = batch.to_twist(robot, wheels)
+    mr_order = twists[..., [2, 0, 1]]  # (omega, vx, vy)
+    np.testing.assert_allclose(mr_order, wheels @ robot.f_matrix().T, atol=1e-9)
+    np.testing.assert_allclose(mr_order @ robot.constraint_matrix().T, 0.0, atol=1e-12)
+    np.testing.assert_allclose(mr_order @ robot.h_matrix().T, wheels, atol=1e-8)
