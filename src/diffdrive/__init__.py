@@ -7,6 +7,8 @@ operations over arrays. Conventions: docs/conventions.md.
 from diffdrive import batch, integrate, se2
 from diffdrive.angles import wrap_angle
 from diffdrive.model import DiffDrive
+from diffdrive.simulation import simulate
+from diffdrive.trajectory import Trajectory
 from diffdrive.types import Pose, Twist, WheelPositions, WheelVelocities
 
 __version__ = "0.1.0"
@@ -14,6 +16,7 @@ __version__ = "0.1.0"
 __all__ = [
     "DiffDrive",
     "Pose",
+    "Trajectory",
     "Twist",
     "WheelPositions",
     "WheelVelocities",
@@ -21,5 +24,6 @@ __all__ = [
     "batch",
     "integrate",
     "se2",
+    "simulate",
     "wrap_angle",
 ]
