@@ -37,3 +37,12 @@ def test_runs_as_a_subprocess():
     )
     assert "Modern Robotics" in result.stdout
     assert result.stderr == ""
+
+
+def test_simulation_report_lists_each_method_with_the_same_distance():
+    from diffdrive.cli import simulation_report
+
+    rows = simulation_report(example_robot(), steps=400).splitlines()[2:]
+    assert [row.split()[0] for row in rows] == ["euler", "rk2", "exact"]
+    distances = {row.split()[-1] for row in rows}
+    assert len(distances) == 1  # the distance does not depend on the heading

@@ -10,8 +10,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from diffdrive import se2
-from diffdrive.examples import example_robot
+from diffdrive.examples import EXAMPLE_DURATION, example_robot, example_wheel_velocities
 from diffdrive.model import DiffDrive
+from diffdrive.simulation import simulate
 from diffdrive.types import WheelVelocities
 
 # (label, left, right) wheel velocities in rad/s that show the characteristic motions.
@@ -54,15 +55,41 @@ def kinematics_report(robot: DiffDrive) -> str:
     return "\n".join(lines)
 
 
+def simulation_report(robot: DiffDrive, steps: int = 2000) -> str:
+    """Simulate the built-in driving history with each method; compare the final poses."""
+    lines = [
+        f"simulated {EXAMPLE_DURATION:g} s of the built-in driving history in {steps} steps:",
+        f"{'method':8} {'x m':>9} {'y m':>9} {'theta deg':>10} {'distance m':>11}",
+    ]
+    for method in ("euler", "rk2", "exact"):
+        trajectory = simulate(
+            robot,
+            example_wheel_velocities,
+            dt=EXAMPLE_DURATION / steps,
+            duration=EXAMPLE_DURATION,
+            method=method,
+        )
+        x, y, theta = trajectory.final_pose
+        lines.append(
+            f"{method:8} {x:9.4f} {y:9.4f} {math.degrees(theta):10.2f} "
+            f"{trajectory.distance[-1]:11.4f}"
+        )
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = argparse.ArgumentParser(
         prog="diffdrive",
-        description="Kinematics of differential-drive robots. With no arguments, the "
-        "kinematics of a built-in example robot.",
+        description="Kinematics of differential-drive robots. With no arguments: the "
+        "kinematics of a built-in example robot, and a simulation of its built-in driving "
+        "history with each integration method.",
     )
     parser.parse_args(argv)
-    print(kinematics_report(example_robot()))
+    robot = example_robot()
+    print(kinematics_report(robot))
+    print()
+    print(simulation_report(robot))
     return 0
 
 

@@ -2,9 +2,26 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from diffdrive.model import DiffDrive
 
 
 def example_robot() -> DiffDrive:
     """A small indoor robot: the OptiOdom platform's nominal geometry (84 mm wheels, 0.2 m)."""
     return DiffDrive(wheel_radius=0.042, track_width=0.200)
+
+
+EXAMPLE_DURATION = 20.0  # s
+
+
+def example_wheel_velocities(t: np.ndarray) -> np.ndarray:
+    """A built-in driving history, rad/s, for times ``t`` ``(T,)`` in s -> ``(T, 2)``.
+
+    Drives off, weaves left and right with a growing amplitude, and turns in place at the end.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    cruise = 8.0 * np.clip(t / 2.0, 0.0, 1.0) * (t < 16.0)
+    weave = (2.0 + 0.2 * t) * np.sin(2.0 * np.pi * t / 8.0) * (t < 16.0)
+    spin = 4.0 * (t >= 16.0)
+    return np.stack([cruise - weave - spin, cruise + weave + spin], axis=-1)
