@@ -11,6 +11,7 @@ import numpy as np
 
 from diffdrive import se2
 from diffdrive.examples import EXAMPLE_DURATION, example_robot, example_wheel_velocities
+from diffdrive.integrate import METHODS
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import simulate
 from diffdrive.types import WheelVelocities
@@ -61,7 +62,7 @@ def simulation_report(robot: DiffDrive, steps: int = 2000) -> str:
         f"simulated {EXAMPLE_DURATION:g} s of the built-in driving history in {steps} steps:",
         f"{'method':8} {'x m':>9} {'y m':>9} {'theta deg':>10} {'distance m':>11}",
     ]
-    for method in ("euler", "rk2", "exact"):
+    for method in METHODS:
         trajectory = simulate(
             robot,
             example_wheel_velocities,

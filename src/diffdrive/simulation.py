@@ -80,29 +80,24 @@ def _integrate_block(inc: np.ndarray, carry: np.ndarray, method: Method, out: np
     heading = carry[..., None, 2] + (turn - delta[..., 2])  # at the start of each step
     c, s = np.cos(heading), np.sin(heading)
     dx, dy = delta[..., 0], delta[..., 1]
-    out[..., 0] = carry[..., None, 0] + np.cumsum(c * dx - s * dy, axis=-1)
-    out[..., 1] = carry[..., None, 1] + np.cumsum(s * dx + c * dy, axis=-1)
-    out[..., 2] = carry[..., None, 2] + turn
-    # The carry continues from float64 sums, not from ``out``, which may be float32.
-    return np.stack(
-        [
-            carry[..., 0] + np.sum(c * dx - s * dy, axis=-1),
-            carry[..., 1] + np.sum(s * dx + c * dy, axis=-1),
-            carry[..., 2] + turn[..., -1],
-        ],
-        axis=-1,
-    )
+    x, y = np.cumsum(c * dx - s * dy, axis=-1), np.cumsum(s * dx + c * dy, axis=-1)
+    # x and y take the carry's leading axes (a pose per robot); turn may not have them yet.
+    travel = np.stack([x, y, np.broadcast_to(turn, x.shape)], axis=-1)
+    out[...] = carry[..., None, :] + travel
+    # The carry continues from the float64 sums, not from ``out``, which may be float32.
+    return carry + travel[..., -1, :]
 
 
 def _step_times(
     steps: int | None, dt: object, times: object, like: np.ndarray | None
 ) -> np.ndarray:
-    """The ``(..., T+1)`` sample times from either ``dt`` or ``times``, checked."""
+    """The ``(..., T+1)`` sample times from either ``dt`` or ``times``, checked.
+
+    ``steps`` is T, known whenever ``dt`` is given; with ``times`` alone it may be None.
+    """
     if (dt is None) == (times is None):
         raise ValueError("give exactly one of dt (a uniform step, s) or times (s)")
     if dt is not None:
-        if steps is None:
-            raise ValueError("with dt, the number of steps comes from the wheel data")
         step = floating(np, dt, "dt")
         if step.ndim != 0 or not np.isfinite(step) or step <= 0:
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")

@@ -91,12 +91,11 @@ class Trajectory:
                 f"at must lie within [{self.times[0]}, {self.times[-1]}] s, "
                 f"got {t[np.argmax(outside)]}"
             )
-        # Index T (the last sample) gets a zero twist, so at[-1] == times[-1] is the last pose.
+        # A sample at times[-1] finds step T, the last pose, with no time left to move.
         step = np.searchsorted(self.times, t, side="right") - 1
-        twists = self.twists
-        twists = np.concatenate([twists, np.zeros_like(twists[..., :1, :])], axis=-2)
-        start = self.poses[..., step, :]
-        return batch.compose(start, batch.exp(twists[..., step, :], t - self.times[step]))
+        wheels = self.wheel_velocities[..., np.minimum(step, self.steps - 1), :]
+        twists = batch.to_twist(self.robot, wheels)
+        return batch.compose(self.poses[..., step, :], batch.exp(twists, t - self.times[step]))
 
     def to_array(self) -> np.ndarray:
         """``[t, x, y, theta]`` rows, ``(..., T+1, 4)``."""
