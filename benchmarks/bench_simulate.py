@@ -1,11 +1,20 @@
-"""Simulation throughput, side by side in one process: diffdrive vs a C loop vs a Python loop.
+"""Simulation throughput, side by side in one process: diffdrive vs a C loop and loops in Python.
 
 Cases (issue 3): one robot over 10^7 steps, and 10^3 robots times 10^4 steps, with the exact
-update. The C loop is compiled at -O3 from the source below when a C compiler is present and
-called through ctypes on the same arrays. The Python loop is timed on a slice and reported per
-step. Prints the median of several runs, the ratios, and the peak memory of diffdrive's call
-relative to its output array.
+update. Contenders:
 
+- diffdrive's ``simulate`` with the numba kernel and with the NumPy prefix sums;
+- a C loop of the same update, compiled at -O3 from the source below when a C compiler is
+  present and called through ctypes on the same arrays (it allocates its output, as we do);
+- a plain Python loop, roboticstoolbox-python's ``DiffSteer`` (its ``deriv``, an Euler step,
+  as its own ``run`` does) and robotpy-wpimath's ``Pose2d.exp`` (exact), when installed. These
+  three are timed on the first 2e5 / 2e4 steps and reported per step.
+
+Every contender is called once before it is timed (numba compiles or loads its cache then).
+Prints the machine, the median of several runs, the ratios, and the peak memory (tracemalloc)
+of diffdrive's call relative to its output pose array.
+
+    pip install -e '.[bench]'        # numba and the peers
     python benchmarks/bench_simulate.py [--repeats 5] [--quick]
 """
 
@@ -14,6 +23,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import math
+import os
 import platform
 import shutil
 import statistics
@@ -21,6 +31,8 @@ import subprocess
 import tempfile
 import time
 import tracemalloc
+import warnings
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -104,7 +116,49 @@ def python_loop(robot, wheels, dt):
     return poses
 
 
+def roboticstoolbox_loop():
+    """``DiffSteer.deriv`` stepped with Euler, or None when roboticstoolbox is missing."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            from roboticstoolbox import DiffSteer
+    except ImportError:
+        return None
+
+    def run(robot, wheels, dt):
+        vehicle = DiffSteer(W=robot.track_width)
+        pose = np.zeros(3)
+        poses = [pose]
+        for left, right in wheels * robot.wheel_radius:
+            pose = pose + dt * vehicle.deriv(pose, (left, right), limits=False)
+            poses.append(pose)
+        return poses
+
+    return run
+
+
+def wpimath_loop():
+    """``Pose2d.exp`` of each step's twist, or None when robotpy-wpimath is missing."""
+    try:
+        from wpimath.geometry import Pose2d, Twist2d
+    except ImportError:
+        return None
+
+    def run(robot, wheels, dt):
+        twists = dd.batch.to_twist(robot, wheels) * dt
+        pose = Pose2d()
+        poses = [pose]
+        for dx, dy, dtheta in twists.tolist():
+            pose = pose.exp(Twist2d(dx, dy, dtheta))
+            poses.append(pose)
+        return poses
+
+    return run
+
+
 def median_time(call, repeats):
+    """Median wall time of ``repeats`` calls, after one untimed call."""
+    call()
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
@@ -129,38 +183,63 @@ def main() -> None:
     scale = 10 if args.quick else 1
     robot = example_robot()
     dt = 1e-3
+    loops = {
+        "Python loop": (python_loop, 200_000),
+        "roboticstoolbox": (roboticstoolbox_loop(), 20_000),
+        "wpimath": (wpimath_loop(), 20_000),
+    }
     c_loop = build_c_loop()
+    import numba
+
     print(
         f"machine: {platform.machine()}, {platform.processor() or 'cpu'}, "
-        f"python {platform.python_version()}, numpy {np.__version__}"
+        f"{os.cpu_count()} cores; python {platform.python_version()}, numpy {np.__version__}, "
+        f"numba {numba.__version__} on {numba.get_num_threads()} threads"
     )
+    missing = [name for name, (loop, _) in loops.items() if loop is None]
+    if c_loop is None:
+        missing.append("C -O3 loop (no C compiler)")
+    if missing:
+        print(f"not installed, left out: {', '.join(missing)}")
     print(f"median of {args.repeats} runs; times in ns per robot-step\n")
     rng = np.random.default_rng(0)
     cases = [("1 x 1e7", (10**7 // scale, 2)), ("1e3 x 1e4", (1000, 10**4 // scale, 2))]
     for label, shape in cases:
-        bench_case(label, robot, rng.uniform(-10.0, 10.0, shape), dt, c_loop, args.repeats)
+        wheels = rng.uniform(-10.0, 10.0, shape)
+        bench_case(label, robot, wheels, dt, c_loop, loops, args.repeats)
 
 
-def bench_case(label, robot, wheels, dt, c_loop, repeats) -> None:
-    """Time one case for every contender and print a row each, relative to diffdrive."""
+def bench_case(label, robot, wheels, dt, c_loop, loops, repeats) -> None:
+    """Time one case for every contender and print a row each, relative to diffdrive's numba."""
     robot_steps = wheels.size // 2
-    ours = median_time(lambda: dd.simulate(robot, wheels, dt=dt), repeats)
-    row = {"diffdrive": ours}
+
+    def ours(backend):
+        return lambda: dd.simulate(robot, wheels, dt=dt, backend=backend)
+
+    row = {"diffdrive numba": median_time(ours("numba"), repeats)}
+    row["diffdrive NumPy"] = median_time(ours("numpy"), repeats)
+    expected = ours("numpy")().poses
+    assert np.allclose(ours("numba")().poses, expected, rtol=0, atol=1e-9), "numba disagrees"
     if c_loop is not None:
         row["C -O3 loop"] = median_time(lambda: run_c_loop(c_loop, robot, wheels, dt), repeats)
-        expected = dd.simulate(robot, wheels, dt=dt).poses
         check = run_c_loop(c_loop, robot, wheels, dt).reshape(expected.shape)
         assert np.allclose(check, expected, atol=1e-6), "the C loop disagrees with diffdrive"
-    sample = wheels.reshape(-1, 2)[:200_000]
-    per_run = median_time(lambda: python_loop(robot, sample, dt), max(1, repeats // 2))
-    row["Python loop"] = per_run / len(sample) * robot_steps
+    first_robot = wheels.reshape(-1, 2)
+    for name, (loop, length) in loops.items():
+        if loop is not None:
+            sample = first_robot[:length]
+            per_run = median_time(partial(loop, robot, sample, dt), max(1, repeats // 2))
+            row[name] = per_run / len(sample) * robot_steps
     output_bytes = (robot_steps + robot_steps // wheels.shape[-2]) * 3 * 8
-    memory = peak_memory_ratio(lambda: dd.simulate(robot, wheels, dt=dt), output_bytes)
-    print(f"case {label}: peak memory of diffdrive = {memory:.2f} x its pose array")
+    print(f"case {label}: peak memory / pose array:", end="")
+    for backend in ("numba", "numpy"):
+        print(f"  {backend} {peak_memory_ratio(ours(backend), output_bytes):.2f}", end="")
+    print()
+    ref = row["diffdrive numba"]
     for name, seconds in row.items():
         print(
-            f"  {name:12} {seconds / robot_steps * 1e9:9.1f} ns/step   "
-            f"diffdrive is {seconds / ours:7.2f} x as fast"
+            f"  {name:16} {seconds / robot_steps * 1e9:9.1f} ns/step   "
+            f"diffdrive numba is {seconds / ref:7.2f} x as fast"
         )
     print()
 

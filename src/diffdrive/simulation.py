@@ -1,18 +1,23 @@
 """Simulation: a driving history and an initial pose to a trajectory (seed 000's main job).
 
-Integration is a blocked prefix sum, not a loop per step. Each step's body-frame pose delta
-comes from ``batch.delta`` (euler, rk2 or exact). The headings are the running sum of the
-heading increments. Each delta is rotated into the world by the heading at the start of its
-step, and the positions are running sums of those. This is the same arithmetic as composing the
-deltas one after another. The steps are taken in blocks of about ``_BLOCK_ELEMENTS`` values:
-the temporaries stay small, and the running sums restart from carries that are held in float64,
-so float32 input loses no accuracy to a long sequential sum.
+Two backends compute the same poses. The NumPy one is a blocked prefix sum, not a loop per
+step. Each step's body-frame pose delta comes from ``batch.delta`` (euler, rk2 or exact). The
+headings are the running sum of the heading increments. Each delta is rotated into the world
+by the heading at the start of its step, and the positions are running sums of those. This is
+the same arithmetic as composing the deltas one after another. The steps are taken in blocks
+of about ``_BLOCK_ELEMENTS`` values, each block's wheel travel and twists made only when it is
+integrated: the temporaries stay small, and the running sums restart from carries that are
+held in float64, so float32 input loses no accuracy to a long sequential sum. The numba one
+(``diffdrive._compiled``) is a loop per robot over every core, for large calls.
 """
 
 from __future__ import annotations
 
+import importlib.util
+import math
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
 
@@ -26,9 +31,15 @@ from diffdrive.trajectory import Trajectory
 
 __all__ = ["integrate_increments", "simulate"]
 
-_BLOCK_ELEMENTS = 1 << 16
+# Small enough that a block's temporaries are reused from the heap, not fresh pages each time.
+_BLOCK_ELEMENTS = 1 << 11
+# From this many robot-steps, "auto" takes the numba kernel; below, importing numba (about half
+# a second, once) costs more than it saves.
+_COMPILED_MIN_ROBOT_STEPS = 1 << 16
 
 WheelFunction = Callable[[np.ndarray], Any]
+Backend = Literal["auto", "numpy", "numba"]
+BACKENDS: tuple[str, ...] = ("auto", "numpy", "numba")
 
 
 def _first_bad(mask: np.ndarray) -> tuple[int, ...]:
@@ -36,6 +47,10 @@ def _first_bad(mask: np.ndarray) -> tuple[int, ...]:
 
 
 def _check_finite(name: str, array: np.ndarray) -> None:
+    # A finite sum means every entry is finite; only a non-finite one (or an overflow) needs
+    # the slower search that names the index.
+    if np.isfinite(np.sum(array, dtype=np.float64)):
+        return
     bad = ~np.isfinite(array)
     if bad.any():
         index = _first_bad(bad)
@@ -61,16 +76,26 @@ def integrate_increments(
     start = np.zeros(3) if initial_pose is None else initial_pose
     start = components(np, start, "initial_pose", POSE)
     leading = np.broadcast_shapes(inc.shape[:-2], start.shape[:-1])
-    steps = inc.shape[-2]
-    poses = np.empty((*leading, steps + 1, 3), dtype=dtype or inc.dtype)
+    poses = np.empty((*leading, inc.shape[-2] + 1, 3), dtype=dtype or inc.dtype)
+    _integrate_blocks(lambda k0, k1: inc[..., k0:k1, :], start, method, poses)
+    return poses
+
+
+def _integrate_blocks(block_increments, start: np.ndarray, method: Method, poses: np.ndarray):
+    """Fill ``poses`` ``(..., T+1, 3)`` block by block from ``start`` ``(..., 3)``.
+
+    ``block_increments(k0, k1)`` gives the body-twist increments of steps ``k0:k1``; making
+    them a block at a time keeps the temporaries small, whatever T is.
+    """
+    leading, steps = poses.shape[:-2], poses.shape[-2] - 1
     carry = np.array(np.broadcast_to(start, (*leading, 3)), dtype=np.float64)
     poses[..., 0, :] = carry
-    robots = max(1, int(np.prod(leading)))
+    robots = max(1, math.prod(leading))
     block = max(1, _BLOCK_ELEMENTS // robots)
     for k0 in range(0, steps, block):
         k1 = min(steps, k0 + block)
-        carry = _integrate_block(inc[..., k0:k1, :], carry, method, poses[..., k0 + 1 : k1 + 1, :])
-    return poses
+        out = poses[..., k0 + 1 : k1 + 1, :]
+        carry = _integrate_block(block_increments(k0, k1), carry, method, out)
 
 
 def _integrate_block(inc: np.ndarray, carry: np.ndarray, method: Method, out: np.ndarray):
@@ -102,7 +127,9 @@ def _step_times(
         if step.ndim != 0 or not np.isfinite(step) or step <= 0:
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
         # float64 whatever the data: float32 times 1000 s in would put 6 % errors in 1 ms steps.
-        return np.arange(steps + 1, dtype=np.float64) * float(step)
+        sample_times = np.arange(steps + 1, dtype=np.float64)
+        sample_times *= float(step)
+        return sample_times
     t = floating(np, times, "times", like)
     if t.ndim == 0 or t.shape[-1] < 2:
         raise ValueError(f"times must have shape (..., T+1) with T >= 1, got {t.shape}")
@@ -150,6 +177,7 @@ def simulate(
     duration: float | None = None,
     initial_pose: object = None,
     method: Method = "exact",
+    backend: Backend = "auto",
 ) -> Trajectory:
     """Integrate a driving history from an initial pose into a ``Trajectory``.
 
@@ -168,9 +196,13 @@ def simulate(
     ``initial_pose`` is ``(3,)`` for every robot or ``(..., 3)`` per robot (default: the
     origin, as seed 002 says). Leading axes broadcast: N robots times T steps is one call.
     ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"`` (the default, exact for constant wheel
-    velocities). All checks run before any integration.
+    velocities). ``backend`` is ``"numpy"`` (blocked prefix sums), ``"numba"`` (the compiled
+    kernel on every core; ``pip install diffdrive[fast]``) or ``"auto"``: numba when it is
+    installed and the call has at least 2**16 robot-steps. All checks run before any
+    integration.
     """
     check_method(method)
+    _check_backend(backend)
     if (wheel_velocities is None) == (wheel_positions is None):
         raise ValueError("give exactly one of wheel_velocities or wheel_positions")
     if callable(wheel_velocities):
@@ -187,17 +219,24 @@ def simulate(
         sample_times = _step_times(wheels.shape[-2], dt, times, wheels)
     if wheel_velocities is not None:
         _check_finite("wheel_velocities", wheels)
-        durations = np.diff(sample_times, axis=-1)[..., None]
-        return _build(robot, wheels, wheels * durations, sample_times, initial_pose, method)
+        history = _History(wheels, sample_times, angles=False)
+        return _build(robot, history, wheels, initial_pose, method, backend)
     angles = components(np, wheel_positions, "wheel_positions", WHEELS)
     _check_history_shape("wheel_positions", angles, "T+1")
     _check_finite("wheel_positions", angles)
     if angles.shape[-2] < 2:
         raise ValueError(f"wheel_positions needs at least 2 samples, got shape {angles.shape}")
     sample_times = _step_times(angles.shape[-2] - 1, dt, times, angles)
-    increments = np.diff(angles, axis=-2)
-    durations = np.diff(sample_times, axis=-1)[..., None]
-    return _build(robot, increments / durations, increments, sample_times, initial_pose, method)
+    history = _History(angles, sample_times, angles=True)
+    wheels = np.diff(angles, axis=-2) / np.diff(sample_times, axis=-1)[..., None]
+    return _build(robot, history, wheels, initial_pose, method, backend)
+
+
+def _check_backend(backend: str) -> None:
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    if backend == "numba" and importlib.util.find_spec("numba") is None:
+        raise ImportError("backend='numba' needs numba: pip install 'diffdrive[fast]'")
 
 
 def _whole_steps(duration: object, dt: object) -> int:
@@ -218,20 +257,82 @@ def _check_history_shape(name: str, array: np.ndarray, length: str) -> None:
         )
 
 
-def _build(robot, wheels, angle_increments, sample_times, initial_pose, method) -> Trajectory:
-    if initial_pose is not None:
-        initial_pose = components(np, initial_pose, "initial_pose", POSE)
-        _check_finite("initial_pose", initial_pose)
+@dataclass(frozen=True)
+class _History:
+    """A checked driving history: wheel ``angles`` ``(..., T+1, 2)`` (rad) when ``angles``,
+    else wheel velocities ``(..., T, 2)`` (rad/s) held over each step; ``times`` ``(..., T+1)``."""
+
+    values: np.ndarray
+    times: np.ndarray
+    angles: bool
+
+    def wheel_travel(self, k0: int, k1: int) -> np.ndarray:
+        """Wheel-angle increments ``(..., k1-k0, 2)`` (rad) of steps ``k0:k1``."""
+        if self.angles:
+            return np.diff(self.values[..., k0 : k1 + 1, :], axis=-2)
+        durations = np.diff(self.times[..., k0 : k1 + 1], axis=-1)
+        return self.values[..., k0:k1, :] * durations[..., None]
+
+
+def _build(robot, history: _History, wheels, initial_pose, method, backend) -> Trajectory:
+    """Check that the parts broadcast, integrate with the chosen backend, wrap the result."""
+    start = np.zeros(3) if initial_pose is None else initial_pose
+    start = components(np, start, "initial_pose", POSE)
+    _check_finite("initial_pose", start)
+    times = history.times
     try:
-        np.broadcast_shapes(wheels.shape[:-1], (*sample_times.shape[:-1], wheels.shape[-2]))
-        if initial_pose is not None:
-            np.broadcast_shapes(wheels.shape[:-2], initial_pose.shape[:-1])
+        np.broadcast_shapes(wheels.shape[:-1], (*times.shape[:-1], wheels.shape[-2]))
+        leading = np.broadcast_shapes(wheels.shape[:-2], times.shape[:-1], start.shape[:-1])
     except ValueError:
         raise ValueError(
             f"leading axes do not broadcast: wheels {wheels.shape[:-2]}, times "
-            f"{sample_times.shape[:-1]}, initial_pose "
-            f"{None if initial_pose is None else initial_pose.shape[:-1]}"
+            f"{times.shape[:-1]}, initial_pose {start.shape[:-1]}"
         ) from None
-    increments = batch.to_twist(robot, angle_increments)
-    poses = integrate_increments(increments, initial_pose, method, dtype=wheels.dtype)
-    return Trajectory(robot, sample_times, poses, wheels, method)
+    steps = wheels.shape[-2]
+    poses = np.empty((*leading, steps + 1, 3), dtype=wheels.dtype)
+    if _use_numba(backend, math.prod(leading) * steps):
+        _integrate_compiled(robot, history, start, method, poses)
+    else:
+        _integrate_blocks(
+            lambda k0, k1: batch.to_twist(robot, history.wheel_travel(k0, k1)),
+            start,
+            method,
+            poses,
+        )
+    return Trajectory(robot, times, poses, wheels, method)
+
+
+def _use_numba(backend: Backend, robot_steps: int) -> bool:
+    if backend == "auto":
+        return (
+            robot_steps >= _COMPILED_MIN_ROBOT_STEPS
+            and importlib.util.find_spec("numba") is not None
+        )
+    return backend == "numba"
+
+
+def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarray) -> None:
+    """Hand the history to the numba kernel with the leading axes flattened to one.
+
+    A history or times shared by every robot goes as a single row, not a broadcast copy.
+    """
+    from diffdrive._compiled import integrate_history
+
+    leading, samples = poses.shape[:-2], poses.shape[-2]
+    robots = math.prod(leading)
+
+    def rows(array: np.ndarray, items: int) -> np.ndarray:
+        tail = array.shape[array.ndim - items :]
+        if math.prod(array.shape[: array.ndim - items]) == 1:
+            return array.reshape(1, *tail)
+        return np.broadcast_to(array, (*leading, *tail)).reshape(robots, *tail)
+
+    integrate_history(
+        robot,
+        rows(history.values, 2),
+        rows(history.times, 1),
+        history.angles,
+        np.broadcast_to(start, (*leading, 3)).reshape(robots, 3),
+        method,
+        poses.reshape(robots, samples, 3),
+    )

@@ -1,0 +1,139 @@
+"""The numba kernel: equal to the NumPy path, its own pieces, and how simulate chooses it."""
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import diffdrive as dd
+from diffdrive import _compiled, integrate, simulation
+from strategies import geometry
+
+ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+
+
+def both(*args, **kwargs):
+    """The trajectories from the NumPy path and from the numba kernel."""
+    return tuple(dd.simulate(*args, **kwargs, backend=b) for b in ("numpy", "numba"))
+
+
+def assert_same_trajectory(numpy_path, compiled):
+    # Each is float64 to about 1e-14 of the path length; 1e-9 leaves room and catches any slip.
+    scale = 1.0 + float(np.max(numpy_path.distance))
+    np.testing.assert_allclose(compiled.poses, numpy_path.poses, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_array_equal(compiled.times, numpy_path.times)
+    np.testing.assert_array_equal(compiled.wheel_velocities, numpy_path.wheel_velocities)
+
+
+histories = st.sampled_from(["velocities", "irregular times", "positions", "function"])
+
+
+@given(
+    geometry(),
+    st.sampled_from(integrate.METHODS),
+    histories,
+    st.sampled_from([(), (3,), (2, 2)]),
+    st.integers(1, 300),
+    st.sampled_from([0.001, 0.05]),
+    st.integers(0, 2**32 - 1),
+)
+@settings(max_examples=60, deadline=None)
+def test_kernel_equals_the_numpy_path(params, method, history, robots, steps, dt, seed):
+    robot = dd.DiffDrive(**params)
+    rng = np.random.default_rng(seed)
+    # Up to 60 rad/s at 0.05 s turns by more than 1/8 rad a step: both sides of the Taylor
+    # switch. Up to 300 steps crosses several re-anchorings of the heading's cos and sin.
+    wheels = rng.uniform(-60.0, 60.0, (*robots, steps, 2))
+    start = rng.uniform(-3.0, 3.0, (*robots, 3))
+    common = {"initial_pose": start, "method": method}
+    if history == "velocities":
+        numpy_path, compiled = both(robot, wheels, dt=dt, **common)
+    elif history == "irregular times":
+        times = np.cumsum(rng.uniform(0.1, 1.0, steps + 1)) * dt
+        numpy_path, compiled = both(robot, wheels, times=times, **common)
+    elif history == "positions":
+        angles = np.cumsum(rng.uniform(-3.0, 3.0, (*robots, steps + 1, 2)), axis=-2)
+        numpy_path, compiled = both(robot, wheel_positions=angles, dt=dt, **common)
+    else:
+        numpy_path, compiled = both(
+            robot, lambda t: np.stack([np.sin(t), np.cos(3 * t)], -1), dt=dt,
+            duration=steps * dt, **common,
+        )  # fmt: skip
+    assert_same_trajectory(numpy_path, compiled)
+
+
+@pytest.mark.parametrize("chunks", [2, 3, 7])
+@pytest.mark.parametrize("method", integrate.METHODS)
+def test_chunked_passes_equal_one_pass(chunks, method):
+    """The three-pass split of one robot's steps, whatever the number of threads here."""
+    wheels = np.random.default_rng(4).uniform(-30.0, 30.0, (2, 1001, 2))
+    times = np.linspace(0.0, 10.0, 1002)[None]
+    start = np.array([[1.0, -2.0, 3.0], [0.0, 0.5, -1.0]])
+    geometry_ = np.array([0.05, 0.06, 0.3, 0.1])
+    midpoint, chord = _compiled.METHOD_FLAGS[method]
+    one, split = np.empty((2, 1002, 3)), np.empty((2, 1002, 3))
+    _compiled._integrate(wheels, times, False, start, geometry_, midpoint, chord, 1, one)
+    _compiled._integrate(wheels, times, False, start, geometry_, midpoint, chord, chunks, split)
+    np.testing.assert_allclose(split, one, rtol=0, atol=1e-12)
+
+
+def test_every_method_has_its_flags():
+    assert tuple(_compiled.METHOD_FLAGS) == integrate.METHODS
+
+
+def test_chunks_use_the_threads_only_where_they_pay():
+    threads = 4
+    assert _compiled.chunk_count(1, 10**7, np.float64, threads) == 4
+    assert _compiled.chunk_count(3, 10**7, np.float64, threads) == 2
+    assert _compiled.chunk_count(1000, 10**4, np.float64, threads) == 1
+    assert _compiled.chunk_count(1, 100, np.float64, threads) == 1  # too short to split
+    assert _compiled.chunk_count(1, 10**7, np.float32, threads) == 1  # keeps the half ulp
+
+
+def test_taylor_forms_are_within_an_ulp_of_libm():
+    for u in np.concatenate([np.geomspace(1e-12, 1 / 16, 2000), -np.geomspace(1e-9, 0.06, 50)]):
+        sinc, cosine = _compiled._sinc_cos(u)
+        assert abs(sinc - math.sin(u) / u) <= 2 * math.ulp(1.0), u
+        assert abs(cosine - math.cos(u)) <= 2 * math.ulp(1.0), u
+    assert _compiled._sinc_cos(0.0) == (1.0, 1.0)
+
+
+def test_a_million_steps_on_a_circle_end_on_the_circle():
+    """Compensated block sums and the turned cos and sin: 10^6 steps, 750 rad, 1e-11 m."""
+    radius, speed, steps, dt = 2.0, 1.5, 1_000_000, 1e-3
+    wheels = ROBOT.to_wheel_velocities(dd.Twist(speed, 0.0, speed / radius)).to_array()
+    trajectory = dd.simulate(ROBOT, np.tile(wheels, (steps, 1)), dt=dt, backend="numba")
+    angle = speed / radius * steps * dt
+    expected = [radius * math.sin(angle), radius * (1 - math.cos(angle)), angle]
+    np.testing.assert_allclose(trajectory.final_pose, expected, rtol=0, atol=1e-11)
+
+
+def test_auto_uses_the_kernel_for_large_calls_only(monkeypatch):
+    calls = []
+    original = simulation._integrate_compiled
+    monkeypatch.setattr(
+        simulation, "_integrate_compiled", lambda *a: calls.append(1) or original(*a)
+    )
+    dd.simulate(ROBOT, np.ones((100, 2)), dt=0.01)
+    assert calls == []
+    dd.simulate(ROBOT, np.ones((4, simulation._COMPILED_MIN_ROBOT_STEPS // 4, 2)), dt=0.01)
+    assert calls == [1]
+
+
+def test_without_numba_auto_falls_back_and_numba_is_refused(monkeypatch):
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "numba" else real(name, *a)
+    )
+    wheels = np.ones((simulation._COMPILED_MIN_ROBOT_STEPS, 2))
+    assert dd.simulate(ROBOT, wheels, dt=0.01).poses.shape == (wheels.shape[0] + 1, 3)
+    with pytest.raises(ImportError, match=r"diffdrive\[fast\]"):
+        dd.simulate(ROBOT, wheels, dt=0.01, backend="numba")
+
+
+def test_an_unknown_backend_is_refused():
+    with pytest.raises(ValueError, match="backend must be one of auto, numpy, numba, got 'c'"):
+        dd.simulate(ROBOT, np.ones((3, 2)), dt=0.01, backend="c")

@@ -1,0 +1,34 @@
+"""The example scripts run and draw what the README shows."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load(name: str):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_step_size_error_shows_the_orders_and_exact_on_held_commands(tmp_path, capsys):
+    script = load("step_size_error")
+    output = tmp_path / "figure.png"
+    script.main(["--output", str(output)])
+    assert f"figure: {output}" in capsys.readouterr().out
+    import matplotlib.image
+
+    pixels = matplotlib.image.imread(output)
+    assert pixels.shape[:2] == (400, 1000)
+    assert pixels[..., :3].std() > 0.05  # drawn on, not blank
+    smooth, held = script.errors("smooth"), script.errors("held")
+    # Ten times the steps: euler's error ten times smaller, rk2's and exact's a hundred.
+    for method, factor in [("euler", 10), ("rk2", 100), ("exact", 100)]:
+        ratio = smooth[method][3] / smooth[method][6]  # 100 steps against 1000
+        assert np.isclose(ratio, factor, rtol=0.05), (method, ratio)
+    assert max(held["exact"]) < 1e-12
+    assert min(held["rk2"]) > 1e-9
