@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 
 .PHONY: demo test bench clean
 
-$(BIN)/diffdrive: pyproject.toml
+$(BIN)/diffdrive: pyproject.toml setup.py src/diffdrive/_odometry.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
@@ -23,6 +23,7 @@ test: $(BIN)/diffdrive            ## linter, then the whole test suite
 bench: $(BIN)/diffdrive           ## benchmarks/, with numba and the peer libraries
 	$(BIN)/python -m pip install --quiet -e '.[bench]'
 	$(BIN)/python benchmarks/bench_simulate.py
+	$(BIN)/python benchmarks/bench_odometry.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis .ruff_cache build src/*.egg-info

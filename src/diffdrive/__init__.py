@@ -7,6 +7,7 @@ operations over arrays. Conventions: docs/conventions.md.
 from diffdrive import batch, integrate, se2
 from diffdrive.angles import wrap_angle
 from diffdrive.model import DiffDrive
+from diffdrive.odometry import Odometry
 from diffdrive.simulation import simulate
 from diffdrive.trajectory import Trajectory
 from diffdrive.types import Pose, Twist, WheelPositions, WheelVelocities
@@ -15,6 +16,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "DiffDrive",
+    "Odometry",
     "Pose",
     "Trajectory",
     "Twist",

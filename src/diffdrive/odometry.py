@@ -1,0 +1,184 @@
+"""Streaming odometry: encoder readings in, pose, velocity and covariance out (seed 002).
+
+``Odometry`` is the object a robot keeps in its control loop. Its update methods and state are
+in C (``diffdrive._odometry``); this class adds the checked constructor and the views.
+
+Rules, stated once:
+
+- Readings. ``update_ticks`` takes absolute counter readings: the first only sets the reference,
+  so nothing jumps at start-up; with ``counter_bits`` the change goes through at most one
+  roll-over of a signed or unsigned counter of that width. ``update_positions`` takes
+  accumulated wheel angles (rad), first reading a reference too. ``update_increments`` takes the
+  angles turned since the last update (rad); ``update_velocities`` rates (rad/s) held over
+  ``dt``.
+- Time. ``t`` (s) is optional. With it, time must not go backwards, nor stand still while the
+  wheels move; ``max_wheel_speed`` (rad/s) is checked; and the velocity window fills. An update
+  without ``t`` leaves the clock unknown until the next time stamp. ``update_velocities``
+  advances the clock by ``dt`` (from 0 s if there was none).
+- Faults. A reading that is not finite, a time that goes backwards or stands still, or a jump
+  beyond ``max_wheel_speed`` (a glitch, or a roll-over with the wrong ``counter_bits``) raises
+  ``ValueError`` that names it, and leaves the state exactly as before the call.
+- Uncertainty (Siegwart, Nourbakhsh and Scaramuzza, *Introduction to Autonomous Mobile Robots*,
+  2nd ed., 2011, sec. 5.2.4, eq. 5.9): in each update, the travel of each wheel (m) has a
+  variance ``k_left |ds_left|`` and ``k_right |ds_right|``, independent. ``k`` (m) scales the
+  *variance*, not the standard deviation: variances of independent pieces add, so the
+  covariance at the end of a path does not depend on how finely the updates slice it (with
+  ``k`` on the standard deviation it would shrink as the update rate grows). The pose covariance
+  moves through each update with the Jacobians of the chosen method (``jacobians``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from diffdrive._odometry import OdometryCore
+from diffdrive._validate import finite, positive
+from diffdrive.integrate import METHODS, Method, check_method
+from diffdrive.model import DiffDrive
+from diffdrive.types import Pose, Twist, WheelVelocities
+
+__all__ = ["COUNTER_BITS", "Odometry"]
+
+COUNTER_BITS = (None, 8, 16, 32, 64)
+
+
+class Odometry(OdometryCore):
+    """Dead reckoning from wheel encoders, one update at a time.
+
+    ``robot`` gives the geometry; ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"``;
+    ``initial_pose`` is where it starts (default the origin). ``ticks_per_revolution`` (counts
+    per wheel revolution) is needed for ``update_ticks``; ``counter_bits`` (None, 8, 16, 32
+    or 64) is the width of the encoder counters, None for counters that never roll over.
+    ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``k_left`` and ``k_right`` (m) are
+    the wheel-error constants of the covariance model; ``initial_covariance`` is 3x3 (default
+    zero); ``velocity_window`` (s) is the span over which ``twist`` averages.
+    """
+
+    def __init__(
+        self,
+        robot: DiffDrive,
+        method: Method = "exact",
+        initial_pose: Pose | None = None,
+        ticks_per_revolution: float | None = None,
+        counter_bits: int | None = None,
+        *,
+        max_wheel_speed: float | None = None,
+        k_left: float = 0.0,
+        k_right: float = 0.0,
+        initial_covariance: object = None,
+        velocity_window: float = 0.1,
+    ) -> None:
+        if not isinstance(robot, DiffDrive):
+            raise TypeError(f"robot must be a DiffDrive, got {type(robot).__name__}")
+        check_method(method)
+        if counter_bits not in COUNTER_BITS:
+            raise ValueError(
+                f"counter_bits must be one of {', '.join(map(str, COUNTER_BITS))}, "
+                f"got {counter_bits!r}"
+            )
+        rad_per_tick = 0.0
+        if ticks_per_revolution is not None:
+            rad_per_tick = 2.0 * math.pi / positive("ticks_per_revolution", ticks_per_revolution)
+        speed_limit = math.inf
+        if max_wheel_speed is not None:
+            speed_limit = positive("max_wheel_speed", max_wheel_speed)
+        for name, value in (("k_left", k_left), ("k_right", k_right)):
+            if not finite(name, value) >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {value!r}")
+        self.robot = robot
+        self.method: Method = method
+        self.ticks_per_revolution = ticks_per_revolution
+        self.counter_bits = counter_bits
+        super().__init__(
+            robot.left_wheel_radius,
+            robot.right_wheel_radius,
+            robot.track_width,
+            robot.axle_offset,
+            METHODS.index(method),
+            rad_per_tick,
+            speed_limit,
+            counter_bits or 0,
+            float(k_left),
+            float(k_right),
+            positive("velocity_window", velocity_window),
+            0.0,
+            0.0,
+            0.0,
+        )
+        self.reset(Pose() if initial_pose is None else initial_pose, initial_covariance)
+
+    @property
+    def pose(self) -> Pose:
+        """The pose now; ``theta`` unwrapped (rad)."""
+        x, y, theta, _, _ = self._state()
+        return Pose(x, y, theta)
+
+    @property
+    def distance(self) -> float:
+        """Distance travelled by the reference point since the start or the last reset, m."""
+        return self._state()[3]
+
+    @property
+    def time(self) -> float | None:
+        """The time of the last update, s; None while the clock is unknown."""
+        t = self._state()[4]
+        return None if math.isnan(t) else t
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """The pose covariance, 3x3 over ``(x, y, theta)``: m^2, m rad, rad^2."""
+        return np.array(self._covariance()).reshape(3, 3)
+
+    @property
+    def wheel_velocities(self) -> WheelVelocities:
+        """Mean wheel velocities (rad/s) over the last ``velocity_window`` s of updates.
+
+        Needs two time-stamped samples in the window (the reference reading counts).
+        """
+        window = self._window_velocities()
+        if window is None:
+            raise ValueError(
+                "a velocity needs two time-stamped updates: give t to the updates "
+                "(update_velocities keeps its own clock)"
+            )
+        return WheelVelocities(window[0], window[1])
+
+    @property
+    def twist(self) -> Twist:
+        """The body twist from the mean wheel velocities over the velocity window."""
+        return self.robot.to_twist(self.wheel_velocities)
+
+    def reset(self, pose: Pose | None = None, covariance: object = None) -> None:
+        """Put the robot at ``pose`` (default the origin) with ``covariance`` (default zero).
+
+        The distance restarts from 0. The counter references, the clock and the velocity
+        window are kept, so the next reading moves on from here without a jump.
+        """
+        pose = Pose() if pose is None else pose
+        if not isinstance(pose, Pose):
+            raise TypeError(f"pose must be a Pose, got {type(pose).__name__}")
+        matrix = np.zeros((3, 3)) if covariance is None else np.asarray(covariance, dtype=float)
+        if matrix.shape != (3, 3):
+            raise ValueError(f"covariance must be 3x3, got shape {matrix.shape}")
+        if not np.all(np.isfinite(matrix)) or not np.allclose(matrix, matrix.T):
+            raise ValueError("covariance must be finite and symmetric")
+        if np.linalg.eigvalsh(matrix).min() < -1e-12 * max(1.0, np.abs(matrix).max()):
+            raise ValueError("covariance must be positive semi-definite")
+        self._set_pose(pose.x, pose.y, pose.theta, tuple(matrix.ravel().tolist()))
+
+    def jacobians(self, left: float, right: float) -> tuple[np.ndarray, np.ndarray]:
+        """The Jacobians of one update from the current pose, for an EKF.
+
+        For wheel-angle increments ``left``, ``right`` (rad): the derivative of the new pose
+        with respect to the current pose (3x3) and with respect to the increments (3x2,
+        columns ``[left, right]``), for this odometry's method.
+        """
+        pose_jacobian, wheel_jacobian = self._jacobians(
+            finite("left", left), finite("right", right)
+        )
+        return np.array(pose_jacobian).reshape(3, 3), np.array(wheel_jacobian).reshape(3, 2)
+
+    def __repr__(self) -> str:
+        return f"Odometry({self.robot!r}, method={self.method!r}, pose={self.pose!r})"
