@@ -6,8 +6,11 @@ operations over arrays. Conventions: docs/conventions.md.
 
 from diffdrive import batch, integrate, se2
 from diffdrive.angles import wrap_angle
+from diffdrive.commands import desaturate
+from diffdrive.limiter import Limiter, Limits
 from diffdrive.model import DiffDrive
 from diffdrive.odometry import Odometry
+from diffdrive.open_loop import OpenLoopOdometry, drive_commands
 from diffdrive.simulation import simulate
 from diffdrive.trajectory import Trajectory
 from diffdrive.types import Pose, Twist, WheelPositions, WheelVelocities
@@ -16,7 +19,10 @@ __version__ = "0.1.0"
 
 __all__ = [
     "DiffDrive",
+    "Limiter",
+    "Limits",
     "Odometry",
+    "OpenLoopOdometry",
     "Pose",
     "Trajectory",
     "Twist",
@@ -24,6 +30,8 @@ __all__ = [
     "WheelVelocities",
     "__version__",
     "batch",
+    "desaturate",
+    "drive_commands",
     "integrate",
     "se2",
     "simulate",

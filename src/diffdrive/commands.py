@@ -1,0 +1,85 @@
+"""Wheel commands a motor can follow: desaturation of wheel velocities.
+
+``desaturate`` brings wheel velocities within ``max_wheel_velocity`` (rad/s). By default it
+scales both wheels by the same factor, which keeps the curvature ``omega / v`` and so the path;
+only the speed along it drops. ``keep="omega"`` keeps the turn rate and gives up forward speed,
+``keep="v"`` the reverse; each falls back to the largest feasible value of the kept quantity
+when even that one alone is out of reach. Wheels within the limit are returned unchanged.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+
+from diffdrive._arrays import components
+from diffdrive.batch.kinematics import WHEELS
+from diffdrive.model import DiffDrive
+from diffdrive.types import WheelVelocities
+
+__all__ = ["KEEP", "Keep", "desaturate"]
+
+Keep = Literal["curvature", "omega", "v"]
+KEEP: tuple[Keep, ...] = ("curvature", "omega", "v")
+
+
+def desaturate(
+    wheels: WheelVelocities | object,
+    max_wheel_velocity: float,
+    keep: Keep = "curvature",
+    robot: DiffDrive | None = None,
+) -> Any:
+    """Wheel velocities within ``+-max_wheel_velocity`` rad/s, keeping ``keep``.
+
+    ``wheels`` is a ``WheelVelocities`` (returns one) or an array ``(..., 2)`` ``[left, right]``
+    (returns an array). ``keep="omega"`` and ``keep="v"`` need the ``robot``.
+    """
+    limit = float(max_wheel_velocity)
+    if not np.isfinite(limit) or limit <= 0.0:
+        raise ValueError(f"max_wheel_velocity must be finite and > 0, got {max_wheel_velocity!r}")
+    if keep not in KEEP:
+        raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
+    if keep != "curvature" and robot is None:
+        raise ValueError(f"keep={keep!r} needs the robot, to convert between wheels and twist")
+    if isinstance(wheels, WheelVelocities):
+        return WheelVelocities(*_desaturate(wheels.to_array(), limit, keep, robot).tolist())
+    w = components(np, wheels, "wheels", WHEELS)
+    bad = ~np.isfinite(w)
+    if bad.any():
+        raise ValueError(f"wheels must be finite, got {w[bad][0]} at index {np.argwhere(bad)[0]}")
+    return _desaturate(w, limit, keep, robot)
+
+
+def _desaturate(w: np.ndarray, limit: float, keep: Keep, robot: DiffDrive | None) -> np.ndarray:
+    if keep == "curvature":
+        largest = np.max(np.abs(w), axis=-1, keepdims=True)
+        over = largest > limit
+        scale = np.where(over, limit / np.where(over, largest, 1.0), 1.0)
+        # The clip only trims the rounding that could leave the larger wheel an ulp over.
+        return np.clip(w * scale, -limit, limit)
+    assert robot is not None
+    # Wheel rim speeds: left = v - b*omega, right = v + b*omega (b = half the track); each
+    # must stay within its wheel's radius times the limit.
+    b = 0.5 * robot.track_width
+    reach_left, reach_right = limit * robot.left_wheel_radius, limit * robot.right_wheel_radius
+    twist_v = 0.5 * (robot.left_wheel_radius * w[..., 0] + robot.right_wheel_radius * w[..., 1])
+    omega = (robot.right_wheel_radius * w[..., 1] - robot.left_wheel_radius * w[..., 0]) / (2 * b)
+    if keep == "omega":
+        turn_reach = (reach_left + reach_right) / (2 * b)
+        omega = np.clip(omega, -turn_reach, turn_reach)
+        low = np.maximum(b * omega - reach_left, -b * omega - reach_right)
+        high = np.minimum(b * omega + reach_left, -b * omega + reach_right)
+        twist_v = np.clip(twist_v, low, high)
+    else:
+        reach = min(reach_left, reach_right)
+        twist_v = np.clip(twist_v, -reach, reach)
+        low = np.maximum((twist_v - reach_left) / b, (-reach_right - twist_v) / b)
+        high = np.minimum((twist_v + reach_left) / b, (reach_right - twist_v) / b)
+        omega = np.clip(omega, low, high)
+    left = (twist_v - b * omega) / robot.left_wheel_radius
+    right = (twist_v + b * omega) / robot.right_wheel_radius
+    # Rounding may put a wheel an ulp over the limit; the limit is a promise.
+    limited = np.clip(np.stack([left, right], axis=-1), -limit, limit)
+    within = np.all(np.abs(w) <= limit, axis=-1, keepdims=True)
+    return np.where(within, w, limited)

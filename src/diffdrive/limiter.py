@@ -1,0 +1,197 @@
+"""Stateful limits on commands: velocity, acceleration and jerk, with a command timeout.
+
+A ``Limiter`` follows targets for a few channels at once: ``(v, omega)`` with
+``Limiter.for_twist`` or the two wheels with ``Limiter.for_wheels``. Every channel has its own
+``Limits``. Each call to ``step(target, dt)`` applies, in this order:
+
+1. the timeout: with no new target for ``timeout`` s, the target becomes zero;
+2. the velocity limits on the target (forward and reverse), all channels scaled by one
+   factor, so the target's curvature is kept;
+3. for each channel, the change it can make in ``dt`` toward its target under its
+   acceleration limits (speeding up and slowing down, forward and reverse; a step through
+   zero slows down, then speeds up the other way) and, with ``max_jerk``, under the jerk limit
+   and the approach that lets the acceleration reach zero at the target;
+4. without jerk limits, one fraction for all channels: each moves the same fraction of the way
+   to its target, the smallest fraction any channel allows. From rest, or whenever the
+   curvature is not changing, the output keeps the target's curvature, so desaturation after
+   the limiter keeps it too. With jerk limits each channel follows its own smooth profile
+   (a common fraction would make the others' acceleration jump), so the curvature is kept at
+   the target but not on the way to it.
+
+The outputs never exceed the velocity and acceleration limits. The jerk limit holds except
+where a hard limit overrides it: at a zero crossing into a direction with a lower acceleration
+limit than the acceleration at the crossing. A refused call (a non-finite target, ``dt <= 0``)
+raises ``ValueError`` and changes nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+__all__ = ["Limiter", "Limits"]
+
+
+def _optional_limit(name: str, value: float | None, allow_zero: bool = False) -> float:
+    if value is None:
+        return math.inf
+    number = float(value)
+    if math.isnan(number) or number < 0.0 or (number == 0.0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be {bound} (or None for no limit), got {value!r}")
+    return number
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Limits of one channel, in its units (m/s, rad/s) and their rates; None: no limit.
+
+    ``max_acceleration`` bounds speeding up and ``max_deceleration`` slowing down, both while
+    moving forward (positive); the ``reverse`` ones while moving backward, defaulting to the
+    forward ones. ``max_reverse_velocity`` defaults to ``max_velocity``; 0 forbids reversing.
+    """
+
+    max_velocity: float | None = None
+    max_reverse_velocity: float | None = None
+    max_acceleration: float | None = None
+    max_deceleration: float | None = None
+    max_reverse_acceleration: float | None = None
+    max_reverse_deceleration: float | None = None
+    max_jerk: float | None = None
+
+    def __post_init__(self) -> None:
+        for field in fields(self):
+            _optional_limit(field.name, getattr(self, field.name), field.name.endswith("y"))
+
+    def bounds(self) -> np.ndarray:
+        """``[v_fwd, v_rev, acc_fwd, dec_fwd, acc_rev, dec_rev, jerk]``, inf for no limit."""
+        v = _optional_limit("max_velocity", self.max_velocity)
+        acc = _optional_limit("max_acceleration", self.max_acceleration)
+        dec = _optional_limit("max_deceleration", self.max_deceleration)
+        dec = acc if self.max_deceleration is None else dec
+
+        def or_default(value: float | None, default: float) -> float:
+            return default if value is None else float(value)
+
+        return np.array(
+            [
+                v,
+                or_default(self.max_reverse_velocity, v),
+                acc,
+                dec,
+                or_default(self.max_reverse_acceleration, acc),
+                or_default(self.max_reverse_deceleration, dec),
+                _optional_limit("max_jerk", self.max_jerk),
+            ]
+        )
+
+
+class Limiter:
+    """Targets in, limited commands out, for the channels of ``limits`` (one ``Limits`` each).
+
+    ``timeout`` (s, default none) stops the robot when targets stop coming: ``step(None, dt)``
+    means no new target this cycle. The state (``value``, ``acceleration``) starts at rest.
+    """
+
+    def __init__(self, limits: tuple[Limits, ...], timeout: float | None = None) -> None:
+        if not limits or not all(isinstance(item, Limits) for item in limits):
+            raise TypeError("limits must be a non-empty tuple of Limits, one per channel")
+        self.limits = tuple(limits)
+        self.timeout = _optional_limit("timeout", timeout)
+        self._bounds = np.stack([item.bounds() for item in limits], axis=-1)  # (7, channels)
+        self.value = np.zeros(len(limits))
+        self.acceleration = np.zeros(len(limits))
+        self._target = np.zeros(len(limits))
+        self._since_target = 0.0
+
+    @classmethod
+    def for_twist(cls, v: Limits, omega: Limits, timeout: float | None = None) -> Limiter:
+        """A limiter for ``(v, omega)``: m/s and rad/s."""
+        return cls((v, omega), timeout)
+
+    @classmethod
+    def for_wheels(cls, wheel: Limits, timeout: float | None = None) -> Limiter:
+        """A limiter for ``(left, right)`` wheel velocities, rad/s, the same limits on each."""
+        return cls((wheel, wheel), timeout)
+
+    def step(self, target: object, dt: float) -> np.ndarray:
+        """The limited command after ``dt`` s toward ``target`` (None: no new target)."""
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be finite and > 0, got {dt!r}")
+        if target is not None:
+            target = np.asarray(target, dtype=float)
+            if target.shape != self.value.shape:
+                raise ValueError(
+                    f"target must have shape {self.value.shape}, got {np.shape(target)}"
+                )
+            if not np.all(np.isfinite(target)):
+                raise ValueError(f"target must be finite, got {target.tolist()}")
+        since = 0.0 if target is not None else self._since_target + dt
+        held = self._target if target is None else target
+        goal = np.zeros_like(held) if since >= self.timeout else self._within_velocity(held)
+        new = self._reachable(goal, dt)
+        if not np.isfinite(self._bounds[6]).any():
+            gap = goal - self.value
+            with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+                fractions = np.where(gap != 0.0, (new - self.value) / gap, 1.0)
+            fraction = float(np.clip(fractions.min(), 0.0, 1.0))
+            new = np.where(gap != 0.0, self.value + fraction * gap, goal)
+        # Commit only now: every check has passed.
+        self.acceleration = (new - self.value) / dt
+        self.value = new
+        self._target, self._since_target = held, since
+        return new.copy()
+
+    def reset(self, value: object = None) -> None:
+        """Set the state to ``value`` (default rest) with zero acceleration and no target."""
+        value = np.zeros_like(self.value) if value is None else np.asarray(value, dtype=float)
+        if value.shape != self.value.shape or not np.all(np.isfinite(value)):
+            raise ValueError(f"value must be finite with shape {self.value.shape}")
+        self.value, self._target = value.copy(), value.copy()
+        self.acceleration = np.zeros_like(self.value)
+        self._since_target = 0.0
+
+    def _within_velocity(self, target: np.ndarray) -> np.ndarray:
+        """The target scaled by one factor so that every channel is within its velocity."""
+        v_fwd, v_rev = self._bounds[0], self._bounds[1]
+        limit = np.where(target >= 0.0, v_fwd, v_rev)
+        with np.errstate(divide="ignore", over="ignore"):
+            scale = np.where(np.abs(target) > limit, limit / np.abs(target), 1.0)
+        return target * scale.min()
+
+    def _reachable(self, goal: np.ndarray, dt: float) -> np.ndarray:
+        """Per channel, the value it can reach toward ``goal`` in ``dt`` under its limits."""
+        acc_fwd, dec_fwd, acc_rev, dec_rev, jerk = self._bounds[2:]
+        v, a = self.value, self.acceleration
+        gap = goal - v
+        up = gap > 0.0
+        # Accelerating upward: slowing down a reverse motion, or speeding up a forward one.
+        forward = np.where(v != 0.0, v > 0.0, up)
+        rising = np.where(forward, acc_fwd, dec_rev)
+        falling = np.where(forward, dec_fwd, acc_rev)
+        bound = np.where(up, rising, falling)
+        # A step through zero: slow down to rest, then speed up the other way.
+        other = np.where(up, acc_fwd, acc_rev)
+        to_rest = np.abs(v) / bound
+        crosses = ((v > 0.0) & ~up) | ((v < 0.0) & up)
+        crosses &= to_rest < dt
+        reach = np.where(crosses, np.abs(v) + other * (dt - to_rest), bound * dt)
+        value = v + np.sign(gap) * np.minimum(reach, np.abs(gap))
+        has_jerk = np.isfinite(jerk)
+        if has_jerk.any():
+            # Toward the goal at most the acceleration a from which ramping down by j dt a
+            # step still ends at rest on the goal: a dt + a (a - j dt) / (2 j) <= |gap|.
+            j_dt = jerk * dt
+            approach = 0.5 * (np.sqrt(j_dt**2 + 8.0 * jerk * np.abs(gap)) - j_dt)
+            wanted = np.sign(gap) * np.minimum.reduce([bound, approach, np.abs(gap) / dt])
+            a_new = np.clip(wanted, a - jerk * dt, a + jerk * dt)
+            a_new = np.clip(a_new, -falling, rising)
+            # The acceleration decides the step, even past the goal: stopping short of it
+            # would make the acceleration jump. The profile lands on the goal when it can.
+            jerk_value = v + a_new * dt
+            lands = np.abs(gap - a_new * dt) <= 1e-12 * np.maximum(1.0, np.abs(goal))
+            value = np.where(has_jerk, np.where(lands, goal, jerk_value), value)
+        return value

@@ -1,0 +1,124 @@
+"""Open-loop odometry: the path a robot will drive when its commands go through the limits.
+
+Each command, a twist ``(v, omega)`` or wheel velocities ``(left, right)``, goes through a
+``Limiter``, becomes wheel velocities, is desaturated to ``max_wheel_velocity`` (keeping the
+curvature unless told otherwise) and is held for ``dt``. ``OpenLoopOdometry`` does this one
+command at a time, as a controller would (ROS's ``open_loop`` mode); ``drive_commands`` does it
+for a whole command sequence and returns the ``Trajectory``.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from diffdrive.batch.kinematics import to_wheel_velocities
+from diffdrive.commands import Keep, desaturate
+from diffdrive.integrate import Method
+from diffdrive.limiter import Limiter
+from diffdrive.model import DiffDrive
+from diffdrive.odometry import Odometry
+from diffdrive.simulation import simulate
+from diffdrive.trajectory import Trajectory
+from diffdrive.types import Pose, WheelVelocities
+
+__all__ = ["CommandKind", "OpenLoopOdometry", "drive_commands"]
+
+CommandKind = Literal["twist", "wheels"]
+
+
+class _CommandPath:
+    """Commands to held wheel velocities: limiter, conversion, desaturation."""
+
+    def __init__(
+        self,
+        robot: DiffDrive,
+        limiter: Limiter,
+        commands: CommandKind,
+        max_wheel_velocity: float | None,
+        keep: Keep,
+    ) -> None:
+        if commands not in ("twist", "wheels"):
+            raise ValueError(f"commands must be 'twist' or 'wheels', got {commands!r}")
+        if len(limiter.limits) != 2:
+            raise ValueError(f"the limiter must have 2 channels, got {len(limiter.limits)}")
+        if max_wheel_velocity is not None:
+            desaturate(WheelVelocities(0.0, 0.0), max_wheel_velocity, keep, robot)  # checks
+        self.robot, self.limiter, self.commands = robot, limiter, commands
+        self.max_wheel_velocity, self.keep = max_wheel_velocity, keep
+
+    def wheels(self, command: object, dt: float) -> np.ndarray:
+        """The wheel velocities (rad/s) held over the next ``dt`` s for ``command``."""
+        limited = self.limiter.step(command, dt)
+        if self.commands == "twist":
+            limited = to_wheel_velocities(self.robot, np.array([limited[0], 0.0, limited[1]]))
+        if self.max_wheel_velocity is None:
+            return limited
+        return desaturate(limited, self.max_wheel_velocity, self.keep, self.robot)
+
+
+class OpenLoopOdometry:
+    """Integrates limited commands into the pose the robot will reach.
+
+    ``commands`` says what ``update`` takes: ``"twist"`` ``(v, omega)`` in m/s and rad/s, for a
+    ``Limiter.for_twist``, or ``"wheels"`` ``(left, right)`` in rad/s. ``max_wheel_velocity``
+    (rad/s, default none) desaturates the wheels, keeping ``keep``.
+    """
+
+    def __init__(
+        self,
+        robot: DiffDrive,
+        limiter: Limiter,
+        commands: CommandKind = "twist",
+        *,
+        max_wheel_velocity: float | None = None,
+        keep: Keep = "curvature",
+        method: Method = "exact",
+        initial_pose: Pose | None = None,
+    ) -> None:
+        self._path = _CommandPath(robot, limiter, commands, max_wheel_velocity, keep)
+        self.odometry = Odometry(robot, method, initial_pose)
+
+    def update(self, command: object, dt: float) -> WheelVelocities:
+        """Take ``command`` (None: no new command) and drive ``dt`` s; the wheels applied."""
+        wheels = self._path.wheels(command, dt)
+        self.odometry.update_velocities(float(wheels[0]), float(wheels[1]), dt)
+        return WheelVelocities(float(wheels[0]), float(wheels[1]))
+
+    @property
+    def pose(self) -> Pose:
+        """Where the commands have taken the robot."""
+        return self.odometry.pose
+
+
+def drive_commands(
+    robot: DiffDrive,
+    commands: object,
+    dt: float,
+    limiter: Limiter,
+    kind: CommandKind = "twist",
+    *,
+    max_wheel_velocity: float | None = None,
+    keep: Keep = "curvature",
+    method: Method = "exact",
+    initial_pose: object = None,
+) -> Trajectory:
+    """The trajectory of a command sequence ``(T, 2)``, one command every ``dt`` s, limited.
+
+    The limiter's state moves on through the sequence (start it from rest with ``reset``).
+    Rows of NaN mean "no new command" that cycle, for the timeout.
+    """
+    sequence = np.asarray(commands, dtype=float)
+    if sequence.ndim != 2 or sequence.shape[1] != 2:
+        raise ValueError(f"commands must have shape (T, 2), got {sequence.shape}")
+    path = _CommandPath(robot, limiter, kind, max_wheel_velocity, keep)
+    missing = np.isnan(sequence).all(axis=1)
+    partly = np.isnan(sequence).any(axis=1) & ~missing
+    if partly.any() or np.isinf(sequence).any():
+        row = int(np.argmax(partly | np.isinf(sequence).any(axis=1)))
+        raise ValueError(f"commands row {row} is not finite: {sequence[row].tolist()}")
+    wheels = np.array(
+        [path.wheels(None if gap else row, dt) for row, gap in zip(sequence, missing, strict=True)]
+    )
+    return simulate(robot, wheels, dt=dt, initial_pose=initial_pose, method=method)
