@@ -32,3 +32,19 @@ def test_step_size_error_shows_the_orders_and_exact_on_held_commands(tmp_path, c
         assert np.isclose(ratio, factor, rtol=0.05), (method, ratio)
     assert max(held["exact"]) < 1e-12
     assert min(held["rk2"]) > 1e-9
+
+
+def test_commanded_path_draws_both_paths_within_the_wheel_limit(tmp_path, capsys):
+    script = load("commanded_path")
+    output = tmp_path / "paths.png"
+    script.main(["--output", str(output)])
+    assert "largest wheel velocity 20.00 rad/s (limit 20.0)" in capsys.readouterr().out
+    import matplotlib.image
+
+    pixels = matplotlib.image.imread(output)
+    assert pixels.shape[:2] == (450, 1100)
+    assert pixels[..., :3].std() > 0.05
+    commanded, limited = script.paths()
+    assert np.abs(limited.wheel_velocities).max() <= script.MAX_WHEEL_VELOCITY
+    assert np.abs(commanded.wheel_velocities).max() > script.MAX_WHEEL_VELOCITY
+    np.testing.assert_allclose(limited.wheel_velocities[-1], [0.0, 0.0])  # the timeout

@@ -184,6 +184,7 @@ class Limiter:
         if has_jerk.any():
             # Toward the goal at most the acceleration a from which ramping down by j dt a
             # step still ends at rest on the goal: a dt + a (a - j dt) / (2 j) <= |gap|.
+            jerk = np.where(has_jerk, jerk, 1.0)  # channels without a jerk limit: unused
             j_dt = jerk * dt
             approach = 0.5 * (np.sqrt(j_dt**2 + 8.0 * jerk * np.abs(gap)) - j_dt)
             wanted = np.sign(gap) * np.minimum.reduce([bound, approach, np.abs(gap) / dt])
