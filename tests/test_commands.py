@@ -219,3 +219,14 @@ def test_drive_commands_refuses_a_half_missing_row():
     commands = np.array([[0.1, 0.0], [math.nan, 0.2]])
     with pytest.raises(ValueError, match="commands row 1 is not finite"):
         dd.drive_commands(ROBOT, commands, 0.1, limiter())
+
+
+def test_wheel_commands_and_a_bad_kind():
+    wheels = dd.Limiter.for_wheels(dd.Limits(max_velocity=10.0))
+    stream = dd.OpenLoopOdometry(ROBOT, wheels, "wheels")
+    applied = [stream.update([12.0, 6.0], 0.1) for _ in range(10)]
+    assert applied[-1] == dd.WheelVelocities(10.0, 5.0)  # one scale: the curvature is kept
+    expected = dd.simulate(ROBOT, np.tile([10.0, 5.0], (10, 1)), dt=0.1).final_pose
+    np.testing.assert_allclose(stream.pose.to_array(), expected, atol=1e-12)
+    with pytest.raises(ValueError, match="kind must be 'twist' or 'wheels', got 'speed'"):
+        dd.OpenLoopOdometry(ROBOT, wheels, "speed")

@@ -35,23 +35,23 @@ class _CommandPath:
         self,
         robot: DiffDrive,
         limiter: Limiter,
-        commands: CommandKind,
+        kind: CommandKind,
         max_wheel_velocity: float | None,
         keep: Keep,
     ) -> None:
-        if commands not in ("twist", "wheels"):
-            raise ValueError(f"commands must be 'twist' or 'wheels', got {commands!r}")
+        if kind not in ("twist", "wheels"):
+            raise ValueError(f"kind must be 'twist' or 'wheels', got {kind!r}")
         if len(limiter.limits) != 2:
             raise ValueError(f"the limiter must have 2 channels, got {len(limiter.limits)}")
         if max_wheel_velocity is not None:
             desaturate(WheelVelocities(0.0, 0.0), max_wheel_velocity, keep, robot)  # checks
-        self.robot, self.limiter, self.commands = robot, limiter, commands
+        self.robot, self.limiter, self.kind = robot, limiter, kind
         self.max_wheel_velocity, self.keep = max_wheel_velocity, keep
 
     def wheels(self, command: object, dt: float) -> np.ndarray:
         """The wheel velocities (rad/s) held over the next ``dt`` s for ``command``."""
         limited = self.limiter.step(command, dt)
-        if self.commands == "twist":
+        if self.kind == "twist":
             limited = to_wheel_velocities(self.robot, np.array([limited[0], 0.0, limited[1]]))
         if self.max_wheel_velocity is None:
             return limited
@@ -61,7 +61,7 @@ class _CommandPath:
 class OpenLoopOdometry:
     """Integrates limited commands into the pose the robot will reach.
 
-    ``commands`` says what ``update`` takes: ``"twist"`` ``(v, omega)`` in m/s and rad/s, for a
+    ``kind`` says what ``update`` takes: ``"twist"`` ``(v, omega)`` in m/s and rad/s, for a
     ``Limiter.for_twist``, or ``"wheels"`` ``(left, right)`` in rad/s. ``max_wheel_velocity``
     (rad/s, default none) desaturates the wheels, keeping ``keep``.
     """
@@ -70,14 +70,14 @@ class OpenLoopOdometry:
         self,
         robot: DiffDrive,
         limiter: Limiter,
-        commands: CommandKind = "twist",
+        kind: CommandKind = "twist",
         *,
         max_wheel_velocity: float | None = None,
         keep: Keep = "curvature",
         method: Method = "exact",
         initial_pose: Pose | None = None,
     ) -> None:
-        self._path = _CommandPath(robot, limiter, commands, max_wheel_velocity, keep)
+        self._path = _CommandPath(robot, limiter, kind, max_wheel_velocity, keep)
         self.odometry = Odometry(robot, method, initial_pose)
 
     def update(self, command: object, dt: float) -> WheelVelocities:
