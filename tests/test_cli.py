@@ -46,3 +46,182 @@ def test_simulation_report_lists_each_method_with_the_same_distance():
     assert [row.split()[0] for row in rows] == ["euler", "rk2", "exact"]
     distances = {row.split()[-1] for row in rows}
     assert len(distances) == 1  # the distance does not depend on the heading
+
+
+# -- subcommands ---------------------------------------------------------------------------
+
+import json  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import diffdrive as dd  # noqa: E402
+from diffdrive.files import atomic_write  # noqa: E402
+
+
+def run(argv, capsys):
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_simulate_with_no_input_runs_the_built_in_example(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, _ = run(["simulate"], capsys)
+    assert code == 0
+    assert "wrote 2001 poses to trajectory.csv" in out
+    table = np.loadtxt(tmp_path / "trajectory.csv", delimiter=",", skiprows=1)
+    assert table.shape == (2001, 4)
+
+
+@pytest.mark.parametrize("fmt", ["csv", "jsonl", "tum"])
+def test_simulate_a_velocity_history_to_each_format(tmp_path, capsys, fmt):
+    history = tmp_path / "drive.csv"
+    history.write_text("t,left_velocity,right_velocity\n0,8,10\n0.5,10,8\n1.0,0,0\n")
+    output = tmp_path / f"out.{fmt}"
+    code, _, _ = run(["simulate", history, "-o", output, "--quiet"], capsys)
+    assert code == 0
+    robot = dd.examples.example_robot()
+    expected = dd.simulate(robot, [[8, 10], [10, 8]], times=[0, 0.5, 1.0])
+    lines = output.read_text().splitlines()
+    if fmt == "csv":
+        assert lines[0] == "t,x,y,theta"
+        got = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+        np.testing.assert_allclose(got[:, 1:], expected.poses)
+    elif fmt == "jsonl":
+        rows = [json.loads(line) for line in lines]
+        np.testing.assert_allclose([[r["x"], r["y"], r["theta"]] for r in rows], expected.poses)
+    else:
+        rows = np.array([[float(v) for v in line.split()] for line in lines[1:]])
+        assert rows.shape == (3, 8)
+        np.testing.assert_allclose(rows[:, 1:3], expected.poses[:, :2])
+        np.testing.assert_allclose(2 * np.arctan2(rows[:, 6], rows[:, 7]), expected.poses[:, 2])
+
+
+def test_simulate_wheel_angles_with_a_robot_file(tmp_path, capsys):
+    (tmp_path / "robot.toml").write_text("wheel_radius = 0.05\ntrack_width = 0.3\n")
+    history = tmp_path / "angles.csv"
+    history.write_text("t,left_angle,right_angle\n0,0,0\n1,8,10\n")
+    output = tmp_path / "out.csv"
+    code, _, _ = run(
+        ["simulate", history, "--robot", tmp_path / "robot.toml", "-o", output, "-q"], capsys
+    )
+    assert code == 0
+    expected = dd.simulate(dd.DiffDrive(0.05, 0.3), wheel_positions=[[0, 0], [8, 10]], dt=1.0)
+    got = np.loadtxt(output, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(got[-1, 1:], expected.final_pose)
+
+
+def test_odometry_of_a_tick_log_with_ground_truth(tmp_path, capsys):
+    log = tmp_path / "log.csv"
+    log.write_text(
+        "t,left_ticks,right_ticks,x,y,theta\n0,100,100,0,0,0\n0.1,600,600,0.2,0.01,0\n"
+        "0.2,1100,1100,0.4,0.0,0.01\n"
+    )
+    output = tmp_path / "odo.csv"
+    code, out, _ = run(
+        ["odometry", log, "--ticks-per-revolution", 1000, "--wheel-radius", 0.05,
+         "--track-width", 0.3, "-o", output],
+        capsys,
+    )  # fmt: skip
+    assert code == 0
+    got = np.loadtxt(output, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(got[:, 1], [0, 0.05 * np.pi, 0.1 * np.pi])
+    # Errors: at 0.1 s (0.05 pi - 0.2, -0.01), at 0.2 s (0.1 pi - 0.4, 0) and 0.01 rad.
+    final = abs(0.1 * np.pi - 0.4)
+    assert f"position error max {final:.4f} m, final {final:.4f} m" in out
+    assert "heading error max 0.573 deg, final 0.573 deg" in out
+
+
+def test_fk_and_ik_as_a_table_and_as_json(capsys):
+    code, out, _ = run(["fk", 8, 10, "--json"], capsys)
+    assert code == 0
+    assert json.loads(out) == pytest.approx(
+        {"vx": 0.378, "vy": 0.0, "omega": 0.42, "turning_radius": 0.9}
+    )
+    code, out, _ = run(["ik", 0.5, 1.0], capsys)
+    assert code == 0
+    assert out.splitlines()[0].split() == ["left", "9.52381", "rad/s"]
+
+
+HEAD = "t,left_velocity,right_velocity\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("t,left_velocity\n0,1\n", r"drive\.csv:1: missing column 'right_velocity'"),
+        (HEAD + "0,1,x\n", r"drive\.csv:2: column 'right_velocity': not a number: 'x'"),
+        (HEAD + "0,1,1\n1,nan,1\n", r"drive\.csv:3: column 'left_velocity': not finite"),
+        (HEAD + "0,1,1\n0,1,1\n", r"drive\.csv:3: column 't': 0 does not increase"),
+        ("", r"drive\.csv: the file is empty"),
+    ],
+)  # fmt: skip
+def test_a_bad_file_is_one_line_naming_file_line_and_column(tmp_path, capsys, text, message):
+    history = tmp_path / "drive.csv"
+    history.write_text(text)
+    output = tmp_path / "out.csv"
+    code, out, err = run(["simulate", history, "-o", output], capsys)
+    assert code == 1
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1
+    assert err.startswith("diffdrive simulate: error: ")
+    assert __import__("re").search(message, err), err
+    assert not output.exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["drive.csv"]  # no temporary left
+
+
+def test_a_bad_robot_file_is_named(tmp_path, capsys):
+    robot = tmp_path / "robot.toml"
+    robot.write_text("wheel_radius = 0.05\nwheels = 2\n")
+    code, _, err = run(["fk", 1, 2, "--robot", robot], capsys)
+    assert code == 1
+    assert "robot.toml: unknown setting 'wheels'" in err
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.csv"
+
+    def interrupted():
+        with atomic_write(target) as stream:
+            stream.write("half")
+            raise RuntimeError("interrupted")
+
+    with pytest.raises(RuntimeError):
+        interrupted()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_usage_error_exits_2(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["fk", "eight", "10"])
+    assert exit_info.value.code == 2
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "-o", "t.tum"],
+        ["fk", "8", "10"],
+        ["ik", "0.5", "1", "--json"],
+        ["simulate", "--help"],
+    ],
+)
+def test_each_subcommand_runs_as_a_subprocess(tmp_path, argv):
+    result = subprocess.run(
+        [sys.executable, "-m", "diffdrive", *argv], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    assert result.stdout
+
+
+def test_a_runtime_error_exits_1_without_a_traceback(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "diffdrive", "simulate", "missing.csv"],
+        capture_output=True, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 1
+    assert "Traceback" not in result.stderr
+    assert result.stderr.strip() == (
+        "diffdrive simulate: error: missing.csv: cannot read: No such file or directory"
+    )

@@ -3,18 +3,30 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
-from diffdrive import se2
+from diffdrive import batch, se2
 from diffdrive.examples import EXAMPLE_DURATION, example_robot, example_wheel_velocities
+from diffdrive.files import (
+    FORMATS,
+    ROBOT_KEYS,
+    TableError,
+    read_header,
+    read_robot,
+    read_table,
+    write_trajectory,
+)
 from diffdrive.integrate import METHODS
 from diffdrive.model import DiffDrive
+from diffdrive.odometry import Odometry
 from diffdrive.simulation import simulate
-from diffdrive.types import WheelVelocities
+from diffdrive.types import Pose, Twist, WheelVelocities
 
 # (label, left, right) wheel velocities in rad/s that show the characteristic motions.
 _EXAMPLE_WHEELS = (
@@ -78,20 +90,253 @@ def simulation_report(robot: DiffDrive, steps: int = 2000) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code."""
+ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
+
+EPILOGS = {
+    "simulate": """examples:
+  diffdrive simulate                       the built-in driving history -> trajectory.csv
+  diffdrive simulate drive.csv -o out.tum --method rk2 --robot robot.toml
+
+input columns: t (s), and either left_velocity, right_velocity (rad/s, held from this row's
+time to the next; the last row's are not used) or left_angle, right_angle (rad, accumulated).""",
+    "odometry": """examples:
+  diffdrive odometry log.csv --ticks-per-revolution 2796.8 -o odometry.csv
+
+input columns: t (s), and one of left_ticks, right_ticks (absolute counter readings);
+left_angle, right_angle (rad, accumulated); left_velocity, right_velocity (rad/s over the
+interval that ends at this row). With x, y, theta columns (ground truth) the odometry starts
+from the first ground-truth pose and an error summary is printed.""",
+    "fk": """example:
+  diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist""",
+    "ik": """example:
+  diffdrive ik 0.5 1.0          forward speed (m/s) and turn rate (rad/s) -> wheel velocities""",
+}
+
+HISTORIES = {
+    "left_velocity": ("left_velocity", "right_velocity"),
+    "left_angle": ("left_angle", "right_angle"),
+    "left_ticks": ("left_ticks", "right_ticks"),
+}
+
+
+def _robot_options() -> argparse.ArgumentParser:
+    options = argparse.ArgumentParser(add_help=False)
+    group = options.add_argument_group(f"robot (default: {ROBOT_DEFAULTS})")
+    group.add_argument("--robot", type=Path, help="a robot file (TOML) with the settings below")
+    for name in ROBOT_KEYS:
+        unit = "counts" if name == "ticks_per_revolution" else "m"
+        group.add_argument(f"--{name.replace('_', '-')}", type=float, help=f"{unit}")
+    return options
+
+
+def _output_options(default: str) -> argparse.ArgumentParser:
+    options = argparse.ArgumentParser(add_help=False)
+    options.add_argument("-o", "--output", type=Path, default=Path(default), help="file to write")
+    options.add_argument("--format", choices=FORMATS, help="default: from the file's suffix")
+    options.add_argument("--method", choices=METHODS, default="exact")
+    options.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    return options
+
+
+def _robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
+    """The robot of the command's options, and its ticks per revolution if known."""
+    settings = read_robot(args.robot) if args.robot else {}
+    for name in ROBOT_KEYS:
+        value = getattr(args, name)
+        if value is not None:
+            settings[name] = value
+    ticks = settings.pop("ticks_per_revolution", None)
+    if not settings:
+        return example_robot(), ticks
+    return DiffDrive(**settings), ticks
+
+
+def _format(args: argparse.Namespace) -> str:
+    if args.format:
+        return args.format
+    suffix = args.output.suffix.lstrip(".").lower()
+    return suffix if suffix in FORMATS else "csv"
+
+
+def _history_columns(path: Path, kinds: tuple[str, ...]) -> tuple[str, str]:
+    """Which pair of wheel columns the file has, from its header."""
+    header = read_header(path)
+    for kind in kinds:
+        if kind in header:
+            return HISTORIES[kind]
+    wanted = " or ".join(", ".join(HISTORIES[kind]) for kind in kinds)
+    raise TableError(f"{path}:1: missing columns {wanted} (the header has: {', '.join(header)})")
+
+
+def _write(args: argparse.Namespace, times: np.ndarray, poses: np.ndarray, what: str) -> None:
+    write_trajectory(args.output, times, poses, _format(args))
+    if not args.quiet:
+        print(f"{what}: wrote {len(times)} poses to {args.output} ({_format(args)})")
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    robot, _ = _robot(args)
+    if args.input is None:
+        trajectory = simulate(
+            robot, example_wheel_velocities, dt=args.dt, duration=EXAMPLE_DURATION,
+            method=args.method,
+        )  # fmt: skip
+        what = f"simulated the built-in {EXAMPLE_DURATION:g} s driving history"
+    else:
+        left, right = _history_columns(args.input, ("left_velocity", "left_angle"))
+        table = read_table(args.input, ["t", left, right])
+        wheels = np.column_stack([table[left], table[right]])
+        if left == "left_velocity":
+            trajectory = simulate(robot, wheels[:-1], times=table["t"], method=args.method)
+        else:
+            trajectory = simulate(
+                robot, wheel_positions=wheels, times=table["t"], method=args.method
+            )
+        what = f"simulated {args.input}"
+    _write(args, trajectory.times, trajectory.poses, what)
+    return 0
+
+
+def run_odometry(args: argparse.Namespace) -> int:
+    robot, ticks = _robot(args)
+    left, right = _history_columns(args.input, ("left_ticks", "left_angle", "left_velocity"))
+    integers = (left, right) if left == "left_ticks" else ()
+    table = read_table(args.input, ["t", left, right], ["x", "y", "theta"], integers=integers)
+    if left == "left_ticks" and ticks is None:
+        raise TableError(
+            f"{args.input}: ticks need --ticks-per-revolution (or ticks_per_revolution in "
+            "the robot file)"
+        )
+    truth = None
+    if {"x", "y", "theta"} <= table.keys():
+        truth = np.column_stack([table["x"], table["y"], table["theta"]])
+    start = Pose(*truth[0]) if truth is not None else Pose()
+    odometry = Odometry(robot, args.method, start, ticks, args.counter_bits)
+    times = table["t"]
+    readings = np.column_stack([table[left], table[right]])
+    poses = np.empty((len(times), 3))
+    for k in _progress(range(len(times)), args.quiet, "odometry"):
+        t = float(times[k])
+        if left == "left_ticks":
+            odometry.update_ticks(int(readings[k, 0]), int(readings[k, 1]), t)
+        elif left == "left_angle":
+            odometry.update_positions(float(readings[k, 0]), float(readings[k, 1]), t)
+        elif k > 0:
+            odometry.update_velocities(*readings[k].tolist(), t - float(times[k - 1]))
+        poses[k] = odometry.pose.to_array()
+    _write(args, times, poses, f"odometry of {args.input}")
+    if truth is not None and not args.quiet:
+        print(error_summary(poses, truth))
+    return 0
+
+
+def error_summary(poses: np.ndarray, truth: np.ndarray) -> str:
+    """Maximum and final position (m) and heading (deg) errors of ``poses`` against ``truth``."""
+    position = np.hypot(*(poses[:, :2] - truth[:, :2]).T)
+    heading = np.degrees(np.abs(batch.wrap_angle(poses[:, 2] - truth[:, 2])))
+    return (
+        f"against the ground truth: position error max {position.max():.4f} m, "
+        f"final {position[-1]:.4f} m; heading error max {heading.max():.3f} deg, "
+        f"final {heading[-1]:.3f} deg"
+    )
+
+
+def _progress(steps: range, quiet: bool, label: str):
+    """``steps``, with a progress bar on a terminal for long work (tqdm, if installed)."""
+    if quiet or len(steps) < 10_000 or not sys.stderr.isatty():
+        return steps
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return steps
+    return tqdm(steps, desc=label, unit="update", file=sys.stderr)
+
+
+def run_fk(args: argparse.Namespace) -> int:
+    robot, _ = _robot(args)
+    wheels = WheelVelocities(args.left, args.right)
+    twist = robot.to_twist(wheels)
+    values = {
+        "vx": twist.vx, "vy": twist.vy, "omega": twist.omega,
+        "turning_radius": robot.turning_radius(wheels),
+    }  # fmt: skip
+    units = {"vx": "m/s", "vy": "m/s", "omega": "rad/s", "turning_radius": "m"}
+    _print_values(values, args.json, units)
+    return 0
+
+
+def run_ik(args: argparse.Namespace) -> int:
+    robot, _ = _robot(args)
+    wheels = robot.to_wheel_velocities(Twist(args.vx, 0.0, args.omega))
+    values = {"left": wheels.left, "right": wheels.right}
+    _print_values(values, args.json, {"left": "rad/s", "right": "rad/s"})
+    return 0
+
+
+def _print_values(values: dict[str, float], as_json: bool, units: dict[str, str]) -> None:
+    if as_json:
+        print(json.dumps({k: (v if math.isfinite(v) else str(v)) for k, v in values.items()}))
+        return
+    for name, value in values.items():
+        print(f"{name:15} {value:12.6g} {units[name]}")
+
+
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="diffdrive",
         description="Kinematics of differential-drive robots. With no arguments: the "
         "kinematics of a built-in example robot, and a simulation of its built-in driving "
         "history with each integration method.",
     )
-    parser.parse_args(argv)
-    robot = example_robot()
-    print(kinematics_report(robot))
-    print()
-    print(simulation_report(robot))
-    return 0
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    robot = _robot_options()
+    formatter = argparse.RawDescriptionHelpFormatter
+
+    def command(name: str, help: str, parents: list, run) -> argparse.ArgumentParser:
+        sub = commands.add_parser(
+            name, help=help, description=help, epilog=EPILOGS[name], parents=parents,
+            formatter_class=formatter,
+        )  # fmt: skip
+        sub.set_defaults(run=run)
+        return sub
+
+    sim = command(
+        "simulate", "integrate a driving history into a trajectory",
+        [robot, _output_options("trajectory.csv")], run_simulate,
+    )  # fmt: skip
+    sim.add_argument("input", nargs="?", type=Path, help="driving history (CSV); none: built-in")
+    sim.add_argument("--dt", type=float, default=0.01, help="step for the built-in history, s")
+    odo = command(
+        "odometry", "dead reckoning over an encoder log",
+        [robot, _output_options("odometry.csv")], run_odometry,
+    )  # fmt: skip
+    odo.add_argument("input", type=Path, help="encoder log (CSV)")
+    odo.add_argument("--counter-bits", type=int, choices=[8, 16, 32, 64])
+    fk = command("fk", "wheel velocities to the body twist", [robot], run_fk)
+    fk.add_argument("left", type=float, help="rad/s")
+    fk.add_argument("right", type=float, help="rad/s")
+    fk.add_argument("--json", action="store_true")
+    ik = command("ik", "a body twist to wheel velocities", [robot], run_ik)
+    ik.add_argument("vx", type=float, help="forward speed, m/s")
+    ik.add_argument("omega", type=float, help="turn rate, rad/s")
+    ik.add_argument("--json", action="store_true")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code (0 done, 1 failed, 2 misused)."""
+    args = build_parser().parse_args(argv)
+    if args.command is None:
+        robot = example_robot()
+        print(kinematics_report(robot))
+        print()
+        print(simulation_report(robot))
+        return 0
+    try:
+        return args.run(args)
+    except (ValueError, TypeError, OSError) as exc:
+        print(f"diffdrive {args.command}: error: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":
