@@ -225,3 +225,81 @@ def test_a_runtime_error_exits_1_without_a_traceback(tmp_path):
     assert result.stderr.strip() == (
         "diffdrive simulate: error: missing.csv: cannot read: No such file or directory"
     )
+
+
+# -- pictures --------------------------------------------------------------------------------
+
+
+def rendered(path):
+    import matplotlib.image
+
+    return matplotlib.image.imread(path)
+
+
+def test_plot_draws_a_non_blank_figure_of_the_expected_size(tmp_path, capsys):
+    trajectory, picture = tmp_path / "t.csv", tmp_path / "t.png"
+    assert run(["simulate", "-o", trajectory, "-q"], capsys)[0] == 0
+    code, out, _ = run(["plot", trajectory, "--truth", trajectory, "-o", picture], capsys)
+    assert code == 0
+    assert f"plotted {trajectory} to {picture}" in out
+    pixels = rendered(picture)
+    assert pixels.shape[:2] == (500, 1200)
+    assert pixels[..., :3].std() > 0.05
+
+
+def test_plot_writes_svg_by_its_suffix(tmp_path, capsys):
+    picture = tmp_path / "t.svg"
+    assert run(["plot", "-o", picture, "-q"], capsys)[0] == 0
+    assert picture.read_text().lstrip().startswith("<?xml")
+
+
+def test_animate_writes_a_gif_of_many_frames(tmp_path, capsys):
+    from PIL import Image
+
+    movie = tmp_path / "drive.mp4"  # no ffmpeg needed: it falls back to a GIF
+    code, out, _ = run(["animate", "-o", movie, "--fps", "10", "--frames", "15"], capsys)
+    assert code == 0
+    written = movie.with_suffix(".gif") if "pillow" in out else movie
+    assert str(written) in out
+    if written.suffix == ".gif":
+        with Image.open(written) as image:
+            assert image.n_frames == 15
+            assert image.size == (600, 600)
+
+
+def test_plot_of_a_bad_trajectory_file_writes_nothing(tmp_path, capsys):
+    trajectory = tmp_path / "t.csv"
+    trajectory.write_text("t,x,y\n0,0,0\n")
+    code, _, err = run(["plot", trajectory, "-o", tmp_path / "t.png"], capsys)
+    assert code == 1
+    assert "t.csv:1: missing column 'theta'" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]
+
+
+def test_plot_runs_as_a_subprocess(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "diffdrive", "plot"], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "trajectory.png").stat().st_size > 10_000
+
+
+def test_odometry_runs_as_a_subprocess_and_is_quiet_when_piped(tmp_path):
+    rows = "\n".join(f"{k * 0.01},{k * 0.1},{k * 0.12}" for k in range(20_000))
+    (tmp_path / "log.csv").write_text("t,left_angle,right_angle\n" + rows + "\n")
+    result = subprocess.run(
+        [sys.executable, "-m", "diffdrive", "odometry", "log.csv", "-o", "odo.jsonl"],
+        capture_output=True, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""  # no progress bar into a pipe
+    assert len((tmp_path / "odo.jsonl").read_text().splitlines()) == 20_000
+
+
+def test_a_progress_bar_only_on_a_terminal(monkeypatch):
+    from diffdrive import cli
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert type(cli._progress(range(20_000), False, "x")).__name__ == "tqdm"
+    assert cli._progress(range(20_000), True, "x") == range(20_000)
+    assert cli._progress(range(100), False, "x") == range(100)

@@ -17,3 +17,33 @@ def test_readme_starts_with_the_two_setup_commands():
     text = README.read_text()
     commands = re.findall(r"```sh\n(.*?)```", text, flags=re.S)[0].strip().splitlines()
     assert [line.split("#")[0].strip() for line in commands] == ["make demo", "make test"]
+
+
+def test_the_command_line_walkthrough_makes_the_pictures_shown(tmp_path):
+    """Runs the README's command-line block as written, then compares the figure it drew."""
+    import shlex
+    import subprocess
+    import sys
+
+    import matplotlib.image
+
+    section = README.read_text().split("## Command line", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", section, flags=re.S).group(1)
+    (tmp_path / "docs" / "figures").mkdir(parents=True)
+    commands = [line.split("#")[0].strip() for line in block.splitlines()]
+    for command in filter(None, commands):
+        words = shlex.split(command)
+        assert words[0] == ".venv/bin/diffdrive", command
+        result = subprocess.run(
+            [sys.executable, "-m", "diffdrive", *words[1:]],
+            capture_output=True, text=True, cwd=tmp_path,
+        )  # fmt: skip
+        assert result.returncode == 0, (command, result.stderr)
+    figure = "docs/figures/trajectory.png"
+    assert figure in README.read_text()
+    made = matplotlib.image.imread(tmp_path / figure)
+    shown = matplotlib.image.imread(README.parent / figure)
+    assert made.shape == shown.shape
+    assert abs(float(made.mean()) - float(shown.mean())) < 1e-3
+    assert (tmp_path / "trajectory.gif").stat().st_size > 10_000
+    assert (tmp_path / "trajectory.tum").read_text().startswith("# t x y z qx qy qz qw")

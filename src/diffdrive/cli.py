@@ -17,6 +17,7 @@ from diffdrive.files import (
     FORMATS,
     ROBOT_KEYS,
     TableError,
+    atomic_output,
     read_header,
     read_robot,
     read_table,
@@ -106,6 +107,15 @@ input columns: t (s), and one of left_ticks, right_ticks (absolute counter readi
 left_angle, right_angle (rad, accumulated); left_velocity, right_velocity (rad/s over the
 interval that ends at this row). With x, y, theta columns (ground truth) the odometry starts
 from the first ground-truth pose and an error summary is printed.""",
+    "plot": """examples:
+  diffdrive plot                          the built-in example -> trajectory.png
+  diffdrive plot odometry.csv --truth log.csv -o odometry.svg
+
+input: a trajectory CSV with columns t, x, y, theta (what simulate and odometry write);
+--truth: a CSV with columns t, x, y, theta, drawn underneath.""",
+    "animate": """examples:
+  diffdrive animate                       the built-in example -> trajectory.gif
+  diffdrive animate trajectory.csv -o drive.mp4     (MP4 needs ffmpeg; else a GIF)""",
     "fk": """example:
   diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist""",
     "ik": """example:
@@ -242,14 +252,53 @@ def error_summary(poses: np.ndarray, truth: np.ndarray) -> str:
 
 
 def _progress(steps: range, quiet: bool, label: str):
-    """``steps``, with a progress bar on a terminal for long work (tqdm, if installed)."""
+    """``steps``, with a progress bar (tqdm) on a terminal for long work."""
     if quiet or len(steps) < 10_000 or not sys.stderr.isatty():
         return steps
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return steps
+    from tqdm import tqdm
+
     return tqdm(steps, desc=label, unit="update", file=sys.stderr)
+
+
+def _trajectory_or_example(args: argparse.Namespace, robot: DiffDrive):
+    """``(times, poses, what)`` from the input trajectory CSV, or the built-in example."""
+    if args.input is None:
+        example = simulate(robot, example_wheel_velocities, dt=0.01, duration=EXAMPLE_DURATION)
+        return example.times, example.poses, "the built-in example"
+    table = read_table(args.input, ["t", "x", "y", "theta"])
+    poses = np.column_stack([table["x"], table["y"], table["theta"]])
+    if len(poses) < 2:
+        raise TableError(f"{args.input}: a trajectory needs at least 2 rows")
+    return table["t"], poses, str(args.input)
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    from diffdrive.plot import plot_trajectory
+
+    robot, _ = _robot(args)
+    times, poses, what = _trajectory_or_example(args, robot)
+    truth = None
+    if args.truth is not None:
+        table = read_table(args.truth, ["t", "x", "y", "theta"])
+        truth = (table["t"], np.column_stack([table["x"], table["y"], table["theta"]]))
+    with atomic_output(args.output) as temporary:
+        plot_trajectory(robot, times, poses, temporary, truth)
+    if not args.quiet:
+        print(f"plotted {what} to {args.output}")
+    return 0
+
+
+def run_animate(args: argparse.Namespace) -> int:
+    from diffdrive.plot import animate, animation_writer
+
+    robot, _ = _robot(args)
+    times, poses, what = _trajectory_or_example(args, robot)
+    writer, output = animation_writer(args.output)
+    with atomic_output(output) as temporary:
+        animate(robot, times, poses, temporary, writer, frames=args.frames, fps=args.fps)
+    if not args.quiet:
+        print(f"animated {what} to {output} ({writer})")
+    return 0
 
 
 def run_fk(args: argparse.Namespace) -> int:
@@ -279,6 +328,19 @@ def _print_values(values: dict[str, float], as_json: bool, units: dict[str, str]
         return
     for name, value in values.items():
         print(f"{name:15} {value:12.6g} {units[name]}")
+
+
+def _at_least(smallest: int):
+    """An argparse type: a whole number >= ``smallest``."""
+
+    def parse(text: str) -> int:
+        value = int(text)
+        if value < smallest:
+            raise argparse.ArgumentTypeError(f"must be at least {smallest}, got {value}")
+        return value
+
+    parse.__name__ = "int"
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -312,6 +374,18 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     odo.add_argument("input", type=Path, help="encoder log (CSV)")
     odo.add_argument("--counter-bits", type=int, choices=[8, 16, 32, 64])
+    pictures = argparse.ArgumentParser(add_help=False)
+    pictures.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    pictures.add_argument(
+        "input", nargs="?", type=Path, help="trajectory (CSV t, x, y, theta); none: built-in"
+    )
+    plot = command("plot", "draw a trajectory", [robot, pictures], run_plot)
+    plot.add_argument("-o", "--output", type=Path, default=Path("trajectory.png"))
+    plot.add_argument("--truth", type=Path, help="ground truth (CSV t, x, y, theta)")
+    movie = command("animate", "animate a trajectory", [robot, pictures], run_animate)
+    movie.add_argument("-o", "--output", type=Path, default=Path("trajectory.gif"))
+    movie.add_argument("--fps", type=_at_least(1), default=20)
+    movie.add_argument("--frames", type=_at_least(2), default=120, help="frames to draw")
     fk = command("fk", "wheel velocities to the body twist", [robot], run_fk)
     fk.add_argument("left", type=float, help="rad/s")
     fk.add_argument("right", type=float, help="rad/s")

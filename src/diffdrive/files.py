@@ -28,6 +28,7 @@ __all__ = [
     "FORMATS",
     "ROBOT_KEYS",
     "TableError",
+    "atomic_output",
     "atomic_write",
     "read_header",
     "read_robot",
@@ -156,18 +157,34 @@ def read_robot(path: str | Path) -> dict[str, float]:
 
 
 @contextlib.contextmanager
-def atomic_write(path: str | Path) -> Iterator[TextIO]:
-    """A text file to write that appears at ``path`` only once it is complete."""
+def atomic_output(path: str | Path) -> Iterator[Path]:
+    """A temporary path beside ``path`` (same suffix), renamed to ``path`` once written.
+
+    On any failure the temporary file goes and ``path`` is left as it was.
+    """
     path = Path(path)
-    handle, temporary = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.")
+    handle, temporary = tempfile.mkstemp(
+        dir=path.parent or ".", prefix=f".{path.stem}.", suffix=path.suffix
+    )
+    os.close(handle)
     try:
-        with os.fdopen(handle, "w", newline="") as stream:
-            yield stream
+        yield Path(temporary)
+        # mkstemp makes the file private (0600); give it the mode a plain open would.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)
         os.replace(temporary, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(temporary)
         raise
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | Path) -> Iterator[TextIO]:
+    """A text file to write that appears at ``path`` only once it is complete."""
+    with atomic_output(path) as temporary, temporary.open("w", newline="") as stream:
+        yield stream
 
 
 def write_trajectory(

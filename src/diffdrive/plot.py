@@ -1,0 +1,161 @@
+"""Pictures of trajectories: a figure of path, heading and wheel velocities; an animation.
+
+Needs matplotlib (``pip install 'diffdrive[plot]'``), imported only here. The wheel velocities
+of a trajectory file are recovered from its poses: each step's relative pose, through the SE(2)
+logarithm, is the twist held over it, and inverse kinematics turns that into wheel velocities.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive.model import DiffDrive
+
+__all__ = ["animate", "animation_writer", "plot_trajectory", "wheel_velocities_of"]
+
+_ROBOT_COLOUR = "0.25"
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def wheel_velocities_of(robot: DiffDrive, times: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Wheel velocities ``(T, 2)`` rad/s held over each step of poses ``(T+1, 3)``."""
+    steps = batch.relative_to(poses[1:], poses[:-1])
+    twists = batch.log(steps) / np.diff(times)[:, None]
+    return batch.to_wheel_velocities(robot, twists)
+
+
+def _draw_robot(ax, robot: DiffDrive, pose: np.ndarray) -> None:
+    """The robot's outline (a box the size of its track) and its heading, at ``pose``."""
+    half = robot.track_width / 2
+    corners = np.array([[-half, -half], [half, -half], [half, half], [-half, half], [-half, -half]])
+    world = batch.transform_points(pose, corners)
+    ax.plot(world[:, 0], world[:, 1], color=_ROBOT_COLOUR, linewidth=1)
+    nose = batch.transform_points(pose, np.array([[0.0, 0.0], [1.4 * half, 0.0]]))
+    ax.plot(nose[:, 0], nose[:, 1], color=_ROBOT_COLOUR, linewidth=1.5)
+
+
+def _centre_of_curvature(ax, robot: DiffDrive, pose: np.ndarray, wheels: np.ndarray) -> None:
+    """The instantaneous centre of rotation when it is within a few metres of the robot."""
+    centre = batch.instantaneous_center(robot, wheels)
+    if np.all(np.isfinite(centre)) and np.hypot(*centre) < 3.0:
+        world = batch.transform_points(pose, centre)
+        ax.plot(*world, "+", color="tab:red", markersize=8)
+
+
+def plot_trajectory(
+    robot: DiffDrive,
+    times: np.ndarray,
+    poses: np.ndarray,
+    output: str | Path,
+    truth: tuple[np.ndarray, np.ndarray] | None = None,
+    robots_drawn: int = 6,
+) -> None:
+    """Draw path, heading and wheel velocities to ``output`` (PNG or SVG, by its suffix).
+
+    The path has equal axes, start and end marked, the robot drawn at ``robots_drawn`` poses
+    with its centre of curvature (+) where that is near. ``truth`` is ``(times, poses)`` of a
+    ground truth to draw underneath.
+    """
+    plt = _pyplot()
+    figure = plt.figure(figsize=(12, 5), layout="constrained")
+    grid = figure.add_gridspec(2, 2, width_ratios=[1.2, 1])
+    path, heading, wheels_ax = (
+        figure.add_subplot(grid[:, 0]),
+        figure.add_subplot(grid[0, 1]),
+        figure.add_subplot(grid[1, 1]),
+    )
+    if truth is not None:
+        path.plot(truth[1][:, 0], truth[1][:, 1], color="0.6", linewidth=3, label="ground truth")
+        heading.plot(truth[0], np.degrees(truth[1][:, 2]), color="0.6", linewidth=3)
+    path.plot(poses[:, 0], poses[:, 1], color="tab:blue", label="trajectory")
+    path.plot(*poses[0, :2], "o", color="tab:green", label="start")
+    path.plot(*poses[-1, :2], "s", color="tab:red", label="end")
+    wheels = wheel_velocities_of(robot, times, poses)
+    # Spaced evenly along the path, so that a spin in place does not pile them up.
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poses[:, :2], axis=0).T))])
+    marks = np.linspace(0.0, travelled[-1], robots_drawn)
+    drawn = np.minimum(np.searchsorted(travelled, marks), len(poses) - 2)
+    for k in drawn:
+        _draw_robot(path, robot, poses[k])
+        _centre_of_curvature(path, robot, poses[k], wheels[k])
+    path.set_aspect("equal", adjustable="datalim")
+    path.set(xlabel="x, m", ylabel="y, m", title="path (+: centre of curvature)")
+    path.legend(loc="best")
+    heading.plot(times, np.degrees(poses[:, 2]), color="tab:blue")
+    heading.set(ylabel="heading, deg", title="heading and wheel velocities")
+    wheels_ax.step(times[:-1], wheels[:, 0], where="post", label="left")
+    wheels_ax.step(times[:-1], wheels[:, 1], where="post", label="right")
+    wheels_ax.set(xlabel="t, s", ylabel="wheel velocity, rad/s")
+    wheels_ax.legend(loc="best")
+    for ax in (path, heading, wheels_ax):
+        ax.grid(True, alpha=0.3)
+    figure.savefig(output, dpi=100)
+    plt.close(figure)
+
+
+def animation_writer(output: str | Path) -> tuple[str, Path]:
+    """The matplotlib writer for ``output`` and the file it will write.
+
+    ``.mp4`` uses ffmpeg when matplotlib finds it; anything else, or an ``.mp4`` without
+    ffmpeg, becomes an animated GIF written by Pillow (the name then ends in ``.gif``).
+    """
+    from matplotlib import animation
+
+    output = Path(output)
+    if output.suffix == ".mp4" and animation.writers.is_available("ffmpeg"):
+        return "ffmpeg", output
+    return "pillow", output.with_suffix(".gif")
+
+
+def animate(
+    robot: DiffDrive,
+    times: np.ndarray,
+    poses: np.ndarray,
+    output: str | Path,
+    writer: str = "pillow",
+    frames: int = 120,
+    fps: int = 20,
+) -> None:
+    """Write an animation of the robot driving ``poses`` to ``output`` with ``writer``."""
+    plt = _pyplot()
+    from matplotlib import animation
+
+    figure, ax = plt.subplots(figsize=(6, 6), layout="constrained")
+    margin = robot.track_width
+    ax.set_xlim(poses[:, 0].min() - margin, poses[:, 0].max() + margin)
+    ax.set_ylim(poses[:, 1].min() - margin, poses[:, 1].max() + margin)
+    ax.set_aspect("equal")
+    ax.set(xlabel="x, m", ylabel="y, m")
+    ax.grid(True, alpha=0.3)
+    ax.plot(poses[:, 0], poses[:, 1], color="0.8")
+    (trail,) = ax.plot([], [], color="tab:blue")
+    (body,) = ax.plot([], [], color=_ROBOT_COLOUR, linewidth=1.5)
+    label = ax.set_title("")
+    half = robot.track_width / 2
+    outline = np.array(
+        [[-half, -half], [half, -half], [half, half], [-half, half], [-half, -half], [0, 0],
+         [1.4 * half, 0]]
+    )  # fmt: skip
+    indices = np.linspace(0, len(poses) - 1, min(frames, len(poses))).round().astype(int)
+
+    def draw(k: int):
+        trail.set_data(poses[: k + 1, 0], poses[: k + 1, 1])
+        world = batch.transform_points(poses[k], outline)
+        body.set_data(world[:, 0], world[:, 1])
+        label.set_text(f"t = {times[k]:.2f} s")
+        return trail, body, label
+
+    movie = animation.FuncAnimation(figure, draw, frames=indices, blit=False)
+    movie.save(output, writer=writer, fps=fps)
+    plt.close(figure)
