@@ -9,11 +9,16 @@ from diffdrive.cli import kinematics_report, main
 from diffdrive.examples import example_robot
 
 
-def test_main_job_prints_the_example_robot(capsys):
+def test_main_job_prints_the_example_robot_and_says_where_the_outputs_went(
+    capsys, tmp_path, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
     assert main([]) == 0
     out = capsys.readouterr().out
     assert "track_width=0.2" in out
     assert "spin in place" in out
+    assert out.rstrip().endswith("outputs: out/trajectory.csv, out/trajectory.png")
+    assert (tmp_path / "out" / "trajectory.png").stat().st_size > 10_000
 
 
 def test_report_rows_follow_the_model():
@@ -31,10 +36,11 @@ def test_unknown_option_is_a_usage_error():
     assert exit_info.value.code == 2
 
 
-def test_runs_as_a_subprocess():
+def test_runs_as_a_subprocess(tmp_path):
     result = subprocess.run(
-        [sys.executable, "-m", "diffdrive"], capture_output=True, text=True, check=True
-    )
+        [sys.executable, "-m", "diffdrive"],
+        capture_output=True, text=True, check=True, cwd=tmp_path,
+    )  # fmt: skip
     assert "Modern Robotics" in result.stdout
     assert result.stderr == ""
 
@@ -303,3 +309,13 @@ def test_a_progress_bar_only_on_a_terminal(monkeypatch):
     assert type(cli._progress(range(20_000), False, "x")).__name__ == "tqdm"
     assert cli._progress(range(20_000), True, "x") == range(20_000)
     assert cli._progress(range(100), False, "x") == range(100)
+
+
+def test_odometry_with_no_log_runs_the_built_in_one(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, _ = run(["odometry"], capsys)
+    assert code == 0
+    assert "odometry of the built-in encoder log: wrote 401 poses to odometry.csv" in out
+    # 20 Hz counters of 2796.8 counts a turn: within a millimetre over 20 s.
+    error = float(out.split("position error max ")[1].split()[0])
+    assert error < 1e-3

@@ -12,7 +12,13 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch, se2
-from diffdrive.examples import EXAMPLE_DURATION, example_robot, example_wheel_velocities
+from diffdrive.examples import (
+    EXAMPLE_DURATION,
+    EXAMPLE_TICKS_PER_REVOLUTION,
+    example_encoder_log,
+    example_robot,
+    example_wheel_velocities,
+)
 from diffdrive.files import (
     FORMATS,
     ROBOT_KEYS,
@@ -101,6 +107,7 @@ EPILOGS = {
 input columns: t (s), and either left_velocity, right_velocity (rad/s, held from this row's
 time to the next; the last row's are not used) or left_angle, right_angle (rad, accumulated).""",
     "odometry": """examples:
+  diffdrive odometry                      a built-in 20 Hz log of the example -> odometry.csv
   diffdrive odometry log.csv --ticks-per-revolution 2796.8 -o odometry.csv
 
 input columns: t (s), and one of left_ticks, right_ticks (absolute counter readings);
@@ -209,9 +216,15 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 def run_odometry(args: argparse.Namespace) -> int:
     robot, ticks = _robot(args)
-    left, right = _history_columns(args.input, ("left_ticks", "left_angle", "left_velocity"))
-    integers = (left, right) if left == "left_ticks" else ()
-    table = read_table(args.input, ["t", left, right], ["x", "y", "theta"], integers=integers)
+    if args.input is None:
+        table, what = example_encoder_log(), "the built-in encoder log"
+        left, right = "left_ticks", "right_ticks"
+        ticks = EXAMPLE_TICKS_PER_REVOLUTION if ticks is None else ticks
+    else:
+        what = str(args.input)
+        left, right = _history_columns(args.input, ("left_ticks", "left_angle", "left_velocity"))
+        integers = (left, right) if left == "left_ticks" else ()
+        table = read_table(args.input, ["t", left, right], ["x", "y", "theta"], integers=integers)
     if left == "left_ticks" and ticks is None:
         raise TableError(
             f"{args.input}: ticks need --ticks-per-revolution (or ticks_per_revolution in "
@@ -234,7 +247,7 @@ def run_odometry(args: argparse.Namespace) -> int:
         elif k > 0:
             odometry.update_velocities(*readings[k].tolist(), t - float(times[k - 1]))
         poses[k] = odometry.pose.to_array()
-    _write(args, times, poses, f"odometry of {args.input}")
+    _write(args, times, poses, f"odometry of {what}")
     if truth is not None and not args.quiet:
         print(error_summary(poses, truth))
     return 0
@@ -343,6 +356,25 @@ def _at_least(smallest: int):
     return parse
 
 
+def example_outputs(robot: DiffDrive, folder: Path) -> str:
+    """Write the built-in trajectory (CSV, and a picture if matplotlib is there) to ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    trajectory = simulate(robot, example_wheel_velocities, dt=0.01, duration=EXAMPLE_DURATION)
+    table = folder / "trajectory.csv"
+    write_trajectory(table, trajectory.times, trajectory.poses)
+    written = [str(table)]
+    try:
+        from diffdrive.plot import plot_trajectory
+
+        picture = folder / "trajectory.png"
+        with atomic_output(picture) as temporary:
+            plot_trajectory(robot, trajectory.times, trajectory.poses, temporary)
+        written.append(str(picture))
+    except ImportError:
+        written.append("(no picture: pip install 'diffdrive[plot]')")
+    return "outputs: " + ", ".join(written)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="diffdrive",
@@ -372,7 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
         "odometry", "dead reckoning over an encoder log",
         [robot, _output_options("odometry.csv")], run_odometry,
     )  # fmt: skip
-    odo.add_argument("input", type=Path, help="encoder log (CSV)")
+    odo.add_argument("input", nargs="?", type=Path, help="encoder log (CSV); none: built-in")
     odo.add_argument("--counter-bits", type=int, choices=[8, 16, 32, 64])
     pictures = argparse.ArgumentParser(add_help=False)
     pictures.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
@@ -405,6 +437,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(kinematics_report(robot))
         print()
         print(simulation_report(robot))
+        print()
+        print(example_outputs(robot, Path("out")))
         return 0
     try:
         return args.run(args)

@@ -25,3 +25,30 @@ def example_wheel_velocities(t: np.ndarray) -> np.ndarray:
     weave = (2.0 + 0.2 * t) * np.sin(2.0 * np.pi * t / 8.0) * (t < 16.0)
     spin = 4.0 * (t >= 16.0)
     return np.stack([cruise - weave - spin, cruise + weave + spin], axis=-1)
+
+
+EXAMPLE_TICKS_PER_REVOLUTION = 2796.8  # the OptiOdom robot's encoders: 43.7:1 gear, 64 counts
+
+
+def example_encoder_log(rate: float = 20.0) -> dict[str, np.ndarray]:
+    """An encoder log of the built-in driving history, as ``diffdrive odometry`` reads one.
+
+    Columns ``t`` (s, at ``rate`` Hz), ``left_ticks`` and ``right_ticks`` (whole counter
+    readings of ``EXAMPLE_TICKS_PER_REVOLUTION`` per turn, rounded down as a counter counts),
+    and the ground truth ``x``, ``y``, ``theta`` from an exact simulation at 1 ms steps.
+    """
+    from diffdrive.simulation import simulate
+
+    fine = simulate(example_robot(), example_wheel_velocities, dt=1e-3, duration=EXAMPLE_DURATION)
+    every = round(1e3 / rate)
+    angles = fine.wheel_positions[::every]
+    ticks = np.floor(angles * EXAMPLE_TICKS_PER_REVOLUTION / (2 * np.pi))
+    poses = fine.poses[::every]
+    return {
+        "t": fine.times[::every],
+        "left_ticks": ticks[:, 0],
+        "right_ticks": ticks[:, 1],
+        "x": poses[:, 0],
+        "y": poses[:, 1],
+        "theta": poses[:, 2],
+    }
