@@ -1,0 +1,231 @@
+"""Odometry calibration: the wheel radii and track width that make odometry match ground truth.
+
+``calibrate(nominal_robot, runs, method)`` with ``runs`` a list of ``(increments, truth)``:
+wheel-angle increments ``(T, 2)`` ``[left, right]`` in rad and ground-truth poses ``(T+1, 3)``
+at the same instants. Methods:
+
+- ``"umbmark"`` (Borenstein and Feng 1996): clockwise and counter-clockwise square runs of
+  side ``square_side``. From the mean final x error (ground truth minus odometry, in the start
+  frame) of each direction, ``alpha = (x_cw + x_ccw) / (-4 L)`` gives the track width,
+  ``b = b_0 (pi/2) / (pi/2 - alpha)``, and ``beta = (x_cw - x_ccw) / (-4 L)`` the diameter
+  ratio ``E_d = (R + b_0/2) / (R - b_0/2)`` with ``R = (L/2) / sin(beta/2)``; the mean diameter
+  is kept. Which runs are clockwise is read from the ground truth's net turn.
+- ``"least_squares"``: the odometry of every run (the chosen integration method, from each
+  run's first ground-truth pose) against every ground-truth pose, with a robust loss, by
+  ``scipy.optimize.least_squares``. The parameters' covariance comes from the Jacobian at the
+  solution. When the runs cannot tell a parameter apart (only straight lines cannot fix the
+  track width), the scaled Jacobian's condition number says so and ``calibrate`` raises
+  ``CalibrationError`` instead of returning a number.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive.integrate import Method, check_method
+from diffdrive.model import DiffDrive
+from diffdrive.simulation import integrate_increments
+
+__all__ = ["CalibrationError", "CalibrationResult", "calibrate", "odometry_of"]
+
+CalibrationMethod = Literal["umbmark", "least_squares", "minimax"]
+METHODS: tuple[CalibrationMethod, ...] = ("umbmark", "least_squares", "minimax")
+PARAMETERS = ("left_wheel_radius", "right_wheel_radius", "track_width")
+# Past this condition number of the scaled Jacobian, a parameter is not identified.
+_CONDITION_LIMIT = 1e6
+
+
+class CalibrationError(ValueError):
+    """The runs cannot determine the parameters (or are not what the method needs)."""
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationResult:
+    """A calibrated ``robot`` and how well it is known.
+
+    ``covariance`` is 3x3 over ``PARAMETERS`` (m^2; NaN where the method gives none);
+    ``residuals`` are the fit's position errors at the solution, m, one array per run (for
+    UMBmark, the final errors of each run); ``condition`` is the condition number of the scaled
+    Jacobian (least squares) or NaN.
+    """
+
+    robot: DiffDrive
+    method: str
+    covariance: np.ndarray
+    residuals: list[np.ndarray] = field(repr=False)
+    condition: float = math.nan
+
+    @property
+    def standard_errors(self) -> np.ndarray:
+        """One standard deviation of each parameter, m."""
+        return np.sqrt(np.diag(self.covariance))
+
+
+def _robot_with(nominal: DiffDrive, parameters: np.ndarray) -> DiffDrive:
+    left, right, track = (float(p) for p in parameters)
+    return DiffDrive(
+        left_wheel_radius=left,
+        right_wheel_radius=right,
+        track_width=track,
+        axle_offset=nominal.axle_offset,
+    )
+
+
+def odometry_of(
+    robot: DiffDrive, increments: np.ndarray, start: np.ndarray, method: Method = "rk2"
+) -> np.ndarray:
+    """Dead-reckoned poses ``(T+1, 3)`` from wheel-angle increments ``(T, 2)`` and a start."""
+    return integrate_increments(batch.to_twist(robot, increments), start, method)
+
+
+def _check_runs(runs: list) -> list[tuple[np.ndarray, np.ndarray]]:
+    if not runs:
+        raise CalibrationError("calibrate needs at least one run")
+    checked = []
+    for k, (increments, truth) in enumerate(runs):
+        increments, truth = np.asarray(increments, float), np.asarray(truth, float)
+        if increments.ndim != 2 or increments.shape[1] != 2:
+            raise CalibrationError(f"run {k}: increments must be (T, 2), got {increments.shape}")
+        if truth.shape != (len(increments) + 1, 3):
+            raise CalibrationError(
+                f"run {k}: ground truth must be (T+1, 3) = {(len(increments) + 1, 3)}, got "
+                f"{truth.shape}"
+            )
+        if not (np.all(np.isfinite(increments)) and np.all(np.isfinite(truth))):
+            raise CalibrationError(f"run {k}: increments and ground truth must be finite")
+        checked.append((increments, truth))
+    return checked
+
+
+def calibrate(
+    nominal_robot: DiffDrive,
+    runs: list,
+    method: CalibrationMethod = "least_squares",
+    *,
+    integration: Method = "rk2",
+    square_side: float | None = None,
+    loss: str = "soft_l1",
+    loss_scale: float = 0.01,
+    heading_weight: float = 1.0,
+) -> CalibrationResult:
+    """Calibrate ``nominal_robot``'s wheel radii and track width on ``runs``; see the module.
+
+    ``integration`` is the odometry's method; ``square_side`` (m) is UMBmark's square;
+    ``loss`` and ``loss_scale`` (m) are scipy's robust loss for least squares.
+    """
+    check_method(integration)
+    checked = _check_runs(runs)
+    if method == "umbmark":
+        if square_side is None or not square_side > 0:
+            raise CalibrationError(f"umbmark needs square_side > 0 (m), got {square_side!r}")
+        return _umbmark(nominal_robot, checked, float(square_side), integration)
+    if method in ("least_squares", "minimax"):
+        parameters, covariance, condition = _fit_least_squares(
+            nominal_robot, checked, integration, loss, loss_scale, heading_weight
+        )
+        if method == "minimax":
+            parameters = _minimax(nominal_robot, checked, integration, parameters)
+        robot = _robot_with(nominal_robot, parameters)
+        residuals = _position_errors(robot, checked, integration)
+        return CalibrationResult(robot, method, covariance, residuals, condition)
+    raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+
+
+def _umbmark(nominal: DiffDrive, runs, side: float, integration: Method) -> CalibrationResult:
+    errors = {"cw": [], "ccw": []}
+    residuals = []
+    for increments, truth in runs:
+        poses = odometry_of(nominal, increments, truth[0], integration)
+        # In the start frame: ground truth minus odometry, as Borenstein and Feng measure it.
+        error = (
+            batch.relative_to(truth[-1], truth[0])[:2] - batch.relative_to(poses[-1], truth[0])[:2]
+        )
+        turn = truth[-1, 2] - truth[0, 2]
+        errors["cw" if turn < 0 else "ccw"].append(error)
+        residuals.append(error)
+    if not errors["cw"] or not errors["ccw"]:
+        raise CalibrationError(
+            "umbmark needs clockwise and counter-clockwise runs; the ground truth turns "
+            f"{len(errors['cw'])} clockwise and {len(errors['ccw'])} counter-clockwise"
+        )
+    x_cw, x_ccw = np.mean(errors["cw"], axis=0)[0], np.mean(errors["ccw"], axis=0)[0]
+    alpha = (x_cw + x_ccw) / (-4.0 * side)
+    beta = (x_cw - x_ccw) / (-4.0 * side)
+    track = nominal.track_width * (math.pi / 2) / (math.pi / 2 - alpha)
+    ratio = 1.0  # right diameter over left
+    if beta != 0.0:
+        radius = (side / 2) / math.sin(beta / 2)
+        ratio = (radius + nominal.track_width / 2) / (radius - nominal.track_width / 2)
+    mean = 0.5 * (nominal.left_wheel_radius + nominal.right_wheel_radius)
+    left, right = mean * 2 / (ratio + 1), mean * 2 / (1 / ratio + 1)
+    robot = _robot_with(nominal, np.array([left, right, track]))
+    return CalibrationResult(robot, "umbmark", np.full((3, 3), math.nan), residuals)
+
+
+def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str, scale: float,
+                       heading_weight: float):  # fmt: skip
+    """scipy's robust least squares over every ground-truth pose of every run."""
+    from scipy.optimize import least_squares
+
+    start = _parameters(nominal)
+
+    def residuals(relative: np.ndarray) -> np.ndarray:
+        robot = _robot_with(nominal, start * relative)
+        pieces = []
+        for increments, truth in runs:
+            error = odometry_of(robot, increments, truth[0], integration)[1:] - truth[1:]
+            error[:, 2] = heading_weight * batch.wrap_angle(error[:, 2])
+            pieces.append(error.ravel())
+        return np.concatenate(pieces)
+
+    # The parameters relative to the nominal ones, so that all three are of order 1.
+    fit = least_squares(residuals, np.ones(3), loss=loss, f_scale=scale, x_scale=1e-3,
+                        bounds=(0.5, 1.5), method="trf")  # fmt: skip
+    singular = np.linalg.svd(fit.jac, compute_uv=False)
+    condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else math.inf
+    if condition > _CONDITION_LIMIT:
+        _, _, vt = np.linalg.svd(fit.jac)
+        weakest = PARAMETERS[int(np.argmax(np.abs(vt[-1])))]
+        raise CalibrationError(
+            f"the runs cannot identify the parameters: the fit's condition number is "
+            f"{condition:.3g} (limit {_CONDITION_LIMIT:g}); the least determined is {weakest}. "
+            "Straight runs alone cannot fix the track width: add runs that turn."
+        )
+    dof = max(1, fit.fun.size - 3)
+    variance = float(np.sum(fit.fun**2) / dof)
+    covariance = variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start, start)
+    return start * fit.x, covariance, condition
+
+
+def _parameters(robot: DiffDrive) -> np.ndarray:
+    return np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
+
+
+def _position_errors(robot: DiffDrive, runs, integration: Method) -> list[np.ndarray]:
+    """Each run's position error (m) at each ground-truth pose."""
+    return [
+        np.hypot(*(odometry_of(robot, increments, truth[0], integration)[:, :2]
+                   - truth[:, :2]).T)
+        for increments, truth in runs
+    ]  # fmt: skip
+
+
+def _minimax(nominal: DiffDrive, runs, integration: Method, parameters: np.ndarray):
+    """The parameters, from ``parameters``, that minimise the largest position error."""
+    from scipy.optimize import minimize
+
+    def largest(relative: np.ndarray) -> float:
+        robot = _robot_with(nominal, parameters * relative)
+        return max(float(error.max()) for error in _position_errors(robot, runs, integration))
+
+    # Within 2 % of the least-squares answer: the largest error alone can be flat along a
+    # parameter (the track width, on runs that turn only in place), and it must not drift.
+    simplex = 1.0 + 2e-3 * np.vstack([np.zeros(3), np.eye(3)])
+    fit = minimize(largest, np.ones(3), method="Nelder-Mead", bounds=[(0.98, 1.02)] * 3,
+                   options={"xatol": 1e-7, "fatol": 1e-7, "initial_simplex": simplex})  # fmt: skip
+    return parameters * fit.x
