@@ -319,3 +319,75 @@ def test_odometry_with_no_log_runs_the_built_in_one(tmp_path, capsys, monkeypatc
     # 20 Hz counters of 2796.8 counts a turn: within a millimetre over 20 s.
     error = float(out.split("position error max ")[1].split()[0])
     assert error < 1e-3
+
+
+# -- calibrate and evaluate --------------------------------------------------------------------
+
+
+def test_calibrate_the_built_in_runs_to_a_robot_file_that_reads_back(tmp_path, capsys):
+    from diffdrive.files import read_robot
+
+    output = tmp_path / "robot.toml"
+    code, out, _ = run(["calibrate", "-o", output, "--integration", "exact"], capsys)
+    assert code == 0
+    assert f"calibrate: wrote the robot to {output}" in out
+    settings = read_robot(output)
+    # The built-in runs were driven by (0.04166, 0.04163, 0.2019).
+    assert settings["left_wheel_radius"] == pytest.approx(0.04166, abs=1e-7)
+    assert settings["right_wheel_radius"] == pytest.approx(0.04163, abs=1e-7)
+    assert settings["track_width"] == pytest.approx(0.2019, abs=1e-6)
+
+
+def test_calibrate_real_square_runs_with_umbmark(tmp_path, capsys):
+    from data import data_folder
+    from diffdrive.files import read_robot
+
+    runs = sorted((data_folder("optiodom-diffdrive") / "square" / "230620202042").glob("*run*"))
+    output = tmp_path / "robot.toml"
+    code, _, _ = run(
+        ["calibrate", *runs, "--method", "umbmark", "--square-side", 0.75, "-o", output], capsys
+    )
+    assert code == 0
+    assert read_robot(output)["track_width"] == pytest.approx(0.201458, abs=5e-7)
+
+
+def test_calibrate_refuses_runs_that_cannot_fix_the_track(tmp_path, capsys):
+    rows = "\n".join(f"{k * 0.05},{k * 0.5},{k * 0.5},{k * 0.021},0,0" for k in range(50))
+    log = tmp_path / "straight.csv"
+    log.write_text("t,left_angle,right_angle,x,y,theta\n" + rows + "\n")
+    code, _, err = run(["calibrate", log, "-o", tmp_path / "robot.toml"], capsys)
+    assert code == 1
+    assert "least determined is track_width" in err
+    assert not (tmp_path / "robot.toml").exists()
+
+
+def test_evaluate_a_trajectory_against_ground_truth(tmp_path, capsys):
+    truth, estimate = tmp_path / "truth.csv", tmp_path / "estimate.csv"
+    truth.write_text("t,x,y,theta\n0,0,0,0\n1,1,0,0\n2,2,0,0\n")
+    estimate.write_text("t,x,y,theta\n0,0,0,0\n1,1,0.1,0\n2,2,0.2,0\n")
+    code, out, _ = run(["evaluate", estimate, "--truth", truth, "--json"], capsys)
+    assert code == 0
+    metrics = json.loads(out)
+    assert metrics["max_position_error_m"] == pytest.approx(0.2)
+    assert metrics["ate_m"] == pytest.approx(np.sqrt((0.01 + 0.04) / 3))
+    assert metrics["rpe_1m_m"] == pytest.approx(0.1)
+
+
+def test_evaluate_needs_matching_times(tmp_path, capsys):
+    truth, estimate = tmp_path / "truth.csv", tmp_path / "estimate.csv"
+    truth.write_text("t,x,y,theta\n0,0,0,0\n1,1,0,0\n")
+    estimate.write_text("t,x,y,theta\n0,0,0,0\n2,1,0,0\n")
+    code, _, err = run(["evaluate", estimate, "--truth", truth], capsys)
+    assert code == 1
+    assert "truth.csv: its times must be those of" in err
+
+
+def test_calibrate_and_evaluate_run_as_subprocesses(tmp_path):
+    for argv in (["calibrate", "-q"], ["evaluate"]):
+        result = subprocess.run(
+            [sys.executable, "-m", "diffdrive", *argv], capture_output=True, text=True,
+            cwd=tmp_path,
+        )  # fmt: skip
+        assert result.returncode == 0, result.stderr
+    assert (tmp_path / "robot.toml").exists()
+    assert "ate_aligned_m" in result.stdout

@@ -48,3 +48,22 @@ def test_commanded_path_draws_both_paths_within_the_wheel_limit(tmp_path, capsys
     assert np.abs(limited.wheel_velocities).max() <= script.MAX_WHEEL_VELOCITY
     assert np.abs(commanded.wheel_velocities).max() > script.MAX_WHEEL_VELOCITY
     np.testing.assert_allclose(limited.wheel_velocities[-1], [0.0, 0.0])  # the timeout
+
+
+def test_optiodom_calibration_table_and_figure_on_two_experiments(tmp_path):
+    from data import data_folder
+
+    script = load("optiodom_calibration")
+    experiments, authors = script.load(data_folder("optiodom-diffdrive"))
+    assert len(experiments) == 10
+    two = {name: experiments[name] for name in ("ivanjko/231220200104", "circular/250620202345")}
+    ours = script.results(two)
+    table = script.markdown(ours, authors)
+    assert table.count("\n") == 4  # header, rule, two experiments, the mean
+    for name, row in ours.items():
+        assert row["minimax"] <= authors[name]["OptiOdom"]
+        assert row["least_squares"] < row["nominal"]
+    script.draw(experiments[script.DRAWN], tmp_path / "figure.png")
+    import matplotlib.image
+
+    assert matplotlib.image.imread(tmp_path / "figure.png").shape[:2] == (600, 700)

@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch, se2
+from diffdrive.calibration import METHODS as CALIBRATION_METHODS
+from diffdrive.calibration import calibrate, odometry_of
+from diffdrive.evaluation import ate, rpe, run_errors, worst
 from diffdrive.examples import (
     EXAMPLE_DURATION,
     EXAMPLE_TICKS_PER_REVOLUTION,
@@ -26,7 +29,9 @@ from diffdrive.files import (
     atomic_output,
     read_header,
     read_robot,
+    read_run,
     read_table,
+    write_robot,
     write_trajectory,
 )
 from diffdrive.integrate import METHODS
@@ -123,6 +128,18 @@ input: a trajectory CSV with columns t, x, y, theta (what simulate and odometry 
     "animate": """examples:
   diffdrive animate                       the built-in example -> trajectory.gif
   diffdrive animate trajectory.csv -o drive.mp4     (MP4 needs ffmpeg; else a GIF)""",
+    "calibrate": """examples:
+  diffdrive calibrate                      the built-in example runs -> robot.toml
+  diffdrive calibrate runs/*_run-*.csv --method least_squares -o robot.toml
+
+input: runs with ground truth, each the OptiOdom format (no header: t, x, y, theta,
+ticks_right, ticks_left; 2796.8 counts a turn unless told) or a CSV with t, x, y, theta and
+left_ticks, right_ticks (give --ticks-per-revolution) or left_angle, right_angle (rad).""",
+    "evaluate": """examples:
+  diffdrive evaluate                       the built-in example's odometry against its truth
+  diffdrive evaluate odometry.csv --truth truth.csv --rpe 1.0 --json
+
+input: two CSVs with t, x, y, theta sampled at the same times.""",
     "fk": """example:
   diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist""",
     "ik": """example:
@@ -314,6 +331,111 @@ def run_animate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _mirrored_example(t: np.ndarray) -> np.ndarray:
+    """The built-in history with the wheels swapped: the same path, turning the other way."""
+    return example_wheel_velocities(t)[:, ::-1]
+
+
+def _example_runs() -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Runs of the built-in history by a robot a little off the nominal one, with its truth."""
+    true_robot = DiffDrive(
+        left_wheel_radius=0.04166, right_wheel_radius=0.04163, track_width=0.2019
+    )
+    runs = []
+    for history in (example_wheel_velocities, _mirrored_example):
+        run = simulate(true_robot, history, dt=0.05, duration=EXAMPLE_DURATION)
+        runs.append((run.times, np.diff(run.wheel_positions, axis=0), run.poses))
+    return runs
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    nominal, ticks = _robot(args)
+    if args.runs:
+        ticks = EXAMPLE_TICKS_PER_REVOLUTION if ticks is None else ticks
+        runs = [read_run(path, ticks) for path in args.runs]
+        what = f"{len(runs)} runs"
+    else:
+        runs, what = _example_runs(), "the built-in example runs"
+    pairs = [(increments, truth) for _, increments, truth in runs]
+    result = calibrate(nominal, pairs, args.method, integration=args.integration,
+                       square_side=args.square_side)  # fmt: skip
+    robot = result.robot
+    settings = {
+        "left_wheel_radius": robot.left_wheel_radius,
+        "right_wheel_radius": robot.right_wheel_radius,
+        "track_width": robot.track_width,
+        "axle_offset": robot.axle_offset,
+    }
+    if ticks is not None:
+        settings["ticks_per_revolution"] = ticks
+    write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")
+    if not args.quiet:
+        print(calibration_report(nominal, result, pairs, args.integration))
+        print(f"calibrate: wrote the robot to {args.output}")
+    return 0
+
+
+def calibration_report(nominal: DiffDrive, result, runs, integration: str) -> str:
+    """Parameters with their standard errors, and the largest errors before and after."""
+    sigma = result.standard_errors
+    lines = [f"{'parameter':20} {'nominal':>10} {'calibrated':>11} {'+-':>10}"]
+    for k, name in enumerate(("left_wheel_radius", "right_wheel_radius", "track_width")):
+        lines.append(
+            f"{name:20} {getattr(nominal, name):10.6f} {getattr(result.robot, name):11.6f} "
+            f"{sigma[k]:10.2g}"
+        )
+    before = worst([run_errors(odometry_of(nominal, i, t[0], integration), t) for i, t in runs])
+    after = worst([run_errors(odometry_of(result.robot, i, t[0], integration), t) for i, t in runs])
+    lines.append(f"condition number of the fit: {result.condition:.3g}")
+    lines.append(
+        f"largest position error over the runs: {before.max_position:.4f} m nominal, "
+        f"{after.max_position:.4f} m calibrated"
+    )
+    return "\n".join(lines)
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    if args.input is None:
+        log = example_encoder_log()
+        robot = example_robot()
+        counts = np.column_stack([log["left_ticks"], log["right_ticks"]])
+        increments = np.diff(counts, axis=0) * (2 * math.pi / EXAMPLE_TICKS_PER_REVOLUTION)
+        truth = np.column_stack([log["x"], log["y"], log["theta"]])
+        times, estimate = log["t"], odometry_of(robot, increments, truth[0])
+    else:
+        if args.truth is None:
+            raise TableError("evaluate needs --truth with a trajectory file")
+        times, estimate = _poses_of(args.input)
+        truth_times, truth = _poses_of(args.truth)
+        if truth_times.shape != times.shape or not np.allclose(truth_times, times, atol=1e-9):
+            raise TableError(
+                f"{args.truth}: its times must be those of {args.input} ({len(times)} samples)"
+            )
+    errors = run_errors(estimate, truth)
+    metrics = {
+        "max_position_error_m": errors.max_position,
+        "final_position_error_m": errors.final_position,
+        "max_heading_error_deg": errors.max_heading,
+        "final_heading_error_deg": errors.final_heading,
+        "ate_m": ate(estimate, truth),
+        "ate_aligned_m": ate(estimate, truth, aligned=True),
+    }
+    translation, rotation = rpe(estimate, truth, args.rpe, unit=args.rpe_unit, times=times)
+    metrics[f"rpe_{args.rpe:g}{args.rpe_unit}_m"] = translation
+    metrics[f"rpe_{args.rpe:g}{args.rpe_unit}_deg"] = rotation
+    if args.json:
+        print(json.dumps(metrics))
+    else:
+        for name, value in metrics.items():
+            print(f"{name:28} {value:12.6f}")
+    return 0
+
+
+def _poses_of(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    table = read_table(path, ["t", "x", "y", "theta"])
+    return table["t"], np.column_stack([table["x"], table["y"], table["theta"]])
+
+
 def run_fk(args: argparse.Namespace) -> int:
     robot, _ = _robot(args)
     wheels = WheelVelocities(args.left, args.right)
@@ -418,6 +540,20 @@ def build_parser() -> argparse.ArgumentParser:
     movie.add_argument("-o", "--output", type=Path, default=Path("trajectory.gif"))
     movie.add_argument("--fps", type=_at_least(1), default=20)
     movie.add_argument("--frames", type=_at_least(2), default=120, help="frames to draw")
+    cal = command("calibrate", "fit wheel radii and track width to ground truth",
+                  [robot], run_calibrate)  # fmt: skip
+    cal.add_argument("runs", nargs="*", type=Path, help="runs with ground truth; none: built-in")
+    cal.add_argument("-o", "--output", type=Path, default=Path("robot.toml"))
+    cal.add_argument("--method", choices=CALIBRATION_METHODS, default="least_squares")
+    cal.add_argument("--integration", choices=METHODS, default="rk2")
+    cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
+    cal.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    ev = command("evaluate", "a trajectory against ground truth", [], run_evaluate)
+    ev.add_argument("input", nargs="?", type=Path, help="trajectory CSV; none: built-in")
+    ev.add_argument("--truth", type=Path, help="ground-truth CSV at the same times")
+    ev.add_argument("--rpe", type=float, default=1.0, help="RPE window (default 1)")
+    ev.add_argument("--rpe-unit", choices=["m", "s", "poses"], default="m")
+    ev.add_argument("--json", action="store_true")
     fk = command("fk", "wheel velocities to the body twist", [robot], run_fk)
     fk.add_argument("left", type=float, help="rad/s")
     fk.add_argument("right", type=float, help="rad/s")

@@ -32,7 +32,9 @@ __all__ = [
     "atomic_write",
     "read_header",
     "read_robot",
+    "read_run",
     "read_table",
+    "write_robot",
     "write_trajectory",
 ]
 
@@ -185,6 +187,49 @@ def atomic_write(path: str | Path) -> Iterator[TextIO]:
     """A text file to write that appears at ``path`` only once it is complete."""
     with atomic_output(path) as temporary, temporary.open("w", newline="") as stream:
         yield stream
+
+
+def write_robot(path: str | Path, settings: dict[str, float], comment: str = "") -> None:
+    """Write a robot file (TOML) that ``read_robot`` reads back: ``ROBOT_KEYS`` only."""
+    unknown = sorted(set(settings) - set(ROBOT_KEYS))
+    if unknown:
+        raise ValueError(f"not a robot setting: {unknown[0]!r}")
+    with atomic_write(path) as stream:
+        stream.writelines(f"# {line}\n" for line in comment.splitlines())
+        stream.writelines(f"{key} = {float(value)!r}\n" for key, value in settings.items())
+
+
+def read_run(path: str | Path, ticks_per_revolution: float | None) -> tuple:
+    """A run with ground truth: ``(times (T+1,), increments (T, 2) rad, truth (T+1, 3))``.
+
+    Either the OptiOdom format (no header; see ``diffdrive.datasets``) or a CSV with columns
+    ``t``, ``x``, ``y``, ``theta`` and ``left_ticks, right_ticks`` (with
+    ``ticks_per_revolution``) or ``left_angle, right_angle`` (rad).
+    """
+    header = read_header(path)
+    if all(_is_number(name) for name in header):
+        from diffdrive.datasets import read_optiodom_run
+
+        run = read_optiodom_run(path)
+        return run.times, np.diff(run.wheel_angles(), axis=0), run.ground_truth
+    ticks = "left_ticks" in header
+    wheels = ("left_ticks", "right_ticks") if ticks else ("left_angle", "right_angle")
+    table = read_table(path, ["t", *wheels, "x", "y", "theta"], integers=wheels if ticks else ())
+    angles = np.column_stack([table[wheels[0]], table[wheels[1]]])
+    if ticks:
+        if ticks_per_revolution is None:
+            raise TableError(f"{path}: ticks need ticks_per_revolution")
+        angles = angles * (2 * math.pi / ticks_per_revolution)
+    truth = np.column_stack([table["x"], table["y"], table["theta"]])
+    return table["t"], np.diff(angles, axis=0), truth
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def write_trajectory(

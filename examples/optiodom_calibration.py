@@ -1,0 +1,147 @@
+"""Calibrate the OptiOdom robot on its own runs, next to the paper's methods, and draw it.
+
+For every experiment in ../shared/data/optiodom-diffdrive, the largest position error over its
+runs (m), with rk2 odometry from each run's first ground-truth pose:
+
+- nominal: the robot's nominal geometry (L 0.2 m, D 0.084 m);
+- the authors' figures, from their spreadsheet: UMBmark and Jung & Chung (square runs),
+  Ivanjko et al. (Ivanjko runs), OptiOdom (all);
+- ours with the paper's protocol (calibrate on an experiment's runs, evaluate on the same
+  runs): robust least squares, and minimax (the largest position error itself);
+- ours with a stricter protocol the paper does not use: calibrate on the runs of the other
+  nine experiments only, evaluate on this one, which the calibration never saw.
+
+Prints a Markdown table and draws one run: ground truth, nominal and calibrated odometry.
+
+    pip install -e '.[examples]'
+    python examples/optiodom_calibration.py [--data ../shared/data/optiodom-diffdrive]
+        [--output docs/figures/optiodom_calibration.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive.calibration import calibrate, odometry_of
+from diffdrive.datasets import optiodom_robot, read_optiodom_run
+from diffdrive.evaluation import run_errors, worst
+
+ROOT = Path(__file__).resolve().parents[1]
+AUTHORS = {
+    "UMBmark": "UMBmark",
+    "Jung & Chung": "Jung & Chung",
+    "Ivanjko": "Ivanjko et al.",
+    "OptiOdom": "OptiOdom",
+}
+DRAWN = "circular/231220200141"
+
+
+def load(folder: Path) -> tuple[dict[str, list], dict[str, dict[str, float]]]:
+    """The runs of each experiment present, and the authors' calibrated max position errors."""
+    authors: dict[str, dict[str, float]] = {}
+    with (folder / "reference_results_from_authors.csv").open() as table:
+        for row in csv.DictReader(table):
+            if row["note"] or not (folder / row["experiment"]).is_dir():
+                continue
+            name = next(label for key, label in AUTHORS.items() if row["method"].startswith(key))
+            authors.setdefault(row["experiment"], {})[name] = float(row["calib_max_pos_err_m"])
+    experiments = {}
+    for experiment in authors:
+        paths = sorted((folder / experiment).glob("*_run-*.csv"))
+        runs = [read_optiodom_run(path) for path in paths]
+        experiments[experiment] = [
+            (np.diff(run.wheel_angles(), axis=0), run.ground_truth) for run in runs
+        ]
+    return experiments, authors
+
+
+def largest_error(robot, runs) -> float:
+    return worst([run_errors(odometry_of(robot, i, t[0]), t) for i, t in runs]).max_position
+
+
+def results(experiments: dict[str, list]) -> dict[str, dict[str, float]]:
+    """Our figures for each experiment, under both protocols."""
+    nominal = optiodom_robot()
+    table = {}
+    for experiment, runs in experiments.items():
+        others = [run for name, rs in experiments.items() if name != experiment for run in rs]
+        row = {"nominal": largest_error(nominal, runs)}
+        for method in ("least_squares", "minimax"):
+            row[method] = largest_error(calibrate(nominal, runs, method).robot, runs)
+            unseen = calibrate(nominal, others, method).robot
+            row[f"{method}, unseen"] = largest_error(unseen, runs)
+        table[experiment] = row
+    return table
+
+
+def markdown(ours: dict[str, dict[str, float]], authors: dict[str, dict[str, float]]) -> str:
+    columns = ["nominal", *AUTHORS.values(), "least_squares", "minimax",
+               "least_squares, unseen", "minimax, unseen"]  # fmt: skip
+    lines = [
+        "| experiment | " + " | ".join(columns) + " |",
+        "|---" * (len(columns) + 1) + "|",
+    ]
+    sums = {column: [] for column in columns}
+    for experiment, row in ours.items():
+        values = {**row, **authors[experiment]}
+        cells = []
+        for column in columns:
+            value = values.get(column)
+            cells.append("" if value is None else f"{1000 * value:.1f}")
+            if value is not None:
+                sums[column].append(value)
+        lines.append(f"| {experiment} | " + " | ".join(cells) + " |")
+    means = [f"{1000 * np.mean(sums[c]):.1f}" if len(sums[c]) == len(ours) else "" for c in columns]
+    lines.append("| mean of all 10 | " + " | ".join(means) + " |")
+    return "\n".join(lines)
+
+
+def draw(runs: list, output: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    nominal = optiodom_robot()
+    calibrated = calibrate(nominal, runs, "minimax").robot
+    increments, truth = runs[0]
+    figure, ax = plt.subplots(figsize=(7, 6), layout="constrained")
+    ax.plot(truth[:, 0], truth[:, 1], color="0.5", linewidth=3, label="ground truth (OptiTrack)")
+    for robot, label in [(nominal, "nominal odometry"), (calibrated, "calibrated (minimax)")]:
+        poses = odometry_of(robot, increments, truth[0])
+        error = run_errors(poses, truth).max_position
+        ax.plot(poses[:, 0], poses[:, 1], label=f"{label}: max error {1000 * error:.0f} mm")
+    ax.plot(*truth[0, :2], "k^", label="start")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set(xlabel="x, m", ylabel="y, m", title=f"OptiOdom {DRAWN}, run 01")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best")
+    figure.savefig(output, dpi=100)
+    plt.close(figure)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--data", type=Path, default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive"
+    )
+    parser.add_argument(
+        "--output", type=Path, default=ROOT / "docs" / "figures" / "optiodom_calibration.png"
+    )
+    args = parser.parse_args(argv)
+    if not args.data.is_dir():
+        raise SystemExit(f"the OptiOdom data is expected in {args.data}")
+    experiments, authors = load(args.data)
+    print("largest position error over each experiment's runs, mm\n")
+    print(markdown(results(experiments), authors))
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    draw(experiments[DRAWN], args.output)
+    print(f"\nfigure: {args.output}")
+
+
+if __name__ == "__main__":
+    main()
