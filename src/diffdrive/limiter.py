@@ -63,7 +63,7 @@ class Limits:
 
     def __post_init__(self) -> None:
         for field in fields(self):
-            _optional_limit(field.name, getattr(self, field.name), field.name.endswith("y"))
+            _optional_limit(field.name, getattr(self, field.name), "velocity" in field.name)
 
     def bounds(self) -> np.ndarray:
         """``[v_fwd, v_rev, acc_fwd, dec_fwd, acc_rev, dec_rev, jerk]``, inf for no limit."""
