@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive import batch, se2
+from diffdrive import se2
 from diffdrive.calibration import METHODS as CALIBRATION_METHODS
 from diffdrive.calibration import calibrate, odometry_of
 from diffdrive.evaluation import ate, rpe, run_errors, worst
@@ -272,12 +272,11 @@ def run_odometry(args: argparse.Namespace) -> int:
 
 def error_summary(poses: np.ndarray, truth: np.ndarray) -> str:
     """Maximum and final position (m) and heading (deg) errors of ``poses`` against ``truth``."""
-    position = np.hypot(*(poses[:, :2] - truth[:, :2]).T)
-    heading = np.degrees(np.abs(batch.wrap_angle(poses[:, 2] - truth[:, 2])))
+    errors = run_errors(poses, truth)
     return (
-        f"against the ground truth: position error max {position.max():.4f} m, "
-        f"final {position[-1]:.4f} m; heading error max {heading.max():.3f} deg, "
-        f"final {heading[-1]:.3f} deg"
+        f"against the ground truth: position error max {errors.max_position:.4f} m, "
+        f"final {errors.final_position:.4f} m; heading error max {errors.max_heading:.3f} deg, "
+        f"final {errors.final_heading:.3f} deg"
     )
 
 
