@@ -137,3 +137,10 @@ def test_without_numba_auto_falls_back_and_numba_is_refused(monkeypatch):
 def test_an_unknown_backend_is_refused():
     with pytest.raises(ValueError, match="backend must be one of auto, numpy, numba, got 'c'"):
         dd.simulate(ROBOT, np.ones((3, 2)), dt=0.01, backend="c")
+
+
+def test_float16_stays_on_the_numpy_path():
+    wheels = np.ones((simulation._COMPILED_MIN_ROBOT_STEPS, 2), dtype=np.float16)
+    assert dd.simulate(ROBOT, wheels, dt=0.01).poses.dtype == np.float16
+    with pytest.raises(ValueError, match="backend='numba' takes float32 or float64 data"):
+        dd.simulate(ROBOT, wheels, dt=0.01, backend="numba")

@@ -290,7 +290,7 @@ def _build(robot, history: _History, wheels, initial_pose, method, backend) -> T
         ) from None
     steps = wheels.shape[-2]
     poses = np.empty((*leading, steps + 1, 3), dtype=wheels.dtype)
-    if _use_numba(backend, math.prod(leading) * steps):
+    if _use_numba(backend, math.prod(leading) * steps, poses.dtype):
         _integrate_compiled(robot, history, start, method, poses)
     else:
         _integrate_blocks(
@@ -302,10 +302,14 @@ def _build(robot, history: _History, wheels, initial_pose, method, backend) -> T
     return Trajectory(robot, times, poses, wheels, method)
 
 
-def _use_numba(backend: Backend, robot_steps: int) -> bool:
+def _use_numba(backend: Backend, robot_steps: int, dtype: np.dtype) -> bool:
+    compiled = dtype in (np.float32, np.float64)  # numba has no float16 arithmetic
+    if backend == "numba" and not compiled:
+        raise ValueError(f"backend='numba' takes float32 or float64 data, got {dtype}")
     if backend == "auto":
         return (
-            robot_steps >= _COMPILED_MIN_ROBOT_STEPS
+            compiled
+            and robot_steps >= _COMPILED_MIN_ROBOT_STEPS
             and importlib.util.find_spec("numba") is not None
         )
     return backend == "numba"
