@@ -230,3 +230,21 @@ def test_wheel_commands_and_a_bad_kind():
     np.testing.assert_allclose(stream.pose.to_array(), expected, atol=1e-12)
     with pytest.raises(ValueError, match="kind must be 'twist' or 'wheels', got 'speed'"):
         dd.OpenLoopOdometry(ROBOT, wheels, "speed")
+
+
+def test_with_jerk_on_every_channel_a_twist_from_rest_keeps_its_curvature():
+    limiter = dd.Limiter.for_twist(
+        dd.Limits(max_velocity=1.0, max_acceleration=0.5, max_jerk=2.0),
+        dd.Limits(max_acceleration=3.0, max_jerk=20.0),
+    )
+    accelerations = []
+    for _ in range(100):
+        v, omega = limiter.step([2.0, 1.0], 0.05)  # velocity-limited to (1.0, 0.5)
+        assert omega == pytest.approx(0.5 * v, abs=1e-12)
+        accelerations.append(limiter.acceleration[0])
+    assert limiter.value.tolist() == pytest.approx([1.0, 0.5])
+    # The forward channel is the tighter one: its acceleration ramps at 2 m/s^3 to 0.5 m/s^2.
+    np.testing.assert_allclose(accelerations[:5], [0.1, 0.2, 0.3, 0.4, 0.5], atol=1e-12)
+    assert max(np.abs(np.diff(accelerations))) <= 2.0 * 0.05 + 1e-12
+    wheels = dd.desaturate(ROBOT.to_wheel_velocities(dd.Twist(v, 0.0, omega)), 5.0)
+    assert ROBOT.to_twist(wheels).omega == pytest.approx(0.5 * ROBOT.to_twist(wheels).vx)

@@ -11,12 +11,13 @@ A ``Limiter`` follows targets for a few channels at once: ``(v, omega)`` with
    acceleration limits (speeding up and slowing down, forward and reverse; a step through
    zero slows down, then speeds up the other way) and, with ``max_jerk``, under the jerk limit
    and the approach that lets the acceleration reach zero at the target;
-4. without jerk limits, one fraction for all channels: each moves the same fraction of the way
-   to its target, the smallest fraction any channel allows. From rest, or whenever the
-   curvature is not changing, the output keeps the target's curvature, so desaturation after
-   the limiter keeps it too. With jerk limits each channel follows its own smooth profile
-   (a common fraction would make the others' acceleration jump), so the curvature is kept at
-   the target but not on the way to it.
+4. one fraction for all channels: each moves the same fraction of the way to its target, the
+   smallest fraction any channel allows. With jerk limits on every channel the fraction itself
+   follows one jerk-limited profile, in limits that are the tightest channel's, whenever the
+   acceleration points along the way to the target (from rest, say); otherwise, say when the
+   target changes in mid-manoeuvre, each channel follows its own profile until the next
+   target. From rest, or whenever the curvature is not changing, the output keeps the
+   target's curvature, so desaturation after the limiter keeps it too.
 
 The outputs never exceed the velocity and acceleration limits. The jerk limit holds except
 where a hard limit overrides it: at a zero crossing into a direction with a lower acceleration
@@ -181,18 +182,48 @@ class Limiter:
         reach = np.where(crosses, np.abs(v) + other * (dt - to_rest), bound * dt)
         value = v + np.sign(gap) * np.minimum(reach, np.abs(gap))
         has_jerk = np.isfinite(jerk)
-        if has_jerk.any():
-            # Toward the goal at most the acceleration a from which ramping down by j dt a
-            # step still ends at rest on the goal: a dt + a (a - j dt) / (2 j) <= |gap|.
-            jerk = np.where(has_jerk, jerk, 1.0)  # channels without a jerk limit: unused
-            j_dt = jerk * dt
-            approach = 0.5 * (np.sqrt(j_dt**2 + 8.0 * jerk * np.abs(gap)) - j_dt)
-            wanted = np.sign(gap) * np.minimum.reduce([bound, approach, np.abs(gap) / dt])
-            a_new = np.clip(wanted, a - jerk * dt, a + jerk * dt)
-            a_new = np.clip(a_new, -falling, rising)
-            # The acceleration decides the step, even past the goal: stopping short of it
-            # would make the acceleration jump. The profile lands on the goal when it can.
-            jerk_value = v + a_new * dt
-            lands = np.abs(gap - a_new * dt) <= 1e-12 * np.maximum(1.0, np.abs(goal))
-            value = np.where(has_jerk, np.where(lands, goal, jerk_value), value)
-        return value
+        if not has_jerk.any():
+            return value
+        rate = self._rate_along(gap) if has_jerk.all() else None
+        if rate is not None:
+            # Every channel moves the same fraction of its gap, by one jerk-limited profile
+            # of that fraction: the limits in fractions of the gap are the tightest channel's.
+            moving = np.abs(gap) > 1e-9 * np.abs(gap).max()  # the others move too, a hair
+            size = np.abs(gap[moving])
+            toward = np.where(gap > 0.0, rising, falling)[moving] / size
+            away = np.where(gap > 0.0, falling, rising)[moving] / size
+            fraction = _jerk_limited(
+                1.0, rate, toward.min(), away.min(), toward.min(), (jerk[moving] / size).min(),
+                dt,
+            ) * dt  # fmt: skip
+            return goal if abs(1.0 - fraction) <= 1e-12 else v + fraction * gap
+        jerk = np.where(has_jerk, jerk, 1.0)  # channels without a jerk limit: unused
+        a_new = _jerk_limited(gap, a, bound, falling, rising, jerk, dt)
+        # The acceleration decides the step, even past the goal: stopping short of it would
+        # make the acceleration jump. The profile lands on the goal when it can.
+        lands = np.abs(gap - a_new * dt) <= 1e-12 * np.maximum(1.0, np.abs(goal))
+        return np.where(has_jerk, np.where(lands, goal, v + a_new * dt), value)
+
+    def _rate_along(self, gap: np.ndarray) -> float | None:
+        """The acceleration as a rate of fractions of ``gap`` per s^2, if it points along the
+        gap (or is zero), so that moving by fractions of the gap keeps the jerk limits; else
+        None."""
+        length = float(gap @ gap)
+        if length < 1e-200:  # no gap, or one too small to divide by
+            return None
+        a = self.acceleration
+        rate = float(a @ gap) / length
+        if np.linalg.norm(a - rate * gap) > 1e-9 * np.linalg.norm(a):
+            return None
+        return rate
+
+
+def _jerk_limited(gap, a, bound, falling, rising, jerk, dt):
+    """The next acceleration toward ``gap``: at most ``bound`` toward it, within ``falling``
+    and ``rising``, changed by at most ``jerk * dt``, and no more than the acceleration from
+    which ramping down by ``jerk * dt`` a step still ends at rest on the goal:
+    ``a dt + a (a - j dt) / (2 j) <= |gap|``."""
+    j_dt = jerk * dt
+    approach = 0.5 * (np.sqrt(j_dt**2 + 8.0 * jerk * np.abs(gap)) - j_dt)
+    wanted = np.sign(gap) * np.minimum(np.minimum(bound, approach), np.abs(gap) / dt)
+    return np.clip(np.clip(wanted, a - j_dt, a + j_dt), -falling, rising)
