@@ -31,6 +31,7 @@ from diffdrive.files import (
     read_robot,
     read_run,
     read_table,
+    read_trajectory,
     write_robot,
     write_trajectory,
 )
@@ -211,10 +212,7 @@ def _write(args: argparse.Namespace, times: np.ndarray, poses: np.ndarray, what:
 def run_simulate(args: argparse.Namespace) -> int:
     robot, _ = _robot(args)
     if args.input is None:
-        trajectory = simulate(
-            robot, example_wheel_velocities, dt=args.dt, duration=EXAMPLE_DURATION,
-            method=args.method,
-        )  # fmt: skip
+        trajectory = _example_trajectory(robot, args.dt, args.method)
         what = f"simulated the built-in {EXAMPLE_DURATION:g} s driving history"
     else:
         left, right = _history_columns(args.input, ("left_velocity", "left_angle"))
@@ -289,16 +287,19 @@ def _progress(steps: range, quiet: bool, label: str):
     return tqdm(steps, desc=label, unit="update", file=sys.stderr)
 
 
+def _example_trajectory(robot: DiffDrive, dt: float = 0.01, method: str = "exact"):
+    """The built-in driving history, simulated."""
+    return simulate(
+        robot, example_wheel_velocities, dt=dt, duration=EXAMPLE_DURATION, method=method
+    )
+
+
 def _trajectory_or_example(args: argparse.Namespace, robot: DiffDrive):
     """``(times, poses, what)`` from the input trajectory CSV, or the built-in example."""
     if args.input is None:
-        example = simulate(robot, example_wheel_velocities, dt=0.01, duration=EXAMPLE_DURATION)
+        example = _example_trajectory(robot)
         return example.times, example.poses, "the built-in example"
-    table = read_table(args.input, ["t", "x", "y", "theta"])
-    poses = np.column_stack([table["x"], table["y"], table["theta"]])
-    if len(poses) < 2:
-        raise TableError(f"{args.input}: a trajectory needs at least 2 rows")
-    return table["t"], poses, str(args.input)
+    return (*read_trajectory(args.input), str(args.input))
 
 
 def run_plot(args: argparse.Namespace) -> int:
@@ -308,8 +309,7 @@ def run_plot(args: argparse.Namespace) -> int:
     times, poses, what = _trajectory_or_example(args, robot)
     truth = None
     if args.truth is not None:
-        table = read_table(args.truth, ["t", "x", "y", "theta"])
-        truth = (table["t"], np.column_stack([table["x"], table["y"], table["theta"]]))
+        truth = read_trajectory(args.truth)
     with atomic_output(args.output) as temporary:
         plot_trajectory(robot, times, poses, temporary, truth)
     if not args.quiet:
@@ -404,8 +404,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     else:
         if args.truth is None:
             raise TableError("evaluate needs --truth with a trajectory file")
-        times, estimate = _poses_of(args.input)
-        truth_times, truth = _poses_of(args.truth)
+        times, estimate = read_trajectory(args.input)
+        truth_times, truth = read_trajectory(args.truth)
         if truth_times.shape != times.shape or not np.allclose(truth_times, times, atol=1e-9):
             raise TableError(
                 f"{args.truth}: its times must be those of {args.input} ({len(times)} samples)"
@@ -428,11 +428,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
         for name, value in metrics.items():
             print(f"{name:28} {value:12.6f}")
     return 0
-
-
-def _poses_of(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    table = read_table(path, ["t", "x", "y", "theta"])
-    return table["t"], np.column_stack([table["x"], table["y"], table["theta"]])
 
 
 def run_fk(args: argparse.Namespace) -> int:
@@ -480,7 +475,7 @@ def _at_least(smallest: int):
 def example_outputs(robot: DiffDrive, folder: Path) -> str:
     """Write the built-in trajectory (CSV, and a picture if matplotlib is there) to ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
-    trajectory = simulate(robot, example_wheel_velocities, dt=0.01, duration=EXAMPLE_DURATION)
+    trajectory = _example_trajectory(robot)
     table = folder / "trajectory.csv"
     write_trajectory(table, trajectory.times, trajectory.poses)
     written = [str(table)]

@@ -34,6 +34,7 @@ __all__ = [
     "read_robot",
     "read_run",
     "read_table",
+    "read_trajectory",
     "write_robot",
     "write_trajectory",
 ]
@@ -127,6 +128,15 @@ def read_table(
     if not values[required[0]]:
         raise TableError(f"{path}: no rows of data after the header")
     return {name: np.array(column) for name, column in values.items()}
+
+
+def read_trajectory(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """``(times (T+1,), poses (T+1, 3))`` from a CSV with columns ``t, x, y, theta``."""
+    table = read_table(path, ["t", "x", "y", "theta"])
+    poses = np.column_stack([table["x"], table["y"], table["theta"]])
+    if len(poses) < 2:
+        raise TableError(f"{path}: a trajectory needs at least 2 rows")
+    return table["t"], poses
 
 
 def read_robot(path: str | Path) -> dict[str, float]:
