@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive import integrate
+from diffdrive.encoders import count_changes
 from strategies import geometry
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
@@ -113,6 +114,14 @@ def test_the_twist_needs_times():
         (32, 2**32 - 1, 0, 1),
         (32, 2**31 - 1, -(2**31), 1),
         (None, -(10**12), 10**12, 2 * 10**12),
+        (12, 4090, 5, 11),  # the widths of hobby and industrial encoders
+        (10, 3, 1020, -7),
+        (14, 2**14 - 1, 0, 1),
+        (24, -(2**23), 2**23 - 1, -1),
+        (2, 3, 0, 1),
+        (64, 2**64 - 3, 2, 5),  # unsigned 64-bit readings of 2^63 and more
+        (64, 2**63 - 1, 2**63, 1),
+        (64, -1, 2**64 - 2, -1),
     ],
 )
 def test_counter_roll_over(bits, before, after, change):
@@ -122,24 +131,72 @@ def test_counter_roll_over(bits, before, after, change):
     assert odometry.pose.x == pytest.approx(change * RAD_PER_TICK * 0.05, rel=1e-12)
 
 
-@given(
-    st.sampled_from([16, 32]),
-    st.booleans(),
-    st.lists(st.tuples(st.integers(-3000, 3000), st.integers(-3000, 3000)), max_size=40),
-    st.integers(0, 2**32),
-)
-@settings(max_examples=60)
-def test_wrapped_counters_give_the_unwrapped_pose(bits, signed, steps, start):
-    """Any history of true counts, wrapped to a signed or unsigned counter, reads the same."""
+@given(st.integers(2, 64), st.booleans(), st.data())
+@settings(max_examples=80)
+def test_wrapped_counters_give_the_unwrapped_pose(bits, signed, data):
+    """Any history of true counts, wrapped to a signed or unsigned counter of any width from
+    2 to 64 bits, reads the same in the streaming class and in the whole-array rule."""
     modulus = 2**bits
     low = -(modulus // 2) if signed else 0
+    step = st.integers(-(modulus // 2), modulus // 2 - 1)
+    steps = data.draw(st.lists(st.tuples(step, step), max_size=30))
+    start = data.draw(st.integers(-(2**40), 2**40))
     wrapped = dd.Odometry(ROBOT, ticks_per_revolution=TICKS, counter_bits=bits)
-    plain = dd.Odometry(ROBOT, ticks_per_revolution=TICKS)
-    counts = np.cumsum([(start, start), *steps], axis=0)
-    for left, right in counts.tolist():
-        plain.update_ticks(left, right)
-        wrapped.update_ticks((left - low) % modulus + low, (right - low) % modulus + low)
+    plain = dd.Odometry(ROBOT)
+    counts = np.cumsum(np.array([(start, start), *steps], dtype=object), axis=0)
+    readings = (counts - low) % modulus + low
+    wrapped.update_ticks(*readings[0].tolist())
+    for (left, right), change in zip(
+        readings[1:].tolist(), np.diff(counts, axis=0).tolist(), strict=False
+    ):
+        plain.update_increments(change[0] * RAD_PER_TICK, change[1] * RAD_PER_TICK)
+        wrapped.update_ticks(left, right)
     assert wrapped.pose == plain.pose
+    dtype = np.uint64 if readings.max() >= 2**63 else np.int64
+    changes = count_changes(readings.astype(dtype), bits)
+    assert changes.tolist() == np.diff(counts, axis=0).tolist()
+
+
+def test_a_12_bit_counter_read_as_16_bits_is_a_jump_that_max_wheel_speed_refuses():
+    odometry = dd.Odometry(
+        ROBOT, ticks_per_revolution=TICKS, counter_bits=16, max_wheel_speed=100.0
+    )
+    odometry.update_ticks(4090, 4090, t=0.0)
+    with pytest.raises(ValueError, match="max_wheel_speed"):
+        odometry.update_ticks(5, 5, t=0.01)  # 12-bit roll-over: read as -4085 counts
+    twelve = dd.Odometry(ROBOT, ticks_per_revolution=TICKS, counter_bits=12)
+    twelve.update_ticks(4090, 4090, t=0.0)
+    twelve.update_ticks(5, 5, t=0.01)
+    assert twelve.pose.x == pytest.approx(11 * RAD_PER_TICK * 0.05, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("left", "right"),
+    [(np.float64(1000.0), np.float32(7.0)), (np.int64(1000), np.uint16(7)), (1000.0, 7)],
+)
+def test_counter_readings_may_be_numpy_scalars_and_whole_floats(left, right):
+    odometry = dd.Odometry(ROBOT, ticks_per_revolution=TICKS)
+    odometry.update_ticks(left, right)
+    odometry.update_ticks(left + 10, right + 10)
+    assert odometry.pose.x == pytest.approx(10 * RAD_PER_TICK * 0.05, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("reading", "error", "message"),
+    [
+        (np.float64(1.5), ValueError, "must be a whole counter reading"),
+        (math.inf, ValueError, "must be a whole counter reading"),
+        (True, TypeError, "must be an integer counter reading"),
+        ("12", TypeError, "must be an integer counter reading"),
+        (2**12, ValueError, r"does not fit a 12-bit counter \(from -2\^11 to 2\^12 - 1"),
+        (2**64, ValueError, "does not fit a 64-bit counter"),
+    ],
+)
+def test_bad_counter_readings_are_refused(reading, error, message):
+    bits = 64 if reading == 2**64 else 12
+    odometry = dd.Odometry(ROBOT, ticks_per_revolution=TICKS, counter_bits=bits)
+    with pytest.raises(error, match=message):
+        odometry.update_ticks(reading, 0)
 
 
 # -- streaming equals batch --------------------------------------------------------------------
@@ -202,7 +259,7 @@ def ready():
         (lambda o: o.update_positions(1.5, 2.0, t=1.1), "time stands still at t = 1.1 s"),
         (lambda o: o.update_ticks(30000, 160, t=1.2), r"over max_wheel_speed 50\.0 rad/s"),
         (lambda o: o.update_increments(6.0, 0.0, t=1.2), r"6\.0 rad in 0\.09\d+ s, 60\.0\d+ rad/s"),
-        (lambda o: o.update_ticks(1.5, 160, t=1.2), "left must be an integer counter reading"),
+        (lambda o: o.update_ticks(1.5, 160, t=1.2), "left must be a whole counter reading"),
         (lambda o: o.update_ticks(150, 70000, t=1.2), "right = 70000 does not fit a 16-bit"),
         (lambda o: o.update_velocities(1.0, 600.0, 0.1), "600.0 rad/s, over max_wheel_speed"),
         (lambda o: o.update_positions(1.0), "update_positions needs left and right"),
@@ -239,7 +296,8 @@ def test_ticks_need_ticks_per_revolution():
     ("kwargs", "message"),
     [
         ({"method": "midpoint"}, "method must be one of euler, rk2, exact"),
-        ({"counter_bits": 12}, "counter_bits must be one of None, 8, 16, 32, 64, got 12"),
+        ({"counter_bits": 1}, "counter_bits must be from 2 to 64 .*got 1"),
+        ({"counter_bits": 65}, "counter_bits must be from 2 to 64 .*got 65"),
         ({"ticks_per_revolution": 0}, "ticks_per_revolution must be > 0"),
         ({"max_wheel_speed": -1.0}, "max_wheel_speed must be > 0"),
         ({"k_left": -0.1}, "k_left must be >= 0"),

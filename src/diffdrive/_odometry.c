@@ -354,23 +354,54 @@ static PyObject *update_positions(Core *c, PyObject *const *args, Py_ssize_t nar
     Py_RETURN_NONE;
 }
 
+/* A counter reading as an int: a Python int, or a whole float (NumPy's loadtxt gives those). */
+static PyObject *tick_index(PyObject *obj, const char *field) {
+    static const char *name = "update_ticks";
+    PyObject *index = PyBool_Check(obj) ? NULL : PyNumber_Index(obj);
+    if (index != NULL) return index;
+    PyErr_Clear();
+    PyNumberMethods *number = Py_TYPE(obj)->tp_as_number;
+    if (!PyBool_Check(obj) && number != NULL && number->nb_float != NULL) {
+        double v = PyFloat_AsDouble(obj);
+        if (v == -1.0 && PyErr_Occurred()) return NULL;
+        if (isfinite(v) && v == floor(v)) return PyLong_FromDouble(v);
+        PyErr_Format(PyExc_ValueError, "%s: %s must be a whole counter reading, got %R", name,
+                     field, obj);
+        return NULL;
+    }
+    PyErr_Format(PyExc_TypeError, "%s: %s must be an integer counter reading, got %R", name,
+                 field, obj);
+    return NULL;
+}
+
+/* A reading of a counter of `bits` bits (0: one that never rolls over), signed or unsigned;
+ * 64-bit readings of 2^63 and more are kept as their two's-complement bit pattern. */
 static int parse_ticks(PyObject *obj, const char *field, int bits, long long *out) {
     static const char *name = "update_ticks";
-    PyObject *index = PyNumber_Index(obj);
-    if (index == NULL) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s: %s must be an integer counter reading, got %R", name,
-                     field, obj);
-        return -1;
-    }
+    PyObject *index = tick_index(obj, field);
+    if (index == NULL) return -1;
     int overflow = 0;
     long long v = PyLong_AsLongLongAndOverflow(index, &overflow);
+    if (overflow > 0 && bits == 64) {
+        unsigned long long u = PyLong_AsUnsignedLongLong(index);
+        if (u == (unsigned long long)-1 && PyErr_Occurred()) {
+            PyErr_Clear();
+        } else {
+            overflow = 0;
+            v = (long long)u;
+        }
+    }
     Py_DECREF(index);
     long long low = bits ? (bits == 64 ? LLONG_MIN : -(1LL << (bits - 1))) : LLONG_MIN;
     long long high = bits && bits < 64 ? (long long)((1ULL << bits) - 1) : LLONG_MAX;
-    if (overflow || v < low || v > high) {
-        PyErr_Format(PyExc_ValueError, "%s: %s = %R does not fit a %d-bit counter (signed or "
-                     "unsigned)", name, field, obj, bits ? bits : 64);
+    if (overflow || (bits != 64 && (v < low || v > high))) {
+        if (bits)
+            PyErr_Format(PyExc_ValueError, "%s: %s = %R does not fit a %d-bit counter (from "
+                         "-2^%d to 2^%d - 1, signed or unsigned)", name, field, obj, bits,
+                         bits - 1, bits);
+        else
+            PyErr_Format(PyExc_ValueError, "%s: %s = %R does not fit a 64-bit integer; give "
+                         "counter_bits for a counter that rolls over", name, field, obj);
         return -1;
     }
     *out = v;

@@ -5,12 +5,12 @@ in C (``diffdrive._odometry``); this class adds the checked constructor and the 
 
 Rules, stated once:
 
-- Readings. ``update_ticks`` takes absolute counter readings: the first only sets the reference,
-  so nothing jumps at start-up; with ``counter_bits`` the change goes through at most one
-  roll-over of a signed or unsigned counter of that width. ``update_positions`` takes
-  accumulated wheel angles (rad), first reading a reference too. ``update_increments`` takes the
-  angles turned since the last update (rad); ``update_velocities`` rates (rad/s) held over
-  ``dt``.
+- Readings. ``update_ticks`` takes absolute counter readings (ints, or whole floats): the first
+  only sets the reference, so nothing jumps at start-up; with ``counter_bits`` (2 to 64) the
+  change goes through at most one roll-over of a signed or unsigned counter of that width
+  (``diffdrive.encoders``). ``update_positions`` takes accumulated wheel angles (rad), first
+  reading a reference too. ``update_increments`` takes the angles turned since the last update
+  (rad); ``update_velocities`` rates (rad/s) held over ``dt``.
 - Time. ``t`` (s) is optional. With it, time must not go backwards, nor stand still while the
   wheels move; ``max_wheel_speed`` (rad/s) is checked; and the velocity window fills. An update
   without ``t`` leaves the clock unknown until the next time stamp. ``update_velocities``
@@ -35,13 +35,12 @@ import numpy as np
 
 from diffdrive._odometry import OdometryCore
 from diffdrive._validate import finite, positive
+from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import DiffDrive
 from diffdrive.types import Pose, Twist, WheelVelocities
 
-__all__ = ["COUNTER_BITS", "Odometry"]
-
-COUNTER_BITS = (None, 8, 16, 32, 64)
+__all__ = ["Odometry"]
 
 
 class Odometry(OdometryCore):
@@ -49,8 +48,8 @@ class Odometry(OdometryCore):
 
     ``robot`` gives the geometry; ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"``;
     ``initial_pose`` is where it starts (default the origin). ``ticks_per_revolution`` (counts
-    per wheel revolution) is needed for ``update_ticks``; ``counter_bits`` (None, 8, 16, 32
-    or 64) is the width of the encoder counters, None for counters that never roll over.
+    per wheel revolution) is needed for ``update_ticks``; ``counter_bits`` (2 to 64) is the
+    width of the encoder counters, None for counters that never roll over.
     ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``k_left`` and ``k_right`` (m) are
     the wheel-error constants of the covariance model; ``initial_covariance`` is 3x3 (default
     zero); ``velocity_window`` (s) is the span over which ``twist`` averages.
@@ -73,11 +72,7 @@ class Odometry(OdometryCore):
         if not isinstance(robot, DiffDrive):
             raise TypeError(f"robot must be a DiffDrive, got {type(robot).__name__}")
         check_method(method)
-        if counter_bits not in COUNTER_BITS:
-            raise ValueError(
-                f"counter_bits must be one of {', '.join(map(str, COUNTER_BITS))}, "
-                f"got {counter_bits!r}"
-            )
+        counter_bits = check_counter_bits(counter_bits)
         rad_per_tick = 0.0
         if ticks_per_revolution is not None:
             rad_per_tick = 2.0 * math.pi / positive("ticks_per_revolution", ticks_per_revolution)
@@ -156,9 +151,7 @@ class Odometry(OdometryCore):
         The distance restarts from 0. The counter references, the clock and the velocity
         window are kept, so the next reading moves on from here without a jump.
         """
-        pose = Pose() if pose is None else pose
-        if not isinstance(pose, Pose):
-            raise TypeError(f"pose must be a Pose, got {type(pose).__name__}")
+        pose = Pose() if pose is None else Pose.coerce(pose, "pose")
         matrix = np.zeros((3, 3)) if covariance is None else np.asarray(covariance, dtype=float)
         if matrix.shape != (3, 3):
             raise ValueError(f"covariance must be 3x3, got shape {matrix.shape}")

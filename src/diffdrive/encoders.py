@@ -1,0 +1,66 @@
+"""Encoder counters: their width, and the change between readings through a roll-over.
+
+A counter of ``b`` bits (2 to 64) counts modulo 2^b. Read as signed (from -2^(b-1)) or as
+unsigned (from 0), the change between two readings is the same: the difference modulo 2^b,
+taken in [-2^(b-1), 2^(b-1)), so a counter may turn at most half its range between readings.
+``Odometry`` applies the same rule in C, one reading at a time; ``count_changes`` is the
+whole-array form for logs.
+"""
+
+from __future__ import annotations
+
+import operator
+
+import numpy as np
+
+__all__ = ["MAX_COUNTER_BITS", "MIN_COUNTER_BITS", "check_counter_bits", "count_changes"]
+
+MIN_COUNTER_BITS = 2
+MAX_COUNTER_BITS = 64
+
+
+def check_counter_bits(bits: object) -> int | None:
+    """``bits`` as an int from 2 to 64, or None (a counter that never rolls over)."""
+    if bits is None:
+        return None
+    if isinstance(bits, bool):
+        raise TypeError(f"counter_bits must be a whole number of bits or None, got {bits!r}")
+    try:
+        value = operator.index(bits)  # type: ignore[arg-type]
+    except TypeError:
+        raise TypeError(
+            f"counter_bits must be a whole number of bits or None, got {bits!r}"
+        ) from None
+    if not MIN_COUNTER_BITS <= value <= MAX_COUNTER_BITS:
+        raise ValueError(
+            f"counter_bits must be from {MIN_COUNTER_BITS} to {MAX_COUNTER_BITS} (the width "
+            f"of the encoder counter), or None; got {value}"
+        )
+    return value
+
+
+def count_changes(readings: object, bits: int | None, axis: int = 0) -> np.ndarray:
+    """The change between consecutive counter ``readings`` along ``axis``, as int64.
+
+    ``readings`` are whole counts (int64, or uint64 for unsigned 64-bit readings). With
+    ``bits`` each change goes through at most one roll-over of a ``bits``-bit counter; with
+    None the readings are plain integers, and a change beyond the int64 range is refused.
+    """
+    bits = check_counter_bits(bits)
+    array = np.asarray(readings)
+    if not np.issubdtype(array.dtype, np.integer):
+        raise TypeError(f"counter readings must be integers, got dtype {array.dtype}")
+    if bits is None:
+        # Python ints, so that no difference wraps silently.
+        changes = np.diff(array.astype(object), axis=axis)
+        if changes.size and not -(2**63) <= min(changes.flat) <= max(changes.flat) < 2**63:
+            raise ValueError("a counter changed by 2^63 counts or more between readings")
+        return changes.astype(np.int64)
+    # Modular arithmetic in uint64: wraps exactly for every width up to 64.
+    raw = np.diff(array.astype(np.uint64), axis=axis)
+    if bits < 64:
+        mask = np.uint64((1 << bits) - 1)
+        raw &= mask
+        # Sign-extend the changes of half the range or more: -2^(b-1) to -1.
+        raw = np.where(raw >= np.uint64(1 << (bits - 1)), raw | ~mask, raw)
+    return raw.view(np.int64)
