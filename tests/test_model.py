@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+import diffdrive as dd
 from diffdrive import DiffDrive, Twist, WheelVelocities
 from strategies import geometry, reals
 
@@ -227,7 +228,7 @@ def test_bad_side_radius_and_axle_offset_are_named():
     ],
 )
 def test_radius_must_be_given_one_way(params):
-    with pytest.raises(ValueError, match=r"wheel_radius|track_width is required"):
+    with pytest.raises(ValueError, match=r"wheel_radius|track_width .*is required"):
         DiffDrive(**params)
 
 
@@ -239,3 +240,17 @@ def test_robot_is_immutable():
 @given(st.floats(0.01, 1.0), st.floats(0.05, 2.0))
 def test_positional_form_matches_keywords(radius, track):
     assert DiffDrive(radius, track) == DiffDrive(wheel_radius=radius, track_width=track)
+
+
+def test_half_track_is_another_spelling_of_half_the_track_width():
+    robot = dd.DiffDrive(wheel_radius=0.05, half_track=0.15)
+    assert robot.track_width == 0.3
+    assert robot.half_track == 0.15
+    assert robot == dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    with pytest.raises(ValueError, match=r"either track_width .* or half_track .*, not both"):
+        dd.DiffDrive(wheel_radius=0.05, track_width=0.3, half_track=0.15)
+    with pytest.raises(ValueError, match="half_track must be > 0"):
+        dd.DiffDrive(wheel_radius=0.05, half_track=-0.1)
+    assert "**full** distance between the two wheel contact points" in " ".join(
+        dd.DiffDrive.__doc__.split()
+    )

@@ -6,6 +6,13 @@ import sys
 import diffdrive as dd
 
 
+def python_lines(code: str) -> list[str]:
+    """What a fresh Python process prints running ``code``, line by line."""
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.split("\n")
+
+
 def test_import_loads_numpy_and_nothing_heavier():
     code = (
         "import sys, diffdrive\n"
@@ -13,9 +20,7 @@ def test_import_loads_numpy_and_nothing_heavier():
         "print(sorted(heavy & {m.split('.')[0] for m in sys.modules}))\n"
         "print('numpy' in sys.modules)\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True
-    ).stdout.split("\n")
+    out = python_lines(code)
     assert out[0] == "[]"
     assert out[1] == "True"
 
@@ -31,3 +36,46 @@ def test_public_names_exist():
 
 def test_scalar_and_batch_se2_offer_the_same_operations():
     assert set(dd.se2.__all__) - set(dd.batch.__all__) == set()
+
+
+def test_the_heavier_modules_are_attributes_loaded_on_first_use():
+    code = (
+        "import sys, diffdrive as dd\n"
+        "before = 'diffdrive.calibration' in sys.modules\n"
+        "names = ['calibration', 'evaluation', 'files', 'plot', 'trajectories', 'logs']\n"
+        "print(before, all(getattr(dd, n).__name__ == 'diffdrive.' + n for n in names))\n"
+        "print('calibration' in dir(dd))\n"
+    )
+    out = python_lines(code)
+    assert out[:2] == ["False True", "True"]
+
+
+def test_unknown_attributes_still_raise():
+    import pytest
+
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        dd.nope  # noqa: B018
+
+
+def test_the_version_is_written_once():
+    from importlib.metadata import version
+    from pathlib import Path
+
+    assert version("diffdrive") == dd.__version__
+    pyproject = (Path(__file__).parents[1] / "pyproject.toml").read_text()
+    assert dd.__version__ not in pyproject
+    assert 'requires = ["setuptools>=77"]' in pyproject  # license = "MIT" needs 77
+
+
+def test_auto_loads_numba_only_for_calls_where_it_pays_off():
+    code = (
+        "import sys, numpy as np, diffdrive as dd\n"
+        "robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)\n"
+        "dd.simulate(robot, np.ones((2**17, 2)), dt=0.01)\n"
+        "print('numba' in sys.modules)\n"
+        "from diffdrive.simulation import _use_numba\n"
+        "import diffdrive._compiled\n"
+        "print(_use_numba('auto', 2**17, np.dtype('float64')))\n"
+    )
+    out = python_lines(code)
+    assert out[:2] == ["False", "True"]

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+import diffdrive as dd
 from diffdrive import Pose, Twist, WheelPositions, WheelVelocities
 
 
@@ -65,3 +66,33 @@ def test_wheel_angle_bookkeeping_refuses_bad_dt(dt):
         WheelPositions().advance(WheelVelocities(1.0, 1.0), dt)
     with pytest.raises(ValueError, match="dt must be"):
         WheelVelocities.from_positions(WheelPositions(), WheelPositions(1.0, 1.0), dt)
+
+
+def test_sequences_and_numpy_values_are_taken_where_a_value_type_is_expected():
+    robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    twist = robot.to_twist(dd.WheelVelocities(8.0, 10.0))
+    assert robot.to_twist((8.0, 10.0)) == twist
+    assert robot.to_twist([8, 10]) == twist
+    assert robot.to_twist(np.array([8.0, 10.0], dtype=np.float32)) == twist
+    assert robot.to_wheel_velocities((twist.vx, twist.vy, twist.omega)) == (
+        robot.to_wheel_velocities(twist)
+    )
+    assert dd.se2.exp((0.5, 0.0, 1.0), 0.1) == dd.se2.exp(dd.Twist(0.5, 0.0, 1.0), 0.1)
+    assert dd.Pose(1, 2, 0.3).compose((1, 0, 0)) == dd.Pose(1, 2, 0.3).compose(dd.Pose(1, 0, 0))
+    assert dd.integrate.step((0, 0, 0), (1, 0, 0), 0.5) == dd.Pose(0.5, 0.0, 0.0)
+    assert dd.Pose(np.float64(1.0), np.float32(2.0)).y == 2.0
+
+
+@pytest.mark.parametrize(
+    ("value", "error", "message"),
+    [
+        (("8", "10"), TypeError, r"wheels must be a WheelVelocities or a sequence of numbers"),
+        (dd.Twist(), TypeError, r"wheels must be a WheelVelocities"),
+        ((True, False), TypeError, r"wheels must be a WheelVelocities"),
+        ((1.0, 2.0, 3.0), ValueError, r"wheels must have 2 numbers \[left, right\], got shape"),
+    ],
+)
+def test_what_is_not_a_value_is_refused_by_name(value, error, message):
+    robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    with pytest.raises(error, match=message):
+        robot.to_twist(value)

@@ -1,8 +1,12 @@
 """diffdrive: kinematics, odometry and simulation for differential-drive mobile robots.
 
 Scalar value types and the robot model work on floats; ``diffdrive.batch`` holds the same
-operations over arrays. Conventions: docs/conventions.md.
+operations over arrays. Conventions: docs/conventions.md. The heavier parts
+(``calibration``, ``evaluation``, ``files``, ``trajectories``, ``logs``, ``plot``, ...) load on
+first use as attributes, so ``import diffdrive`` stays light.
 """
+
+import importlib
 
 from diffdrive import batch, integrate, se2
 from diffdrive.angles import wrap_angle
@@ -16,6 +20,30 @@ from diffdrive.trajectory import Trajectory
 from diffdrive.types import Pose, Twist, WheelPositions, WheelVelocities
 
 __version__ = "0.1.0"
+
+# Submodules loaded when first reached as attributes (dd.calibration, dd.plot, ...).
+_LAZY = (
+    "calibration",
+    "datasets",
+    "encoders",
+    "evaluation",
+    "examples",
+    "files",
+    "logs",
+    "plot",
+    "trajectories",
+)
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return importlib.import_module(f"diffdrive.{name}")
+    raise AttributeError(f"module 'diffdrive' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
+
 
 __all__ = [
     "DiffDrive",

@@ -35,6 +35,7 @@ def check_method(method: str) -> Method:
 def delta(twist: Twist, dt: float, method: Method = "exact") -> Pose:
     """The body-frame pose change over one step of ``dt`` s with ``twist`` held constant."""
     check_method(method)
+    twist = Twist.coerce(twist, "twist")
     if method == "exact":
         return se2.exp(twist, dt)
     dt = finite("dt", dt)
@@ -53,4 +54,4 @@ def step(pose: Pose, twist: Twist, dt: float, method: Method = "exact") -> Pose:
     ``x(t+h) = x(t) + h v cos(theta(t))``, ``y(t+h) = y(t) + h v sin(theta(t))``,
     ``theta(t+h) = theta(t) + h omega``.
     """
-    return pose.compose(delta(twist, dt, method))
+    return Pose.coerce(pose, "pose").compose(delta(twist, dt, method))

@@ -31,9 +31,10 @@ class DiffDrive:
     """A two-wheeled differential-drive robot.
 
     Give either ``wheel_radius`` (both wheels) or ``left_wheel_radius`` and
-    ``right_wheel_radius`` (m), the ``track_width`` between the wheel contact points (m; the
-    seeds' half-track ``b``, ``d``, ``D``, ``L`` is half of it), and optionally the
-    ``axle_offset`` (m) of the reference point ahead of the axle midpoint.
+    ``right_wheel_radius`` (m); either ``track_width``, the **full** distance between the two
+    wheel contact points (m), or ``half_track``, half of it (m; the seeds write it ``b``,
+    ``d``, ``D`` or ``L``); and optionally the ``axle_offset`` (m) of the reference point ahead
+    of the axle midpoint.
     """
 
     left_wheel_radius: float
@@ -49,6 +50,7 @@ class DiffDrive:
         left_wheel_radius: float | None = None,
         right_wheel_radius: float | None = None,
         axle_offset: float = 0.0,
+        half_track: float | None = None,
     ) -> None:
         sides = (left_wheel_radius, right_wheel_radius)
         if wheel_radius is not None:
@@ -62,12 +64,23 @@ class DiffDrive:
             right = positive("right_wheel_radius", right_wheel_radius)
         else:
             raise ValueError("give wheel_radius, or both left_wheel_radius and right_wheel_radius")
-        if track_width is None:
-            raise ValueError("track_width is required")
+        if (track_width is None) == (half_track is None):
+            raise ValueError(
+                "give either track_width (the full wheel-to-wheel distance) or half_track "
+                "(half of it), not both" if half_track is not None else
+                "track_width (the full wheel-to-wheel distance) or half_track is required"
+            )  # fmt: skip
+        if half_track is not None:
+            track_width = 2.0 * positive("half_track", half_track)
         object.__setattr__(self, "left_wheel_radius", left)
         object.__setattr__(self, "right_wheel_radius", right)
         object.__setattr__(self, "track_width", positive("track_width", track_width))
         object.__setattr__(self, "axle_offset", finite("axle_offset", axle_offset))
+
+    @property
+    def half_track(self) -> float:
+        """Half the track width, m: the seeds' ``b``, ``d``, ``D`` or ``L``."""
+        return 0.5 * self.track_width
 
     @property
     def wheel_radius(self) -> float:
@@ -77,7 +90,11 @@ class DiffDrive:
     # -- (v, omega) form: seeds 002 and 003 -------------------------------------------------
 
     def to_twist(self, wheels: WheelVelocities) -> Twist:
-        """Body twist of the reference point from the wheel velocities (forward kinematics)."""
+        """Body twist of the reference point from the wheel velocities (forward kinematics).
+
+        ``wheels`` is a ``WheelVelocities`` or two numbers ``(left, right)``, rad/s.
+        """
+        wheels = WheelVelocities.coerce(wheels, "wheels")
         left = self.left_wheel_radius * wheels.left
         right = self.right_wheel_radius * wheels.right
         omega = (right - left) / self.track_width
@@ -88,8 +105,9 @@ class DiffDrive:
 
         A differential drive cannot choose ``vy``: it is ``axle_offset * omega``. The given
         ``vy`` is not used (it is the part of the twist the wheels cannot produce; see
-        ``constraint_matrix``).
+        ``constraint_matrix``). ``twist`` is a ``Twist`` or three numbers ``(vx, vy, omega)``.
         """
+        twist = Twist.coerce(twist, "twist")
         half_turn = 0.5 * self.track_width * twist.omega
         return WheelVelocities(
             (twist.vx - half_turn) / self.left_wheel_radius,

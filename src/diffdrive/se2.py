@@ -54,6 +54,7 @@ def exp(twist: Twist, dt: float = 1.0) -> Pose:
     Exact for constant wheel velocities (the constant-curvature arc). The delta is in the
     body frame at the start; compose it onto the start pose: ``pose.compose(exp(twist, dt))``.
     """
+    twist = Twist.coerce(twist, "twist")
     dt = finite("dt", dt)
     half = 0.5 * twist.omega * dt
     chord = dt * sinc(half)
@@ -71,6 +72,7 @@ def log(pose: Pose) -> Twist:
     ``theta`` is first wrapped to (-pi, pi], so ``exp(log(p))`` equals ``p`` up to whole turns
     of the heading, and ``log(exp(t))`` equals ``t`` for ``|t.omega| < pi``.
     """
+    pose = Pose.coerce(pose, "pose")
     theta = wrap_angle(pose.theta)
     half = 0.5 * theta
     c, s = math.cos(half), math.sin(half)
@@ -90,6 +92,7 @@ def rotation_matrix(theta: float) -> np.ndarray:
 
 def to_matrix(pose: Pose) -> np.ndarray:
     """The 3x3 homogeneous matrix ``[[R, p], [0, 0, 1]]`` of ``pose``."""
+    pose = Pose.coerce(pose, "pose")
     c, s = math.cos(pose.theta), math.sin(pose.theta)
     return np.array([[c, -s, pose.x], [s, c, pose.y], [0.0, 0.0, 1.0]])
 
@@ -114,5 +117,6 @@ def from_matrix(matrix: object, atol: float = math.sqrt(sys.float_info.epsilon))
 
 def pose_derivative(pose: Pose, twist: Twist) -> tuple[float, float, float]:
     """``(x_dot, y_dot, theta_dot)`` in the world frame: the unicycle ODE (seeds 000, 002)."""
+    pose, twist = Pose.coerce(pose, "pose"), Twist.coerce(twist, "twist")
     c, s = math.cos(pose.theta), math.sin(pose.theta)
     return (c * twist.vx - s * twist.vy, s * twist.vx + c * twist.vy, twist.omega)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -33,9 +34,12 @@ __all__ = ["integrate_increments", "simulate"]
 
 # Small enough that a block's temporaries are reused from the heap, not fresh pages each time.
 _BLOCK_ELEMENTS = 1 << 11
-# From this many robot-steps, "auto" takes the numba kernel; below, importing numba (about half
-# a second, once) costs more than it saves.
+# From this many robot-steps, "auto" takes the numba kernel once it is loaded in this process.
 _COMPILED_MIN_ROBOT_STEPS = 1 << 16
+# Loading it (importing numba and the cached kernel) costs 0.7-0.9 s in a fresh process, and
+# compiling it the first time ever about 7 s: NumPy (about 140 ns a robot-step) is faster
+# below about 2^23 robot-steps, so "auto" loads the kernel only for calls that large.
+_COMPILED_LOAD_ROBOT_STEPS = 1 << 23
 
 WheelFunction = Callable[[np.ndarray], Any]
 Backend = Literal["auto", "numpy", "numba"]
@@ -198,7 +202,9 @@ def simulate(
     ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"`` (the default, exact for constant wheel
     velocities). ``backend`` is ``"numpy"`` (blocked prefix sums), ``"numba"`` (the compiled
     kernel on every core; ``pip install diffdrive[fast]``) or ``"auto"``: numba when it is
-    installed and the call has at least 2**16 robot-steps. All checks run before any
+    installed and the call has at least 2**16 robot-steps with the kernel already loaded in
+    this process, or 2**23 when it would have to be loaded first (which takes most of a
+    second, and about 7 s the first time ever, to compile). All checks run before any
     integration.
     """
     check_method(method)
@@ -307,11 +313,9 @@ def _use_numba(backend: Backend, robot_steps: int, dtype: np.dtype) -> bool:
     if backend == "numba" and not compiled:
         raise ValueError(f"backend='numba' takes float32 or float64 data, got {dtype}")
     if backend == "auto":
-        return (
-            compiled
-            and robot_steps >= _COMPILED_MIN_ROBOT_STEPS
-            and importlib.util.find_spec("numba") is not None
-        )
+        loaded = "diffdrive._compiled" in sys.modules
+        least = _COMPILED_MIN_ROBOT_STEPS if loaded else _COMPILED_LOAD_ROBOT_STEPS
+        return compiled and robot_steps >= least and importlib.util.find_spec("numba") is not None
     return backend == "numba"
 
 

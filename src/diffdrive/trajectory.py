@@ -14,7 +14,7 @@ from diffdrive.model import DiffDrive
 __all__ = ["Trajectory"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Trajectory:
     """Poses at sample times, for one robot or a batch of them.
 
@@ -28,6 +28,16 @@ class Trajectory:
     poses: np.ndarray
     wheel_velocities: np.ndarray
     method: Method
+
+    def __repr__(self) -> str:
+        robots = self.poses.shape[:-2]
+        batch_text = f"{'x'.join(map(str, robots))} robots, " if robots else ""
+        return (
+            f"Trajectory({batch_text}{self.steps} steps over "
+            f"[{float(np.min(self.times[..., 0])):g}, {float(np.max(self.times[..., -1])):g}] s, "
+            f"method={self.method!r}, final_pose={_short(self.final_pose)}, "
+            f"dtype={self.poses.dtype}, robot={self.robot!r})"
+        )
 
     @property
     def steps(self) -> int:
@@ -101,3 +111,10 @@ class Trajectory:
         """``[t, x, y, theta]`` rows, ``(..., T+1, 4)``."""
         times = np.broadcast_to(self.times, self.poses.shape[:-1])
         return np.concatenate([times[..., None].astype(self.poses.dtype), self.poses], axis=-1)
+
+
+def _short(pose: np.ndarray) -> str:
+    """One final pose as a short list, or the shape of many."""
+    if pose.ndim == 1:
+        return "[" + ", ".join(f"{float(v):.6g}" for v in pose) + "]"
+    return f"<{pose.shape} array>"

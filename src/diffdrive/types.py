@@ -34,6 +34,27 @@ class _Vector:
         return np.array(astuple(self), dtype=np.float64)  # type: ignore[call-overload]
 
     @classmethod
+    def coerce(cls: type[_V], value: object, name: str | None = None) -> _V:
+        """``value`` as this type: itself, or a sequence, array or NumPy array of its fields'
+        numbers in field order (``(8.0, 10.0)`` for wheels). ``TypeError`` naming ``name``
+        for anything else: another value type, strings, booleans."""
+        if isinstance(value, cls):
+            return value
+        names = ", ".join(f.name for f in fields(cls))  # type: ignore[arg-type]
+        what = name or cls.__name__
+        if not isinstance(value, _Vector | str | bytes):
+            array = np.asarray(value) if isinstance(value, list | tuple | np.ndarray) else None
+            if array is not None and array.dtype.kind in "iuf":
+                if array.shape == (len(fields(cls)),):  # type: ignore[arg-type]
+                    return cls(*array.astype(np.float64).tolist())
+                size = len(fields(cls))  # type: ignore[arg-type]
+                raise ValueError(f"{what} must have {size} numbers [{names}], got shape "
+                                 f"{array.shape}")  # fmt: skip
+        raise TypeError(
+            f"{what} must be a {cls.__name__} or a sequence of numbers [{names}], got {value!r}"
+        )
+
+    @classmethod
     def from_array(cls: type[_V], array: object) -> _V:
         """Build from a sequence or array of shape ``(n,)`` in field order."""
         values = np.asarray(array, dtype=np.float64)
@@ -59,6 +80,7 @@ class Pose(_Vector):
 
     def compose(self, other: Pose) -> Pose:
         """``self * other``: ``other`` is expressed in this pose's frame (a delta)."""
+        other = Pose.coerce(other, "other")
         c, s = math.cos(self.theta), math.sin(self.theta)
         return Pose(
             self.x + c * other.x - s * other.y,
@@ -73,6 +95,7 @@ class Pose(_Vector):
 
     def relative_to(self, reference: Pose) -> Pose:
         """This pose seen from ``reference``: ``reference.inverse() * self``."""
+        reference = Pose.coerce(reference, "reference")
         c, s = math.cos(reference.theta), math.sin(reference.theta)
         dx, dy = self.x - reference.x, self.y - reference.y
         return Pose(c * dx + s * dy, -s * dx + c * dy, self.theta - reference.theta)
