@@ -60,7 +60,7 @@ def load(folder: Path) -> tuple[dict[str, list], dict[str, dict[str, float]]]:
 
 
 def largest_error(robot, runs) -> float:
-    return worst([run_errors(odometry_of(robot, i, t[0]), t) for i, t in runs]).max_position
+    return worst([run_errors(odometry_of(robot, i, t[0], "rk2"), t) for i, t in runs]).max_position
 
 
 def results(experiments: dict[str, list]) -> dict[str, dict[str, float]]:
@@ -71,8 +71,10 @@ def results(experiments: dict[str, list]) -> dict[str, dict[str, float]]:
         others = [run for name, rs in experiments.items() if name != experiment for run in rs]
         row = {"nominal": largest_error(nominal, runs)}
         for method in ("least_squares", "minimax"):
-            row[method] = largest_error(calibrate(nominal, runs, method).robot, runs)
-            unseen = calibrate(nominal, others, method).robot
+            row[method] = largest_error(
+                calibrate(nominal, runs, method, integration="rk2").robot, runs
+            )
+            unseen = calibrate(nominal, others, method, integration="rk2").robot
             row[f"{method}, unseen"] = largest_error(unseen, runs)
         table[experiment] = row
     return table
@@ -107,12 +109,12 @@ def draw(runs: list, output: Path) -> None:
     import matplotlib.pyplot as plt
 
     nominal = optiodom_robot()
-    calibrated = calibrate(nominal, runs, "minimax").robot
+    calibrated = calibrate(nominal, runs, "minimax", integration="rk2").robot
     increments, truth = runs[0]
     figure, ax = plt.subplots(figsize=(7, 6), layout="constrained")
     ax.plot(truth[:, 0], truth[:, 1], color="0.5", linewidth=3, label="ground truth (OptiTrack)")
     for robot, label in [(nominal, "nominal odometry"), (calibrated, "calibrated (minimax)")]:
-        poses = odometry_of(robot, increments, truth[0])
+        poses = odometry_of(robot, increments, truth[0], "rk2")
         error = run_errors(poses, truth).max_position
         ax.plot(poses[:, 0], poses[:, 1], label=f"{label}: max error {1000 * error:.0f} mm")
     ax.plot(*truth[0, :2], "k^", label="start")

@@ -54,6 +54,11 @@ def test_the_uncertainty_covers_the_truth_on_noisy_runs():
     assert np.all(np.abs(error) < 5 * result.standard_errors), (error, result.standard_errors)
 
 
+def test_a_long_fit_shows_its_progress_when_asked(capsys):
+    calibrate(NOMINAL, turning_runs(), progress=True)
+    assert "fitting 2 runs" in capsys.readouterr().err
+
+
 def test_straight_runs_cannot_fix_the_track_width():
     straight = [synthetic_run(TRUE, np.tile([8.0, 8.0 * 0.0497 / 0.0502], (200, 1)))]
     with pytest.raises(CalibrationError, match="least determined is track_width"):
@@ -66,7 +71,53 @@ def test_bad_runs_are_refused():
     with pytest.raises(CalibrationError, match="umbmark needs square_side"):
         calibrate(NOMINAL, turning_runs(), "umbmark")
     with pytest.raises(CalibrationError, match="0 clockwise and 1 counter-clockwise"):
-        calibrate(NOMINAL, turning_runs()[1:], "umbmark", square_side=1.0)
+        calibrate(NOMINAL, square_runs(1.0, 1, clockwise=False), "umbmark", square_side=1.0)
+
+
+def square_run(side, clockwise, robot=TRUE, speed=8.0, dt=0.02):
+    """Increments and truth of ``robot`` driving a square: straight sides, turns in place."""
+    sign = -1.0 if clockwise else 1.0
+    side_steps = round(side / (speed * robot.wheel_radius * dt))
+    turn_rate = 4.0  # rad/s of each wheel, opposite
+    turn_steps = round(
+        (math.pi / 2) * robot.track_width / (2 * turn_rate * robot.wheel_radius * dt)
+    )
+    legs = []
+    for _ in range(4):
+        legs.append(np.tile([speed, speed], (side_steps, 1)))
+        legs.append(np.tile([-sign * turn_rate, sign * turn_rate], (turn_steps, 1)))
+    return synthetic_run(robot, np.vstack(legs), dt)
+
+
+def square_runs(side, count, clockwise):
+    return [square_run(side, clockwise) for _ in range(count)]
+
+
+def test_umbmark_refuses_runs_that_are_not_squares_and_names_them():
+    runs = [square_run(1.0, True), square_run(1.0, False), turning_runs()[0]]
+    with pytest.raises(CalibrationError, match=r"run 2 is not one: it turns .* deg in all"):
+        calibrate(NOMINAL, runs, "umbmark", square_side=1.0)
+    with pytest.raises(CalibrationError, match=r"a is not one: it is 4 m long, not about 8 m"):
+        calibrate(NOMINAL, runs[:2], "umbmark", square_side=2.0, names=["a", "weave.csv"])
+
+
+def test_umbmark_gives_an_uncertainty_from_repeated_runs_or_says_why_not():
+    rng = np.random.default_rng(4)
+    runs = []
+    for clockwise in (True, False, True, False, True, False):
+        increments, truth = square_run(1.0, clockwise)
+        jittered = truth.copy()
+        jittered[-1, :2] += rng.normal(0, 0.003, 2)  # where the robot really stopped varies
+        runs.append((increments, jittered))
+    result = calibrate(NOMINAL, runs, "umbmark", square_side=1.0)
+    assert result.covariance.shape == (3, 3)
+    assert np.all(np.isfinite(result.standard_errors))
+    assert np.all(result.standard_errors > 0)
+    assert result.condition is None
+    single = calibrate(NOMINAL, runs[:2], "umbmark", square_side=1.0)
+    assert single.covariance is None
+    assert single.standard_errors is None
+    assert "needs 2 or more in each direction" in single.uncertainty_note
 
 
 # -- real data ---------------------------------------------------------------------------------
@@ -108,8 +159,9 @@ def test_minimax_beats_optiodom_on_every_experiment_with_the_papers_protocol():
         if row["note"]:
             continue
         runs = runs_of(row["experiment"])
-        robot = calibrate(optiodom_robot(), runs, "minimax").robot
-        errors = worst([run_errors(odometry_of(robot, i, t[0]), t) for i, t in runs])
+        # The paper's protocol and its odometry method, rk2.
+        robot = calibrate(optiodom_robot(), runs, "minimax", integration="rk2").robot
+        errors = worst([run_errors(odometry_of(robot, i, t[0], "rk2"), t) for i, t in runs])
         ours.append(errors.max_position)
         theirs.append(float(row["calib_max_pos_err_m"]))
         assert ours[-1] <= theirs[-1], row["experiment"]

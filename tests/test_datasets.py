@@ -22,7 +22,7 @@ def test_columns_and_the_right_then_left_order(tmp_path):
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("0,0,0,0,0,0\n0.05,0,0,0,1\n", r"x_run-01\.csv:2: expected 6 columns, got 5"),
+        ("0,0,0,0,0,0\n0.05,0,0,0,1\n", r"x_run-01\.csv:2: an OptiOdom line has 6 fields, got 5"),
         ("0,0,0,0,0,0\n0.05,0,zero,0,1,1\n", r"x_run-01\.csv:2: not a number"),
         ("0,0,0,0,0,0\n0.05,0,nan,0,1,1\n", r"x_run-01\.csv:2: not finite"),
         ("0,0,0,0,0,0\n0.05,0,0,0,1,1\n0.05,0,0,0,1,1\n", r"x_run-01\.csv:3: time 0\.05 does"),

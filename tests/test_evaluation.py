@@ -48,15 +48,14 @@ def test_rpe_of_a_constant_heading_bias():
     estimate = np.zeros_like(truth)
     for k in range(n):  # the odometry's own steps of 0.1 m with a 1 degree extra turn
         estimate[k + 1] = dd.batch.compose(estimate[k], np.array([0.1, 0.0, math.radians(1)]))
-    translation, rotation = rpe(estimate, truth, 1, unit="poses")
-    assert rotation == pytest.approx(1.0)
-    assert translation == pytest.approx(0.0, abs=1e-12)
-    # Over 0.2 m (two steps) the motion's end is off by the first step's turn.
-    translation, rotation = rpe(estimate, truth, 0.2, unit="m")
-    assert rotation == pytest.approx(2.0)
-    assert translation == pytest.approx(
-        0.1 * math.sin(math.radians(1)) * math.hypot(1, 0), rel=1e-3
-    )
+    for pairs in ("consecutive", "all"):
+        translation, rotation = rpe(estimate, truth, 1, unit="poses", pairs=pairs)
+        assert rotation == pytest.approx(1.0)
+        assert translation == pytest.approx(0.0, abs=1e-12)
+        # Over 0.19 m (two steps of 0.1 m) the motion's end is off by the first step's turn.
+        translation, rotation = rpe(estimate, truth, 0.19, unit="m", pairs=pairs)
+        assert rotation == pytest.approx(2.0)
+        assert translation == pytest.approx(0.1 * math.sin(math.radians(1)), rel=1e-3)
 
 
 def test_rpe_and_ate_refuse_bad_input():
@@ -67,3 +66,105 @@ def test_rpe_and_ate_refuse_bad_input():
         rpe(truth, truth, 1.0, unit="s")
     with pytest.raises(ValueError, match=r"no pair of poses is 5\.0 m apart"):
         rpe(truth, truth, 5.0)
+    bad = truth.copy()
+    bad[3, 1] = math.nan
+    with pytest.raises(ValueError, match=r"estimate must be finite; pose 3 is"):
+        ate(bad, truth)
+    with pytest.raises(ValueError, match="at least one run"):
+        worst([])
+    with pytest.raises(ValueError, match="pairs must be one of consecutive, all"):
+        rpe(truth, truth, 1.0, pairs="some")
+
+
+# -- against evo -------------------------------------------------------------------------------
+
+
+def evo_pair():
+    """The trajectories behind the evo figures below: a truth at 100 Hz and the odometry of a
+    robot with other wheels at 20 Hz, its clock 3 ms late."""
+    robot = dd.DiffDrive(wheel_radius=0.042, track_width=0.2)
+    biased = dd.DiffDrive(left_wheel_radius=0.0415, right_wheel_radius=0.0423, track_width=0.205)
+
+    def history(t):
+        return np.stack([6 + 3 * np.sin(t), 6 - 3 * np.sin(0.7 * t)], -1)
+
+    truth = dd.simulate(robot, history, dt=0.01, duration=12.0)
+    estimate = dd.simulate(biased, history, dt=0.05, duration=12.0)
+    return truth, estimate
+
+
+# Computed by evo 1.38.1 on these trajectories written as TUM files (truth.tum; estimate.tum
+# with the times + 0.003 s), each with --t_max_diff 0.01 --t_offset -0.003, for example
+# `evo_rpe tum truth.tum estimate.tum --delta 1 --delta_unit m -r angle_deg --all_pairs`;
+# the RMSE from the saved results (--save_results).
+EVO_ATE = {False: 0.204252238655749, True: 0.023702159355531358}  # evo_ape, evo_ape -a
+EVO_RPE = [  # (delta, unit, pairs, pairs along the truth, RMSE m, RMSE deg)
+    (1.0, "m", "consecutive", False, 0.046668502484007064, 6.906829395363205),
+    (1.0, "m", "all", False, 0.04589424970462187, 5.240322451389079),
+    (5, "poses", "consecutive", False, 0.0003344424932811086, 0.439025933072793),
+    (5, "poses", "all", False, 0.00033614763212072725, 0.4406875119619212),
+    (0.5, "m", "consecutive", True, 0.014937868067401584, 3.5127552157726467),
+]
+
+
+@pytest.fixture(scope="module")
+def evo_files(tmp_path_factory):
+    from diffdrive.trajectories import write_trajectory
+
+    folder = tmp_path_factory.mktemp("evo")
+    truth, estimate = evo_pair()
+    write_trajectory(folder / "truth.tum", truth.times, truth.poses, "tum")
+    write_trajectory(folder / "estimate.tum", estimate.times + 0.003, estimate.poses, "tum")
+    return folder
+
+
+def paired(folder):
+    from diffdrive.evaluation import associate
+    from diffdrive.trajectories import read_trajectory
+
+    times, estimate = read_trajectory(folder / "estimate.tum")
+    truth_times, truth = read_trajectory(folder / "truth.tum")
+    i, j = associate(times, truth_times, 0.01, -0.003)
+    assert len(i) == 241
+    return estimate[i], truth[j]
+
+
+@pytest.mark.parametrize("aligned", [False, True])
+def test_ate_equals_evo(evo_files, aligned):
+    estimate, truth = paired(evo_files)
+    assert ate(estimate, truth, aligned=aligned) == pytest.approx(EVO_ATE[aligned], rel=1e-9)
+
+
+@pytest.mark.parametrize(("delta", "unit", "pairs", "from_truth", "metres", "degrees"), EVO_RPE)
+def test_rpe_equals_evo_in_both_pair_modes(evo_files, delta, unit, pairs, from_truth, metres,
+                                           degrees):  # fmt: skip
+    estimate, truth = paired(evo_files)
+    translation, rotation = rpe(estimate, truth, delta, unit, pairs=pairs,
+                                pairs_from_truth=from_truth)  # fmt: skip
+    assert translation == pytest.approx(metres, rel=1e-9)
+    assert rotation == pytest.approx(degrees, rel=1e-9)
+
+
+def test_the_cli_pairs_by_time_like_evo(evo_files, capsys):
+    import json
+
+    from diffdrive.cli import main
+
+    argv = [str(evo_files / "estimate.tum"), "--truth", str(evo_files / "truth.tum"),
+            "--t-offset", "-0.003", "--rpe", "1", "--rpe-pairs", "all", "--json"]  # fmt: skip
+    assert main(["evaluate", *argv]) == 0
+    metrics = json.loads(capsys.readouterr().out)
+    assert metrics["poses_compared"] == 241
+    assert metrics["ate_aligned_m"] == pytest.approx(EVO_ATE[True], rel=1e-9)
+    assert metrics["rpe_1m_all_m"] == pytest.approx(EVO_RPE[1][4], rel=1e-9)
+
+
+def test_interpolation_follows_the_arc():
+    from diffdrive.evaluation import interpolate
+
+    robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    fine = dd.simulate(robot, np.tile([6.0, 9.0], (100, 1)), dt=0.01)
+    coarse = fine.poses[::10]
+    at = fine.times[3:95]
+    np.testing.assert_allclose(interpolate(fine.times[::10], coarse, at), fine.poses[3:95],
+                               atol=1e-12)  # fmt: skip

@@ -32,6 +32,12 @@ def test_step_size_error_shows_the_orders_and_exact_on_held_commands(tmp_path, c
         assert np.isclose(ratio, factor, rtol=0.05), (method, ratio)
     assert max(held["exact"]) < 1e-12
     assert min(held["rk2"]) > 1e-9
+    # The README quotes the 1 ms figures (10,000 steps over the 10 s manoeuvre).
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    euler, rk2, exact = (
+        f"{smooth[m][-1]:.1e}".replace("e-0", "e-") for m in ("euler", "rk2", "exact")
+    )
+    assert f"{euler} m, {rk2} m and {exact} m at 1 ms steps" in " ".join(readme.split())
 
 
 def test_commanded_path_draws_both_paths_within_the_wheel_limit(tmp_path, capsys):

@@ -47,3 +47,12 @@ def test_the_command_line_walkthrough_makes_the_pictures_shown(tmp_path):
     assert abs(float(made.mean()) - float(shown.mean())) < 1e-3
     assert (tmp_path / "trajectory.gif").stat().st_size > 10_000
     assert (tmp_path / "trajectory.tum").read_text().startswith("# t x y z qx qy qz qw")
+
+
+def test_the_readme_has_each_section_once_and_speaks_to_users():
+    text = README.read_text()
+    for heading in ("## Command line", "## Odometry", "## Performance"):
+        assert text.count(heading + "\n") == 1, heading
+    for internal in ("seed 000's main job", "Issue ", "issue "):
+        assert internal not in text, internal
+    assert "a C compiler" in text.split("```sh", 1)[0]

@@ -9,7 +9,12 @@ at the same instants. Methods:
   frame) of each direction, ``alpha = (x_cw + x_ccw) / (-4 L)`` gives the track width,
   ``b = b_0 (pi/2) / (pi/2 - alpha)``, and ``beta = (x_cw - x_ccw) / (-4 L)`` the diameter
   ratio ``E_d = (R + b_0/2) / (R - b_0/2)`` with ``R = (L/2) / sin(beta/2)``; the mean diameter
-  is kept. Which runs are clockwise is read from the ground truth's net turn.
+  is kept. Which runs are clockwise is read from the ground truth's net turn. Every run must
+  be a closed square of side ``square_side`` by its ground truth (one net turn, four sides'
+  length, a square's extent, back near its start); any other run is refused by name. The
+  parameters' covariance comes from the scatter of the runs' final errors (the standard error
+  of each direction's mean, propagated through the formulas), so it needs two runs or more in
+  each direction; with one, the result has no covariance and says why.
 - ``"least_squares"``: the odometry of every run (the chosen integration method, from each
   run's first ground-truth pose) against every ground-truth pose, with a robust loss, by
   ``scipy.optimize.least_squares``. The parameters' covariance comes from the Jacobian at the
@@ -48,22 +53,23 @@ class CalibrationError(ValueError):
 class CalibrationResult:
     """A calibrated ``robot`` and how well it is known.
 
-    ``covariance`` is 3x3 over ``PARAMETERS`` (m^2; NaN where the method gives none);
-    ``residuals`` are the fit's position errors at the solution, m, one array per run (for
-    UMBmark, the final errors of each run); ``condition`` is the condition number of the scaled
-    Jacobian (least squares) or NaN.
+    ``covariance`` is 3x3 over ``PARAMETERS`` (m^2), or None when the runs give none (then
+    ``uncertainty_note`` says why); ``residuals`` are the fit's position errors at the
+    solution, m, one array per run (for UMBmark, the final errors of each run);
+    ``condition`` is the condition number of the scaled Jacobian (least squares), or None.
     """
 
     robot: DiffDrive
     method: str
-    covariance: np.ndarray
+    covariance: np.ndarray | None
     residuals: list[np.ndarray] = field(repr=False)
-    condition: float = math.nan
+    condition: float | None = None
+    uncertainty_note: str = ""
 
     @property
-    def standard_errors(self) -> np.ndarray:
-        """One standard deviation of each parameter, m."""
-        return np.sqrt(np.diag(self.covariance))
+    def standard_errors(self) -> np.ndarray | None:
+        """One standard deviation of each parameter, m; None without a covariance."""
+        return None if self.covariance is None else np.sqrt(np.diag(self.covariance))
 
 
 def _robot_with(nominal: DiffDrive, parameters: np.ndarray) -> DiffDrive:
@@ -77,27 +83,29 @@ def _robot_with(nominal: DiffDrive, parameters: np.ndarray) -> DiffDrive:
 
 
 def odometry_of(
-    robot: DiffDrive, increments: np.ndarray, start: np.ndarray, method: Method = "rk2"
+    robot: DiffDrive, increments: np.ndarray, start: np.ndarray, method: Method = "exact"
 ) -> np.ndarray:
     """Dead-reckoned poses ``(T+1, 3)`` from wheel-angle increments ``(T, 2)`` and a start."""
     return integrate_increments(batch.to_twist(robot, increments), start, method)
 
 
-def _check_runs(runs: list) -> list[tuple[np.ndarray, np.ndarray]]:
+def _check_runs(runs: list, names: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
     if not runs:
         raise CalibrationError("calibrate needs at least one run")
+    if len(names) != len(runs):
+        raise ValueError(f"names must name each of the {len(runs)} runs, got {len(names)}")
     checked = []
-    for k, (increments, truth) in enumerate(runs):
+    for k, (increments, truth) in zip(names, runs, strict=True):
         increments, truth = np.asarray(increments, float), np.asarray(truth, float)
         if increments.ndim != 2 or increments.shape[1] != 2:
-            raise CalibrationError(f"run {k}: increments must be (T, 2), got {increments.shape}")
+            raise CalibrationError(f"{k}: increments must be (T, 2), got {increments.shape}")
         if truth.shape != (len(increments) + 1, 3):
             raise CalibrationError(
-                f"run {k}: ground truth must be (T+1, 3) = {(len(increments) + 1, 3)}, got "
+                f"{k}: ground truth must be (T+1, 3) = {(len(increments) + 1, 3)}, got "
                 f"{truth.shape}"
             )
         if not (np.all(np.isfinite(increments)) and np.all(np.isfinite(truth))):
-            raise CalibrationError(f"run {k}: increments and ground truth must be finite")
+            raise CalibrationError(f"{k}: increments and ground truth must be finite")
         checked.append((increments, truth))
     return checked
 
@@ -107,26 +115,32 @@ def calibrate(
     runs: list,
     method: CalibrationMethod = "least_squares",
     *,
-    integration: Method = "rk2",
+    integration: Method = "exact",
     square_side: float | None = None,
     loss: str = "soft_l1",
     loss_scale: float = 0.01,
     heading_weight: float = 1.0,
+    names: list[str] | None = None,
+    progress: bool = False,
 ) -> CalibrationResult:
     """Calibrate ``nominal_robot``'s wheel radii and track width on ``runs``; see the module.
 
-    ``integration`` is the odometry's method; ``square_side`` (m) is UMBmark's square;
-    ``loss`` and ``loss_scale`` (m) are scipy's robust loss for least squares.
+    ``integration`` is the odometry's method (default exact, as everywhere; the OptiOdom
+    reproduction names rk2, the authors' method); ``square_side`` (m) is UMBmark's square;
+    ``loss`` and ``loss_scale`` (m) are scipy's robust loss for least squares. ``names``
+    name the runs in messages (default ``run 0``, ``run 1``, ...); ``progress`` shows a
+    progress bar of the fit's evaluations on standard error.
     """
     check_method(integration)
-    checked = _check_runs(runs)
+    names = [f"run {k}" for k in range(len(runs))] if names is None else list(names)
+    checked = _check_runs(runs, names)
     if method == "umbmark":
         if square_side is None or not square_side > 0:
             raise CalibrationError(f"umbmark needs square_side > 0 (m), got {square_side!r}")
-        return _umbmark(nominal_robot, checked, float(square_side), integration)
+        return _umbmark(nominal_robot, checked, names, float(square_side), integration)
     if method in ("least_squares", "minimax"):
         parameters, covariance, condition = _fit_least_squares(
-            nominal_robot, checked, integration, loss, loss_scale, heading_weight
+            nominal_robot, checked, integration, loss, loss_scale, heading_weight, progress
         )
         if method == "minimax":
             parameters = _minimax(nominal_robot, checked, integration, parameters)
@@ -136,10 +150,47 @@ def calibrate(
     raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
 
 
-def _umbmark(nominal: DiffDrive, runs, side: float, integration: Method) -> CalibrationResult:
+def _check_square(name: str, truth: np.ndarray, side: float) -> None:
+    """Refuse a run whose ground truth is not a closed square of ``side`` m."""
+    local = batch.relative_to(truth, truth[0])
+    length = float(np.sum(np.hypot(*np.diff(truth[:, :2], axis=0).T)))
+    turn = abs(truth[-1, 2] - truth[0, 2])
+    extent = np.ptp(local[:, :2], axis=0)
+    gap = float(np.hypot(*local[-1, :2]))
+    problems = []
+    if abs(turn - 2 * math.pi) > math.pi / 4:
+        problems.append(f"it turns {math.degrees(turn):.0f} deg in all, not 360")
+    if abs(length - 4 * side) > 0.15 * 4 * side:
+        problems.append(f"it is {length:.3g} m long, not about {4 * side:g} m")
+    if np.any(np.abs(extent - side) > 0.25 * side):
+        problems.append(f"it spans {extent[0]:.3g} x {extent[1]:.3g} m, not {side:g} x {side:g}")
+    if gap > 0.25 * side:
+        problems.append(f"it ends {gap:.3g} m from its start")
+    if problems:
+        raise CalibrationError(
+            f"umbmark needs closed squares of side {side:g} m; {name} is not one: "
+            + "; ".join(problems)
+        )
+
+
+def _umbmark_parameters(nominal: DiffDrive, x_cw: float, x_ccw: float, side: float):
+    """Borenstein and Feng's corrections from the mean final x errors of each direction."""
+    alpha = (x_cw + x_ccw) / (-4.0 * side)
+    beta = (x_cw - x_ccw) / (-4.0 * side)
+    track = nominal.track_width * (math.pi / 2) / (math.pi / 2 - alpha)
+    ratio = 1.0  # right diameter over left
+    if beta != 0.0:
+        radius = (side / 2) / math.sin(beta / 2)
+        ratio = (radius + nominal.track_width / 2) / (radius - nominal.track_width / 2)
+    mean = 0.5 * (nominal.left_wheel_radius + nominal.right_wheel_radius)
+    return np.array([mean * 2 / (ratio + 1), mean * 2 / (1 / ratio + 1), track])
+
+
+def _umbmark(nominal: DiffDrive, runs, names, side: float, integration: Method):
     errors = {"cw": [], "ccw": []}
     residuals = []
-    for increments, truth in runs:
+    for name, (increments, truth) in zip(names, runs, strict=True):
+        _check_square(name, truth, side)
         poses = odometry_of(nominal, increments, truth[0], integration)
         # In the start frame: ground truth minus odometry, as Borenstein and Feng measure it.
         error = (
@@ -153,28 +204,39 @@ def _umbmark(nominal: DiffDrive, runs, side: float, integration: Method) -> Cali
             "umbmark needs clockwise and counter-clockwise runs; the ground truth turns "
             f"{len(errors['cw'])} clockwise and {len(errors['ccw'])} counter-clockwise"
         )
-    x_cw, x_ccw = np.mean(errors["cw"], axis=0)[0], np.mean(errors["ccw"], axis=0)[0]
-    alpha = (x_cw + x_ccw) / (-4.0 * side)
-    beta = (x_cw - x_ccw) / (-4.0 * side)
-    track = nominal.track_width * (math.pi / 2) / (math.pi / 2 - alpha)
-    ratio = 1.0  # right diameter over left
-    if beta != 0.0:
-        radius = (side / 2) / math.sin(beta / 2)
-        ratio = (radius + nominal.track_width / 2) / (radius - nominal.track_width / 2)
-    mean = 0.5 * (nominal.left_wheel_radius + nominal.right_wheel_radius)
-    left, right = mean * 2 / (ratio + 1), mean * 2 / (1 / ratio + 1)
-    robot = _robot_with(nominal, np.array([left, right, track]))
-    return CalibrationResult(robot, "umbmark", np.full((3, 3), math.nan), residuals)
+    x = {way: np.array(found)[:, 0] for way, found in errors.items()}
+    parameters = _umbmark_parameters(nominal, x["cw"].mean(), x["ccw"].mean(), side)
+    robot = _robot_with(nominal, parameters)
+    if min(len(x["cw"]), len(x["ccw"])) < 2:
+        note = (
+            f"umbmark gives no uncertainty from {len(x['cw'])} clockwise and "
+            f"{len(x['ccw'])} counter-clockwise runs: it needs 2 or more in each direction"
+        )
+        return CalibrationResult(robot, "umbmark", None, residuals, uncertainty_note=note)
+    # The standard error of each direction's mean, through the formulas' Jacobian.
+    variances = np.array([x[way].var(ddof=1) / len(x[way]) for way in ("cw", "ccw")])
+    step = 1e-6 * side
+    jacobian = np.column_stack([
+        (_umbmark_parameters(nominal, *(np.array([x["cw"].mean(), x["ccw"].mean()]) + d), side)
+         - _umbmark_parameters(nominal, *(np.array([x["cw"].mean(), x["ccw"].mean()]) - d), side))
+        / (2 * step)
+        for d in step * np.eye(2)
+    ])  # fmt: skip
+    covariance = jacobian @ np.diag(variances) @ jacobian.T
+    return CalibrationResult(robot, "umbmark", covariance, residuals)
 
 
 def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str, scale: float,
-                       heading_weight: float):  # fmt: skip
+                       heading_weight: float, progress: bool = False):  # fmt: skip
     """scipy's robust least squares over every ground-truth pose of every run."""
     from scipy.optimize import least_squares
 
     start = _parameters(nominal)
+    bar = _progress_bar(progress, f"fitting {len(runs)} runs")
 
     def residuals(relative: np.ndarray) -> np.ndarray:
+        if bar is not None:
+            bar.update()
         robot = _robot_with(nominal, start * relative)
         pieces = []
         for increments, truth in runs:
@@ -184,8 +246,12 @@ def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str,
         return np.concatenate(pieces)
 
     # The parameters relative to the nominal ones, so that all three are of order 1.
-    fit = least_squares(residuals, np.ones(3), loss=loss, f_scale=scale, x_scale=1e-3,
-                        bounds=(0.5, 1.5), method="trf")  # fmt: skip
+    try:
+        fit = least_squares(residuals, np.ones(3), loss=loss, f_scale=scale, x_scale=1e-3,
+                            bounds=(0.5, 1.5), method="trf")  # fmt: skip
+    finally:
+        if bar is not None:
+            bar.close()
     singular = np.linalg.svd(fit.jac, compute_uv=False)
     condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else math.inf
     if condition > _CONDITION_LIMIT:
@@ -200,6 +266,17 @@ def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str,
     variance = float(np.sum(fit.fun**2) / dof)
     covariance = variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start, start)
     return start * fit.x, covariance, condition
+
+
+def _progress_bar(shown: bool, label: str):
+    """A tqdm counter of the fit's evaluations on standard error, or None."""
+    if not shown:
+        return None
+    import sys
+
+    from tqdm import tqdm
+
+    return tqdm(desc=label, unit=" evaluations", file=sys.stderr)
 
 
 def _parameters(robot: DiffDrive) -> np.ndarray:

@@ -5,40 +5,38 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from diffdrive import se2
+from diffdrive import batch, se2
 from diffdrive.calibration import METHODS as CALIBRATION_METHODS
 from diffdrive.calibration import calibrate, odometry_of
-from diffdrive.evaluation import ate, rpe, run_errors, worst
+from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
+from diffdrive.evaluation import RPE_PAIRS, associate, ate, interpolate, rpe, run_errors, worst
 from diffdrive.examples import (
     EXAMPLE_DURATION,
-    EXAMPLE_TICKS_PER_REVOLUTION,
-    example_encoder_log,
+    example_log,
     example_robot,
     example_wheel_velocities,
 )
 from diffdrive.files import (
-    FORMATS,
     ROBOT_KEYS,
+    TIME_UNITS,
     TableError,
     atomic_output,
-    read_header,
     read_robot,
-    read_run,
-    read_table,
-    read_trajectory,
     write_robot,
-    write_trajectory,
 )
 from diffdrive.integrate import METHODS
+from diffdrive.logs import WheelLog, narrower_counter, read_log
 from diffdrive.model import DiffDrive
 from diffdrive.odometry import Odometry
-from diffdrive.simulation import simulate
+from diffdrive.simulation import integrate_increments, simulate
+from diffdrive.trajectories import FORMATS, read_trajectory, write_trajectory
 from diffdrive.types import Pose, Twist, WheelVelocities
 
 # (label, left, right) wheel velocities in rad/s that show the characteristic motions.
@@ -105,62 +103,96 @@ def simulation_report(robot: DiffDrive, steps: int = 2000) -> str:
 
 ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
 
+LOG_COLUMNS = """input: a table (CSV, or separated by ; tab or spaces; UTF-8, a BOM is fine)
+with columns t (s, or --time-unit) and one pair of wheel columns:
+  left_ticks, right_ticks        absolute counter readings (give --ticks-per-revolution,
+                                 and --counter-bits for counters that roll over)
+  left_angle, right_angle        accumulated wheel angles, rad
+  left_velocity, right_velocity  rad/s, each held from its row's time until the next row's
+                                 (the last row's is not used), in every command
+and optionally x, y, theta (ground truth): the run then starts from its first pose. An
+OptiOdom run file (no header: t, x, y, theta, ticks_right, ticks_left) is read too."""
+
+TRAJECTORY_FILES = """trajectory files: CSV (t, x, y, theta), JSON lines or TUM
+(t x y z qx qy qz qw), told apart by their content; a robot column holds several robots."""
+
 EPILOGS = {
-    "simulate": """examples:
+    "simulate": f"""examples:
   diffdrive simulate                       the built-in driving history -> trajectory.csv
   diffdrive simulate drive.csv -o out.tum --method rk2 --robot robot.toml
 
-input columns: t (s), and either left_velocity, right_velocity (rad/s, held from this row's
-time to the next; the last row's are not used) or left_angle, right_angle (rad, accumulated).""",
-    "odometry": """examples:
+{LOG_COLUMNS}""",
+    "odometry": f"""examples:
   diffdrive odometry                      a built-in 20 Hz log of the example -> odometry.csv
-  diffdrive odometry log.csv --ticks-per-revolution 2796.8 -o odometry.csv
+  diffdrive odometry log.csv --ticks-per-revolution 4096 --counter-bits 12 -o odometry.csv
+  diffdrive odometry log.csv --time-unit ns --max-wheel-speed 30 --twist --covariance
 
-input columns: t (s), and one of left_ticks, right_ticks (absolute counter readings);
-left_angle, right_angle (rad, accumulated); left_velocity, right_velocity (rad/s over the
-interval that ends at this row). With x, y, theta columns (ground truth) the odometry starts
-from the first ground-truth pose and an error summary is printed.""",
-    "plot": """examples:
+{LOG_COLUMNS}
+With ground truth an error summary is printed. The largest wheel speed the log implies is
+printed with its line: thousands of rad/s mean a wrong --counter-bits or ticks per revolution.""",
+    "plot": f"""examples:
   diffdrive plot                          the built-in example -> trajectory.png
   diffdrive plot odometry.csv --truth log.csv -o odometry.svg
 
-input: a trajectory CSV with columns t, x, y, theta (what simulate and odometry write);
---truth: a CSV with columns t, x, y, theta, drawn underneath.""",
+{TRAJECTORY_FILES} --truth is drawn underneath.""",
     "animate": """examples:
   diffdrive animate                       the built-in example -> trajectory.gif
   diffdrive animate trajectory.csv -o drive.mp4     (MP4 needs ffmpeg; else a GIF)""",
-    "calibrate": """examples:
+    "calibrate": f"""examples:
   diffdrive calibrate                      the built-in example runs -> robot.toml
   diffdrive calibrate runs/*_run-*.csv --method least_squares -o robot.toml
 
-input: runs with ground truth, each the OptiOdom format (no header: t, x, y, theta,
-ticks_right, ticks_left; 2796.8 counts a turn unless told) or a CSV with t, x, y, theta and
-left_ticks, right_ticks (give --ticks-per-revolution) or left_angle, right_angle (rad).""",
-    "evaluate": """examples:
+runs with ground truth, each as below (x, y, theta needed; OptiOdom files count 2796.8 a
+turn unless told).
+{LOG_COLUMNS}""",
+    "evaluate": f"""examples:
   diffdrive evaluate                       the built-in example's odometry against its truth
-  diffdrive evaluate odometry.csv --truth truth.csv --rpe 1.0 --json
+  diffdrive evaluate odometry.tum --truth truth.csv --rpe 1.0 --json
+  diffdrive evaluate est.tum --truth gt.tum --t-offset -0.003 --rpe 10 --rpe-unit poses
 
-input: two CSVs with t, x, y, theta sampled at the same times.""",
+{TRAJECTORY_FILES} Poses are paired by time as evo pairs them: the nearest
+stamp within --t-max-diff s, after adding --t-offset to the trajectory's times;
+--interpolate instead samples the trajectory at every ground-truth time along its arcs.""",
     "fk": """example:
-  diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist""",
+  diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist
+  diffdrive fk 1 -1e-3          (negative numbers are numbers, not options)""",
     "ik": """example:
   diffdrive ik 0.5 1.0          forward speed (m/s) and turn rate (rad/s) -> wheel velocities""",
 }
 
-HISTORIES = {
-    "left_velocity": ("left_velocity", "right_velocity"),
-    "left_angle": ("left_angle", "right_angle"),
-    "left_ticks": ("left_ticks", "right_ticks"),
-}
+# Past this speed at the rim (m/s) a wheel-speed jump is no motion of a wheeled robot but a
+# misread log, unless the user sets the limit (--max-wheel-speed).
+_RIM_SPEED_LIMIT = 50.0
 
 
 def _robot_options() -> argparse.ArgumentParser:
     options = argparse.ArgumentParser(add_help=False)
     group = options.add_argument_group(f"robot (default: {ROBOT_DEFAULTS})")
     group.add_argument("--robot", type=Path, help="a robot file (TOML) with the settings below")
+    helps = {
+        "ticks_per_revolution": "encoder counts per wheel revolution",
+        "track_width": "m, the FULL distance between the wheels' contact points",
+        "half_track": "m, half the track width (the notes' b, d, D or L); instead of it",
+    }
     for name in ROBOT_KEYS:
-        unit = "counts" if name == "ticks_per_revolution" else "m"
-        group.add_argument(f"--{name.replace('_', '-')}", type=float, help=f"{unit}")
+        group.add_argument(
+            f"--{name.replace('_', '-')}", type=float, metavar="X", help=helps.get(name, "m")
+        )
+    return options
+
+
+def _log_options() -> argparse.ArgumentParser:
+    options = argparse.ArgumentParser(add_help=False)
+    group = options.add_argument_group("log")
+    group.add_argument(
+        "--time-unit", choices=TIME_UNITS,
+        help="unit of the t column (default s; plainly other units are refused)",
+    )  # fmt: skip
+    group.add_argument(
+        "--counter-bits", type=_between(MIN_COUNTER_BITS, MAX_COUNTER_BITS), metavar="B",
+        help=f"width of the encoder counters ({MIN_COUNTER_BITS}-{MAX_COUNTER_BITS}), for "
+        "roll-over; default: counters that never roll over",
+    )  # fmt: skip
     return options
 
 
@@ -168,7 +200,7 @@ def _output_options(default: str) -> argparse.ArgumentParser:
     options = argparse.ArgumentParser(add_help=False)
     options.add_argument("-o", "--output", type=Path, default=Path(default), help="file to write")
     options.add_argument("--format", choices=FORMATS, help="default: from the file's suffix")
-    options.add_argument("--method", choices=METHODS, default="exact")
+    options.add_argument("--method", choices=METHODS, default="exact", help="default: exact")
     options.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     return options
 
@@ -180,10 +212,16 @@ def _robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
         value = getattr(args, name)
         if value is not None:
             settings[name] = value
+            if name in ("track_width", "half_track"):  # a flag overrides the file's either
+                settings.pop("half_track" if name == "track_width" else "track_width", None)
     ticks = settings.pop("ticks_per_revolution", None)
     if not settings:
         return example_robot(), ticks
-    return DiffDrive(**settings), ticks
+    where = f" (in {args.robot})" if args.robot else ""
+    try:
+        return DiffDrive(**settings), ticks
+    except ValueError as exc:
+        raise ValueError(f"robot{where}: {exc}") from None
 
 
 def _format(args: argparse.Namespace) -> str:
@@ -193,79 +231,139 @@ def _format(args: argparse.Namespace) -> str:
     return suffix if suffix in FORMATS else "csv"
 
 
-def _history_columns(path: Path, kinds: tuple[str, ...]) -> tuple[str, str]:
-    """Which pair of wheel columns the file has, from its header."""
-    header = read_header(path)
-    for kind in kinds:
-        if kind in header:
-            return HISTORIES[kind]
-    wanted = " or ".join(", ".join(HISTORIES[kind]) for kind in kinds)
-    raise TableError(f"{path}:1: missing columns {wanted} (the header has: {', '.join(header)})")
-
-
-def _write(args: argparse.Namespace, times: np.ndarray, poses: np.ndarray, what: str) -> None:
-    write_trajectory(args.output, times, poses, _format(args))
+def _write(args, times: np.ndarray, poses: np.ndarray, what: str, columns=None) -> None:
+    written = write_trajectory(args.output, times, poses, _format(args), columns)
     if not args.quiet:
-        print(f"{what}: wrote {len(times)} poses to {args.output} ({_format(args)})")
+        where = ", ".join(map(str, written))
+        print(f"{what}: wrote {poses.shape[-2]} poses to {where} ({_format(args)})")
+
+
+def _read_log(args: argparse.Namespace) -> WheelLog:
+    return example_log() if args.input is None else read_log(args.input, args.time_unit)
+
+
+def _start(log: WheelLog) -> np.ndarray:
+    """Where a log's run starts: its first ground-truth pose, else the origin."""
+    return np.zeros(3) if log.truth is None else log.truth[0]
+
+
+def _check_wheel_speeds(args, log: WheelLog, robot: DiffDrive, ticks) -> str:
+    """A line on the log's largest wheel speed; refuses one no robot drives at.
+
+    Without --max-wheel-speed the limit is a rim speed of _RIM_SPEED_LIMIT m/s.
+    """
+    speed, side, row = log.largest_wheel_speed(ticks, args.counter_bits)
+    radius = robot.left_wheel_radius if side == "left" else robot.right_wheel_radius
+    line = (
+        f"largest wheel speed in the log: {speed:.4g} rad/s ({speed * radius:.3g} m/s at the "
+        f"rim), {side} wheel, {log.where(row)}"
+    )
+    limit = getattr(args, "max_wheel_speed", None)
+    narrower = narrower_counter(log, args.counter_bits) if limit is None else None
+    if narrower is not None:
+        bits, row = narrower
+        change = int(np.abs(count_changes(log.wheels[row - 1 : row + 1], args.counter_bits)).max())
+        read_as = f"{args.counter_bits}-bit" if args.counter_bits else "never rolling over"
+        raise TableError(
+            f"{log.where(row)}: the counters jump by {change} counts, yet every reading fits "
+            f"{bits} bits: a {bits}-bit counter rolling over, read as {read_as}? Give "
+            f"--counter-bits {bits}; or --max-wheel-speed to take the jump as read"
+        )
+    if limit is None and speed * radius > _RIM_SPEED_LIMIT:
+        hint = " a wrong --counter-bits or --ticks-per-revolution?" if log.kind == "ticks" else ""
+        raise TableError(
+            f"{log.where(row)}: the {side} wheel would turn at {speed:.4g} rad/s "
+            f"({speed * radius:.3g} m/s at its rim), faster than any wheeled robot drives;"
+            f"{hint} Give --max-wheel-speed to set the limit yourself"
+        )
+    return line
 
 
 def run_simulate(args: argparse.Namespace) -> int:
-    robot, _ = _robot(args)
+    robot, ticks = _robot(args)
     if args.input is None:
+        _check_step_count(args.dt)
         trajectory = _example_trajectory(robot, args.dt, args.method)
-        what = f"simulated the built-in {EXAMPLE_DURATION:g} s driving history"
+        _write(args, trajectory.times, trajectory.poses,
+               f"simulated the built-in {EXAMPLE_DURATION:g} s driving history")  # fmt: skip
+        return 0
+    log = read_log(args.input, args.time_unit)
+    note = _check_wheel_speeds(args, log, robot, ticks)
+    if log.kind == "velocity":
+        trajectory = simulate(
+            robot, log.wheels[:-1], times=log.times, initial_pose=_start(log), method=args.method
+        )
+        poses = trajectory.poses
     else:
-        left, right = _history_columns(args.input, ("left_velocity", "left_angle"))
-        table = read_table(args.input, ["t", left, right])
-        wheels = np.column_stack([table[left], table[right]])
-        if left == "left_velocity":
-            trajectory = simulate(robot, wheels[:-1], times=table["t"], method=args.method)
-        else:
-            trajectory = simulate(
-                robot, wheel_positions=wheels, times=table["t"], method=args.method
-            )
-        what = f"simulated {args.input}"
-    _write(args, trajectory.times, trajectory.poses, what)
+        increments = log.increments(ticks, args.counter_bits)
+        twists = batch.to_twist(robot, increments)
+        poses = integrate_increments(twists, _start(log), args.method)
+    _write(args, log.times, poses, f"simulated {args.input}")
+    if not args.quiet:
+        print(note)
     return 0
+
+
+def _check_step_count(dt: float) -> None:
+    """Refuse a step for the built-in history that is not a number of steps memory can hold."""
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"--dt must be finite and > 0, got {dt}")
+    steps = EXAMPLE_DURATION / dt
+    if steps > 1e8:
+        raise ValueError(
+            f"--dt {dt:g} s makes {steps:.3g} steps of the {EXAMPLE_DURATION:g} s history, "
+            f"{steps * 56 / 2**30:.3g} GiB of poses and wheel velocities; use a step of "
+            f"{EXAMPLE_DURATION / 1e8:g} s or more"
+        )
 
 
 def run_odometry(args: argparse.Namespace) -> int:
     robot, ticks = _robot(args)
-    if args.input is None:
-        table, what = example_encoder_log(), "the built-in encoder log"
-        left, right = "left_ticks", "right_ticks"
-        ticks = EXAMPLE_TICKS_PER_REVOLUTION if ticks is None else ticks
-    else:
-        what = str(args.input)
-        left, right = _history_columns(args.input, ("left_ticks", "left_angle", "left_velocity"))
-        integers = (left, right) if left == "left_ticks" else ()
-        table = read_table(args.input, ["t", left, right], ["x", "y", "theta"], integers=integers)
-    if left == "left_ticks" and ticks is None:
-        raise TableError(
-            f"{args.input}: ticks need --ticks-per-revolution (or ticks_per_revolution in "
-            "the robot file)"
-        )
-    truth = None
-    if {"x", "y", "theta"} <= table.keys():
-        truth = np.column_stack([table["x"], table["y"], table["theta"]])
-    start = Pose(*truth[0]) if truth is not None else Pose()
-    odometry = Odometry(robot, args.method, start, ticks, args.counter_bits)
-    times = table["t"]
-    readings = np.column_stack([table[left], table[right]])
+    log = _read_log(args)
+    ticks = ticks or log.ticks_per_revolution
+    note = _check_wheel_speeds(args, log, robot, ticks)
+    odometry = Odometry(
+        robot, args.method, Pose(*_start(log)), ticks if log.kind == "ticks" else None,
+        args.counter_bits, max_wheel_speed=args.max_wheel_speed, k_left=args.k_left,
+        k_right=args.k_right,
+    )  # fmt: skip
+    times, wheels = log.times, log.wheels
     poses = np.empty((len(times), 3))
+    covariances = np.empty((len(times), 9)) if args.covariance else None
     for k in _progress(range(len(times)), args.quiet, "odometry"):
         t = float(times[k])
-        if left == "left_ticks":
-            odometry.update_ticks(int(readings[k, 0]), int(readings[k, 1]), t)
-        elif left == "left_angle":
-            odometry.update_positions(float(readings[k, 0]), float(readings[k, 1]), t)
-        elif k > 0:
-            odometry.update_velocities(*readings[k].tolist(), t - float(times[k - 1]))
+        try:
+            if log.kind == "ticks":
+                odometry.update_ticks(int(wheels[k, 0]), int(wheels[k, 1]), t)
+            elif log.kind == "angle":
+                odometry.update_positions(float(wheels[k, 0]), float(wheels[k, 1]), t)
+            elif k > 0:  # held from the last row's time until this row's
+                odometry.update_velocities(*wheels[k - 1].tolist(), t - float(times[k - 1]))
+        except ValueError as exc:
+            raise TableError(f"{log.where(k)}: {exc}") from None
         poses[k] = odometry.pose.to_array()
-    _write(args, times, poses, f"odometry of {what}")
-    if truth is not None and not args.quiet:
-        print(error_summary(poses, truth))
+        if covariances is not None:
+            covariances[k] = odometry._covariance()
+    columns = {}
+    if args.twist:
+        twists = batch.to_twist(robot, log.increments(ticks, args.counter_bits))
+        twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
+        columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])
+    if covariances is not None:
+        for name, index in COVARIANCE_COLUMNS.items():
+            columns[name] = covariances[:, index]
+    _write(args, times, poses, f"odometry of {log.source}", columns)
+    if not args.quiet:
+        print(note)
+        if log.truth is not None:
+            print(error_summary(poses, log.truth))
     return 0
+
+
+# The covariance's distinct entries, by their index in the row-major 3x3 matrix.
+COVARIANCE_COLUMNS = {
+    "cov_xx": 0, "cov_xy": 1, "cov_xtheta": 2, "cov_yy": 4, "cov_ytheta": 5, "cov_thetatheta": 8,
+}  # fmt: skip
 
 
 def error_summary(poses: np.ndarray, truth: np.ndarray) -> str:
@@ -295,11 +393,11 @@ def _example_trajectory(robot: DiffDrive, dt: float = 0.01, method: str = "exact
 
 
 def _trajectory_or_example(args: argparse.Namespace, robot: DiffDrive):
-    """``(times, poses, what)`` from the input trajectory CSV, or the built-in example."""
+    """``(times, poses, what)`` from the input trajectory file, or the built-in example."""
     if args.input is None:
         example = _example_trajectory(robot)
         return example.times, example.poses, "the built-in example"
-    return (*read_trajectory(args.input), str(args.input))
+    return (*read_trajectory(args.input, args.time_unit), str(args.input))
 
 
 def run_plot(args: argparse.Namespace) -> int:
@@ -309,7 +407,7 @@ def run_plot(args: argparse.Namespace) -> int:
     times, poses, what = _trajectory_or_example(args, robot)
     truth = None
     if args.truth is not None:
-        truth = read_trajectory(args.truth)
+        truth = read_trajectory(args.truth, args.time_unit)
     with atomic_output(args.output) as temporary:
         plot_trajectory(robot, times, poses, temporary, truth)
     if not args.quiet:
@@ -322,9 +420,12 @@ def run_animate(args: argparse.Namespace) -> int:
 
     robot, _ = _robot(args)
     times, poses, what = _trajectory_or_example(args, robot)
+    if poses.ndim != 2:
+        raise TableError(f"{args.input}: animate draws one robot; the file has {len(poses)}")
     writer, output = animation_writer(args.output)
     with atomic_output(output) as temporary:
-        animate(robot, times, poses, temporary, writer, frames=args.frames, fps=args.fps)
+        animate(robot, times, poses, temporary, writer, frames=args.frames, fps=args.fps,
+                progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
     if not args.quiet:
         print(f"animated {what} to {output} ({writer})")
     return 0
@@ -335,29 +436,40 @@ def _mirrored_example(t: np.ndarray) -> np.ndarray:
     return example_wheel_velocities(t)[:, ::-1]
 
 
-def _example_runs() -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Runs of the built-in history by a robot a little off the nominal one, with its truth."""
+def _example_runs() -> list[tuple[np.ndarray, np.ndarray]]:
+    """Runs of the built-in history by a robot a little off the nominal one, with its truth:
+    ``(increments (T, 2) rad, truth (T+1, 3))``."""
     true_robot = DiffDrive(
         left_wheel_radius=0.04166, right_wheel_radius=0.04163, track_width=0.2019
     )
     runs = []
     for history in (example_wheel_velocities, _mirrored_example):
         run = simulate(true_robot, history, dt=0.05, duration=EXAMPLE_DURATION)
-        runs.append((run.times, np.diff(run.wheel_positions, axis=0), run.poses))
+        runs.append((np.diff(run.wheel_positions, axis=0), run.poses))
     return runs
+
+
+def _calibration_run(args, path: Path, ticks: float | None):
+    """``(increments, truth)`` of a run, and the ticks per revolution its format fixes."""
+    log = read_log(path, args.time_unit)
+    if log.truth is None:
+        raise TableError(f"{path}: a run to calibrate on needs ground truth: columns x, y, theta")
+    return (log.increments(ticks, args.counter_bits), log.truth), log.ticks_per_revolution
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
     nominal, ticks = _robot(args)
     if args.runs:
-        ticks = EXAMPLE_TICKS_PER_REVOLUTION if ticks is None else ticks
-        runs = [read_run(path, ticks) for path in args.runs]
+        read = [_calibration_run(args, path, ticks) for path in args.runs]
+        runs = [run for run, _ in read]
+        ticks = ticks or next((own for _, own in read if own is not None), None)
         what = f"{len(runs)} runs"
     else:
         runs, what = _example_runs(), "the built-in example runs"
-    pairs = [(increments, truth) for _, increments, truth in runs]
-    result = calibrate(nominal, pairs, args.method, integration=args.integration,
-                       square_side=args.square_side)  # fmt: skip
+    names = [str(path) for path in args.runs] or ["example", "mirrored example"]
+    result = calibrate(nominal, runs, args.method, integration=args.integration,
+                       square_side=args.square_side, names=names,
+                       progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
     robot = result.robot
     settings = {
         "left_wheel_radius": robot.left_wheel_radius,
@@ -369,7 +481,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         settings["ticks_per_revolution"] = ticks
     write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")
     if not args.quiet:
-        print(calibration_report(nominal, result, pairs, args.integration))
+        print(calibration_report(nominal, result, runs, args.integration))
         print(f"calibrate: wrote the robot to {args.output}")
     return 0
 
@@ -379,39 +491,41 @@ def calibration_report(nominal: DiffDrive, result, runs, integration: str) -> st
     sigma = result.standard_errors
     lines = [f"{'parameter':20} {'nominal':>10} {'calibrated':>11} {'+-':>10}"]
     for k, name in enumerate(("left_wheel_radius", "right_wheel_radius", "track_width")):
+        spread = "n/a" if sigma is None else f"{sigma[k]:.2g}"
         lines.append(
             f"{name:20} {getattr(nominal, name):10.6f} {getattr(result.robot, name):11.6f} "
-            f"{sigma[k]:10.2g}"
+            f"{spread:>10}"
         )
     before = worst([run_errors(odometry_of(nominal, i, t[0], integration), t) for i, t in runs])
     after = worst([run_errors(odometry_of(result.robot, i, t[0], integration), t) for i, t in runs])
-    lines.append(f"condition number of the fit: {result.condition:.3g}")
+    if result.condition is not None:
+        lines.append(f"condition number of the fit: {result.condition:.3g}")
+    if sigma is None:
+        lines.append(f"+-: {result.uncertainty_note}")
     lines.append(
         f"largest position error over the runs: {before.max_position:.4f} m nominal, "
-        f"{after.max_position:.4f} m calibrated"
+        f"{after.max_position:.4f} m calibrated ({integration} odometry)"
     )
     return "\n".join(lines)
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
     if args.input is None:
-        log = example_encoder_log()
-        robot = example_robot()
-        counts = np.column_stack([log["left_ticks"], log["right_ticks"]])
-        increments = np.diff(counts, axis=0) * (2 * math.pi / EXAMPLE_TICKS_PER_REVOLUTION)
-        truth = np.column_stack([log["x"], log["y"], log["theta"]])
-        times, estimate = log["t"], odometry_of(robot, increments, truth[0])
+        log, robot = example_log(), example_robot()
+        times, truth = log.times, log.truth
+        estimate = odometry_of(robot, log.increments(), truth[0], "exact")
     else:
         if args.truth is None:
-            raise TableError("evaluate needs --truth with a trajectory file")
-        times, estimate = read_trajectory(args.input)
-        truth_times, truth = read_trajectory(args.truth)
-        if truth_times.shape != times.shape or not np.allclose(truth_times, times, atol=1e-9):
-            raise TableError(
-                f"{args.truth}: its times must be those of {args.input} ({len(times)} samples)"
-            )
+            raise TableError("evaluate needs --truth with a ground-truth trajectory file")
+        times, estimate = read_trajectory(args.input, args.time_unit)
+        truth_times, truth = read_trajectory(args.truth, args.time_unit)
+        for path, poses in ((args.input, estimate), (args.truth, truth)):
+            if poses.ndim != 2:
+                raise TableError(f"{path}: evaluate takes one robot; the file has {len(poses)}")
+        times, estimate, truth = _paired(args, times, estimate, truth_times, truth)
     errors = run_errors(estimate, truth)
     metrics = {
+        "poses_compared": len(times),
         "max_position_error_m": errors.max_position,
         "final_position_error_m": errors.final_position,
         "max_heading_error_deg": errors.max_heading,
@@ -419,15 +533,36 @@ def run_evaluate(args: argparse.Namespace) -> int:
         "ate_m": ate(estimate, truth),
         "ate_aligned_m": ate(estimate, truth, aligned=True),
     }
-    translation, rotation = rpe(estimate, truth, args.rpe, unit=args.rpe_unit, times=times)
-    metrics[f"rpe_{args.rpe:g}{args.rpe_unit}_m"] = translation
-    metrics[f"rpe_{args.rpe:g}{args.rpe_unit}_deg"] = rotation
+    translation, rotation = rpe(estimate, truth, args.rpe, unit=args.rpe_unit, times=times,
+                                pairs=args.rpe_pairs)  # fmt: skip
+    name = f"rpe_{args.rpe:g}{args.rpe_unit}_{args.rpe_pairs}"
+    metrics[f"{name}_m"] = translation
+    metrics[f"{name}_deg"] = rotation
     if args.json:
         print(json.dumps(metrics))
     else:
-        for name, value in metrics.items():
-            print(f"{name:28} {value:12.6f}")
+        for key, value in metrics.items():
+            print(f"{key:34} {value:12.6f}" if isinstance(value, float) else f"{key:34} {value:12}")
     return 0
+
+
+def _paired(args, times, estimate, truth_times, truth):
+    """The estimate and the truth at paired times: associated as evo does, or the estimate
+    interpolated along its arcs at the truth's times (--interpolate)."""
+    if args.interpolate:
+        shifted = times + args.t_offset
+        inside = (truth_times >= shifted[0]) & (truth_times <= shifted[-1])
+        if not inside.any():
+            raise TableError(f"{args.truth}: no ground-truth time lies within {args.input}'s")
+        at = truth_times[inside]
+        return at, interpolate(shifted, estimate, at), truth[inside]
+    i, j = associate(times, truth_times, args.t_max_diff, args.t_offset)
+    if len(i) < 2:
+        raise TableError(
+            f"{args.truth}: {len(i)} of its times are within --t-max-diff {args.t_max_diff} s of "
+            f"{args.input}'s (after --t-offset {args.t_offset} s); 2 or more are needed"
+        )
+    return truth_times[j], estimate[i], truth[j]
 
 
 def run_fk(args: argparse.Namespace) -> int:
@@ -457,6 +592,23 @@ def _print_values(values: dict[str, float], as_json: bool, units: dict[str, str]
         return
     for name, value in values.items():
         print(f"{name:15} {value:12.6g} {units[name]}")
+
+
+# argparse's own pattern misses the exponent form (-1e-3), which it then takes for an option.
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+
+
+def _between(smallest: int, largest: int):
+    """An argparse type: a whole number from ``smallest`` to ``largest``."""
+
+    def parse(text: str) -> int:
+        value = int(text)
+        if not smallest <= value <= largest:
+            raise argparse.ArgumentTypeError(f"must be from {smallest} to {largest}, got {value}")
+        return value
+
+    parse.__name__ = "int"
+    return parse
 
 
 def _at_least(smallest: int):
@@ -510,49 +662,109 @@ def build_parser() -> argparse.ArgumentParser:
         sub.set_defaults(run=run)
         return sub
 
+    logs = _log_options()
     sim = command(
         "simulate", "integrate a driving history into a trajectory",
-        [robot, _output_options("trajectory.csv")], run_simulate,
+        [robot, logs, _output_options("trajectory.csv")], run_simulate,
     )  # fmt: skip
-    sim.add_argument("input", nargs="?", type=Path, help="driving history (CSV); none: built-in")
+    sim.add_argument("input", nargs="?", type=Path, help="driving history or log; none: built-in")
     sim.add_argument("--dt", type=float, default=0.01, help="step for the built-in history, s")
     odo = command(
         "odometry", "dead reckoning over an encoder log",
-        [robot, _output_options("odometry.csv")], run_odometry,
+        [robot, logs, _output_options("odometry.csv")], run_odometry,
     )  # fmt: skip
-    odo.add_argument("input", nargs="?", type=Path, help="encoder log (CSV); none: built-in")
-    odo.add_argument("--counter-bits", type=int, choices=[8, 16, 32, 64])
-    pictures = argparse.ArgumentParser(add_help=False)
+    odo.add_argument("input", nargs="?", type=Path, help="encoder log; none: built-in")
+    odo.add_argument(
+        "--max-wheel-speed", type=float, metavar="RAD_S",
+        help="refuse a row whose wheel turns faster (rad/s); default: a rim speed of "
+        f"{_RIM_SPEED_LIMIT:g} m/s",
+    )  # fmt: skip
+    odo.add_argument(
+        "--k-left",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="left wheel-error constant of the covariance model, m (default 0)",
+    )
+    odo.add_argument(
+        "--k-right",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="right wheel-error constant, m (default 0)",
+    )
+    odo.add_argument(
+        "--twist",
+        action="store_true",
+        help="add columns vx, vy, omega: the twist over the interval ending at "
+        "each row (nan on the first)",
+    )
+    odo.add_argument(
+        "--covariance",
+        action="store_true",
+        help=f"add columns {', '.join(COVARIANCE_COLUMNS)} (m^2, m rad, rad^2)",
+    )
+    times = argparse.ArgumentParser(add_help=False)
+    times.add_argument("--time-unit", choices=TIME_UNITS, help="unit of the t column (default s)")
+    pictures = argparse.ArgumentParser(add_help=False, parents=[times])
     pictures.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     pictures.add_argument(
-        "input", nargs="?", type=Path, help="trajectory (CSV t, x, y, theta); none: built-in"
+        "input", nargs="?", type=Path, help="trajectory (CSV, JSON lines, TUM); none: built-in"
     )
     plot = command("plot", "draw a trajectory", [robot, pictures], run_plot)
     plot.add_argument("-o", "--output", type=Path, default=Path("trajectory.png"))
-    plot.add_argument("--truth", type=Path, help="ground truth (CSV t, x, y, theta)")
+    plot.add_argument("--truth", type=Path, help="ground-truth trajectory, drawn underneath")
     movie = command("animate", "animate a trajectory", [robot, pictures], run_animate)
     movie.add_argument("-o", "--output", type=Path, default=Path("trajectory.gif"))
     movie.add_argument("--fps", type=_at_least(1), default=20)
     movie.add_argument("--frames", type=_at_least(2), default=120, help="frames to draw")
     cal = command("calibrate", "fit wheel radii and track width to ground truth",
-                  [robot], run_calibrate)  # fmt: skip
+                  [robot, logs], run_calibrate)  # fmt: skip
     cal.add_argument("runs", nargs="*", type=Path, help="runs with ground truth; none: built-in")
     cal.add_argument("-o", "--output", type=Path, default=Path("robot.toml"))
     cal.add_argument("--method", choices=CALIBRATION_METHODS, default="least_squares")
-    cal.add_argument("--integration", choices=METHODS, default="rk2")
+    cal.add_argument("--integration", choices=METHODS, default="exact",
+                     help="the odometry's method (default exact)")  # fmt: skip
     cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
     cal.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
-    ev = command("evaluate", "a trajectory against ground truth", [], run_evaluate)
-    ev.add_argument("input", nargs="?", type=Path, help="trajectory CSV; none: built-in")
-    ev.add_argument("--truth", type=Path, help="ground-truth CSV at the same times")
+    ev = command("evaluate", "a trajectory against ground truth", [times], run_evaluate)
+    ev.add_argument("input", nargs="?", type=Path, help="trajectory; none: built-in")
+    ev.add_argument("--truth", type=Path, help="ground-truth trajectory")
+    ev.add_argument(
+        "--t-max-diff",
+        type=float,
+        default=0.01,
+        metavar="S",
+        help="largest time difference of a pair of poses, s (default 0.01, as evo)",
+    )
+    ev.add_argument(
+        "--t-offset",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="added to the trajectory's times before pairing, s (default 0)",
+    )
+    ev.add_argument(
+        "--interpolate",
+        action="store_true",
+        help="sample the trajectory at the truth's times along its arcs",
+    )
     ev.add_argument("--rpe", type=float, default=1.0, help="RPE window (default 1)")
     ev.add_argument("--rpe-unit", choices=["m", "s", "poses"], default="m")
+    ev.add_argument(
+        "--rpe-pairs",
+        choices=RPE_PAIRS,
+        default="consecutive",
+        help="consecutive (evo's default) or all (evo's --all_pairs)",
+    )
     ev.add_argument("--json", action="store_true")
     fk = command("fk", "wheel velocities to the body twist", [robot], run_fk)
+    fk._negative_number_matcher = _NEGATIVE_NUMBER  # -1e-3 is a number, not an option
     fk.add_argument("left", type=float, help="rad/s")
     fk.add_argument("right", type=float, help="rad/s")
     fk.add_argument("--json", action="store_true")
     ik = command("ik", "a body twist to wheel velocities", [robot], run_ik)
+    ik._negative_number_matcher = _NEGATIVE_NUMBER
     ik.add_argument("vx", type=float, help="forward speed, m/s")
     ik.add_argument("omega", type=float, help="turn rate, rad/s")
     ik.add_argument("--json", action="store_true")

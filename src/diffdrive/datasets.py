@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from diffdrive.files import number_row
 from diffdrive.model import DiffDrive
 
 __all__ = [
@@ -66,14 +67,7 @@ def read_optiodom_run(path: str | Path) -> OptiOdomRun:
             fields = line.strip().split(",")
             if fields == [""]:
                 continue
-            if len(fields) != 6:
-                raise ValueError(f"{path}:{number}: expected 6 columns, got {len(fields)}")
-            try:
-                row = [float(field) for field in fields]
-            except ValueError:
-                raise ValueError(f"{path}:{number}: not a number in {line.strip()!r}") from None
-            if not all(math.isfinite(value) for value in row):
-                raise ValueError(f"{path}:{number}: not finite: {line.strip()!r}")
+            row = number_row(path, number, fields, 6, "an OptiOdom")
             if rows and row[0] <= rows[-1][0]:
                 raise ValueError(f"{path}:{number}: time {row[0]} does not increase")
             if row[4] != round(row[4]) or row[5] != round(row[5]):

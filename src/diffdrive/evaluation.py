@@ -6,15 +6,25 @@
 - ``ate``: the absolute trajectory error as evo's APE on the translation part: the RMSE of the
   position errors, optionally after the rigid SE(2) alignment that minimises it (Umeyama 1991,
   without scale).
-- ``rpe``: the relative pose error as evo defines it: for pose pairs ``(i, j)`` a fixed
-  distance or time apart, the error of the estimated motion from i to j against the true one,
-  ``(Q_i^-1 Q_j)^-1 (P_i^-1 P_j)``; the RMSE of its translation (m) and of its rotation (deg).
+- ``rpe``: the relative pose error as evo (Grupp, github.com/MichaelGrupp/evo) defines it:
+  for pose pairs ``(i, j)`` a fixed distance, time or number of poses apart, the error of the
+  estimated motion from i to j against the true one, ``(Q_i^-1 Q_j)^-1 (P_i^-1 P_j)``; the
+  RMSE of its translation (m) and of its rotation angle (deg). Two ways to choose the pairs,
+  as evo's: ``"consecutive"`` (evo's default: each pair starts where the last one ended) and
+  ``"all"`` (evo's ``--all_pairs``: from every pose, the pose whose distance is nearest to
+  ``delta``, within a tolerance of 10 % of it). Pairs are measured along the estimate, as evo
+  does by default, or along the ground truth (evo's ``--pairs_from_reference``).
+- ``associate`` pairs the poses of two trajectories by time, as evo does (nearest stamp
+  within ``max_diff``, after shifting one by ``offset``); ``interpolate`` samples a trajectory
+  at given times along the arc between its poses (the SE(2) geodesic).
 
-Trajectories are pose arrays ``(T+1, 3)`` ``[x, y, theta]`` sampled at the same times.
+Trajectories are pose arrays ``(T+1, 3)`` ``[x, y, theta]`` sampled at the same times; all
+inputs must be finite.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -22,7 +32,19 @@ import numpy as np
 
 from diffdrive import batch
 
-__all__ = ["RunErrors", "align", "ate", "rpe", "run_errors", "worst"]
+__all__ = [
+    "RunErrors",
+    "align",
+    "associate",
+    "ate",
+    "interpolate",
+    "rpe",
+    "run_errors",
+    "worst",
+]
+
+RpePairs = Literal["consecutive", "all"]
+RPE_PAIRS: tuple[RpePairs, ...] = ("consecutive", "all")
 
 
 @dataclass(frozen=True)
@@ -46,6 +68,12 @@ def _check(estimate: object, truth: object) -> tuple[np.ndarray, np.ndarray]:
             f"estimate and truth must both have shape (T+1, 3), got {estimate.shape} and "
             f"{truth.shape}"
         )
+    if len(estimate) == 0:
+        raise ValueError("estimate and truth hold no poses")
+    for name, poses in (("estimate", estimate), ("truth", truth)):
+        if not np.all(np.isfinite(poses)):
+            row = int(np.argmin(np.all(np.isfinite(poses), axis=1)))
+            raise ValueError(f"{name} must be finite; pose {row} is {poses[row].tolist()}")
     return estimate, truth
 
 
@@ -59,6 +87,8 @@ def run_errors(estimate: object, truth: object) -> RunErrors:
 
 def worst(errors: list[RunErrors]) -> RunErrors:
     """The largest of each measure over runs (an experiment's figure in the paper)."""
+    if not errors:
+        raise ValueError("worst needs the errors of at least one run")
     return RunErrors(*np.max([e.to_array() for e in errors], axis=0))
 
 
@@ -93,36 +123,115 @@ def rpe(
     delta: float,
     unit: Literal["m", "s", "poses"] = "m",
     times: object = None,
+    pairs: RpePairs = "consecutive",
+    pairs_from_truth: bool = False,
 ) -> tuple[float, float]:
     """Relative pose error over pairs ``delta`` apart: RMSE of translation (m), rotation (deg).
 
-    ``unit`` is ``"m"`` (ground-truth distance travelled), ``"s"`` (needs ``times``) or
-    ``"poses"``. Each pose i pairs with the first j at least ``delta`` further on.
+    ``unit`` is ``"m"`` (distance travelled), ``"s"`` (needs ``times``) or ``"poses"``;
+    ``pairs`` is ``"consecutive"`` (evo's default) or ``"all"`` (evo's ``--all_pairs``); see
+    the module. Distances are measured along the estimate unless ``pairs_from_truth``.
     """
     estimate, truth = _check(estimate, truth)
     if not (np.isfinite(delta) and delta > 0):
         raise ValueError(f"delta must be finite and > 0, got {delta!r}")
+    if pairs not in RPE_PAIRS:
+        raise ValueError(f"pairs must be one of {', '.join(RPE_PAIRS)}, got {pairs!r}")
     if unit == "m":
-        along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(truth[:, :2], axis=0).T))])
+        path = truth if pairs_from_truth else estimate
+        along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path[:, :2], axis=0).T))])
     elif unit == "s":
         if times is None:
             raise ValueError("rpe with unit 's' needs the times")
         along = np.asarray(times, dtype=float)
-        if along.shape != (len(truth),):
-            raise ValueError(f"times must have shape ({len(truth)},), got {along.shape}")
+        if along.shape != (len(truth),) or not np.all(np.isfinite(along)):
+            raise ValueError(f"times must be finite with shape ({len(truth)},), got {along.shape}")
     elif unit == "poses":
+        if delta != int(delta):
+            raise ValueError(f"delta in poses must be a whole number, got {delta!r}")
         along = np.arange(len(truth), dtype=float)
     else:
         raise ValueError(f"unit must be 'm', 's' or 'poses', got {unit!r}")
-    first = np.arange(len(truth))
-    second = np.searchsorted(along, along + delta - 1e-12 * max(1.0, delta))
-    keep = second < len(truth)
-    if not keep.any():
+    tolerance = 0.0 if unit == "poses" else 0.1 * delta
+    i, j = (_all_pairs if pairs == "all" else _consecutive_pairs)(along, delta, tolerance)
+    if not len(i):
         raise ValueError(f"no pair of poses is {delta} {unit} apart")
-    i, j = first[keep], second[keep]
     moved = batch.relative_to(estimate[j], estimate[i])
     true_moved = batch.relative_to(truth[j], truth[i])
     error = batch.relative_to(moved, true_moved)
     translation = np.sqrt(np.mean(np.sum(error[:, :2] ** 2, axis=1)))
     rotation = np.degrees(np.sqrt(np.mean(batch.wrap_angle(error[:, 2]) ** 2)))
     return float(translation), float(rotation)
+
+
+def _consecutive_pairs(along: np.ndarray, delta: float, _tolerance: float):
+    """Pairs end to end: each starts where the last ended, and ends at the first pose at
+    least ``delta`` further along."""
+    ids = [0]
+    while True:
+        start = ids[-1]
+        j = int(np.searchsorted(along, along[start] + delta, side="left"))
+        j = max(j - 1, start + 1)  # the sum may round either way: step to the first that counts
+        while j < len(along) and along[j] - along[start] < delta:
+            j += 1
+        if j >= len(along):
+            break
+        ids.append(j)
+    ids_array = np.array(ids)
+    return ids_array[:-1], ids_array[1:]
+
+
+def _all_pairs(along: np.ndarray, delta: float, tolerance: float):
+    """From every pose, the later pose whose distance along is nearest ``delta``, if within
+    ``tolerance`` of it."""
+    first = np.arange(len(along) - 1)
+    target = along[first] + delta
+    above = np.clip(np.searchsorted(along, target, side="left"), first + 1, len(along) - 1)
+    below = np.maximum(above - 1, first + 1)
+    # The nearest of the two neighbours of the target; on a tie, the earlier one (argmin).
+    gap_below = np.abs(along[below] - along[first] - delta)
+    gap_above = np.abs(along[above] - along[first] - delta)
+    second = np.where(gap_below <= gap_above, below, above)
+    gap = np.minimum(gap_below, gap_above)
+    keep = gap <= tolerance
+    return first[keep], second[keep]
+
+
+def associate(
+    times: object, reference_times: object, max_diff: float = 0.01, offset: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(i, j)`` pairing ``times[i] + offset`` with the nearest ``reference_times[j]``
+    within ``max_diff`` (s), both increasing; each pose of the shorter one is paired at most
+    once, as in evo's association."""
+    times, reference = np.asarray(times, dtype=float), np.asarray(reference_times, dtype=float)
+    for name, stamps in (("times", times), ("reference_times", reference)):
+        if stamps.ndim != 1 or not np.all(np.isfinite(stamps)) or np.any(np.diff(stamps) <= 0):
+            raise ValueError(f"{name} must be finite and increasing, one-dimensional")
+    if not (math.isfinite(max_diff) and max_diff >= 0 and math.isfinite(offset)):
+        raise ValueError(f"max_diff must be >= 0 and offset finite, got {max_diff}, {offset}")
+    shifted = times + offset
+    # Search the longer for each stamp of the shorter, as evo does; ties go to the earlier.
+    estimate_longer = len(shifted) > len(reference)
+    short, long = (reference, shifted) if estimate_longer else (shifted, reference)
+    above = np.clip(np.searchsorted(long, short, side="right"), 0, len(long) - 1)
+    below = np.maximum(above - 1, 0)
+    gap_above, gap_below = np.abs(long[above] - short), np.abs(short - long[below])
+    nearest = np.where(gap_above < gap_below, above, below)
+    keep = np.minimum(gap_above, gap_below) <= max_diff
+    found_short, found_long = np.flatnonzero(keep), nearest[keep]
+    return (found_long, found_short) if estimate_longer else (found_short, found_long)
+
+
+def interpolate(times: object, poses: object, at: object) -> np.ndarray:
+    """Poses ``(M, 3)`` at the times ``at`` ``(M,)`` s, each along the constant-twist arc
+    between the two poses around it (the SE(2) geodesic; exact for odometry with ``exact``)."""
+    times, at = np.asarray(times, dtype=float), np.asarray(at, dtype=float)
+    poses = np.asarray(poses, dtype=float)
+    if poses.shape != (len(times), 3) or len(times) < 2:
+        raise ValueError(f"poses must have shape ({len(times)}, 3), at least 2, got {poses.shape}")
+    if not (np.all(np.isfinite(at)) and at.min() >= times[0] and at.max() <= times[-1]):
+        raise ValueError(f"times to interpolate at must lie within [{times[0]}, {times[-1]}] s")
+    step = np.clip(np.searchsorted(times, at, side="right") - 1, 0, len(times) - 2)
+    fraction = (at - times[step]) / (times[step + 1] - times[step])
+    motion = batch.log(batch.relative_to(poses[step + 1], poses[step]))
+    return batch.compose(poses[step], batch.exp(motion, fraction))

@@ -52,3 +52,16 @@ def example_encoder_log(rate: float = 20.0) -> dict[str, np.ndarray]:
         "y": poses[:, 1],
         "theta": poses[:, 2],
     }
+
+
+def example_log():
+    """``example_encoder_log`` as the ``WheelLog`` every command reads (int64 counts)."""
+    from diffdrive.logs import WheelLog
+
+    log = example_encoder_log()
+    return WheelLog(
+        log["t"], "ticks",
+        np.column_stack([log["left_ticks"], log["right_ticks"]]).astype(np.int64),
+        np.column_stack([log["x"], log["y"], log["theta"]]), "the built-in encoder log",
+        ticks_per_revolution=EXAMPLE_TICKS_PER_REVOLUTION,
+    )  # fmt: skip

@@ -1,42 +1,50 @@
-"""Files: tables of numbers and robot files in; trajectories out (CSV, JSON lines, TUM).
+"""Files: tables of numbers and robot files in; atomic writes out.
 
-Input tables are CSV with a header row of column names. ``read_table`` checks every cell and
-names the file, the line and the column of the first one that is wrong; a file that cannot
-be read whole is refused whole.
+Input tables are text with a header row of column names, as spreadsheets and loggers write
+them: UTF-8 (a byte-order mark, as Excel writes, is read), separated by commas, semicolons, tabs
+or runs of spaces (sniffed from the header), with ``#`` comment lines skipped. In a file
+separated by semicolons or tabs a decimal comma (``0,5``) is read as a decimal point.
+``read_table`` checks every cell and names the file, the line and the column of the first one
+that is wrong; a file that cannot be read whole is refused whole.
 
-Trajectories go out as CSV (``t,x,y,theta``), JSON lines (one ``{"t", "x", "y", "theta"}``
-object a line), or the TUM format (``t x y z qx qy qz qw``, the heading as a rotation about z),
-which the evo odometry-evaluation tool reads. Every writer writes a temporary file beside the
-target and renames it, so a failure leaves no partial file.
+Time columns are in seconds unless told otherwise (``time_unit``: ``s``, ``ms``, ``us``, ``ns``).
+A time column that plainly is not in seconds (rows 1000 s or more apart, or stamps since 1970
+in ms, us or ns) is refused with the likely unit named, rather than read as seconds.
+
+Every writer writes a temporary file beside the target and renames it, so a failure leaves no
+partial file.
 """
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import csv
-import json
 import math
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Literal, TextIO
+from typing import TextIO
 
 import numpy as np
 
 __all__ = [
-    "FORMATS",
     "ROBOT_KEYS",
+    "TIME_UNITS",
+    "Table",
     "TableError",
     "atomic_output",
     "atomic_write",
+    "check_time_unit",
+    "is_number",
+    "number_row",
     "read_header",
     "read_robot",
-    "read_run",
     "read_table",
-    "read_trajectory",
+    "text_lines",
+    "times_in_seconds",
     "write_robot",
-    "write_trajectory",
 ]
 
 # What a robot file may set: the DiffDrive's arguments, and the encoders' resolution.
@@ -45,29 +53,179 @@ ROBOT_KEYS = (
     "left_wheel_radius",
     "right_wheel_radius",
     "track_width",
+    "half_track",
     "axle_offset",
     "ticks_per_revolution",
 )
 
-Format = Literal["csv", "jsonl", "tum"]
-FORMATS: tuple[Format, ...] = ("csv", "jsonl", "tum")
+# Seconds per unit of a time column.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+# Stamps since 1970 in seconds stay below 1e11 until the year 5138; larger ones are finer units.
+_EPOCH_LIMIT = 1e11
+# Rows this far apart (s) are no log of a moving robot.
+_LONGEST_STEP = 1e3
 
 
 class TableError(ValueError):
     """A bad input file; the message names the file, and the line and column when known."""
 
 
-def read_header(path: str | Path) -> list[str]:
-    """The column names in the first row of a CSV file."""
+class Table(dict):
+    """Columns of a table by name, as arrays; ``lines`` holds each row's line in the file."""
+
+    def __init__(self, path: Path, columns: dict[str, np.ndarray], lines: np.ndarray) -> None:
+        super().__init__(columns)
+        self.path = path
+        self.lines = lines
+
+    def where(self, row: int) -> str:
+        """``file:line`` of data row ``row`` (0-based), for messages."""
+        return f"{self.path}:{int(self.lines[row])}"
+
+
+def text_lines(path: str | Path) -> Iterator[tuple[int, str]]:
+    """``(line number, text)`` of each line of a UTF-8 text file (a byte-order mark is skipped).
+
+    ``TableError`` names the file and the line of bytes that are not UTF-8.
+    """
     path = Path(path)
     try:
-        with path.open(newline="") as handle:
-            header = next(csv.reader(handle), None)
+        handle = path.open("rb")
     except OSError as exc:
         raise TableError(f"{path}: cannot read: {exc.strerror}") from None
-    if header is None:
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    with handle:
+        for number, raw in enumerate(handle, start=1):
+            if number == 1 and raw.startswith(codecs.BOM_UTF8):
+                raw = raw[len(codecs.BOM_UTF8) :]
+            try:
+                text = decoder.decode(raw)
+            except UnicodeDecodeError as exc:
+                hint = " (UTF-16?)" if raw[:2] in (codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE) else ""
+                raise TableError(
+                    f"{path}:{number}: not UTF-8 text{hint}: byte {raw[exc.start]:#04x} at "
+                    f"column {exc.start + 1}; save the file as UTF-8"
+                ) from None
+            if "\0" in text:
+                raise TableError(f"{path}:{number}: a NUL byte: this is not a text file")
+            yield number, text.rstrip("\r\n")
+
+
+def is_number(text: str) -> bool:
+    """Whether ``text`` reads as a float (a header of numbers is no header)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def number_row(path: Path, number: int, fields: list[str], size: int, what: str) -> list[float]:
+    """``size`` finite numbers from the ``fields`` of line ``number`` of ``path`` (a ``what``
+    line), or ``TableError`` naming the file and line."""
+    if len(fields) != size:
+        raise TableError(f"{path}:{number}: {what} line has {size} fields, got {len(fields)}")
+    line = " ".join(fields)
+    try:
+        row = [float(field) for field in fields]
+    except ValueError:
+        raise TableError(f"{path}:{number}: not a number in {line[:60]!r}") from None
+    if not all(math.isfinite(value) for value in row):
+        raise TableError(f"{path}:{number}: not finite: {line[:60]!r}")
+    return row
+
+
+def _splitter(header: str):
+    """A function that splits a line into cells, chosen by the separator the header uses."""
+    counts = {sep: header.count(sep) for sep in (",", ";", "\t")}
+    separator = max(counts, key=counts.get)
+    if counts[separator] == 0:
+        return str.split
+    decimal_comma = separator != ","
+    csv.field_size_limit(2**31 - 1)  # a cell of any size is an error with a line, not a crash
+
+    def split(line: str) -> list[str]:
+        cells = next(csv.reader([line], delimiter=separator), [])
+        return [cell.replace(",", ".") for cell in cells] if decimal_comma else cells
+
+    return split
+
+
+def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """``(line number, cells)`` of each non-blank, non-comment line; the header first."""
+    split = None
+    for number, text in text_lines(path):
+        if not text.strip() or text.lstrip().startswith("#"):
+            continue
+        if split is None:
+            split = _splitter(text)
+        yield number, [cell.strip() for cell in split(text)]
+
+
+def read_header(path: str | Path) -> list[str]:
+    """The column names in the first row of a table."""
+    path = Path(path)
+    first = next(_rows(path), None)
+    if first is None:
         raise TableError(f"{path}: the file is empty; expected a header row")
-    return [name.strip() for name in header]
+    return first[1]
+
+
+def check_time_unit(unit: str | None) -> str | None:
+    """``unit`` if it is one of ``TIME_UNITS`` (or None: seconds, checked)."""
+    if unit is not None and unit not in TIME_UNITS:
+        raise ValueError(f"time unit must be one of {', '.join(TIME_UNITS)}, got {unit!r}")
+    return unit
+
+
+def _likely_unit(times: np.ndarray) -> str | None:
+    """The unit a time column in seconds is plainly not in, or None when seconds may be right."""
+    start = abs(float(times[0]))
+    step = float(np.median(np.diff(times))) if len(times) > 1 else 0.0
+    if start >= _EPOCH_LIMIT:  # stamps since 1970: 1.7e12 ms, 1.7e15 us, 1.7e18 ns
+        return min(("ms", "us", "ns"), key=lambda u: abs(math.log10(start * TIME_UNITS[u] / 1.7e9)))
+    if step >= _LONGEST_STEP:  # the unit that makes the log's rate nearest 50 Hz
+        return min(("ms", "us", "ns"), key=lambda u: abs(math.log10(step * TIME_UNITS[u] * 50)))
+    return None
+
+
+def times_in_seconds(table: dict, name: str, unit: str | None, path: Path) -> None:
+    """Scale ``table[name]`` to seconds; refuse a column that is plainly in another unit."""
+    times = table[name]
+    if unit is None:
+        likely = _likely_unit(times)
+        if likely is not None:
+            step = float(np.median(np.diff(times))) if len(times) > 1 else 0.0
+            rate = f", a {1 / (step * TIME_UNITS[likely]):.3g} Hz log in {likely}" if step else ""
+            raise TableError(
+                f"{path}: column {name!r} is not in seconds: it starts at {times[0]:.6g} with "
+                f"rows {step:.3g} apart{rate}; give the time unit (--time-unit {likely}), or "
+                "--time-unit s to read it as seconds all the same"
+            )
+        return
+    if unit != "s":
+        table[name] = times * TIME_UNITS[unit]
+
+
+def _whole(cell: str) -> int:
+    """A cell of whole counts as an exact int (no rounding through float for 64-bit values)."""
+    try:
+        return int(cell)
+    except ValueError:
+        number = float(cell)  # "1000.0", "1e3": whole, and exact below 2^53
+        if not math.isfinite(number):
+            raise
+        if number != math.floor(number) or abs(number) >= 2.0**53:
+            raise ValueError("not whole") from None
+        return int(number)
+
+
+def _integer_array(values: list[int], name: str, path: Path) -> np.ndarray:
+    if min(values) >= -(2**63) and max(values) < 2**63:
+        return np.array(values, dtype=np.int64)
+    if min(values) >= 0 and max(values) < 2**64:
+        return np.array(values, dtype=np.uint64)
+    raise TableError(f"{path}: column {name!r}: counts beyond 64 bits")
 
 
 def read_table(
@@ -76,67 +234,82 @@ def read_table(
     optional: Sequence[str] = (),
     increasing: str | None = "t",
     integers: Sequence[str] = (),
-) -> dict[str, np.ndarray]:
-    """The columns ``required`` (and those of ``optional`` present) of a CSV file, as floats.
+    time_unit: str | None = None,
+) -> Table:
+    """The columns ``required`` (and those of ``optional`` present) of a table.
 
-    Every value must be a finite number, whole in the columns ``integers``; the column
-    ``increasing`` must increase strictly. Raises ``TableError`` naming the file, line and
-    column of the first bad cell.
+    Every value must be a finite number; the columns ``integers`` hold whole counts, read
+    exactly as int64 (uint64 for unsigned 64-bit readings); the others are float64. The column
+    ``increasing`` must increase strictly and is a time in ``time_unit`` (None: seconds,
+    refused when plainly not), returned in seconds. Raises ``TableError`` naming the file, line
+    and column of the first bad cell.
     """
     path = Path(path)
+    check_time_unit(time_unit)
+    rows = _rows(path)
     try:
-        handle = path.open(newline="")
-    except OSError as exc:
-        raise TableError(f"{path}: cannot read: {exc.strerror}") from None
-    with handle:
-        rows = csv.reader(handle)
-        header = next(rows, None)
-        if header is None:
-            expected = ", ".join(required)
-            raise TableError(f"{path}: the file is empty; expected a header with {expected}")
-        names = [name.strip() for name in header]
-        missing = [name for name in required if name not in names]
-        if missing:
-            raise TableError(
-                f"{path}:1: missing column {missing[0]!r} (the header has: {', '.join(names)})"
-            )
-        wanted = [*required, *(name for name in optional if name in names)]
-        index = {name: names.index(name) for name in wanted}
-        values: dict[str, list[float]] = {name: [] for name in wanted}
-        for line, row in enumerate(rows, start=2):
-            if not row or all(not cell.strip() for cell in row):
-                continue
+        _, names = next(rows)
+    except StopIteration:
+        expected = ", ".join(required)
+        raise TableError(f"{path}: the file is empty; expected a header with {expected}") from None
+    missing = [name for name in required if name not in names]
+    if missing:
+        raise TableError(
+            f"{path}:1: missing column {missing[0]!r} (the header has: {', '.join(names)})"
+        )
+    wanted = [*required, *(name for name in optional if name in names)]
+    index = {name: names.index(name) for name in wanted}
+    values: dict[str, list] = {name: [] for name in wanted}
+    lines: list[int] = []
+    try:
+        for line, row in rows:
             for name, column in index.items():
-                cell = row[column].strip() if column < len(row) else ""
-                try:
-                    number = float(cell)
-                except ValueError:
-                    raise TableError(
-                        f"{path}:{line}: column {name!r}: not a number: {cell!r}"
-                    ) from None
-                if not math.isfinite(number):
-                    raise TableError(f"{path}:{line}: column {name!r}: not finite: {cell!r}")
-                if name in integers and number != round(number):
-                    raise TableError(f"{path}:{line}: column {name!r}: not a whole count: {cell!r}")
+                values[name].append(_cell(row, column, name, name in integers, path, line))
                 column_values = values[name]
-                if name == increasing and column_values and number <= column_values[-1]:
+                if (
+                    name == increasing
+                    and len(column_values) > 1
+                    and not column_values[-1] > column_values[-2]
+                ):
                     raise TableError(
-                        f"{path}:{line}: column {name!r}: {cell} does not increase after "
-                        f"{column_values[-1]!r}"
+                        f"{path}:{line}: column {name!r}: {row[column]} does not increase "
+                        f"after {column_values[-2]!r}"
                     )
-                column_values.append(number)
-    if not values[required[0]]:
+            lines.append(line)
+    except csv.Error as exc:
+        raise TableError(f"{path}: not a table of numbers: {exc}") from None
+    if not lines:
         raise TableError(f"{path}: no rows of data after the header")
-    return {name: np.array(column) for name, column in values.items()}
+    table = {
+        name: _integer_array(column, name, path) if name in integers else np.array(column)
+        for name, column in values.items()
+    }
+    if increasing is not None and increasing in table:
+        times_in_seconds(table, increasing, time_unit, path)
+    return Table(path, table, np.array(lines))
 
 
-def read_trajectory(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """``(times (T+1,), poses (T+1, 3))`` from a CSV with columns ``t, x, y, theta``."""
-    table = read_table(path, ["t", "x", "y", "theta"])
-    poses = np.column_stack([table["x"], table["y"], table["theta"]])
-    if len(poses) < 2:
-        raise TableError(f"{path}: a trajectory needs at least 2 rows")
-    return table["t"], poses
+def _cell(row: list[str], column: int, name: str, whole: bool, path: Path, line: int):
+    cell = row[column] if column < len(row) else ""
+    shown = cell if len(cell) <= 40 else cell[:37] + "..."
+    try:
+        return _whole(cell) if whole else _finite(cell)
+    except ValueError:
+        pass
+    try:
+        number = float(cell)
+    except ValueError:
+        raise TableError(f"{path}:{line}: column {name!r}: not a number: {shown!r}") from None
+    if not math.isfinite(number):
+        raise TableError(f"{path}:{line}: column {name!r}: not finite: {shown!r}")
+    raise TableError(f"{path}:{line}: column {name!r}: not a whole count: {shown!r}")
+
+
+def _finite(cell: str) -> float:
+    number = float(cell)
+    if not math.isfinite(number):
+        raise ValueError(cell)
+    return number
 
 
 def read_robot(path: str | Path) -> dict[str, float]:
@@ -157,6 +330,11 @@ def read_robot(path: str | Path) -> dict[str, float]:
         raise TableError(f"{path}: cannot read: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise TableError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise TableError(
+            f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
+            "a robot file is TOML, which is UTF-8"
+        ) from None
     unknown = sorted(set(settings) - set(ROBOT_KEYS))
     if unknown:
         raise TableError(
@@ -165,6 +343,8 @@ def read_robot(path: str | Path) -> dict[str, float]:
     for key, value in settings.items():
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise TableError(f"{path}: {key} must be a number, got {value!r}")
+        if not math.isfinite(float(value)):
+            raise TableError(f"{path}: {key} must be finite, got {value!r}")
     return {key: float(value) for key, value in settings.items()}
 
 
@@ -175,6 +355,9 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     On any failure the temporary file goes and ``path`` is left as it was.
     """
     path = Path(path)
+    folder = path.parent
+    if not folder.is_dir():
+        raise TableError(f"cannot write {path}: the folder {folder} does not exist")
     handle, temporary = tempfile.mkstemp(
         dir=path.parent or ".", prefix=f".{path.stem}.", suffix=path.suffix
     )
@@ -207,60 +390,3 @@ def write_robot(path: str | Path, settings: dict[str, float], comment: str = "")
     with atomic_write(path) as stream:
         stream.writelines(f"# {line}\n" for line in comment.splitlines())
         stream.writelines(f"{key} = {float(value)!r}\n" for key, value in settings.items())
-
-
-def read_run(path: str | Path, ticks_per_revolution: float | None) -> tuple:
-    """A run with ground truth: ``(times (T+1,), increments (T, 2) rad, truth (T+1, 3))``.
-
-    Either the OptiOdom format (no header; see ``diffdrive.datasets``) or a CSV with columns
-    ``t``, ``x``, ``y``, ``theta`` and ``left_ticks, right_ticks`` (with
-    ``ticks_per_revolution``) or ``left_angle, right_angle`` (rad).
-    """
-    header = read_header(path)
-    if all(_is_number(name) for name in header):
-        from diffdrive.datasets import read_optiodom_run
-
-        run = read_optiodom_run(path)
-        return run.times, np.diff(run.wheel_angles(), axis=0), run.ground_truth
-    ticks = "left_ticks" in header
-    wheels = ("left_ticks", "right_ticks") if ticks else ("left_angle", "right_angle")
-    table = read_table(path, ["t", *wheels, "x", "y", "theta"], integers=wheels if ticks else ())
-    angles = np.column_stack([table[wheels[0]], table[wheels[1]]])
-    if ticks:
-        if ticks_per_revolution is None:
-            raise TableError(f"{path}: ticks need ticks_per_revolution")
-        angles = angles * (2 * math.pi / ticks_per_revolution)
-    truth = np.column_stack([table["x"], table["y"], table["theta"]])
-    return table["t"], np.diff(angles, axis=0), truth
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def write_trajectory(
-    path: str | Path, times: np.ndarray, poses: np.ndarray, format: Format = "csv"
-) -> None:
-    """Write poses ``(T+1, 3)`` at ``times`` ``(T+1,)`` to ``path`` as ``format``."""
-    if format not in FORMATS:
-        raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {format!r}")
-    rows = np.column_stack([times, poses]).tolist()
-    with atomic_write(path) as stream:
-        if format == "csv":
-            stream.write("t,x,y,theta\n")
-            stream.writelines(f"{t!r},{x!r},{y!r},{theta!r}\n" for t, x, y, theta in rows)
-        elif format == "jsonl":
-            stream.writelines(
-                json.dumps({"t": t, "x": x, "y": y, "theta": theta}) + "\n"
-                for t, x, y, theta in rows
-            )
-        else:
-            stream.write("# t x y z qx qy qz qw\n")
-            stream.writelines(
-                f"{t!r} {x!r} {y!r} 0.0 0.0 0.0 {math.sin(theta / 2)!r} {math.cos(theta / 2)!r}\n"
-                for t, x, y, theta in rows
-            )

@@ -19,13 +19,20 @@ __all__ = ["animate", "animation_writer", "plot_trajectory", "wheel_velocities_o
 _ROBOT_COLOUR = "0.25"
 
 
-def _pyplot():
-    import matplotlib
+def _figure(**options):
+    """A matplotlib Figure that draws off-screen, without pyplot: the user's backend and
+    pyplot's list of open figures are left alone."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    return Figure(**options)
 
-    return plt
+
+def _three_panels():
+    """A figure with the path on the left, two panels stacked on the right."""
+    figure = _figure(figsize=(12, 5), layout="constrained")
+    grid = figure.add_gridspec(2, 2, width_ratios=[1.2, 1])
+    panels = [figure.add_subplot(grid[:, 0]), figure.add_subplot(grid[0, 1])]
+    return figure, (*panels, figure.add_subplot(grid[1, 1]))
 
 
 def wheel_velocities_of(robot: DiffDrive, times: np.ndarray, poses: np.ndarray) -> np.ndarray:
@@ -65,16 +72,15 @@ def plot_trajectory(
 
     The path has equal axes, start and end marked, the robot drawn at ``robots_drawn`` poses
     with its centre of curvature (+) where that is near. ``truth`` is ``(times, poses)`` of a
-    ground truth to draw underneath.
+    ground truth to draw underneath. Poses ``(N, T+1, 3)`` of ``N`` robots draw the fan of
+    their paths and headings, and the spread of their final positions (mean and 2-sigma
+    ellipse) instead of the wheel velocities.
     """
-    plt = _pyplot()
-    figure = plt.figure(figsize=(12, 5), layout="constrained")
-    grid = figure.add_gridspec(2, 2, width_ratios=[1.2, 1])
-    path, heading, wheels_ax = (
-        figure.add_subplot(grid[:, 0]),
-        figure.add_subplot(grid[0, 1]),
-        figure.add_subplot(grid[1, 1]),
-    )
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim == 3:
+        _plot_many(times, poses, output, truth)
+        return
+    figure, (path, heading, wheels_ax) = _three_panels()
     if truth is not None:
         path.plot(truth[1][:, 0], truth[1][:, 1], color="0.6", linewidth=3, label="ground truth")
         heading.plot(truth[0], np.degrees(truth[1][:, 2]), color="0.6", linewidth=3)
@@ -101,7 +107,37 @@ def plot_trajectory(
     for ax in (path, heading, wheels_ax):
         ax.grid(True, alpha=0.3)
     figure.savefig(output, dpi=100)
-    plt.close(figure)
+
+
+def _plot_many(times: np.ndarray, poses: np.ndarray, output, truth) -> None:
+    """Many robots: their paths, their headings, and where they end."""
+    figure, (path, heading, spread) = _three_panels()
+    alpha = max(0.05, min(0.8, 20.0 / len(poses)))
+    if truth is not None:
+        path.plot(truth[1][..., 0].T, truth[1][..., 1].T, color="0.6", linewidth=3)
+    path.plot(poses[..., 0].T, poses[..., 1].T, color="tab:blue", linewidth=0.8, alpha=alpha)
+    path.plot(*poses[0, 0, :2], "o", color="tab:green", label="start")
+    path.set_aspect("equal", adjustable="datalim")
+    path.set(xlabel="x, m", ylabel="y, m", title=f"paths of {len(poses)} robots")
+    path.legend(loc="best")
+    heading.plot(times, np.degrees(poses[..., 2]).T, color="tab:blue", linewidth=0.8, alpha=alpha)
+    heading.set(xlabel="t, s", ylabel="heading, deg", title="headings")
+    ends = poses[:, -1, :2]
+    spread.plot(ends[:, 0], ends[:, 1], ".", color="tab:red", alpha=alpha, label="final positions")
+    mean = ends.mean(axis=0)
+    if len(ends) > 2:
+        values, vectors = np.linalg.eigh(np.cov(ends.T))
+        angle = np.linspace(0, 2 * np.pi, 100)
+        circle = np.stack([np.cos(angle), np.sin(angle)])
+        ellipse = mean[:, None] + vectors @ (2 * np.sqrt(np.maximum(values, 0))[:, None] * circle)
+        spread.plot(*ellipse, color="k", linewidth=1, label="2 sigma")
+    spread.plot(*mean, "+", color="k", markersize=10, label="mean")
+    spread.set_aspect("equal", adjustable="datalim")
+    spread.set(xlabel="x, m", ylabel="y, m", title="where they end")
+    spread.legend(loc="best")
+    for ax in (path, heading, spread):
+        ax.grid(True, alpha=0.3)
+    figure.savefig(output, dpi=100)
 
 
 def animation_writer(output: str | Path) -> tuple[str, Path]:
@@ -126,12 +162,14 @@ def animate(
     writer: str = "pillow",
     frames: int = 120,
     fps: int = 20,
+    progress: bool = False,
 ) -> None:
-    """Write an animation of the robot driving ``poses`` to ``output`` with ``writer``."""
-    plt = _pyplot()
+    """Write an animation of the robot driving ``poses`` to ``output`` with ``writer``;
+    ``progress`` shows a bar of the frames written on standard error."""
     from matplotlib import animation
 
-    figure, ax = plt.subplots(figsize=(6, 6), layout="constrained")
+    figure = _figure(figsize=(6, 6), layout="constrained")
+    ax = figure.add_subplot()
     margin = robot.track_width
     ax.set_xlim(poses[:, 0].min() - margin, poses[:, 0].max() + margin)
     ax.set_ylim(poses[:, 1].min() - margin, poses[:, 1].max() + margin)
@@ -143,9 +181,10 @@ def animate(
     (body,) = ax.plot([], [], color=_ROBOT_COLOUR, linewidth=1.5)
     label = ax.set_title("")
     half = robot.track_width / 2
+    # The box, a break (NaN: no line back to the centre), then the heading from the centre.
     outline = np.array(
-        [[-half, -half], [half, -half], [half, half], [-half, half], [-half, -half], [0, 0],
-         [1.4 * half, 0]]
+        [[-half, -half], [half, -half], [half, half], [-half, half], [-half, -half],
+         [np.nan, np.nan], [0, 0], [1.4 * half, 0]]
     )  # fmt: skip
     indices = np.linspace(0, len(poses) - 1, min(frames, len(poses))).round().astype(int)
 
@@ -157,5 +196,16 @@ def animate(
         return trail, body, label
 
     movie = animation.FuncAnimation(figure, draw, frames=indices, blit=False)
-    movie.save(output, writer=writer, fps=fps)
-    plt.close(figure)
+    bar = None
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(indices), desc="animate", unit="frame", file=sys.stderr)
+    try:
+        movie.save(output, writer=writer, fps=fps,
+                   progress_callback=None if bar is None else lambda *_: bar.update())  # fmt: skip
+    finally:
+        if bar is not None:
+            bar.close()

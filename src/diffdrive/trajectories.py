@@ -1,0 +1,229 @@
+"""Trajectory files: ``t, x, y, theta`` as CSV, JSON lines or TUM, for one robot or many.
+
+- CSV: a header ``t,x,y,theta`` (any table ``diffdrive.files`` reads), optionally a ``robot``
+  column first for several robots, and further columns (twist, covariance) after.
+- JSON lines: one object a line with the keys ``t``, ``x``, ``y``, ``theta`` (``robot``, and
+  any further keys, optional).
+- TUM (what evo reads): ``t x y z qx qy qz qw`` a line, ``#`` comments; the heading is the yaw
+  of the quaternion. One robot a file: several robots go to ``NAME_0.tum``, ``NAME_1.tum``, ...
+
+Readers find the format from the content: a line of eight numbers is TUM, a line that starts
+with ``{`` is JSON lines, anything else is a table. Headings read from TUM are unwrapped (TUM
+keeps only the orientation); headings from the others are read as written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from diffdrive.files import (
+    TableError,
+    atomic_output,
+    atomic_write,
+    check_time_unit,
+    is_number,
+    number_row,
+    read_table,
+    text_lines,
+    times_in_seconds,
+)
+
+__all__ = ["FORMATS", "read_trajectory", "trajectory_format", "write_trajectory"]
+
+Format = Literal["csv", "jsonl", "tum"]
+FORMATS: tuple[Format, ...] = ("csv", "jsonl", "tum")
+_POSE = ("t", "x", "y", "theta")
+
+
+def trajectory_format(path: str | Path) -> Format:
+    """The format of a trajectory file, from its first line that is not blank or a comment."""
+    for _, text in text_lines(path):
+        line = text.strip()
+        if not line or line.startswith("#"):
+            continue
+        if line.startswith("{"):
+            return "jsonl"
+        fields = line.split()
+        if len(fields) == 8 and all(is_number(field) for field in fields):
+            return "tum"
+        return "csv"
+    raise TableError(f"{path}: the file is empty; expected a trajectory")
+
+
+def read_trajectory(
+    path: str | Path, time_unit: str | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(times (T+1,), poses (T+1, 3))`` of a trajectory file, or ``(N, T+1, 3)`` poses when
+    the file holds ``N`` robots (a ``robot`` column) at the same times.
+
+    Times are in ``time_unit`` (None: seconds, refused when plainly not; see
+    ``diffdrive.files``), returned in seconds. ``TableError`` names the file and line.
+    """
+    path = Path(path)
+    check_time_unit(time_unit)
+    format = trajectory_format(path)
+    if format == "tum":
+        table = _read_tum(path)
+    elif format == "jsonl":
+        table = _read_jsonl(path)
+    else:
+        table = read_table(path, _POSE, ["robot"], increasing=None)
+    robots = table.pop("robot", None)
+    times_in_seconds(table, "t", time_unit, path)
+    times, poses = _split_robots(path, table, robots)
+    if poses.shape[-2] < 2:
+        raise TableError(f"{path}: a trajectory needs at least 2 poses")
+    bad = np.flatnonzero(np.diff(times) <= 0)
+    if bad.size:
+        raise TableError(f"{path}: the times do not increase after t = {times[bad[0]]!r}")
+    return times, poses
+
+
+def _split_robots(path: Path, table: dict, robots) -> tuple[np.ndarray, np.ndarray]:
+    poses = np.column_stack([table["x"], table["y"], table["theta"]])
+    if robots is None:
+        return table["t"], poses
+    ids = np.unique(robots)
+    counts = [np.count_nonzero(robots == k) for k in ids]
+    if len(set(counts)) != 1:
+        raise TableError(f"{path}: the robots have different numbers of rows ({counts})")
+    order = np.argsort(robots, kind="stable")
+    times = table["t"][order].reshape(len(ids), -1)
+    if not np.array_equal(times, np.broadcast_to(times[0], times.shape)):
+        raise TableError(f"{path}: the robots must share their sample times")
+    return times[0], poses[order].reshape(len(ids), -1, 3)
+
+
+def _read_tum(path: Path) -> dict[str, np.ndarray]:
+    rows = []
+    for number, text in text_lines(path):
+        line = text.strip()
+        if not line or line.startswith("#"):
+            continue
+        row = number_row(path, number, line.split(), 8, "a TUM")
+        if np.hypot(np.hypot(row[4], row[5]), np.hypot(row[6], row[7])) == 0.0:
+            raise TableError(f"{path}:{number}: the quaternion is zero")
+        rows.append(row)
+    if not rows:
+        raise TableError(f"{path}: no poses")
+    t, x, y, _, qx, qy, qz, qw = np.array(rows).T
+    yaw = np.arctan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy**2 + qz**2))
+    return {"t": t, "x": x, "y": y, "theta": np.unwrap(yaw)}
+
+
+def _read_jsonl(path: Path) -> dict[str, np.ndarray]:
+    columns: dict[str, list] = {name: [] for name in _POSE}
+    robots: list[int] = []
+    for number, text in text_lines(path):
+        if not text.strip():
+            continue
+        try:
+            record = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise TableError(f"{path}:{number}: not JSON: {exc.msg}") from None
+        if not isinstance(record, dict):
+            raise TableError(f"{path}:{number}: expected a JSON object a line")
+        for name in _POSE:
+            value = record.get(name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise TableError(f"{path}:{number}: {name!r} must be a number, got {value!r}")
+            if not math.isfinite(value):
+                raise TableError(f"{path}:{number}: {name!r} is not finite")
+            columns[name].append(float(value))
+        if "robot" in record:
+            robots.append(record["robot"])
+    table = {name: np.array(values) for name, values in columns.items()}
+    if not columns["t"]:
+        raise TableError(f"{path}: no poses")
+    if robots:
+        if len(robots) != len(columns["t"]):
+            raise TableError(f"{path}: 'robot' is on some lines and not on others")
+        table["robot"] = np.array(robots)
+    return table
+
+
+def write_trajectory(
+    path: str | Path,
+    times: np.ndarray,
+    poses: np.ndarray,
+    format: Format = "csv",
+    columns: Mapping[str, np.ndarray] | None = None,
+) -> list[Path]:
+    """Write poses ``(T+1, 3)`` at ``times`` ``(T+1,)`` to ``path`` as ``format``.
+
+    Poses ``(N, T+1, 3)`` of ``N`` robots (with times ``(T+1,)`` or ``(N, T+1)``) go to one
+    CSV or JSON-lines file with a ``robot`` column, or to one TUM file per robot. ``columns``
+    adds named ``(T+1,)`` values after ``theta`` (CSV and JSON lines only; NaN is written as
+    ``nan`` in CSV and null in JSON). Returns the files written.
+    """
+    if format not in FORMATS:
+        raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {format!r}")
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim not in (2, 3) or poses.shape[-1] != 3:
+        raise ValueError(f"poses must have shape (T+1, 3) or (N, T+1, 3), got {poses.shape}")
+    times = np.broadcast_to(np.asarray(times, dtype=float), poses.shape[:-1])
+    extra = {name: np.asarray(values, dtype=float) for name, values in (columns or {}).items()}
+    for name, values in extra.items():
+        if values.shape != poses.shape[:-1]:
+            raise ValueError(
+                f"column {name!r} must have shape {poses.shape[:-1]}, got {values.shape}"
+            )
+    if format == "tum":
+        if extra:
+            raise ValueError(f"TUM files hold poses only; write {', '.join(extra)} as csv or jsonl")
+        return _write_tum(Path(path), times, poses)
+    robots = poses.shape[0] if poses.ndim == 3 else None
+    names = (["robot"] if robots else []) + list(_POSE) + list(extra)
+    values = [times, poses[..., 0], poses[..., 1], poses[..., 2], *extra.values()]
+    if robots:
+        values.insert(0, np.broadcast_to(np.arange(robots)[:, None], times.shape))
+    rows = np.stack(values, axis=-1).reshape(-1, len(names)).tolist()
+    if robots:
+        rows = [[int(row[0]), *row[1:]] for row in rows]
+    with atomic_write(path) as stream:
+        if format == "csv":
+            stream.write(",".join(names) + "\n")
+            stream.writelines(",".join(map(repr, row)) + "\n" for row in rows)
+        else:
+            stream.writelines(
+                json.dumps(
+                    {k: (v if math.isfinite(v) else None) for k, v in zip(names, row, strict=True)}
+                )
+                + "\n"
+                for row in rows
+            )
+    return [Path(path)]
+
+
+def _record(names: list[str], row: list) -> dict:
+    """A JSON object of a row: NaN and infinities become null, which JSON has instead."""
+    return {k: (v if math.isfinite(v) else None) for k, v in zip(names, row, strict=True)}
+
+
+def _write_tum(path: Path, times: np.ndarray, poses: np.ndarray) -> list[Path]:
+    if poses.ndim == 2:
+        targets = [(path, times, poses)]
+    else:
+        width = len(str(len(poses) - 1))
+        targets = [
+            (path.with_name(f"{path.stem}_{k:0{width}d}{path.suffix}"), times[k], poses[k])
+            for k in range(len(poses))
+        ]
+    # Every file is written to a temporary first; they are renamed only when all are written.
+    with contextlib.ExitStack() as renames:
+        for target, t, p in targets:
+            temporary = renames.enter_context(atomic_output(target))
+            with temporary.open("w", newline="") as stream:
+                stream.write("# t x y z qx qy qz qw\n")
+                stream.writelines(
+                    f"{a!r} {x!r} {y!r} 0.0 0.0 0.0 {math.sin(h / 2)!r} {math.cos(h / 2)!r}\n"
+                    for a, x, y, h in np.column_stack([t, p]).tolist()
+                )
+    return [target for target, _, _ in targets]

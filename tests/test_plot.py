@@ -1,0 +1,66 @@
+"""Pictures: the figure and the animation leave the user's matplotlib alone, draw what they
+say, and show progress when asked."""
+
+import numpy as np
+import pytest
+
+import diffdrive as dd
+
+matplotlib = pytest.importorskip("matplotlib")
+from diffdrive.plot import animate, plot_trajectory  # noqa: E402
+
+ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+
+
+def trajectory():
+    return dd.simulate(ROBOT, np.tile([6.0, 9.0], (50, 1)), dt=0.05)
+
+
+def test_plotting_keeps_the_users_backend_and_opens_no_pyplot_figure(tmp_path):
+    import sys
+
+    matplotlib.use("svg")
+    path = trajectory()
+    plot_trajectory(ROBOT, path.times, path.poses, tmp_path / "a.png")
+    animate(ROBOT, path.times, path.poses, tmp_path / "a.gif", frames=3)
+    assert matplotlib.get_backend() == "svg"
+    if "matplotlib.pyplot" in sys.modules:
+        assert sys.modules["matplotlib.pyplot"].get_fignums() == []
+    assert (tmp_path / "a.png").stat().st_size > 10_000
+
+
+def test_the_animated_robot_has_no_line_from_a_corner_to_its_centre(tmp_path, monkeypatch):
+    from matplotlib.lines import Line2D
+
+    drawn = []
+    original = Line2D.set_data
+
+    def record(self, *args):
+        x, y = args if len(args) == 2 else args[0]  # matplotlib also calls set_data((x, y))
+        drawn.append((np.asarray(x, dtype=float), np.asarray(y, dtype=float)))
+        return original(self, *args)
+
+    monkeypatch.setattr(Line2D, "set_data", record)
+    path = trajectory()
+    animate(ROBOT, path.times, path.poses, tmp_path / "b.gif", frames=2)
+    bodies = [(x, y) for x, y in drawn if len(x) == 8]  # the outline and its heading
+    assert bodies
+    for x, y in bodies:
+        # box corners 0-4, a break, then centre to nose: no segment joins corner 4 to the centre
+        assert np.isnan(x[5])
+        assert np.isnan(y[5])
+
+
+def test_the_animation_shows_its_progress_when_asked(tmp_path, capsys):
+    path = trajectory()
+    animate(ROBOT, path.times, path.poses, tmp_path / "c.gif", frames=4, progress=True)
+    assert "4/4" in capsys.readouterr().err
+
+
+def test_a_trajectory_prints_as_a_short_summary():
+    text = repr(trajectory())
+    assert text.startswith("Trajectory(50 steps over [0, 2.5] s, method='exact'")
+    assert len(text) < 300
+    many = dd.simulate(ROBOT, np.ones((4, 3, 10, 2)), dt=0.1)
+    assert "4x3 robots, 10 steps" in repr(many)
+    assert "<(4, 3, 3) array>" in repr(many)
