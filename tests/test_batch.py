@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+import diffdrive as dd
 from diffdrive import (
     DiffDrive,
     Pose,
@@ -286,3 +287,19 @@ def test_every_batch_twist_is_F_times_the_wheels_and_does_not_slip(params, wheel
     np.testing.assert_allclose(mr_order, wheels @ robot.f_matrix().T, atol=1e-9)
     np.testing.assert_allclose(mr_order @ robot.constraint_matrix().T, 0.0, atol=1e-12)
     np.testing.assert_allclose(mr_order @ robot.h_matrix().T, wheels, atol=1e-8)
+
+
+def test_overflow_propagates_as_numpy_does():
+    """The batch layer's rule (docs/conventions.md): finite input whose result overflows gives
+    inf, with NumPy's RuntimeWarning under NumPy's errstate; nothing is checked per element."""
+    robot = dd.DiffDrive(wheel_radius=1.0, track_width=1e-10, axle_offset=0.1)
+    wheels = np.array([[-1e300, 1e300]])  # a turn rate of 2e310 rad/s
+    with pytest.warns(RuntimeWarning, match="overflow"):
+        twists = dd.batch.to_twist(robot, wheels)
+    assert twists[0, 0] == 0.0
+    assert np.isinf(twists[0, 2])
+    with np.errstate(over="ignore"):
+        poses = dd.batch.exp(np.array([[1e308, 0.0, 0.0]]), 10.0)
+    assert np.isinf(poses[0, 0])
+    with np.errstate(over="raise"), pytest.raises(FloatingPointError):
+        dd.batch.to_twist(robot, wheels)

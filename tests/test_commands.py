@@ -248,3 +248,48 @@ def test_with_jerk_on_every_channel_a_twist_from_rest_keeps_its_curvature():
     assert max(np.abs(np.diff(accelerations))) <= 2.0 * 0.05 + 1e-12
     wheels = dd.desaturate(ROBOT.to_wheel_velocities(dd.Twist(v, 0.0, omega)), 5.0)
     assert ROBOT.to_twist(wheels).omega == pytest.approx(0.5 * ROBOT.to_twist(wheels).vx)
+
+
+# -- found by the stateful fuzz campaign (tests/test_stateful.py) -------------------------------
+
+
+def test_a_jerk_profile_never_runs_past_the_velocity_limit():
+    limiter = dd.Limiter((dd.Limits(), dd.Limits(max_reverse_velocity=2.0, max_jerk=33.0)))
+    outputs = [limiter.step([0.0, -5.0], 0.125) for _ in range(12)]
+    outputs += [limiter.step([0.0, 0.0], 0.125) for _ in range(12)]
+    assert min(out[1] for out in outputs) >= -2.0
+
+
+def test_finite_targets_give_finite_outputs_or_are_refused_with_nothing_changed():
+    limiter = dd.Limiter((dd.Limits(),))
+    limiter.step([-1e308], 1.0)
+    with pytest.raises(ValueError, match="would overflow to infinity; refused, nothing changed"):
+        limiter.step([1e308], 1.0)
+    assert limiter.value.tolist() == [-1e308]
+    assert np.all(np.isfinite(limiter.step([0.0], 1.0)))
+    with pytest.raises(ValueError, match="target must be finite, got an integer too large"):
+        limiter.step([10**400], 1.0)
+
+
+def test_a_refused_open_loop_update_changes_neither_the_limiter_nor_the_pose():
+    robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    open_loop = dd.OpenLoopOdometry(robot, dd.Limiter.for_twist(dd.Limits(), dd.Limits()))
+    open_loop.update([0.5, 0.1], 0.1)
+    before = (open_loop._path.limiter.value.copy(), open_loop.pose)
+    with pytest.raises(ValueError, match="must be finite"):
+        open_loop.update([1e300, 0.0], 1e300)
+    np.testing.assert_array_equal(open_loop._path.limiter.value, before[0])
+    assert open_loop.pose == before[1]
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: dd.Limits(max_velocity=10**400), "max_velocity must be finite, got an integer"),
+        (lambda: dd.Limits(max_jerk="3"), "max_jerk must be a number, got '3'"),
+        (lambda: dd.Limiter((dd.Limits(),)).step([1.0], "0.1"), "dt must be a number"),
+    ],
+)
+def test_limits_name_the_parameter_of_a_bad_number(make, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        make()

@@ -1,5 +1,6 @@
 """Odometry: worked cases, roll-over, streaming equals batch, faults, covariance, Jacobians."""
 
+import contextlib
 import math
 
 import numpy as np
@@ -385,3 +386,35 @@ def test_propagated_covariance_matches_monte_carlo(method):
     scale = np.sqrt(np.outer(np.diag(predicted), np.diag(predicted)))
     # 4000 copies: the sample (co)variances scatter by about sqrt(2/4000) = 2 % of the scale.
     np.testing.assert_allclose(sample / scale, predicted / scale, atol=0.08)
+
+
+# -- accepted updates never break the object (found by tests/test_stateful.py) ------------------
+
+
+@pytest.mark.parametrize(
+    ("calls", "message"),
+    [
+        (
+            [("update_increments", 1e308, 1e308)],
+            r"increments of 1e\+308 and 1e\+308 rad would make the",
+        ),
+        ([("update_increments", 1e160, 1e160)] * 2, "would make the covariance overflow"),
+        ([("update_velocities", 0.0, 0.0, 1e308)] * 2, "the clock would pass the largest"),
+        ([("update_increments", 10**400, 0.0)], "left must be finite, got an integer too large"),
+        ([("update_increments", "1", 0.0)], "left must be a number, got '1'"),
+    ],
+)
+def test_an_update_whose_result_is_not_finite_is_refused(calls, message):
+    odometry = dd.Odometry(ROBOT, k_left=1e-4, k_right=1e-4)
+    twin = dd.Odometry(ROBOT, k_left=1e-4, k_right=1e-4)
+    *accepted, last = calls
+    for name, *args in accepted:
+        with contextlib.suppress(ValueError):
+            getattr(odometry, name)(*args)
+            getattr(twin, name)(*args)
+    with pytest.raises((ValueError, TypeError), match=message):
+        getattr(odometry, last[0])(*last[1:])
+    assert odometry.pose == twin.pose
+    assert odometry.time == twin.time
+    np.testing.assert_array_equal(odometry.covariance, twin.covariance)
+    assert np.all(np.isfinite(odometry.covariance))

@@ -186,6 +186,11 @@ static int check_update(const Core *c, const char *name, double dl, double dr, i
                      "right %s", name, num(dl).text, num(dr).text);
         return -1;
     }
+    if (has_t && !isfinite(t)) {
+        PyErr_Format(PyExc_ValueError, "%s: the clock would pass the largest finite time: "
+                     "%s s after %s s", name, num(t).text, num(c->time).text);
+        return -1;
+    }
     if (has_t && dt < 0.0) {
         PyErr_Format(PyExc_ValueError, "%s: time went backwards: t = %s s after %s s", name,
                      num(t).text, num(c->time).text);
@@ -207,20 +212,52 @@ static int check_update(const Core *c, const char *name, double dl, double dr, i
     return 0;
 }
 
-/* Move the pose, covariance, distance and velocity window; cannot fail (room is ensured). */
-static void apply_update(Core *c, double dl, double dr, int has_t, double t) {
+/* The state an update leads to, computed before anything changes. */
+typedef struct {
+    double x, y, theta, distance, cov[9], arc_left, arc_right;
+} Next;
+
+/* Compute the next state; refuse one that is not finite (an overflow of huge increments), so
+ * that an accepted update never leaves a pose, covariance or distance that cannot be read. */
+static int next_state(const Core *c, const char *name, double dl, double dr, Next *n) {
     Step s;
     step(c, c->theta, dl, dr, &s);
     double q[2] = {c->k_left * fabs(c->r_left * dl) / (c->r_left * c->r_left),
                    c->k_right * fabs(c->r_right * dr) / (c->r_right * c->r_right)};
-    propagate(c->cov, s.jac_pose, s.jac_wheels, q);
-    c->x += s.dx;
-    c->y += s.dy;
-    c->theta += s.dtheta;
+    memcpy(n->cov, c->cov, sizeof n->cov);
+    propagate(n->cov, s.jac_pose, s.jac_wheels, q);
+    n->x = c->x + s.dx;
+    n->y = c->y + s.dy;
+    n->theta = c->theta + s.dtheta;
     double left = c->r_left * dl, right = c->r_right * dr;
-    c->distance += hypot(0.5 * (left + right), c->offset * (right - left) / c->track);
-    c->arc_left += left;
-    c->arc_right += right;
+    n->distance = c->distance + hypot(0.5 * (left + right), c->offset * (right - left) / c->track);
+    n->arc_left = c->arc_left + left;
+    n->arc_right = c->arc_right + right;
+    int finite = isfinite(n->x) && isfinite(n->y) && isfinite(n->theta) &&
+                 isfinite(n->distance) && isfinite(n->arc_left) && isfinite(n->arc_right);
+    const char *what = "pose, distance or wheel travel";
+    for (int i = 0; finite && i < 9; ++i) {
+        finite = isfinite(n->cov[i]);
+        what = "covariance";
+    }
+    if (!finite) {
+        PyErr_Format(PyExc_ValueError, "%s: increments of %s and %s rad would make the %s "
+                     "overflow (not finite); refused, nothing changed", name, num(dl).text,
+                     num(dr).text, what);
+        return -1;
+    }
+    return 0;
+}
+
+/* Move to the next state and the velocity window; cannot fail (room is ensured). */
+static void commit(Core *c, const Next *n, int has_t, double t) {
+    c->x = n->x;
+    c->y = n->y;
+    c->theta = n->theta;
+    c->distance = n->distance;
+    memcpy(c->cov, n->cov, sizeof c->cov);
+    c->arc_left = n->arc_left;
+    c->arc_right = n->arc_right;
     if (has_t) {
         c->time = t;
         push_sample(c, t);
@@ -233,19 +270,30 @@ static void apply_update(Core *c, double dl, double dr, int has_t, double t) {
 /* An update from increments with an optional time stamp: checked, then applied. */
 static int update(Core *c, const char *name, double dl, double dr, int has_t, double t) {
     double dt = has_t ? t - c->time : NAN; /* NaN too while the clock is unknown */
-    if (check_update(c, name, dl, dr, has_t, t, dt) < 0 || (has_t && ensure_room(c, 1) < 0))
+    Next n;
+    if (check_update(c, name, dl, dr, has_t, t, dt) < 0 || next_state(c, name, dl, dr, &n) < 0 ||
+        (has_t && ensure_room(c, 1) < 0))
         return -1;
-    apply_update(c, dl, dr, has_t, t);
+    commit(c, &n, has_t, t);
     return 0;
 }
 
 /* -- argument parsing --------------------------------------------------------------------- */
 
 static int parse_double(PyObject *obj, const char *name, const char *field, double *out) {
+    if (PyUnicode_Check(obj) || PyBytes_Check(obj) || PyBool_Check(obj)) {
+        PyErr_Format(PyExc_TypeError, "%s: %s must be a number, got %R", name, field, obj);
+        return -1;
+    }
     double v = PyFloat_CheckExact(obj) ? PyFloat_AS_DOUBLE(obj) : PyFloat_AsDouble(obj);
     if (v == -1.0 && PyErr_Occurred()) {
+        int overflow = PyErr_ExceptionMatches(PyExc_OverflowError);
         PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s: %s must be a number, got %R", name, field, obj);
+        if (overflow)
+            PyErr_Format(PyExc_ValueError, "%s: %s must be finite, got an integer too large "
+                         "for a float", name, field);
+        else
+            PyErr_Format(PyExc_TypeError, "%s: %s must be a number, got %R", name, field, obj);
         return -1;
     }
     if (!isfinite(v)) {
@@ -486,13 +534,15 @@ static PyObject *update_velocities(Core *c, PyObject *const *args, Py_ssize_t na
     }
     /* Without a clock, one starts at 0 s with these velocities. */
     double start = isnan(c->time) ? 0.0 : c->time, dl = left * dt, dr = right * dt;
-    if (check_update(c, name, dl, dr, 1, start + dt, dt) < 0 || ensure_room(c, 2) < 0)
+    Next n;
+    if (check_update(c, name, dl, dr, 1, start + dt, dt) < 0 ||
+        next_state(c, name, dl, dr, &n) < 0 || ensure_room(c, 2) < 0)
         return NULL;
     if (isnan(c->time)) {
         c->time = 0.0;
         push_sample(c, 0.0);
     }
-    apply_update(c, dl, dr, 1, start + dt);
+    commit(c, &n, 1, start + dt);
     Py_RETURN_NONE;
 }
 

@@ -6,9 +6,15 @@ import math
 
 
 def finite(name: str, value: object) -> float:
-    """``value`` as a float; ``ValueError`` naming ``name`` if it is NaN or infinite."""
+    """``value`` as a float; ``ValueError`` naming ``name`` if it is NaN or infinite (or an
+    integer too large for a float); ``TypeError`` for what is not a number, strings included
+    (``float("1_0")`` would read one)."""
+    if isinstance(value, str | bytes):
+        raise TypeError(f"{name} must be a real number, not text: got {value!r}")
     try:
         number = float(value)  # type: ignore[arg-type]
+    except OverflowError:
+        raise ValueError(f"{name} must be finite, got an integer too large for a float") from None
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be a real number, got {value!r}") from None
     if not math.isfinite(number):

@@ -19,10 +19,12 @@ A ``Limiter`` follows targets for a few channels at once: ``(v, omega)`` with
    target. From rest, or whenever the curvature is not changing, the output keeps the
    target's curvature, so desaturation after the limiter keeps it too.
 
-The outputs never exceed the velocity and acceleration limits. The jerk limit holds except
-where a hard limit overrides it: at a zero crossing into a direction with a lower acceleration
-limit than the acceleration at the crossing. A refused call (a non-finite target, ``dt <= 0``)
-raises ``ValueError`` and changes nothing.
+The outputs never exceed the velocity and acceleration limits: a jerk-limited profile that
+would run past a velocity limit stops at it. The jerk limit holds except where a hard limit
+overrides it: at a zero crossing into a direction with a lower acceleration limit than the
+acceleration at the crossing, and on reaching a velocity limit. A refused call (a non-finite
+target, ``dt <= 0``, or a step whose output or acceleration would overflow to infinity, such
+as from -1e308 to 1e308) raises ``ValueError`` and changes nothing; outputs are always finite.
 """
 
 from __future__ import annotations
@@ -35,10 +37,22 @@ import numpy as np
 __all__ = ["Limiter", "Limits"]
 
 
+def _number(name: str, value: object) -> float:
+    """``value`` as a float, or an error naming ``name`` (no text, no integers beyond floats)."""
+    if isinstance(value, str | bytes | bool):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except OverflowError:
+        raise ValueError(f"{name} must be finite, got an integer too large for a float") from None
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number, got {value!r}") from None
+
+
 def _optional_limit(name: str, value: float | None, allow_zero: bool = False) -> float:
     if value is None:
         return math.inf
-    number = float(value)
+    number = _number(name, value)
     if math.isnan(number) or number < 0.0 or (number == 0.0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise ValueError(f"{name} must be {bound} (or None for no limit), got {value!r}")
@@ -89,6 +103,16 @@ class Limits:
         )
 
 
+@dataclass(frozen=True, eq=False)
+class _Planned:
+    """A limiter's next state: output, acceleration, target held and time since it came."""
+
+    value: np.ndarray
+    acceleration: np.ndarray
+    target: np.ndarray
+    since: float
+
+
 class Limiter:
     """Targets in, limited commands out, for the channels of ``limits`` (one ``Limits`` each).
 
@@ -119,41 +143,67 @@ class Limiter:
 
     def step(self, target: object, dt: float) -> np.ndarray:
         """The limited command after ``dt`` s toward ``target`` (None: no new target)."""
-        dt = float(dt)
+        planned = self._plan(target, dt)
+        self._commit(planned)
+        return planned.value.copy()
+
+    def _plan(self, target: object, dt: float) -> _Planned:
+        """The next state toward ``target`` after ``dt`` s, checked, with nothing changed."""
+        dt = _number("dt", dt)
         if not (math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be finite and > 0, got {dt!r}")
         if target is not None:
-            target = np.asarray(target, dtype=float)
-            if target.shape != self.value.shape:
-                raise ValueError(
-                    f"target must have shape {self.value.shape}, got {np.shape(target)}"
-                )
-            if not np.all(np.isfinite(target)):
-                raise ValueError(f"target must be finite, got {target.tolist()}")
+            target = self._vector("target", target)
         since = 0.0 if target is not None else self._since_target + dt
         held = self._target if target is None else target
         goal = np.zeros_like(held) if since >= self.timeout else self._within_velocity(held)
-        new = self._reachable(goal, dt)
-        if not np.isfinite(self._bounds[6]).any():
-            gap = goal - self.value
-            with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-                fractions = np.where(gap != 0.0, (new - self.value) / gap, 1.0)
-            fraction = float(np.clip(fractions.min(), 0.0, 1.0))
-            new = np.where(gap != 0.0, self.value + fraction * gap, goal)
-        # Commit only now: every check has passed.
-        self.acceleration = (new - self.value) / dt
-        self.value = new
-        self._target, self._since_target = held, since
-        return new.copy()
+        with np.errstate(over="ignore", invalid="ignore"):
+            new = self._reachable(goal, dt)
+            if not np.isfinite(self._bounds[6]).any():
+                gap = goal - self.value
+                with np.errstate(divide="ignore"):
+                    fractions = np.where(gap != 0.0, (new - self.value) / gap, 1.0)
+                fraction = float(np.clip(fractions.min(), 0.0, 1.0))
+                new = np.where(gap != 0.0, self.value + fraction * gap, goal)
+            # A jerk profile may run past the goal; never past a velocity limit.
+            new = np.clip(new, -self._bounds[1], self._bounds[0])
+            acceleration = (new - self.value) / dt
+        if not (np.all(np.isfinite(new)) and np.all(np.isfinite(acceleration))):
+            raise ValueError(
+                f"a step from {self.value.tolist()} toward {held.tolist()} in {dt!r} s would "
+                "overflow to infinity; refused, nothing changed"
+            )
+        return _Planned(new, acceleration, held, since)
+
+    def _commit(self, planned: _Planned) -> None:
+        """Take the planned state (every check has passed)."""
+        self.value, self.acceleration = planned.value, planned.acceleration
+        self._target, self._since_target = planned.target, planned.since
 
     def reset(self, value: object = None) -> None:
         """Set the state to ``value`` (default rest) with zero acceleration and no target."""
-        value = np.zeros_like(self.value) if value is None else np.asarray(value, dtype=float)
-        if value.shape != self.value.shape or not np.all(np.isfinite(value)):
-            raise ValueError(f"value must be finite with shape {self.value.shape}")
+        value = np.zeros_like(self.value) if value is None else self._vector("value", value)
         self.value, self._target = value.copy(), value.copy()
         self.acceleration = np.zeros_like(self.value)
         self._since_target = 0.0
+
+    def _vector(self, name: str, value: object) -> np.ndarray:
+        """``value`` as one finite float per channel, or an error naming ``name``."""
+        if isinstance(value, str | bytes):
+            raise TypeError(f"{name} must be numbers, got {value!r}")
+        try:
+            array = np.asarray(value, dtype=float)
+        except OverflowError:
+            raise ValueError(
+                f"{name} must be finite, got an integer too large for a float"
+            ) from None
+        except (TypeError, ValueError):
+            raise TypeError(f"{name} must be numbers, got {value!r}") from None
+        if array.shape != self.value.shape:
+            raise ValueError(f"{name} must have shape {self.value.shape}, got {array.shape}")
+        if not np.all(np.isfinite(array)):
+            raise ValueError(f"{name} must be finite, got {array.tolist()}")
+        return array
 
     def _within_velocity(self, target: np.ndarray) -> np.ndarray:
         """The target scaled by one factor so that every channel is within its velocity."""

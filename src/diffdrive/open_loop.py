@@ -50,12 +50,27 @@ class _CommandPath:
 
     def wheels(self, command: object, dt: float) -> np.ndarray:
         """The wheel velocities (rad/s) held over the next ``dt`` s for ``command``."""
-        limited = self.limiter.step(command, dt)
+        wheels, planned = self.plan(command, dt)
+        self.limiter._commit(planned)
+        return wheels
+
+    def plan(self, command: object, dt: float):
+        """The wheel velocities for ``command`` and the limiter's planned state, which the
+        caller commits once everything after the limiter has accepted them."""
+        planned = self.limiter._plan(command, dt)
+        limited = planned.value
         if self.kind == "twist":
-            limited = to_wheel_velocities(self.robot, np.array([limited[0], 0.0, limited[1]]))
-        if self.max_wheel_velocity is None:
-            return limited
-        return desaturate(limited, self.max_wheel_velocity, self.keep, self.robot)
+            with np.errstate(over="ignore", invalid="ignore"):
+                twist = np.array([limited[0], 0.0, limited[1]])
+                limited = to_wheel_velocities(self.robot, twist)
+            if not np.all(np.isfinite(limited)):
+                raise ValueError(
+                    f"the limited twist {planned.value.tolist()} needs wheel velocities beyond "
+                    "the largest float; refused, nothing changed"
+                )
+        if self.max_wheel_velocity is not None:
+            limited = desaturate(limited, self.max_wheel_velocity, self.keep, self.robot)
+        return limited, planned
 
 
 class OpenLoopOdometry:
@@ -81,9 +96,15 @@ class OpenLoopOdometry:
         self.odometry = Odometry(robot, method, initial_pose)
 
     def update(self, command: object, dt: float) -> WheelVelocities:
-        """Take ``command`` (None: no new command) and drive ``dt`` s; the wheels applied."""
-        wheels = self._path.wheels(command, dt)
+        """Take ``command`` (None: no new command) and drive ``dt`` s; the wheels applied.
+
+        A refused update (a bad command, or wheel travel the odometry refuses) changes
+        neither the limiter nor the pose: the limiter's step is committed only after the
+        odometry has accepted it.
+        """
+        wheels, planned = self._path.plan(command, dt)
         self.odometry.update_velocities(float(wheels[0]), float(wheels[1]), dt)
+        self._path.limiter._commit(planned)
         return WheelVelocities(float(wheels[0]), float(wheels[1]))
 
     @property
