@@ -31,6 +31,8 @@ def floating(xp: ModuleType, value: object, name: str, like: Any = None) -> Any:
     if like is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
         return xp.asarray(value, dtype=like.dtype)
     array = xp.asarray(value)
+    if xp is np and not array.dtype.isnative:  # big-endian data: compiled kernels want native
+        array = array.astype(array.dtype.newbyteorder("="))
     if not xp.isdtype(array.dtype, "real floating"):
         if not xp.isdtype(array.dtype, ("integral", "bool")):
             raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")

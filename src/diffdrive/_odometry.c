@@ -36,8 +36,10 @@ typedef struct {
     double max_wheel_speed; /* rad/s; infinity: no limit */
     double k_left, k_right; /* m: wheel-travel variance per metre travelled */
     double window;          /* s, for the velocity estimate */
-    /* state */
+    /* state: each of x, y, theta, distance is sum + compensation (Neumaier), so that a long
+     * run of small updates does not drift from a compensated batch sum */
     double x, y, theta, distance;
+    double x_comp, y_comp, theta_comp, distance_comp;
     double cov[9];
     double time; /* s of the last update; NaN when unknown */
     int have_ticks;
@@ -140,7 +142,20 @@ static void propagate(double cov[9], const double J[9], const double W[6], const
     memcpy(cov, out, sizeof out);
 }
 
+/* -- compensated sums -------------------------------------------------------------------- */
+
+/* Add term to the sum, carrying the rounding error in comp (Neumaier's variant of Kahan's). */
+static void add(double *sum, double *comp, double term) {
+    double t = *sum + term;
+    *comp += fabs(*sum) >= fabs(term) ? (*sum - t) + term : (term - t) + *sum;
+    *sum = t;
+}
+
 /* -- the velocity window ----------------------------------------------------------------- */
+
+/* The window keeps samples at least window / WINDOW_SAMPLES apart (the newest one aside), so
+ * its memory is bounded whatever the update rate; its span is the window to within that. */
+#define WINDOW_SAMPLES 1024
 
 /* Make room for n more samples; the only step of an update that can fail after its checks. */
 static int ensure_room(Core *c, Py_ssize_t n) {
@@ -163,12 +178,17 @@ static int ensure_room(Core *c, Py_ssize_t n) {
 static void push_sample(Core *c, double t) {
     Sample sample = {t, c->arc_left, c->arc_right};
     Py_ssize_t last = (c->first + c->count - 1) % c->capacity;
+    Py_ssize_t before = (last - 1 + c->capacity) % c->capacity;
     if (c->count > 0 && c->samples[last].t == t) { /* the same instant: nothing moved */
         c->samples[last] = sample;
         return;
     }
-    c->samples[(c->first + c->count) % c->capacity] = sample;
-    c->count += 1;
+    if (c->count >= 2 && t - c->samples[before].t < c->window / WINDOW_SAMPLES) {
+        c->samples[last] = sample; /* too close to the one before the newest: replace it */
+    } else {
+        c->samples[(c->first + c->count) % c->capacity] = sample;
+        c->count += 1;
+    }
     /* Keep one sample at or before the start of the window, so that it spans the window. */
     while (c->count >= 2 && c->samples[(c->first + 1) % c->capacity].t <= t - c->window) {
         c->first = (c->first + 1) % c->capacity;
@@ -214,27 +234,34 @@ static int check_update(const Core *c, const char *name, double dl, double dr, i
 
 /* The state an update leads to, computed before anything changes. */
 typedef struct {
-    double x, y, theta, distance, cov[9], arc_left, arc_right;
+    double x, y, theta, distance, x_comp, y_comp, theta_comp, distance_comp;
+    double cov[9], arc_left, arc_right;
 } Next;
 
 /* Compute the next state; refuse one that is not finite (an overflow of huge increments), so
  * that an accepted update never leaves a pose, covariance or distance that cannot be read. */
 static int next_state(const Core *c, const char *name, double dl, double dr, Next *n) {
     Step s;
-    step(c, c->theta, dl, dr, &s);
+    step(c, c->theta + c->theta_comp, dl, dr, &s);
     double q[2] = {c->k_left * fabs(c->r_left * dl) / (c->r_left * c->r_left),
                    c->k_right * fabs(c->r_right * dr) / (c->r_right * c->r_right)};
     memcpy(n->cov, c->cov, sizeof n->cov);
     propagate(n->cov, s.jac_pose, s.jac_wheels, q);
-    n->x = c->x + s.dx;
-    n->y = c->y + s.dy;
-    n->theta = c->theta + s.dtheta;
     double left = c->r_left * dl, right = c->r_right * dr;
-    n->distance = c->distance + hypot(0.5 * (left + right), c->offset * (right - left) / c->track);
+    double travel = hypot(0.5 * (left + right), c->offset * (right - left) / c->track);
+    n->x = c->x, n->x_comp = c->x_comp;
+    n->y = c->y, n->y_comp = c->y_comp;
+    n->theta = c->theta, n->theta_comp = c->theta_comp;
+    n->distance = c->distance, n->distance_comp = c->distance_comp;
+    add(&n->x, &n->x_comp, s.dx);
+    add(&n->y, &n->y_comp, s.dy);
+    add(&n->theta, &n->theta_comp, s.dtheta);
+    add(&n->distance, &n->distance_comp, travel);
     n->arc_left = c->arc_left + left;
     n->arc_right = c->arc_right + right;
-    int finite = isfinite(n->x) && isfinite(n->y) && isfinite(n->theta) &&
-                 isfinite(n->distance) && isfinite(n->arc_left) && isfinite(n->arc_right);
+    int finite = isfinite(n->x + n->x_comp) && isfinite(n->y + n->y_comp) &&
+                 isfinite(n->theta + n->theta_comp) && isfinite(n->distance + n->distance_comp) &&
+                 isfinite(n->arc_left) && isfinite(n->arc_right);
     const char *what = "pose, distance or wheel travel";
     for (int i = 0; finite && i < 9; ++i) {
         finite = isfinite(n->cov[i]);
@@ -251,10 +278,10 @@ static int next_state(const Core *c, const char *name, double dl, double dr, Nex
 
 /* Move to the next state and the velocity window; cannot fail (room is ensured). */
 static void commit(Core *c, const Next *n, int has_t, double t) {
-    c->x = n->x;
-    c->y = n->y;
-    c->theta = n->theta;
-    c->distance = n->distance;
+    c->x = n->x, c->x_comp = n->x_comp;
+    c->y = n->y, c->y_comp = n->y_comp;
+    c->theta = n->theta, c->theta_comp = n->theta_comp;
+    c->distance = n->distance, c->distance_comp = n->distance_comp;
     memcpy(c->cov, n->cov, sizeof c->cov);
     c->arc_left = n->arc_left;
     c->arc_right = n->arc_right;
@@ -549,7 +576,8 @@ static PyObject *update_velocities(Core *c, PyObject *const *args, Py_ssize_t na
 /* -- what the Python class reads and sets --------------------------------------------------- */
 
 static PyObject *get_state(Core *c, PyObject *unused) {
-    return Py_BuildValue("(ddddd)", c->x, c->y, c->theta, c->distance, c->time);
+    return Py_BuildValue("(ddddd)", c->x + c->x_comp, c->y + c->y_comp, c->theta + c->theta_comp,
+                         c->distance + c->distance_comp, c->time);
 }
 
 static PyObject *get_covariance(Core *c, PyObject *unused) {
@@ -573,6 +601,7 @@ static PyObject *set_pose(Core *c, PyObject *args) {
         return NULL;
     memcpy(c->cov, cov, sizeof cov);
     c->distance = 0.0;
+    c->x_comp = c->y_comp = c->theta_comp = c->distance_comp = 0.0;
     Py_RETURN_NONE;
 }
 
@@ -580,7 +609,7 @@ static PyObject *jacobians(Core *c, PyObject *args) {
     double dl, dr;
     if (!PyArg_ParseTuple(args, "dd", &dl, &dr)) return NULL;
     Step s;
-    step(c, c->theta, dl, dr, &s);
+    step(c, c->theta + c->theta_comp, dl, dr, &s);
     double *p = s.jac_pose, *w = s.jac_wheels;
     return Py_BuildValue("((ddddddddd)(dddddd))", p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7],
                          p[8], w[0], w[1], w[2], w[3], w[4], w[5]);
@@ -597,6 +626,7 @@ static int core_init(Core *c, PyObject *args, PyObject *kwargs) {
     c->y = y;
     c->theta = theta;
     c->distance = 0.0;
+    c->x_comp = c->y_comp = c->theta_comp = c->distance_comp = 0.0;
     memset(c->cov, 0, sizeof c->cov);
     c->time = NAN;
     c->have_ticks = c->have_positions = 0;

@@ -12,6 +12,8 @@ def wrap_angle(angle: float) -> float:
 
     Headings stay unwrapped in poses and trajectories; wrap only to display or compare.
     """
+    if not math.isfinite(angle):
+        raise ValueError(f"angle must be finite to wrap, got {angle!r}")
     wrapped = math.remainder(angle, TAU)
     # remainder() rounds half to even, so -pi (and 3*pi, ...) lands on -pi: move it to +pi.
     return wrapped + TAU if wrapped <= -math.pi else wrapped

@@ -6,7 +6,9 @@ import argparse
 import json
 import math
 import re
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -215,6 +217,8 @@ def _robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
             if name in ("track_width", "half_track"):  # a flag overrides the file's either
                 settings.pop("half_track" if name == "track_width" else "track_width", None)
     ticks = settings.pop("ticks_per_revolution", None)
+    if ticks is not None and not (math.isfinite(ticks) and ticks > 0):
+        raise ValueError(f"ticks_per_revolution must be finite and > 0, got {ticks!r}")
     if not settings:
         return example_robot(), ticks
     where = f" (in {args.robot})" if args.robot else ""
@@ -782,11 +786,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         print()
         print(example_outputs(robot, Path("out")))
         return 0
+    previous = _exit_on_sigterm()
     try:
         return args.run(args)
     except (ValueError, TypeError, OSError) as exc:
         print(f"diffdrive {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _exit_on_sigterm():
+    """Make SIGTERM unwind like Ctrl-C, so that a half-written output's temporary file goes;
+    returns the handler it replaced (None where signals cannot be set: not the main thread)."""
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, terminate)
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ from typing import Any, Literal
 import numpy as np
 
 from diffdrive._arrays import components
+from diffdrive._validate import positive
 from diffdrive.batch.kinematics import WHEELS
 from diffdrive.model import DiffDrive
 from diffdrive.types import WheelVelocities
@@ -35,9 +36,7 @@ def desaturate(
     ``wheels`` is a ``WheelVelocities`` (returns one) or an array ``(..., 2)`` ``[left, right]``
     (returns an array). ``keep="omega"`` and ``keep="v"`` need the ``robot``.
     """
-    limit = float(max_wheel_velocity)
-    if not np.isfinite(limit) or limit <= 0.0:
-        raise ValueError(f"max_wheel_velocity must be finite and > 0, got {max_wheel_velocity!r}")
+    limit = positive("max_wheel_velocity", max_wheel_velocity)
     if keep not in KEEP:
         raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
     if keep != "curvature" and robot is None:
@@ -51,13 +50,21 @@ def desaturate(
     return _desaturate(w, limit, keep, robot)
 
 
+def _within(limit: float, dtype: np.dtype) -> np.ndarray:
+    """The largest value of ``dtype`` at most ``limit``: the limit rounded in the data's dtype
+    may lie above it (0.01 in float16 is 0.0100021), and the limit is a promise."""
+    cap = np.asarray(limit, dtype=dtype)
+    return np.nextafter(cap, dtype.type(0)) if float(cap) > limit else cap
+
+
 def _desaturate(w: np.ndarray, limit: float, keep: Keep, robot: DiffDrive | None) -> np.ndarray:
+    cap = _within(limit, w.dtype)
     if keep == "curvature":
         largest = np.max(np.abs(w), axis=-1, keepdims=True)
-        over = largest > limit
+        over = largest > cap
         scale = np.where(over, limit / np.where(over, largest, 1.0), 1.0)
         # The clip only trims the rounding that could leave the larger wheel an ulp over.
-        return np.clip(w * scale, -limit, limit)
+        return np.clip(w * scale, -cap, cap)
     assert robot is not None
     # Wheel rim speeds: left = v - b*omega, right = v + b*omega (b = half the track); each
     # must stay within its wheel's radius times the limit.
@@ -80,6 +87,6 @@ def _desaturate(w: np.ndarray, limit: float, keep: Keep, robot: DiffDrive | None
     left = (twist_v - b * omega) / robot.left_wheel_radius
     right = (twist_v + b * omega) / robot.right_wheel_radius
     # Rounding may put a wheel an ulp over the limit; the limit is a promise.
-    limited = np.clip(np.stack([left, right], axis=-1), -limit, limit)
-    within = np.all(np.abs(w) <= limit, axis=-1, keepdims=True)
+    limited = np.clip(np.stack([left, right], axis=-1), -cap, cap).astype(w.dtype, copy=False)
+    within = np.all(np.abs(w) <= cap, axis=-1, keepdims=True)
     return np.where(within, w, limited)

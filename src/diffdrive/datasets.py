@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.files import number_row
+from diffdrive.files import number_row, text_lines
 from diffdrive.model import DiffDrive
 
 __all__ = [
@@ -62,17 +62,16 @@ def read_optiodom_run(path: str | Path) -> OptiOdomRun:
     """Read one ``<experiment>_run-NN.csv``; ``ValueError`` naming the file and line if bad."""
     path = Path(path)
     rows = []
-    with path.open() as lines:
-        for number, line in enumerate(lines, start=1):
-            fields = line.strip().split(",")
-            if fields == [""]:
-                continue
-            row = number_row(path, number, fields, 6, "an OptiOdom")
-            if rows and row[0] <= rows[-1][0]:
-                raise ValueError(f"{path}:{number}: time {row[0]} does not increase")
-            if row[4] != round(row[4]) or row[5] != round(row[5]):
-                raise ValueError(f"{path}:{number}: ticks must be whole counts")
-            rows.append(row)
+    for number, line in text_lines(path):
+        fields = line.strip().split(",")
+        if fields == [""]:
+            continue
+        row = number_row(path, number, fields, 6, "an OptiOdom")
+        if rows and row[0] <= rows[-1][0]:
+            raise ValueError(f"{path}:{number}: time {row[0]} does not increase")
+        if row[4] != round(row[4]) or row[5] != round(row[5]):
+            raise ValueError(f"{path}:{number}: ticks must be whole counts")
+        rows.append(row)
     if len(rows) < 2:
         raise ValueError(f"{path}: a run needs at least 2 rows, got {len(rows)}")
     table = np.array(rows)

@@ -76,13 +76,18 @@ class WheelLog:
             return self.wheels[:-1] * np.diff(self.times)[:, None]
         if self.kind == "angle":
             return np.diff(self.wheels, axis=0)
-        ticks = ticks_per_revolution or self.ticks_per_revolution
+        ticks = self.ticks_per_revolution if ticks_per_revolution is None else ticks_per_revolution
+        if ticks is not None and not (math.isfinite(ticks) and ticks > 0):
+            raise TableError(f"ticks per revolution must be finite and > 0, got {ticks!r}")
         if ticks is None:
             raise TableError(
                 f"{self.source}: ticks need the counts per wheel revolution: give "
                 "--ticks-per-revolution (or ticks_per_revolution in the robot file)"
             )
-        return count_changes(self.wheels, counter_bits) * (2.0 * math.pi / ticks)
+        radians = 2.0 * math.pi / ticks
+        if not math.isfinite(radians):
+            raise TableError(f"ticks per revolution {ticks!r} gives no finite angle per count")
+        return count_changes(self.wheels, counter_bits) * radians
 
     def largest_wheel_speed(
         self, ticks_per_revolution: float | None = None, counter_bits: int | None = None

@@ -76,6 +76,11 @@ class Odometry(OdometryCore):
         rad_per_tick = 0.0
         if ticks_per_revolution is not None:
             rad_per_tick = 2.0 * math.pi / positive("ticks_per_revolution", ticks_per_revolution)
+            if not math.isfinite(rad_per_tick):
+                raise ValueError(
+                    f"ticks_per_revolution must give a finite angle per count, got "
+                    f"{ticks_per_revolution!r}"
+                )
         speed_limit = math.inf
         if max_wheel_speed is not None:
             speed_limit = positive("max_wheel_speed", max_wheel_speed)
@@ -130,7 +135,9 @@ class Odometry(OdometryCore):
     def wheel_velocities(self) -> WheelVelocities:
         """Mean wheel velocities (rad/s) over the last ``velocity_window`` s of updates.
 
-        Needs two time-stamped samples in the window (the reference reading counts).
+        Needs two time-stamped samples in the window (the reference reading counts). The
+        window keeps samples at least ``velocity_window / 1024`` s apart, so its memory is
+        bounded at any update rate and its span is the window to within that.
         """
         window = self._window_velocities()
         if window is None:

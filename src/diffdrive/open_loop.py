@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from diffdrive._validate import positive
 from diffdrive.batch.kinematics import to_wheel_velocities
 from diffdrive.commands import Keep, desaturate
 from diffdrive.integrate import Method
@@ -130,7 +131,11 @@ def drive_commands(
     The limiter's state moves on through the sequence (start it from rest with ``reset``).
     Rows of NaN mean "no new command" that cycle, for the timeout.
     """
-    sequence = np.asarray(commands, dtype=float)
+    dt = positive("dt", dt)
+    try:
+        sequence = np.asarray(commands, dtype=float)
+    except OverflowError:
+        raise ValueError("commands must be finite, got an integer too large for a float") from None
     if sequence.ndim != 2 or sequence.shape[1] != 2:
         raise ValueError(f"commands must have shape (T, 2), got {sequence.shape}")
     path = _CommandPath(robot, limiter, kind, max_wheel_velocity, keep)

@@ -41,7 +41,9 @@ relative_to = Pose.relative_to
 
 
 def sinc(u: float) -> float:
-    """``sin(u)/u`` (unnormalised), 1 at u = 0, smooth through 0."""
+    """``sin(u)/u`` (unnormalised), 1 at u = 0, smooth through 0; u must be finite."""
+    if not math.isfinite(u):
+        raise ValueError(f"sinc needs a finite u, got {u!r}")
     if abs(u) < _SINC_THRESHOLD:
         u2 = u * u
         return 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0)

@@ -50,14 +50,20 @@ def _first_bad(mask: np.ndarray) -> tuple[int, ...]:
     return tuple(int(i) for i in np.argwhere(mask)[0])
 
 
-def _check_finite(name: str, array: np.ndarray) -> None:
-    # A finite sum means every entry is finite; only a non-finite one (or an overflow) needs
-    # the slower search that names the index.
-    if np.isfinite(np.sum(array, dtype=np.float64)):
-        return
+def _first_non_finite(array: np.ndarray) -> tuple[int, ...] | None:
+    """The index of the first entry that is not finite, or None."""
+    # A finite sum means every entry is finite; only a non-finite one (or a sum that
+    # overflows) needs the slower search.
+    with np.errstate(over="ignore", invalid="ignore"):
+        if np.isfinite(np.sum(array, dtype=np.float64)):
+            return None
     bad = ~np.isfinite(array)
-    if bad.any():
-        index = _first_bad(bad)
+    return _first_bad(bad) if bad.any() else None
+
+
+def _check_finite(name: str, array: np.ndarray) -> None:
+    index = _first_non_finite(array)
+    if index is not None:
         raise ValueError(f"{name} must be finite, got {array[index]} at index {index}")
 
 
@@ -131,10 +137,14 @@ def _step_times(
         if step.ndim != 0 or not np.isfinite(step) or step <= 0:
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
         # float64 whatever the data: float32 times 1000 s in would put 6 % errors in 1 ms steps.
+        if not math.isfinite(steps * float(step)):
+            raise ValueError(f"{steps} steps of dt = {dt!r} s run past the largest float")
         sample_times = np.arange(steps + 1, dtype=np.float64)
         sample_times *= float(step)
         return sample_times
     t = floating(np, times, "times", like)
+    if t.dtype not in (np.float32, np.float64):  # float16 times: no arithmetic in numba
+        t = t.astype(np.float64)
     if t.ndim == 0 or t.shape[-1] < 2:
         raise ValueError(f"times must have shape (..., T+1) with T >= 1, got {t.shape}")
     _check_finite("times", t)
@@ -234,7 +244,9 @@ def simulate(
         raise ValueError(f"wheel_positions needs at least 2 samples, got shape {angles.shape}")
     sample_times = _step_times(angles.shape[-2] - 1, dt, times, angles)
     history = _History(angles, sample_times, angles=True)
-    wheels = np.diff(angles, axis=-2) / np.diff(sample_times, axis=-1)[..., None]
+    with np.errstate(over="ignore", invalid="ignore"):
+        wheels = np.diff(angles, axis=-2) / np.diff(sample_times, axis=-1)[..., None]
+    _check_finite("the wheel velocities of wheel_positions (angle steps over time steps)", wheels)
     return _build(robot, history, wheels, initial_pose, method, backend)
 
 
@@ -296,14 +308,21 @@ def _build(robot, history: _History, wheels, initial_pose, method, backend) -> T
         ) from None
     steps = wheels.shape[-2]
     poses = np.empty((*leading, steps + 1, 3), dtype=wheels.dtype)
-    if _use_numba(backend, math.prod(leading) * steps, poses.dtype):
-        _integrate_compiled(robot, history, start, method, poses)
-    else:
-        _integrate_blocks(
-            lambda k0, k1: batch.to_twist(robot, history.wheel_travel(k0, k1)),
-            start,
-            method,
-            poses,
+    with np.errstate(over="ignore", invalid="ignore"):
+        if _use_numba(backend, math.prod(leading) * steps, poses.dtype):
+            _integrate_compiled(robot, history, start, method, poses)
+        else:
+            _integrate_blocks(
+                lambda k0, k1: batch.to_twist(robot, history.wheel_travel(k0, k1)),
+                start,
+                method,
+                poses,
+            )
+    index = _first_non_finite(poses)
+    if index is not None:
+        raise ValueError(
+            f"the poses overflow (not finite) at index {index[:-1]}: the history's wheel "
+            f"travel or times go beyond what {poses.dtype} holds"
         )
     return Trajectory(robot, times, poses, wheels, method)
 
@@ -335,9 +354,12 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
             return array.reshape(1, *tail)
         return np.broadcast_to(array, (*leading, *tail)).reshape(robots, *tail)
 
+    values = history.values
+    if values.dtype not in (np.float32, np.float64):  # float16 angles: no arithmetic in numba
+        values = values.astype(poses.dtype)
     integrate_history(
         robot,
-        rows(history.values, 2),
+        rows(values, 2),
         rows(history.times, 1),
         history.angles,
         np.broadcast_to(start, (*leading, 3)).reshape(robots, 3),

@@ -101,6 +101,8 @@ class Trajectory:
                 f"at must lie within [{self.times[0]}, {self.times[-1]}] s, "
                 f"got {t[np.argmax(outside)]}"
             )
+        if self.steps == 0:  # one pose, at one time: every sample is that pose
+            return self.poses[..., np.zeros(t.shape, dtype=int), :]
         # A sample at times[-1] finds step T, the last pose, with no time left to move.
         step = np.searchsorted(self.times, t, side="right") - 1
         wheels = self.wheel_velocities[..., np.minimum(step, self.steps - 1), :]

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from diffdrive._arrays import components, floating, leading_shape, namespace
 from diffdrive._series import sinc_threshold
 from diffdrive.angles import TAU
@@ -39,11 +41,25 @@ def _poses(xp: Any, value: object, name: str = "poses") -> Any:
 
 
 def wrap_angle(angles: object) -> Any:
-    """Angles in rad mapped to (-pi, pi], elementwise."""
+    """Angles in rad mapped to (-pi, pi], elementwise, as the scalar ``wrap_angle`` does.
+
+    In NumPy the remainder is exact (``fmod``, then one exact shift by 2 pi), so large angles
+    keep every bit; float16 and float32 are wrapped in float64 and rounded to the largest value
+    of their dtype within the bounds (float32's nearest value to pi lies above pi).
+    """
     xp = namespace(angles)
     a = floating(xp, angles, "angles")
-    wrapped = a - TAU * xp.round(a / TAU)
-    return xp.where(wrapped <= -math.pi, wrapped + TAU, wrapped)
+    if xp is not np:  # other array libraries: their remainder, then the same shift
+        wrapped = xp.remainder(a, TAU)
+        return xp.where(wrapped > math.pi, wrapped - TAU, wrapped)
+    wide = np.fmod(a.astype(np.float64, copy=False), TAU)
+    wide = np.where(wide > math.pi, wide - TAU, np.where(wide <= -math.pi, wide + TAU, wide))
+    if a.dtype == np.float64:
+        return wide
+    high = np.asarray(math.pi, dtype=a.dtype)
+    if float(high) > math.pi:
+        high = np.nextafter(high, a.dtype.type(0))
+    return np.clip(wide.astype(a.dtype), -high, high)
 
 
 def sinc(u: object) -> Any:
