@@ -298,17 +298,8 @@ def test_odometry_runs_as_a_subprocess_and_is_quiet_when_piped(tmp_path):
         capture_output=True, text=True, cwd=tmp_path,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
-    assert result.stderr == ""  # no progress bar into a pipe
+    assert result.stderr == ""
     assert len((tmp_path / "odo.jsonl").read_text().splitlines()) == 20_000
-
-
-def test_a_progress_bar_only_on_a_terminal(monkeypatch):
-    from diffdrive import cli
-
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
-    assert type(cli._progress(range(20_000), False, "x")).__name__ == "tqdm"
-    assert cli._progress(range(20_000), True, "x") == range(20_000)
-    assert cli._progress(range(100), False, "x") == range(100)
 
 
 def test_odometry_with_no_log_runs_the_built_in_one(tmp_path, capsys, monkeypatch):

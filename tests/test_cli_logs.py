@@ -3,9 +3,12 @@ the formats every command reads and writes, and refusals that name the file and 
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import diffdrive as dd
 from data import data_folder
@@ -274,3 +277,76 @@ def test_a_step_too_small_to_hold_in_memory_is_refused(capsys):
     code, _, err = run(["simulate", "--dt", "1e-9"], capsys)
     assert code == 1
     assert "GiB of poses" in err
+
+
+# -- the fast paths read and write exactly what the careful ones do ----------------------------
+
+
+@given(
+    st.lists(st.tuples(st.floats(0.001, 10.0), st.integers(-(2**62), 2**62),
+                       st.floats(-1e6, 1e6, allow_subnormal=False)), min_size=1, max_size=30),
+    st.sampled_from(["", "\n", "\n\n"]),
+)  # fmt: skip
+@settings(max_examples=60)
+def test_numpys_csv_parser_reads_what_the_cell_by_cell_reader_reads(rows, ending):
+    import tempfile
+    from unittest import mock
+
+    from diffdrive import files
+
+    steps = np.cumsum([r[0] for r in rows])
+    text = "t,left_ticks,x\n" + "\n".join(
+        f"{t!r},{k},{x!r}" for t, (_, k, x) in zip(steps.tolist(), rows, strict=True)
+    )
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "log.csv"
+        path.write_text(text + ending)
+        fast = files.read_table(path, ["t", "left_ticks", "x"], integers=["left_ticks"])
+        with mock.patch.object(files, "_read_plain_csv", return_value=None):
+            slow = files.read_table(path, ["t", "left_ticks", "x"], integers=["left_ticks"])
+    for name in ("t", "left_ticks", "x"):
+        assert fast[name].dtype == slow[name].dtype
+        np.testing.assert_array_equal(fast[name], slow[name])
+    np.testing.assert_array_equal(fast.lines, slow.lines)
+
+
+def test_written_floats_read_back_exactly_with_or_without_orjson(tmp_path, monkeypatch):
+    import sys
+
+    rng = np.random.default_rng(2)
+    poses = rng.normal(size=(500, 3)) * 10.0 ** rng.integers(-20, 20, (500, 3))
+    times = np.cumsum(rng.uniform(0.001, 1, 500))
+    columns = {"extra": np.where(np.arange(500) % 7 == 0, np.nan, times)}
+    write_trajectory(tmp_path / "a.csv", times, poses, "csv", columns)
+    monkeypatch.setitem(sys.modules, "orjson", None)
+    write_trajectory(tmp_path / "b.csv", times, poses, "csv", columns)
+    for name in ("a.csv", "b.csv"):
+        back = np.genfromtxt(tmp_path / name, delimiter=",", names=True)
+        np.testing.assert_array_equal(back["t"], times)
+        np.testing.assert_array_equal(np.column_stack([back["x"], back["y"], back["theta"]]),
+                                      poses)  # fmt: skip
+        assert np.isnan(back["extra"][0])
+
+
+def test_update_arrays_equals_one_update_at_a_time_and_names_the_refused_row():
+    robot = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.051, track_width=0.3)
+    rng = np.random.default_rng(4)
+    counts = np.cumsum(rng.integers(-20, 60, (300, 2)), axis=0) % 4096
+    times = np.cumsum(rng.uniform(0.005, 0.02, 300))
+    one = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4,
+                      k_right=1e-4)  # fmt: skip
+    many = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4,
+                       k_right=1e-4)  # fmt: skip
+    expected = []
+    for (left, right), t in zip(counts.tolist(), times.tolist(), strict=True):
+        one.update_ticks(left, right, t)
+        expected.append((*one.pose.to_array(), *one.covariance.ravel()))
+    poses, covariances = many.update_arrays("ticks", counts[:, 0], counts[:, 1], times, True)
+    np.testing.assert_array_equal(np.column_stack([poses, covariances.reshape(-1, 9)]), expected)
+    bad_times = times.copy()
+    bad_times[150] = bad_times[149]  # time stands still while the wheels move
+    fresh = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12)
+    with pytest.raises(dd.odometry.RefusedUpdateError, match="row 150: update_ticks: time") as err:
+        fresh.update_arrays("ticks", counts[:, 0], counts[:, 1], bad_times)
+    assert err.value.row == 150
+    np.testing.assert_array_equal(fresh.pose.to_array(), expected[149][:3])

@@ -73,3 +73,21 @@ def test_optiodom_calibration_table_and_figure_on_two_experiments(tmp_path):
     import matplotlib.image
 
     assert matplotlib.image.imread(tmp_path / "figure.png").shape[:2] == (600, 700)
+
+
+def test_ros_bags_example_calibrates_the_turtlebot3_and_aligns_the_husky_to_gps(tmp_path, capsys):
+    from data import data_folder
+
+    script = load("ros_bags")
+    output = tmp_path / "bags.png"
+    script.main(["--bags", str(data_folder("ros-bags")), "--output", str(output)])
+    printed = capsys.readouterr().out
+    assert "TurtleBot3: calibrated radii 0.0325" in printed
+    assert "track 0.29" in printed
+    assert "Husky: 359 m of wheel odometry against 989 GPS fixes" in printed
+    import matplotlib.image
+
+    assert matplotlib.image.imread(output)[..., :3].std() > 0.05
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    line = next(row for row in printed.splitlines() if row.startswith("Husky"))
+    assert line.split("ATE ")[1] in " ".join(readme.split())  # the README quotes the figures

@@ -56,3 +56,23 @@ def test_the_readme_has_each_section_once_and_speaks_to_users():
     for internal in ("seed 000's main job", "Issue ", "issue "):
         assert internal not in text, internal
     assert "a C compiler" in text.split("```sh", 1)[0]
+
+
+def test_the_bag_walkthrough_runs_as_written(tmp_path, monkeypatch, capsys):
+    import shlex
+
+    from data import data_folder
+    from diffdrive.cli import main
+
+    section = README.read_text().split("## Robot logs", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", section, flags=re.S).group(1).replace("\\\n", " ")
+    monkeypatch.chdir(tmp_path)
+    bags = str(data_folder("ros-bags"))
+    commands = [line.split("#")[0].strip() for line in block.splitlines()]
+    for command in filter(None, commands):
+        if command.startswith("B="):
+            continue
+        words = shlex.split(command.replace("$B", bags))
+        assert words[0] == ".venv/bin/diffdrive", command
+        assert main(words[1:]) == 0, (command, capsys.readouterr().err)
+    assert (tmp_path / "tb3.mcap").stat().st_size > 100_000

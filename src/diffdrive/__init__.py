@@ -2,7 +2,8 @@
 
 Scalar value types and the robot model work on floats; ``diffdrive.batch`` holds the same
 operations over arrays. Conventions: docs/conventions.md. The heavier parts
-(``calibration``, ``evaluation``, ``files``, ``trajectories``, ``logs``, ``plot``, ...) load on
+(``calibration``, ``evaluation``, ``files``, ``trajectories``, ``logs``, ``plot``, ``ros``,
+...) load on
 first use as attributes, so ``import diffdrive`` stays light.
 """
 
@@ -31,6 +32,8 @@ _LAZY = (
     "files",
     "logs",
     "plot",
+    "ros",
+    "sources",
     "trajectories",
 )
 

@@ -640,7 +640,76 @@ static void core_dealloc(Core *c) {
     Py_TYPE(c)->tp_free((PyObject *)c);
 }
 
+/* The updates of a whole log: update_<kind>(lefts[k], rights[k], thirds[k]) for each k, the
+ * same checked update as one call at a time, writing the pose after each into poses (a
+ * C-contiguous float64 buffer of n x 3) and, unless None, the covariance into covariances
+ * (n x 9). kind: 0 ticks, 1 positions, 2 increments, 3 velocities (thirds: dt). Returns None,
+ * or (k, message) for the first refused update, after which the state is that of update k-1. */
+static PyObject *run_log(Core *c, PyObject *args) {
+    int kind;
+    PyObject *lefts, *rights, *thirds, *poses_obj, *cov_obj;
+    if (!PyArg_ParseTuple(args, "iO!O!O!OO", &kind, &PyList_Type, &lefts, &PyList_Type, &rights,
+                          &PyList_Type, &thirds, &poses_obj, &cov_obj))
+        return NULL;
+    typedef PyObject *(*Update)(Core *, PyObject *const *, Py_ssize_t, PyObject *);
+    Update updates[4] = {update_ticks, update_positions, update_increments, update_velocities};
+    if (kind < 0 || kind > 3) {
+        PyErr_SetString(PyExc_ValueError, "_run: kind must be 0 to 3");
+        return NULL;
+    }
+    Py_ssize_t n = PyList_GET_SIZE(lefts);
+    if (PyList_GET_SIZE(rights) != n || PyList_GET_SIZE(thirds) != n) {
+        PyErr_SetString(PyExc_ValueError, "_run: lefts, rights and thirds differ in length");
+        return NULL;
+    }
+    Py_buffer poses, cov = {0};
+    if (PyObject_GetBuffer(poses_obj, &poses, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
+        return NULL;
+    int with_cov = cov_obj != Py_None;
+    if (with_cov && PyObject_GetBuffer(cov_obj, &cov, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) {
+        PyBuffer_Release(&poses);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    if (poses.len < (Py_ssize_t)(n * 3 * sizeof(double)) ||
+        (with_cov && cov.len < (Py_ssize_t)(n * 9 * sizeof(double)))) {
+        PyErr_SetString(PyExc_ValueError, "_run: the output buffers are too small");
+        goto done;
+    }
+    double *out = poses.buf, *out_cov = with_cov ? cov.buf : NULL;
+    for (Py_ssize_t k = 0; k < n; ++k) {
+        PyObject *call[3] = {PyList_GET_ITEM(lefts, k), PyList_GET_ITEM(rights, k),
+                             PyList_GET_ITEM(thirds, k)};
+        PyObject *done = updates[kind](c, call, 3, NULL);
+        if (done == NULL) {
+            if (!PyErr_ExceptionMatches(PyExc_ValueError) &&
+                !PyErr_ExceptionMatches(PyExc_TypeError))
+                goto done;
+            PyObject *type, *value, *traceback;
+            PyErr_Fetch(&type, &value, &traceback);
+            PyObject *message = value ? PyObject_Str(value) : PyUnicode_FromString("refused");
+            Py_XDECREF(type);
+            Py_XDECREF(value);
+            Py_XDECREF(traceback);
+            if (message == NULL) goto done;
+            result = Py_BuildValue("(nN)", k, message);
+            goto done;
+        }
+        Py_DECREF(done);
+        out[3 * k] = c->x + c->x_comp;
+        out[3 * k + 1] = c->y + c->y_comp;
+        out[3 * k + 2] = c->theta + c->theta_comp;
+        if (out_cov) memcpy(out_cov + 9 * k, c->cov, sizeof c->cov);
+    }
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&poses);
+    if (with_cov) PyBuffer_Release(&cov);
+    return result;
+}
+
 static PyMethodDef core_methods[] = {
+    {"_run", (PyCFunction)run_log, METH_VARARGS, NULL},
     {"update_ticks", (PyCFunction)(void (*)(void))update_ticks, METH_FASTCALL | METH_KEYWORDS,
      "update_ticks(left, right, t=None): absolute encoder counter readings."},
     {"update_increments", (PyCFunction)(void (*)(void))update_increments,

@@ -21,6 +21,14 @@ at the same instants. Methods:
   solution. When the runs cannot tell a parameter apart (only straight lines cannot fix the
   track width), the scaled Jacobian's condition number says so and ``calibrate`` raises
   ``CalibrationError`` instead of returning a number.
+- ``"increments"``: each step's motion instead of the whole path: the reference's distance
+  and turn over every step (through the SE(2) logarithm of consecutive poses) against the
+  wheels', ``s = (r_l dphi_l + r_r dphi_r) / 2`` and ``dtheta = (r_r dphi_r - r_l dphi_l) /
+  track``, by least squares (the turn weighted by half the nominal track, so that both are
+  metres). Errors do not accumulate along the run, so a stretch where the reference and the
+  wheels disagree (slip, a reference that jumps) costs only its own steps; the reference must
+  be sampled densely (a step's turn well under pi). This is the fit of a logged odometry, such
+  as a ROS ``/odom`` topic, as a reference.
 """
 
 from __future__ import annotations
@@ -38,8 +46,8 @@ from diffdrive.simulation import integrate_increments
 
 __all__ = ["CalibrationError", "CalibrationResult", "calibrate", "odometry_of"]
 
-CalibrationMethod = Literal["umbmark", "least_squares", "minimax"]
-METHODS: tuple[CalibrationMethod, ...] = ("umbmark", "least_squares", "minimax")
+CalibrationMethod = Literal["umbmark", "least_squares", "minimax", "increments"]
+METHODS: tuple[CalibrationMethod, ...] = ("umbmark", "least_squares", "minimax", "increments")
 PARAMETERS = ("left_wheel_radius", "right_wheel_radius", "track_width")
 # Past this condition number of the scaled Jacobian, a parameter is not identified.
 _CONDITION_LIMIT = 1e6
@@ -138,6 +146,11 @@ def calibrate(
         if square_side is None or not square_side > 0:
             raise CalibrationError(f"umbmark needs square_side > 0 (m), got {square_side!r}")
         return _umbmark(nominal_robot, checked, names, float(square_side), integration)
+    if method == "increments":
+        parameters, covariance, condition = _fit_increments(nominal_robot, checked)
+        robot = _robot_with(nominal_robot, parameters)
+        residuals = _position_errors(robot, checked, integration)
+        return CalibrationResult(robot, method, covariance, residuals, condition)
     if method in ("least_squares", "minimax"):
         parameters, covariance, condition = _fit_least_squares(
             nominal_robot, checked, integration, loss, loss_scale, heading_weight, progress
@@ -252,16 +265,30 @@ def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str,
     finally:
         if bar is not None:
             bar.close()
-    singular = np.linalg.svd(fit.jac, compute_uv=False)
-    condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else math.inf
-    if condition > _CONDITION_LIMIT:
-        _, _, vt = np.linalg.svd(fit.jac)
-        weakest = PARAMETERS[int(np.argmax(np.abs(vt[-1])))]
-        raise CalibrationError(
-            f"the runs cannot identify the parameters: the fit's condition number is "
-            f"{condition:.3g} (limit {_CONDITION_LIMIT:g}); the least determined is {weakest}. "
-            "Straight runs alone cannot fix the track width: add runs that turn."
-        )
+    condition = _check_condition(fit.jac)
+    dof = max(1, fit.fun.size - 3)
+    variance = float(np.sum(fit.fun**2) / dof)
+    covariance = variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start, start)
+    return start * fit.x, covariance, condition
+
+
+def _fit_increments(nominal: DiffDrive, runs):
+    """Least squares of every step's distance and turn (see the module)."""
+    from scipy.optimize import least_squares
+
+    wheels = np.concatenate([increments for increments, _ in runs])
+    motion = np.concatenate([batch.log(batch.relative_to(t[1:], t[:-1])) for _, t in runs])
+    start = _parameters(nominal)
+    weight = 0.5 * nominal.track_width
+
+    def residuals(relative: np.ndarray) -> np.ndarray:
+        left, right, track = start * relative
+        arcs = (left * wheels[:, 0], right * wheels[:, 1])
+        return np.concatenate([motion[:, 0] - 0.5 * (arcs[0] + arcs[1]),
+                               weight * (motion[:, 2] - (arcs[1] - arcs[0]) / track)])  # fmt: skip
+
+    fit = least_squares(residuals, np.ones(3), x_scale=1e-3, bounds=(0.5, 1.5), method="trf")
+    condition = _check_condition(fit.jac)
     dof = max(1, fit.fun.size - 3)
     variance = float(np.sum(fit.fun**2) / dof)
     covariance = variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start, start)
@@ -277,6 +304,21 @@ def _progress_bar(shown: bool, label: str):
     from tqdm import tqdm
 
     return tqdm(desc=label, unit=" evaluations", file=sys.stderr)
+
+
+def _check_condition(jacobian: np.ndarray) -> float:
+    """The scaled Jacobian's condition number; ``CalibrationError`` past the limit."""
+    singular = np.linalg.svd(jacobian, compute_uv=False)
+    condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else math.inf
+    if condition > _CONDITION_LIMIT:
+        _, _, vt = np.linalg.svd(jacobian)
+        weakest = PARAMETERS[int(np.argmax(np.abs(vt[-1])))]
+        raise CalibrationError(
+            f"the runs cannot identify the parameters: the fit's condition number is "
+            f"{condition:.3g} (limit {_CONDITION_LIMIT:g}); the least determined is {weakest}. "
+            "Straight runs alone cannot fix the track width: add runs that turn."
+        )
+    return condition
 
 
 def _parameters(robot: DiffDrive) -> np.ndarray:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive import batch, se2
+from diffdrive import batch, se2, sources
 from diffdrive.calibration import METHODS as CALIBRATION_METHODS
 from diffdrive.calibration import calibrate, odometry_of
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
@@ -34,11 +34,11 @@ from diffdrive.files import (
     write_robot,
 )
 from diffdrive.integrate import METHODS
-from diffdrive.logs import WheelLog, narrower_counter, read_log
+from diffdrive.logs import WheelLog, narrower_counter
 from diffdrive.model import DiffDrive
-from diffdrive.odometry import Odometry
+from diffdrive.odometry import Odometry, RefusedUpdateError
 from diffdrive.simulation import integrate_increments, simulate
-from diffdrive.trajectories import FORMATS, read_trajectory, write_trajectory
+from diffdrive.trajectories import FORMATS, write_trajectory
 from diffdrive.types import Pose, Twist, WheelVelocities
 
 # (label, left, right) wheel velocities in rad/s that show the characteristic motions.
@@ -155,6 +155,8 @@ turn unless told).
 {TRAJECTORY_FILES} Poses are paired by time as evo pairs them: the nearest
 stamp within --t-max-diff s, after adding --t-offset to the trajectory's times;
 --interpolate instead samples the trajectory at every ground-truth time along its arcs.""",
+    "info": """example:
+  diffdrive info robot.bag      topics, types, counts, rates, and which diffdrive can use""",
     "fk": """example:
   diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist
   diffdrive fk 1 -1e-3          (negative numbers are numbers, not options)""",
@@ -195,13 +197,32 @@ def _log_options() -> argparse.ArgumentParser:
         help=f"width of the encoder counters ({MIN_COUNTER_BITS}-{MAX_COUNTER_BITS}), for "
         "roll-over; default: counters that never roll over",
     )  # fmt: skip
+    bags = options.add_argument_group("a ROS bag or MCAP file as the log (diffdrive[ros])")
+    bags.add_argument(
+        "--joint-topic",
+        default="/joint_states",
+        metavar="TOPIC",
+        help="sensor_msgs/JointState topic (default /joint_states)",
+    )
+    bags.add_argument("--left-joint", metavar="NAME", help="the left wheel's joint name")
+    bags.add_argument("--right-joint", metavar="NAME", help="the right wheel's joint name")
+    bags.add_argument(
+        "--reference-topic",
+        metavar="TOPIC",
+        help="nav_msgs/Odometry (or tf:PARENT:CHILD) as the ground truth",
+    )
     return options
 
 
 def _output_options(default: str) -> argparse.ArgumentParser:
     options = argparse.ArgumentParser(add_help=False)
     options.add_argument("-o", "--output", type=Path, default=Path(default), help="file to write")
-    options.add_argument("--format", choices=FORMATS, help="default: from the file's suffix")
+    options.add_argument("--format", choices=OUTPUT_FORMATS,
+                         help="default: from the file's suffix; mcap (a file) and ros2 (a bag "
+                         "folder) write nav_msgs/Odometry and /tf")  # fmt: skip
+    options.add_argument("--frame", default="odom", help="bag output: the parent frame (odom)")
+    options.add_argument("--child-frame", default="base_link",
+                         help="bag output: the robot's frame (base_link)")  # fmt: skip
     options.add_argument("--method", choices=METHODS, default="exact", help="default: exact")
     options.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     return options
@@ -228,22 +249,42 @@ def _robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
         raise ValueError(f"robot{where}: {exc}") from None
 
 
+OUTPUT_FORMATS = (*FORMATS, "mcap", "ros2")
+
+
 def _format(args: argparse.Namespace) -> str:
     if args.format:
         return args.format
     suffix = args.output.suffix.lstrip(".").lower()
-    return suffix if suffix in FORMATS else "csv"
+    return suffix if suffix in OUTPUT_FORMATS else "csv"
 
 
-def _write(args, times: np.ndarray, poses: np.ndarray, what: str, columns=None) -> None:
-    written = write_trajectory(args.output, times, poses, _format(args), columns)
+def _write(args, times, poses, what: str, columns=None, covariances=None, twists=None) -> None:
+    """Write the trajectory in the chosen format: a file of poses and ``columns``, or
+    ``nav_msgs/Odometry`` and ``/tf`` with ``covariances`` and ``twists`` to a bag."""
+    format = _format(args)
+    if format in ("mcap", "ros2"):
+        from diffdrive.ros import write_odometry
+
+        written = [write_odometry(args.output, times, poses, covariances, twists,
+                                  format=format, frame=args.frame,
+                                  child_frame=args.child_frame)]  # fmt: skip
+    else:
+        written = write_trajectory(args.output, times, poses, format, columns)
     if not args.quiet:
         where = ", ".join(map(str, written))
-        print(f"{what}: wrote {poses.shape[-2]} poses to {where} ({_format(args)})")
+        print(f"{what}: wrote {poses.shape[-2]} poses to {where} ({format})")
 
 
-def _read_log(args: argparse.Namespace) -> WheelLog:
-    return example_log() if args.input is None else read_log(args.input, args.time_unit)
+def _read_log(args: argparse.Namespace, path: Path | None = None) -> WheelLog:
+    """The log of ``path`` (default: the command's input), a file or a bag topic."""
+    path = args.input if path is None else path
+    if path is None:
+        return example_log()
+    return sources.wheel_log(
+        path, args.time_unit, joint_topic=args.joint_topic, left_joint=args.left_joint,
+        right_joint=args.right_joint, reference_topic=args.reference_topic,
+    )  # fmt: skip
 
 
 def _start(log: WheelLog) -> np.ndarray:
@@ -291,7 +332,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         _write(args, trajectory.times, trajectory.poses,
                f"simulated the built-in {EXAMPLE_DURATION:g} s driving history")  # fmt: skip
         return 0
-    log = read_log(args.input, args.time_unit)
+    log = _read_log(args)
     note = _check_wheel_speeds(args, log, robot, ticks)
     if log.kind == "velocity":
         trajectory = simulate(
@@ -332,31 +373,31 @@ def run_odometry(args: argparse.Namespace) -> int:
         k_right=args.k_right,
     )  # fmt: skip
     times, wheels = log.times, log.wheels
-    poses = np.empty((len(times), 3))
-    covariances = np.empty((len(times), 9)) if args.covariance else None
-    for k in _progress(range(len(times)), args.quiet, "odometry"):
-        t = float(times[k])
-        try:
-            if log.kind == "ticks":
-                odometry.update_ticks(int(wheels[k, 0]), int(wheels[k, 1]), t)
-            elif log.kind == "angle":
-                odometry.update_positions(float(wheels[k, 0]), float(wheels[k, 1]), t)
-            elif k > 0:  # held from the last row's time until this row's
-                odometry.update_velocities(*wheels[k - 1].tolist(), t - float(times[k - 1]))
-        except ValueError as exc:
-            raise TableError(f"{log.where(k)}: {exc}") from None
-        poses[k] = odometry.pose.to_array()
+    to_bag = _format(args) in ("mcap", "ros2")
+    kind = {"ticks": "ticks", "angle": "positions", "velocity": "velocities"}[log.kind]
+    first = 1 if kind == "velocities" else 0  # a velocity is held until the next row
+    third = np.diff(times) if kind == "velocities" else times
+    left, right = (wheels[:-1, 0], wheels[:-1, 1]) if first else (wheels[:, 0], wheels[:, 1])
+    try:
+        poses, covariances = odometry.update_arrays(kind, left, right, third,
+                                                    args.covariance or to_bag)  # fmt: skip
+    except RefusedUpdateError as refused:
+        raise TableError(f"{log.where(refused.row + first)}: {refused.reason}") from None
+    if first:
+        start = _start(log)[None, :]
+        poses = np.vstack([start, poses])
         if covariances is not None:
-            covariances[k] = odometry._covariance()
+            covariances = np.vstack([np.zeros((1, 3, 3)), covariances])
     columns = {}
+    twists = batch.to_twist(robot, log.increments(ticks, args.counter_bits))
+    twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
     if args.twist:
-        twists = batch.to_twist(robot, log.increments(ticks, args.counter_bits))
-        twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
         columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])
-    if covariances is not None:
+    if args.covariance:
+        flat = covariances.reshape(-1, 9)
         for name, index in COVARIANCE_COLUMNS.items():
-            columns[name] = covariances[:, index]
-    _write(args, times, poses, f"odometry of {log.source}", columns)
+            columns[name] = flat[:, index]
+    _write(args, times, poses, f"odometry of {log.source}", columns, covariances, twists)
     if not args.quiet:
         print(note)
         if log.truth is not None:
@@ -380,15 +421,6 @@ def error_summary(poses: np.ndarray, truth: np.ndarray) -> str:
     )
 
 
-def _progress(steps: range, quiet: bool, label: str):
-    """``steps``, with a progress bar (tqdm) on a terminal for long work."""
-    if quiet or len(steps) < 10_000 or not sys.stderr.isatty():
-        return steps
-    from tqdm import tqdm
-
-    return tqdm(steps, desc=label, unit="update", file=sys.stderr)
-
-
 def _example_trajectory(robot: DiffDrive, dt: float = 0.01, method: str = "exact"):
     """The built-in driving history, simulated."""
     return simulate(
@@ -397,11 +429,13 @@ def _example_trajectory(robot: DiffDrive, dt: float = 0.01, method: str = "exact
 
 
 def _trajectory_or_example(args: argparse.Namespace, robot: DiffDrive):
-    """``(times, poses, what)`` from the input trajectory file, or the built-in example."""
+    """``(times, poses, what)`` from the input trajectory (file or bag topic), or the
+    built-in example."""
     if args.input is None:
         example = _example_trajectory(robot)
         return example.times, example.poses, "the built-in example"
-    return (*read_trajectory(args.input, args.time_unit), str(args.input))
+    what = f"{args.input} {args.topic}" if args.topic else str(args.input)
+    return (*sources.trajectory(args.input, args.time_unit, args.topic), what)
 
 
 def run_plot(args: argparse.Namespace) -> int:
@@ -411,7 +445,7 @@ def run_plot(args: argparse.Namespace) -> int:
     times, poses, what = _trajectory_or_example(args, robot)
     truth = None
     if args.truth is not None:
-        truth = read_trajectory(args.truth, args.time_unit)
+        truth = sources.trajectory(args.truth, args.time_unit, args.truth_topic)
     with atomic_output(args.output) as temporary:
         plot_trajectory(robot, times, poses, temporary, truth)
     if not args.quiet:
@@ -455,9 +489,12 @@ def _example_runs() -> list[tuple[np.ndarray, np.ndarray]]:
 
 def _calibration_run(args, path: Path, ticks: float | None):
     """``(increments, truth)`` of a run, and the ticks per revolution its format fixes."""
-    log = read_log(path, args.time_unit)
+    log = _read_log(args, path)
     if log.truth is None:
-        raise TableError(f"{path}: a run to calibrate on needs ground truth: columns x, y, theta")
+        raise TableError(
+            f"{path}: a run to calibrate on needs ground truth: columns x, y, theta, or a bag's "
+            "--reference-topic"
+        )
     return (log.increments(ticks, args.counter_bits), log.truth), log.ticks_per_revolution
 
 
@@ -520,34 +557,48 @@ def run_evaluate(args: argparse.Namespace) -> int:
         estimate = odometry_of(robot, log.increments(), truth[0], "exact")
     else:
         if args.truth is None:
-            raise TableError("evaluate needs --truth with a ground-truth trajectory file")
-        times, estimate = read_trajectory(args.input, args.time_unit)
-        truth_times, truth = read_trajectory(args.truth, args.time_unit)
+            raise TableError("evaluate needs --truth with a ground-truth trajectory or bag")
+        times, estimate = sources.trajectory(args.input, args.time_unit, args.topic)
+        truth_times, truth = sources.trajectory(args.truth, args.time_unit, args.truth_topic)
         for path, poses in ((args.input, estimate), (args.truth, truth)):
             if poses.ndim != 2:
                 raise TableError(f"{path}: evaluate takes one robot; the file has {len(poses)}")
         times, estimate, truth = _paired(args, times, estimate, truth_times, truth)
+    metrics = evaluation_metrics(args, times, estimate, truth)
+    if args.json:
+        print(json.dumps(metrics))
+    else:
+        for key, value in metrics.items():
+            shown = "n/a" if value is None else (f"{value:.6f}" if isinstance(value, float)
+                                                 else str(value))  # fmt: skip
+            print(f"{key:34} {shown:>12}")
+    return 0
+
+
+def evaluation_metrics(args, times, estimate, truth) -> dict:
+    """The paper's measures, ATE and RPE; a truth without headings (GPS) gives the position
+    measures only (the others are None)."""
+    positions_only = bool(np.isnan(truth[:, 2]).any())
+    if positions_only:  # compare positions: the headings take no part
+        estimate, truth = estimate.copy(), truth.copy()
+        estimate[:, 2] = truth[:, 2] = 0.0
     errors = run_errors(estimate, truth)
     metrics = {
         "poses_compared": len(times),
         "max_position_error_m": errors.max_position,
         "final_position_error_m": errors.final_position,
-        "max_heading_error_deg": errors.max_heading,
-        "final_heading_error_deg": errors.final_heading,
+        "max_heading_error_deg": None if positions_only else errors.max_heading,
+        "final_heading_error_deg": None if positions_only else errors.final_heading,
         "ate_m": ate(estimate, truth),
         "ate_aligned_m": ate(estimate, truth, aligned=True),
     }
-    translation, rotation = rpe(estimate, truth, args.rpe, unit=args.rpe_unit, times=times,
-                                pairs=args.rpe_pairs)  # fmt: skip
     name = f"rpe_{args.rpe:g}{args.rpe_unit}_{args.rpe_pairs}"
-    metrics[f"{name}_m"] = translation
-    metrics[f"{name}_deg"] = rotation
-    if args.json:
-        print(json.dumps(metrics))
-    else:
-        for key, value in metrics.items():
-            print(f"{key:34} {value:12.6f}" if isinstance(value, float) else f"{key:34} {value:12}")
-    return 0
+    metrics[f"{name}_m"] = metrics[f"{name}_deg"] = None
+    if not positions_only:
+        metrics[f"{name}_m"], metrics[f"{name}_deg"] = rpe(
+            estimate, truth, args.rpe, unit=args.rpe_unit, times=times, pairs=args.rpe_pairs
+        )
+    return metrics
 
 
 def _paired(args, times, estimate, truth_times, truth):
@@ -567,6 +618,17 @@ def _paired(args, times, estimate, truth_times, truth):
             f"{args.input}'s (after --t-offset {args.t_offset} s); 2 or more are needed"
         )
     return truth_times[j], estimate[i], truth[j]
+
+
+def run_info(args: argparse.Namespace) -> int:
+    from diffdrive import ros
+
+    found = ros.topics(args.input)
+    print(f"{args.input}: {len(found)} topics")
+    print(f"{'topic':32} {'type':32} {'messages':>8} {'Hz':>7}  use")
+    for topic in found:
+        print(f"{topic.name:32} {topic.msgtype:32} {topic.count:8} {topic.rate:7.2f}  {topic.use}")
+    return 0
 
 
 def run_fk(args: argparse.Namespace) -> int:
@@ -710,6 +772,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     times = argparse.ArgumentParser(add_help=False)
     times.add_argument("--time-unit", choices=TIME_UNITS, help="unit of the t column (default s)")
+    times.add_argument("--topic", metavar="TOPIC",
+                       help="for a bag: the trajectory's topic (nav_msgs/Odometry, "
+                       "sensor_msgs/NavSatFix) or tf:PARENT:CHILD")  # fmt: skip
+    times.add_argument("--truth-topic", metavar="TOPIC", help="for a bag: the truth's topic")
     pictures = argparse.ArgumentParser(add_help=False, parents=[times])
     pictures.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     pictures.add_argument(
@@ -762,6 +828,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="consecutive (evo's default) or all (evo's --all_pairs)",
     )
     ev.add_argument("--json", action="store_true")
+    info = command("info", "what a ROS bag or MCAP file holds, and what diffdrive can use",
+                   [], run_info)  # fmt: skip
+    info.add_argument("input", type=Path, help="a ROS 1 bag, ROS 2 bag folder or MCAP file")
     fk = command("fk", "wheel velocities to the body twist", [robot], run_fk)
     fk._negative_number_matcher = _NEGATIVE_NUMBER  # -1e-3 is a number, not an option
     fk.add_argument("left", type=float, help="rad/s")

@@ -51,6 +51,9 @@ def count_changes(readings: object, bits: int | None, axis: int = 0) -> np.ndarr
     if not np.issubdtype(array.dtype, np.integer):
         raise TypeError(f"counter readings must be integers, got dtype {array.dtype}")
     if bits is None:
+        rough = np.diff(array.astype(np.float64), axis=axis)
+        if array.dtype != np.uint64 and (rough.size == 0 or np.abs(rough).max() < 2.0**62):
+            return np.diff(array.astype(np.int64), axis=axis)  # no difference can wrap
         # Python ints, so that no difference wraps silently.
         changes = np.diff(array.astype(object), axis=axis)
         if changes.size and not -(2**63) <= min(changes.flat) <= max(changes.flat) < 2**63:

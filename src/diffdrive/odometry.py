@@ -30,6 +30,7 @@ Rules, stated once:
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
 
@@ -40,7 +41,19 @@ from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import DiffDrive
 from diffdrive.types import Pose, Twist, WheelVelocities
 
-__all__ = ["Odometry"]
+__all__ = ["UPDATE_KINDS", "Odometry", "RefusedUpdateError"]
+
+UpdateKind = Literal["ticks", "positions", "increments", "velocities"]
+UPDATE_KINDS: tuple[UpdateKind, ...] = ("ticks", "positions", "increments", "velocities")
+
+
+class RefusedUpdateError(ValueError):
+    """An update of ``Odometry.update_arrays`` refused: ``row`` is its index."""
+
+    def __init__(self, row: int, message: str) -> None:
+        super().__init__(f"row {row}: {message}")
+        self.row = row
+        self.reason = message
 
 
 class Odometry(OdometryCore):
@@ -167,6 +180,37 @@ class Odometry(OdometryCore):
         if np.linalg.eigvalsh(matrix).min() < -1e-12 * max(1.0, np.abs(matrix).max()):
             raise ValueError("covariance must be positive semi-definite")
         self._set_pose(pose.x, pose.y, pose.theta, tuple(matrix.ravel().tolist()))
+
+    def update_arrays(
+        self,
+        kind: UpdateKind,
+        left: object,
+        right: object,
+        third: object = None,
+        covariance: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The updates of a whole log at C speed: row k is ``update_<kind>(left[k], right[k],
+        third[k])``, checked exactly as one call (``third``: the time stamps ``t``, or for
+        ``"velocities"`` the ``dt``; None: no time stamps).
+
+        Returns the pose after each row ``(n, 3)`` and, if ``covariance``, the covariance after
+        each row ``(n, 3, 3)``. A refused row raises ``RefusedUpdateError`` (a ``ValueError``) with
+        its index in ``row``; the rows before it stay applied.
+        """
+        if kind not in UPDATE_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(UPDATE_KINDS)}, got {kind!r}")
+        rows = [np.asarray(values).tolist() for values in (left, right)]
+        if len(rows[0]) != len(rows[1]):
+            raise ValueError(f"left and right differ in length: {len(rows[0])}, {len(rows[1])}")
+        thirds = [None] * len(rows[0]) if third is None else np.asarray(third).tolist()
+        if len(thirds) != len(rows[0]):
+            raise ValueError(f"third must have {len(rows[0])} values, got {len(thirds)}")
+        poses = np.empty((len(thirds), 3))
+        covariances = np.empty((len(thirds), 3, 3)) if covariance else None
+        refused = self._run(UPDATE_KINDS.index(kind), *rows, thirds, poses, covariances)
+        if refused is not None:
+            raise RefusedUpdateError(*refused)
+        return poses, covariances
 
     def jacobians(self, left: float, right: float) -> tuple[np.ndarray, np.ndarray]:
         """The Jacobians of one update from the current pose, for an EKF.

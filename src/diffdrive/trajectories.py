@@ -40,6 +40,7 @@ __all__ = ["FORMATS", "read_trajectory", "trajectory_format", "write_trajectory"
 Format = Literal["csv", "jsonl", "tum"]
 FORMATS: tuple[Format, ...] = ("csv", "jsonl", "tum")
 _POSE = ("t", "x", "y", "theta")
+_ROWS_PER_WRITE = 1 << 16
 
 
 def trajectory_format(path: str | Path) -> Format:
@@ -184,22 +185,39 @@ def write_trajectory(
     values = [times, poses[..., 0], poses[..., 1], poses[..., 2], *extra.values()]
     if robots:
         values.insert(0, np.broadcast_to(np.arange(robots)[:, None], times.shape))
-    rows = np.stack(values, axis=-1).reshape(-1, len(names)).tolist()
+    columns = [np.reshape(column, -1).tolist() for column in values]
     if robots:
-        rows = [[int(row[0]), *row[1:]] for row in rows]
+        columns[0] = [int(k) for k in columns[0]]
     with atomic_write(path) as stream:
         if format == "csv":
             stream.write(",".join(names) + "\n")
-            stream.writelines(",".join(map(repr, row)) + "\n" for row in rows)
+            text = [_float_texts(column) for column in columns]
+            for start in range(0, len(text[0]), _ROWS_PER_WRITE):
+                chunk = [column[start : start + _ROWS_PER_WRITE] for column in text]
+                stream.write("\n".join(map(",".join, zip(*chunk, strict=True))) + "\n")
         else:
             stream.writelines(
-                json.dumps(
-                    {k: (v if math.isfinite(v) else None) for k, v in zip(names, row, strict=True)}
-                )
-                + "\n"
-                for row in rows
+                json.dumps(_record(names, row)) + "\n" for row in zip(*columns, strict=True)
             )
     return [Path(path)]
+
+
+def _float_texts(values: list) -> list[str]:
+    """Each value as the shortest text that reads back to the same float (ints as ints).
+
+    orjson, where installed (``pip install 'diffdrive[fast]'``), writes them about twice as
+    fast as ``repr``, in the same digits (``1e-5`` where repr writes ``1e-05``).
+    """
+    array = np.asarray(values)
+    if array.dtype == np.float64 and len(array) and np.isfinite(array).all():
+        try:
+            import orjson
+        except ModuleNotFoundError:
+            pass
+        else:
+            text = orjson.dumps(array, option=orjson.OPT_SERIALIZE_NUMPY)
+            return text[1:-1].decode("ascii").split(",")
+    return list(map(repr, values))
 
 
 def _record(names: list[str], row: list) -> dict:

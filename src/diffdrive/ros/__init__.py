@@ -1,0 +1,53 @@
+"""Robot logs: ROS 1 bags, ROS 2 bags and MCAP files in and out, without ROS installed.
+
+Built on ``rosbags`` (``pip install 'diffdrive[ros]'``), imported only here. Readers return
+arrays with time stamps in seconds and say which stamp they used: the message header's
+(``"header"``) or, for messages without one or with an empty one, the time the bag recorded it
+(``"record"``). Messages are sorted by that stamp; one whose stamp equals the one before is
+dropped (counted in ``dropped``), since a log's times must increase.
+
+- ``read_joint_states``: wheel positions or velocities, **looked up by joint name**;
+- ``read_odometry``: ``nav_msgs/Odometry`` poses, twists and covariances;
+- ``read_imu``, ``read_twists`` (``Twist``/``TwistStamped`` commands), ``read_tf`` (a
+  parent-to-child chain as a trajectory), ``read_navsatfix`` (to a local east-north frame);
+- ``topics``: what a bag holds, and which topics diffdrive can use;
+- ``write_odometry``: ``nav_msgs/Odometry`` with the propagated covariance and ``/tf``, to an
+  MCAP file or a ROS 2 bag folder, written atomically.
+"""
+
+from diffdrive.ros.reader import (
+    BagError,
+    Imu,
+    NavSatFix,
+    OdometryTopic,
+    Topic,
+    Twists,
+    read_imu,
+    read_joint_states,
+    read_navsatfix,
+    read_odometry,
+    read_tf,
+    read_twists,
+    topics,
+)
+from diffdrive.ros.writer import BAG_FORMATS, write_odometry
+from diffdrive.sources import is_bag
+
+__all__ = [
+    "BAG_FORMATS",
+    "BagError",
+    "Imu",
+    "NavSatFix",
+    "OdometryTopic",
+    "Topic",
+    "Twists",
+    "is_bag",
+    "read_imu",
+    "read_joint_states",
+    "read_navsatfix",
+    "read_odometry",
+    "read_tf",
+    "read_twists",
+    "topics",
+    "write_odometry",
+]

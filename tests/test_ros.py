@@ -1,0 +1,263 @@
+"""ROS bags and MCAP: reading real robots' bags, writing what ROS tools read, and the command
+line on bags. The bags are in ../shared/data/ros-bags (see its README)."""
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+import diffdrive as dd
+from data import data_folder
+from diffdrive import ros
+from diffdrive.cli import main
+from diffdrive.evaluation import ate
+
+pytest.importorskip("rosbags")
+BAGS = data_folder("ros-bags")
+TB3 = BAGS / "turtlebot3_fuse.bag"
+HUSKY = BAGS / "husky_robot_localization_test1.bag"
+JOINTS = ["--left-joint", "wheel_left_joint", "--right-joint", "wheel_right_joint"]
+
+
+def run(argv, capsys):
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+# -- reading ---------------------------------------------------------------------------------
+
+
+def test_topics_say_what_diffdrive_can_use():
+    found = {t.name: t for t in ros.topics(TB3)}
+    assert found["/joint_states"].count == 2741
+    assert found["/joint_states"].rate == pytest.approx(30.0, rel=1e-3)
+    assert "--joint-topic" in found["/joint_states"].use
+    assert found["/scan"].use == ""
+
+
+def test_joints_are_looked_up_by_name_not_by_index():
+    """The TurtleBot3 bag lists the right wheel first."""
+    log = ros.read_joint_states(TB3, "wheel_left_joint", "wheel_right_joint")
+    assert log.kind == "angle"
+    assert log.wheels[0].tolist() == pytest.approx([9.00880971, -4.23206781])
+    assert log.times[0] == pytest.approx(112.54)
+    assert "header stamps" in log.source
+    swapped = ros.read_joint_states(TB3, "wheel_right_joint", "wheel_left_joint")
+    np.testing.assert_array_equal(swapped.wheels, log.wheels[:, ::-1])
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: ros.read_joint_states(TB3, "left", "wheel_right_joint"),
+         "no joint 'left' \\(its joints: wheel_right_joint, wheel_left_joint\\)"),
+        (lambda: ros.read_odometry(TB3, "/nope"),
+         "no topic '/nope' \\(the bag has: /cmd_vel, /imu, /joint_states, /odom, /scan\\)"),
+        (lambda: ros.read_odometry(TB3, "/imu"), "/imu holds sensor_msgs/msg/Imu, not nav_msgs"),
+        (lambda: ros.read_tf(TB3, "odom", "base_footprint"), "no /tf or /tf_static topic"),
+        (lambda: ros.read_odometry(BAGS / "missing.bag", "/odom"), "missing.bag: no such bag"),
+    ],
+)  # fmt: skip
+def test_what_a_bag_cannot_give_is_named(call, message):
+    with pytest.raises(ros.BagError, match=message):
+        call()
+
+
+@pytest.mark.parametrize("size", [0, 100, 700_000])
+def test_empty_and_truncated_bags_are_refused(tmp_path, size):
+    broken = tmp_path / "broken.bag"
+    broken.write_bytes(TB3.read_bytes()[:size])
+    with pytest.raises(ros.BagError, match=r"broken\.bag"):
+        ros.read_odometry(broken, "/odom")
+
+
+def test_messages_out_of_order_are_sorted_and_repeated_stamps_dropped(tmp_path):
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    t = store.types
+    path = tmp_path / "shuffled"
+    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection("/js", "sensor_msgs/msg/JointState", typestore=store)
+        for k, stamp in enumerate([3, 1, 2, 2, 4]):
+            message = t["sensor_msgs/msg/JointState"](
+                header=t["std_msgs/msg/Header"](
+                    stamp=t["builtin_interfaces/msg/Time"](sec=stamp, nanosec=0), frame_id=""
+                ),
+                name=["r", "l"], position=np.array([10.0 * stamp, float(k)]),
+                velocity=np.array([]), effort=np.array([]),
+            )  # fmt: skip
+            writer.write(connection, k, store.serialize_cdr(message, message.__msgtype__))
+    log = ros.read_joint_states(path, "l", "r", "/js")
+    assert log.times.tolist() == [1.0, 2.0, 3.0, 4.0]
+    assert log.wheels[:, 1].tolist() == [10.0, 20.0, 30.0, 40.0]
+    assert log.wheels[:, 0].tolist() == [1.0, 2.0, 0.0, 4.0]  # of stamp 2, the first kept
+
+
+def test_husky_odometry_imu_and_gps():
+    odometry = ros.read_odometry(HUSKY, "/husky_velocity_controller/odom")
+    assert len(odometry.times) == 3952
+    assert (odometry.frame, odometry.child_frame) == ("odom", "base_link")
+    assert odometry.covariances[0, 0, 0] == pytest.approx(0.001)
+    imu = ros.read_imu(HUSKY, "/imu/data")
+    assert imu.frame == "imu_link"
+    assert imu.angular_velocity.shape == (11865, 3)
+    # The trap: the IMU is not z-up; its y axis, not z, follows the wheels' yaw rate.
+    yaw_rate = np.interp(imu.times, odometry.times, odometry.twists[:, 2])
+    correlation = [np.corrcoef(imu.angular_velocity[:, k], yaw_rate)[0, 1] for k in range(3)]
+    assert abs(correlation[1]) > 0.8
+    assert abs(correlation[2]) < 0.1
+    gps = ros.read_navsatfix(HUSKY, "/fix")
+    assert len(gps.times) == 989
+    assert gps.positions[0].tolist() == [0.0, 0.0]
+    assert float(np.hypot(*gps.positions[-1])) == pytest.approx(13.4, abs=0.1)
+    assert gps.variance[0] == pytest.approx(0.81)
+
+
+def test_husky_wheel_odometry_against_gps_positions_aligned():
+    odometry = ros.read_odometry(HUSKY, "/husky_velocity_controller/odom")
+    gps = ros.read_navsatfix(HUSKY, "/fix")
+    inside = (gps.times >= odometry.times[0]) & (gps.times <= odometry.times[-1])
+    at = gps.times[inside]
+    estimate = dd.evaluation.interpolate(odometry.times, odometry.poses, at)
+    truth = np.column_stack([gps.positions[inside], np.zeros(len(at))])
+    estimate[:, 2] = 0.0
+    raw, aligned = ate(estimate, truth), ate(estimate, truth, aligned=True)
+    assert aligned < raw
+    assert 1.0 < aligned < 10.0  # drift over 359 m; figures in the README
+
+
+# -- writing ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("format", ["mcap", "ros2"])
+def test_odometry_written_reads_back_with_rosbags(tmp_path, format):
+    times = 1700000000.0 + np.arange(200) * 0.05
+    poses = np.column_stack([np.cos(times), np.sin(times), np.linspace(0, 3, 200)])
+    covariances = np.einsum("k,ij->kij", np.linspace(1e-4, 1e-2, 200), np.diag([1.0, 2.0, 0.5]))
+    twists = np.column_stack([np.full(200, 0.5), np.zeros(200), np.full(200, 0.3)])
+    path = tmp_path / ("odom.mcap" if format == "mcap" else "odom_bag")
+    ros.write_odometry(path, times, poses, covariances, twists, frame="map", child_frame="robot")
+    back = ros.read_odometry(path, "/odom")
+    np.testing.assert_allclose(back.times, times, rtol=0, atol=2e-9)  # nanosecond stamps
+    np.testing.assert_allclose(back.poses, poses, atol=1e-12)
+    np.testing.assert_allclose(back.covariances, covariances, atol=1e-15)
+    np.testing.assert_allclose(back.twists, twists)
+    assert (back.frame, back.child_frame, back.stamp_source) == ("map", "robot", "header")
+    _tf_times, tf_poses = ros.read_tf(path, "map", "robot")
+    np.testing.assert_allclose(tf_poses, poses, atol=1e-12)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # nothing else left behind
+
+
+def test_mcap_written_reads_back_with_the_mcap_package(tmp_path):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    times = 10.0 + np.arange(5) * 0.1
+    poses = np.column_stack([np.arange(5.0), np.zeros(5), np.full(5, math.pi / 2)])
+    covariances = np.tile(np.diag([1e-4, 2e-4, 3e-5]), (5, 1, 1))
+    path = ros.write_odometry(tmp_path / "o.mcap", times, poses, covariances)
+    with path.open("rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        seen = {}
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            seen.setdefault(channel.topic, []).append((schema.name, message.log_time, decoded))
+    assert sorted(seen) == ["/odom", "/tf"]
+    name, log_time, odometry = seen["/odom"][3]
+    assert name == "nav_msgs/msg/Odometry"
+    assert log_time == 10_300_000_000
+    assert (odometry.header.stamp.sec, odometry.header.stamp.nanosec) == (10, 300_000_000)
+    assert odometry.header.frame_id == "odom"
+    assert odometry.child_frame_id == "base_link"
+    assert odometry.pose.pose.position.x == 3.0
+    assert odometry.pose.pose.orientation.z == pytest.approx(math.sin(math.pi / 4))
+    covariance = np.array(odometry.pose.covariance).reshape(6, 6)
+    assert covariance[0, 0] == 1e-4
+    assert covariance[5, 5] == 3e-5
+    assert covariance[2, 2] == 1e6  # z, roll, pitch: not estimated
+    transform = seen["/tf"][3][2].transforms[0]
+    assert (transform.header.frame_id, transform.child_frame_id) == ("odom", "base_link")
+
+
+def test_an_existing_bag_folder_is_not_replaced(tmp_path):
+    (tmp_path / "bag").mkdir()
+    with pytest.raises(ValueError, match="it exists"):
+        ros.write_odometry(tmp_path / "bag", [0.0, 1.0], np.zeros((2, 3)), format="ros2")
+
+
+# -- TurtleBot3: dead reckoning and calibration against /odom ---------------------------------
+
+
+def test_turtlebot3_calibration_from_joint_states_against_odom(tmp_path, capsys):
+    robot_file = tmp_path / "tb3.toml"
+    argv = ["calibrate", TB3, *JOINTS, "--reference-topic", "/odom", "--method", "increments",
+            "--wheel-radius", "0.033", "--track-width", "0.287", "-o", robot_file]  # fmt: skip
+    code, out, err = run(argv, capsys)
+    assert code == 0, err
+    settings = dd.files.read_robot(robot_file)
+    # The data README: a plain fit finds about 0.0325 m and 0.300 m.
+    assert settings["left_wheel_radius"] == pytest.approx(0.0325, abs=2e-4)
+    assert settings["right_wheel_radius"] == pytest.approx(0.0325, abs=2e-4)
+    assert settings["track_width"] == pytest.approx(0.2955, abs=2e-3)
+    odometry = tmp_path / "tb3.mcap"
+    argv = ["odometry", TB3, *JOINTS, "--robot", robot_file, "--k-left", "1e-5", "--k-right",
+            "1e-5", "-o", odometry]  # fmt: skip
+    assert run(argv, capsys)[0] == 0
+    back = ros.read_odometry(odometry, "/odom")
+    assert len(back.times) == 2741
+    assert back.covariances[-1, 0, 0] > back.covariances[10, 0, 0] > 0  # propagated, growing
+    code, out, _ = run(["evaluate", odometry, "--topic", "/odom", "--truth", TB3,
+                        "--truth-topic", "/odom", "--json"], capsys)  # fmt: skip
+    assert code == 0
+    metrics = json.loads(out)
+    assert metrics["poses_compared"] == 2741
+    # /odom turns the other way from the wheels for a few seconds early on (see README)
+    assert 1.0 < metrics["max_position_error_m"] < 6.0
+
+
+def test_the_cli_takes_a_bag_wherever_it_takes_a_log(tmp_path, capsys):
+    code, out, _ = run(["info", TB3], capsys)
+    assert code == 0
+    assert "/joint_states" in out
+    assert "sensor_msgs/msg/JointState" in out
+    code, _, err = run(["odometry", TB3, "-o", tmp_path / "o.csv"], capsys)
+    assert code == 1
+    assert "--left-joint NAME --right-joint NAME" in err
+    code, out, err = run(["simulate", TB3, *JOINTS, "-o", tmp_path / "s.csv"], capsys)
+    assert code == 0, err
+    code, _, err = run(["plot", TB3, "--topic", "/odom", "-o", tmp_path / "p.png"], capsys)
+    assert code == 0, err
+    code, _, err = run(["plot", TB3, "-o", tmp_path / "p.png"], capsys)
+    assert code == 1
+    assert "give the topic of a trajectory" in err
+    assert "/odom" in err
+
+
+def test_evaluate_wheel_odometry_against_gps_from_the_command_line(capsys):
+    argv = ["evaluate", HUSKY, "--topic", "/husky_velocity_controller/odom", "--truth", HUSKY,
+            "--truth-topic", "/fix", "--interpolate", "--json"]  # fmt: skip
+    code, out, err = run(argv, capsys)
+    assert code == 0, err
+    metrics = json.loads(out)
+    assert metrics["max_heading_error_deg"] is None  # GPS has no heading
+    assert metrics["ate_aligned_m"] < metrics["ate_m"]
+
+
+def test_a_bag_output_of_simulate_and_a_missing_rosbags_message(tmp_path, capsys, monkeypatch):
+    code, _, err = run(["simulate", "-o", tmp_path / "s.mcap"], capsys)
+    assert code == 0, err
+    assert len(ros.read_odometry(tmp_path / "s.mcap", "/odom").times) == 2001
+    monkeypatch.setitem(__import__("sys").modules, "rosbags.highlevel", None)
+    with pytest.raises(ImportError, match=r"pip install 'diffdrive\[ros\]'"):
+        ros.topics(TB3)
+
+
+def test_copy_of_a_bag_folder_reads_like_the_original(tmp_path):
+    ros.write_odometry(tmp_path / "a", [1.0, 2.0], np.zeros((2, 3)), format="ros2")
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    assert ros.is_bag(tmp_path / "b")
+    assert len(ros.read_odometry(tmp_path / "b", "/odom").times) == 2
