@@ -261,3 +261,55 @@ def test_copy_of_a_bag_folder_reads_like_the_original(tmp_path):
     shutil.copytree(tmp_path / "a", tmp_path / "b")
     assert ros.is_bag(tmp_path / "b")
     assert len(ros.read_odometry(tmp_path / "b", "/odom").times) == 2
+
+
+def test_a_tf_chain_and_velocity_joint_states(tmp_path):
+    """odom -> base_link moves, base_link -> laser is static: the chain odom -> laser."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    t = store.types
+
+    def stamp(k):
+        return t["builtin_interfaces/msg/Time"](sec=k, nanosec=0)
+
+    def transform(k, parent, child, x, yaw):
+        return t["geometry_msgs/msg/TransformStamped"](
+            header=t["std_msgs/msg/Header"](stamp=stamp(k), frame_id=parent),
+            child_frame_id=child,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=t["geometry_msgs/msg/Vector3"](x=x, y=0.0, z=0.0),
+                rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2),
+                                                           w=math.cos(yaw / 2)),
+            ),
+        )  # fmt: skip
+
+    path = tmp_path / "chain"
+    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
+        tf = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+        joints = writer.add_connection("/js", "sensor_msgs/msg/JointState", typestore=store)
+        message = t["tf2_msgs/msg/TFMessage"](transforms=[transform(0, "base_link", "laser",
+                                                                    0.2, 0.0)])  # fmt: skip
+        writer.write(static, 0, store.serialize_cdr(message, message.__msgtype__))
+        for k in range(1, 4):
+            message = t["tf2_msgs/msg/TFMessage"](
+                transforms=[transform(k, "odom", "base_link", float(k), math.pi / 2)]
+            )
+            writer.write(tf, k, store.serialize_cdr(message, message.__msgtype__))
+            message = t["sensor_msgs/msg/JointState"](
+                header=t["std_msgs/msg/Header"](stamp=stamp(k), frame_id=""),
+                name=["l", "r"], position=np.array([]), velocity=np.array([1.0 * k, 2.0 * k]),
+                effort=np.array([]),
+            )  # fmt: skip
+            writer.write(joints, k, store.serialize_cdr(message, message.__msgtype__))
+    times, poses = ros.read_tf(path, "odom", "laser")
+    assert times.tolist() == [1.0, 2.0, 3.0]
+    np.testing.assert_allclose(poses, [[1.0, 0.2, math.pi / 2], [2.0, 0.2, math.pi / 2],
+                                       [3.0, 0.2, math.pi / 2]], atol=1e-12)  # fmt: skip
+    with pytest.raises(ros.BagError, match="no transform chain odom -> map"):
+        ros.read_tf(path, "odom", "map")
+    log = ros.read_joint_states(path, "l", "r", "/js")
+    assert log.kind == "velocity"
+    assert log.wheels.tolist() == [[1.0, 2.0], [2.0, 4.0], [3.0, 6.0]]

@@ -328,21 +328,27 @@ def _chain(links: dict, parent: str, child: str, path: Path) -> list[str]:
 
 
 def _compose_chain(links: dict, chain: list[str], path: Path):
+    """The chain's poses at the stamps of its moving link nearest the child; every link
+    holds its latest transform at those times (a static one always)."""
     from diffdrive import batch
 
-    last = np.array(sorted(links[chain[0]][1]))
-    last = last[np.concatenate([[True], np.diff(last[:, 0]) > 0])]
-    times, poses = last[:, 0], last[:, 1:]
-    for frame in chain[1:]:
-        samples = np.array(sorted(links[frame][1]))
-        index = np.searchsorted(samples[:, 0], times, side="right") - 1
+    samples = {}
+    for frame in chain:
+        table = np.array(sorted(links[frame][1]))
+        samples[frame] = table[np.concatenate([[True], np.diff(table[:, 0]) > 0])]
+    moving = [frame for frame in chain if np.isfinite(samples[frame][:, 0]).any()]
+    if not moving:
+        raise BagError(f"{path}: the chain is static: no times to make a trajectory of")
+    times = samples[moving[0]][:, 0]
+    times = times[np.isfinite(times)]
+    poses = np.zeros((len(times), 3))
+    for frame in chain:  # from the child up: parent_pose = link * child_pose
+        table = samples[frame]
+        index = np.searchsorted(table[:, 0], times, side="right") - 1
         if np.any(index < 0):
             first = times[np.argmax(index < 0)]
             raise BagError(f"{path}: no transform to {frame} yet at t = {first:.9f} s")
-        poses = batch.compose(samples[index, 1:], poses)
-    if not np.all(np.isfinite(times)):
-        raise BagError(f"{path}: the chain is static: no times to make a trajectory of")
-    poses = poses.copy()
+        poses = batch.compose(table[index, 1:], poses)
     poses[:, 2] = np.unwrap(poses[:, 2])
     return times, poses
 
