@@ -91,3 +91,21 @@ def test_ros_bags_example_calibrates_the_turtlebot3_and_aligns_the_husky_to_gps(
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     line = next(row for row in printed.splitlines() if row.startswith("Husky"))
     assert line.split("ATE ")[1] in " ".join(readme.split())  # the README quotes the figures
+
+
+def test_gyro_slip_example_fuses_better_on_the_synthetic_run(tmp_path, capsys):
+    from data import data_folder
+
+    script = load("gyro_slip")
+    output = tmp_path / "gyro.png"
+    script.main(["--bags", str(data_folder("ros-bags")), "--output", str(output)])
+    printed = capsys.readouterr().out
+    readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
+    lines = printed.splitlines()
+    errors = {line.split()[0]: float(line.split()[1]) for line in lines[1:4]}
+    assert errors["fused"] < errors["gyro"] < errors["wheels"]
+    for heading, error in errors.items():
+        assert f"{error:.2f} m" in readme, heading
+    husky = next(line for line in lines if line.startswith("Husky"))
+    for part in husky.split(": ", 1)[1].split(", "):
+        assert part.split()[1] + " m" in readme

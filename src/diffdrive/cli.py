@@ -367,10 +367,15 @@ def run_odometry(args: argparse.Namespace) -> int:
     log = _read_log(args)
     ticks = ticks or log.ticks_per_revolution
     note = _check_wheel_speeds(args, log, robot, ticks)
+    gyro = _gyro(args, log)
+    if gyro is not None:
+        return _gyro_odometry(args, robot, log, ticks, gyro, note)
+    if args.heading not in (None, "wheels"):
+        raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
     odometry = Odometry(
         robot, args.method, Pose(*_start(log)), ticks if log.kind == "ticks" else None,
-        args.counter_bits, max_wheel_speed=args.max_wheel_speed, k_left=args.k_left,
-        k_right=args.k_right,
+        args.counter_bits, max_wheel_speed=args.max_wheel_speed, k_left=args.k_left or 0.0,
+        k_right=args.k_right or 0.0,
     )  # fmt: skip
     times, wheels = log.times, log.wheels
     to_bag = _format(args) in ("mcap", "ros2")
@@ -403,6 +408,67 @@ def run_odometry(args: argparse.Namespace) -> int:
         if log.truth is not None:
             print(error_summary(poses, log.truth))
     return 0
+
+
+def _gyro(args, log: WheelLog):
+    """The gyro of the command: a bag's IMU topic (rotated by --imu-rpy), or the log's gyro_z
+    column; None without one."""
+    from diffdrive.gyro import Gyro, rotation_from_rpy
+
+    if args.gyro_topic is not None:
+        if args.input is None or not sources.is_bag(args.input):
+            raise TableError("--gyro-topic needs a bag as the log")
+        from diffdrive import ros
+
+        imu = ros.read_imu(args.input, args.gyro_topic)
+        mounting = rotation_from_rpy(*np.radians(args.imu_rpy))
+        return Gyro.from_imu(imu.times, imu.angular_velocity, mounting)
+    if log.gyro_rates is not None:
+        return Gyro(log.times, log.gyro_rates)
+    return None
+
+
+def _gyro_odometry(args, robot: DiffDrive, log: WheelLog, ticks, gyro, note: str) -> int:
+    """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
+    from diffdrive.gyro import gyro_odometry
+
+    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{log.source}: the gyro does not cover the log's times")
+    if not inside.all():  # a bag's IMU may start a little after the wheels: keep the overlap
+        log = _cut(log, inside)
+        note += f"\nthe log is cut to [{log.times[0]:g}, {log.times[-1]:g}] s, where the gyro is"
+    options = {"k_left": 1e-4 if args.k_left is None else args.k_left,
+               "k_right": 1e-4 if args.k_right is None else args.k_right}  # fmt: skip
+    result = gyro_odometry(robot, log.times, log.increments(ticks, args.counter_bits), gyro,
+                           args.heading or "fused", _start(log), bias=args.gyro_bias,
+                           **options)  # fmt: skip
+    columns = {"slip": result.slip.astype(float), "slip_score": result.slip_score,
+               "gyro_bias": result.bias}  # fmt: skip
+    if args.covariance:
+        flat = result.covariances.reshape(-1, 9)
+        columns.update({name: flat[:, index] for name, index in COVARIANCE_COLUMNS.items()})
+    _write(args, log.times, result.poses, f"odometry of {log.source} ({result.heading} heading)",
+           columns, result.covariances)  # fmt: skip
+    if not args.quiet:
+        print(note)
+        flagged = f"{int(result.slip.sum())} of {len(result.slip) - 1} intervals flagged"
+        print(f"slip: {flagged}; gyro bias {result.bias[0]:.5f} rad/s at the start, "
+              f"{result.bias[-1]:.5f} at the end")  # fmt: skip
+        if log.truth is not None:
+            print(error_summary(result.poses, log.truth))
+    return 0
+
+
+def _cut(log: WheelLog, keep: np.ndarray) -> WheelLog:
+    """The rows ``keep`` (a contiguous run) of a log."""
+    from dataclasses import replace
+
+    def part(values):
+        return None if values is None else values[keep]
+
+    return replace(log, times=log.times[keep], wheels=log.wheels[keep], truth=part(log.truth),
+                   lines=part(log.lines), gyro_rates=part(log.gyro_rates))  # fmt: skip
 
 
 # The covariance's distinct entries, by their index in the row-major 3x3 matrix.
@@ -745,19 +811,33 @@ def build_parser() -> argparse.ArgumentParser:
         help="refuse a row whose wheel turns faster (rad/s); default: a rim speed of "
         f"{_RIM_SPEED_LIMIT:g} m/s",
     )  # fmt: skip
-    odo.add_argument(
-        "--k-left",
-        type=float,
-        default=0.0,
-        metavar="M",
-        help="left wheel-error constant of the covariance model, m (default 0)",
-    )
+    odo.add_argument("--k-left", type=float, metavar="M",
+                     help="left wheel-error constant of the covariance model, m (default 0; "
+                     "1e-4 with a gyro)")  # fmt: skip
     odo.add_argument(
         "--k-right",
         type=float,
-        default=0.0,
         metavar="M",
-        help="right wheel-error constant, m (default 0)",
+        help="right wheel-error constant, m (default 0; 1e-4 with a gyro)",
+    )
+    gyro = odo.add_argument_group("a gyro: a bag's IMU topic or a gyro_z column (rad/s)")
+    gyro.add_argument("--gyro-topic", metavar="TOPIC", help="sensor_msgs/Imu topic of the bag")
+    gyro.add_argument(
+        "--imu-rpy",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("ROLL", "PITCH", "YAW"),
+        help="the IMU's mounting in the body, degrees (default 0 0 0: z up)",
+    )
+    gyro.add_argument("--heading", choices=("wheels", "gyro", "fused"),
+                      help="heading from the wheels, the gyro, or both (default: fused with a "
+                      "gyro); writes slip, slip_score and gyro_bias columns")  # fmt: skip
+    gyro.add_argument(
+        "--gyro-bias",
+        type=float,
+        metavar="RAD_S",
+        help="the gyro's bias (default: its mean while the wheels stand still)",
     )
     odo.add_argument(
         "--twist",

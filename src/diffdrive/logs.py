@@ -1,8 +1,9 @@
 """Wheel logs: what a robot recorded of its wheels, with ground truth where there is one.
 
 One type, ``WheelLog``, for every format the command line reads: a table (``diffdrive.files``)
-with a time column ``t`` and one pair of wheel columns, and optionally ``x, y, theta``, or an
-OptiOdom run file (``diffdrive.datasets``). The wheel columns are one of
+with a time column ``t`` and one pair of wheel columns, and optionally ``x, y, theta`` (ground
+truth) and ``gyro_z`` (the body yaw rate of a gyro, rad/s), or an OptiOdom run file
+(``diffdrive.datasets``). The wheel columns are one of
 
 - ``left_ticks, right_ticks``: absolute counter readings (whole counts, read exactly);
 - ``left_angle, right_angle``: accumulated wheel angles, rad;
@@ -47,7 +48,8 @@ class WheelLog:
 
     ``source`` names where it came from and ``lines`` the line of each row in it (None when
     unknown), for messages; ``ticks_per_revolution`` is the encoders' resolution when the
-    format fixes it.
+    format fixes it; ``gyro_rates`` ``(T+1,)`` the body yaw rate (rad/s) of a ``gyro_z``
+    column, or None.
     """
 
     times: np.ndarray
@@ -57,6 +59,7 @@ class WheelLog:
     source: str
     lines: np.ndarray | None = None
     ticks_per_revolution: float | None = None
+    gyro_rates: np.ndarray | None = None
 
     def where(self, row: int) -> str:
         """``source:line`` of row ``row`` (0-based), for messages."""
@@ -139,7 +142,8 @@ def read_log(path: str | Path, time_unit: str | None = None) -> WheelLog:
         )
     columns = WHEEL_COLUMNS[kind]
     integers = columns if kind == "ticks" else ()
-    table = read_table(path, ["t", *columns], _TRUTH, integers=integers, time_unit=time_unit)
+    table = read_table(path, ["t", *columns], (*_TRUTH, "gyro_z"), integers=integers,
+                       time_unit=time_unit)  # fmt: skip
     if len(table["t"]) < 2:
         raise TableError(f"{path}: a log needs at least 2 rows")
     left, right = table[columns[0]], table[columns[1]]
@@ -149,7 +153,7 @@ def read_log(path: str | Path, time_unit: str | None = None) -> WheelLog:
         left, right = left.astype(np.uint64), right.astype(np.uint64)
     return WheelLog(
         table["t"], kind, np.column_stack([left, right]), _truth(table, path), str(path),
-        table.lines,
+        table.lines, gyro_rates=table.get("gyro_z"),
     )  # fmt: skip
 
 
