@@ -17,6 +17,7 @@ from diffdrive.model import DiffDrive
 from diffdrive.odometry import Odometry
 from diffdrive.open_loop import OpenLoopOdometry, drive_commands
 from diffdrive.simulation import simulate
+from diffdrive.skid_steer import SkidSteer
 from diffdrive.trajectory import Trajectory
 from diffdrive.types import Pose, Twist, WheelPositions, WheelVelocities
 
@@ -30,6 +31,7 @@ _LAZY = (
     "evaluation",
     "examples",
     "files",
+    "gyro",
     "logs",
     "plot",
     "ros",
@@ -55,6 +57,7 @@ __all__ = [
     "Odometry",
     "OpenLoopOdometry",
     "Pose",
+    "SkidSteer",
     "Trajectory",
     "Twist",
     "WheelPositions",

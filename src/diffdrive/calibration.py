@@ -21,6 +21,9 @@ at the same instants. Methods:
   solution. When the runs cannot tell a parameter apart (only straight lines cannot fix the
   track width), the scaled Jacobian's condition number says so and ``calibrate`` raises
   ``CalibrationError`` instead of returning a number.
+A ``SkidSteer`` robot is calibrated the same way, its ICR spread (the effective track, about
+the same midpoint) in the place of the track width: the simpler model of a skid-steer robot.
+
 - ``"increments"``: each step's motion instead of the whole path: the reference's distance
   and turn over every step (through the SE(2) logarithm of consecutive poses) against the
   wheels', ``s = (r_l dphi_l + r_r dphi_r) / 2`` and ``dtheta = (r_r dphi_r - r_l dphi_l) /
@@ -43,6 +46,7 @@ from diffdrive import batch
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import integrate_increments
+from diffdrive.skid_steer import SkidSteer
 
 __all__ = ["CalibrationError", "CalibrationResult", "calibrate", "odometry_of"]
 
@@ -80,8 +84,15 @@ class CalibrationResult:
         return None if self.covariance is None else np.sqrt(np.diag(self.covariance))
 
 
-def _robot_with(nominal: DiffDrive, parameters: np.ndarray) -> DiffDrive:
+def _robot_with(nominal: DiffDrive | SkidSteer, parameters: np.ndarray) -> DiffDrive | SkidSteer:
+    """``nominal`` with new wheel radii and track (a skid-steer robot's ICR spread, about the
+    same midpoint and with the same ``icr_x``)."""
     left, right, track = (float(p) for p in parameters)
+    if isinstance(nominal, SkidSteer):
+        middle = nominal.reference_offset
+        return SkidSteer(left_wheel_radius=left, right_wheel_radius=right,
+                         icr_left=middle + 0.5 * track, icr_right=middle - 0.5 * track,
+                         icr_x=nominal.icr_x, wheels_per_side=nominal.wheels_per_side)  # fmt: skip
     return DiffDrive(
         left_wheel_radius=left,
         right_wheel_radius=right,
@@ -261,7 +272,7 @@ def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str,
     # The parameters relative to the nominal ones, so that all three are of order 1.
     try:
         fit = least_squares(residuals, np.ones(3), loss=loss, f_scale=scale, x_scale=1e-3,
-                            bounds=(0.5, 1.5), method="trf")  # fmt: skip
+                            bounds=_bounds(nominal), method="trf")  # fmt: skip
     finally:
         if bar is not None:
             bar.close()
@@ -282,12 +293,12 @@ def _fit_increments(nominal: DiffDrive, runs):
     weight = 0.5 * nominal.track_width
 
     def residuals(relative: np.ndarray) -> np.ndarray:
-        left, right, track = start * relative
-        arcs = (left * wheels[:, 0], right * wheels[:, 1])
-        return np.concatenate([motion[:, 0] - 0.5 * (arcs[0] + arcs[1]),
-                               weight * (motion[:, 2] - (arcs[1] - arcs[0]) / track)])  # fmt: skip
+        steps = batch.to_twist(_robot_with(nominal, start * relative), wheels)
+        return np.concatenate([motion[:, 0] - steps[:, 0],
+                               weight * (motion[:, 2] - steps[:, 2])])  # fmt: skip
 
-    fit = least_squares(residuals, np.ones(3), x_scale=1e-3, bounds=(0.5, 1.5), method="trf")
+    fit = least_squares(residuals, np.ones(3), x_scale=1e-3, bounds=_bounds(nominal),
+                        method="trf")  # fmt: skip
     condition = _check_condition(fit.jac)
     dof = max(1, fit.fun.size - 3)
     variance = float(np.sum(fit.fun**2) / dof)
@@ -319,6 +330,14 @@ def _check_condition(jacobian: np.ndarray) -> float:
             "Straight runs alone cannot fix the track width: add runs that turn."
         )
     return condition
+
+
+def _bounds(nominal) -> tuple[list[float], list[float]]:
+    """The parameters' range relative to the nominal ones: radii within 50 %; the track too,
+    but a skid-steer robot's ICR spread up to 3 times its nominal (1.5-2 times the wheels'
+    track is common)."""
+    top = 3.0 if isinstance(nominal, SkidSteer) else 1.5
+    return [0.5, 0.5, 0.5], [1.5, 1.5, top]
 
 
 def _parameters(robot: DiffDrive) -> np.ndarray:

@@ -38,6 +38,7 @@ from diffdrive.logs import WheelLog, narrower_counter
 from diffdrive.model import DiffDrive
 from diffdrive.odometry import Odometry, RefusedUpdateError
 from diffdrive.simulation import integrate_increments, simulate
+from diffdrive.skid_steer import SkidSteer
 from diffdrive.trajectories import FORMATS, write_trajectory
 from diffdrive.types import Pose, Twist, WheelVelocities
 
@@ -177,6 +178,9 @@ def _robot_options() -> argparse.ArgumentParser:
         "ticks_per_revolution": "encoder counts per wheel revolution",
         "track_width": "m, the FULL distance between the wheels' contact points",
         "half_track": "m, half the track width (the notes' b, d, D or L); instead of it",
+        "icr_left": "m: a skid-steer robot's left ICR on body y (instead of the track)",
+        "icr_right": "m: its right ICR on body y",
+        "icr_x": "m: its ICR on body x (the point that does not slide sideways)",
     }
     for name in ROBOT_KEYS:
         group.add_argument(
@@ -244,6 +248,11 @@ def _robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
         return example_robot(), ticks
     where = f" (in {args.robot})" if args.robot else ""
     try:
+        if any(key.startswith("icr_") for key in settings):  # a skid-steer robot
+            if {"track_width", "half_track", "axle_offset"} & settings.keys():
+                raise ValueError("a skid-steer robot has icr_left, icr_right and icr_x instead "
+                                 "of track_width, half_track and axle_offset")  # fmt: skip
+            return SkidSteer(**settings), ticks
         return DiffDrive(**settings), ticks
     except ValueError as exc:
         raise ValueError(f"robot{where}: {exc}") from None
@@ -578,12 +587,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
                        square_side=args.square_side, names=names,
                        progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
     robot = result.robot
-    settings = {
-        "left_wheel_radius": robot.left_wheel_radius,
-        "right_wheel_radius": robot.right_wheel_radius,
-        "track_width": robot.track_width,
-        "axle_offset": robot.axle_offset,
-    }
+    settings = {"left_wheel_radius": robot.left_wheel_radius,
+                "right_wheel_radius": robot.right_wheel_radius}  # fmt: skip
+    if isinstance(robot, SkidSteer):
+        settings.update(icr_left=robot.icr_left, icr_right=robot.icr_right, icr_x=robot.icr_x)
+    else:
+        settings.update(track_width=robot.track_width, axle_offset=robot.axle_offset)
     if ticks is not None:
         settings["ticks_per_revolution"] = ticks
     write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")

@@ -57,6 +57,9 @@ ROBOT_KEYS = (
     "track_width",
     "half_track",
     "axle_offset",
+    "icr_left",
+    "icr_right",
+    "icr_x",
     "ticks_per_revolution",
 )
 

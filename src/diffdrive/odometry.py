@@ -39,6 +39,7 @@ from diffdrive._validate import finite, positive
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import DiffDrive
+from diffdrive.skid_steer import SkidSteer
 from diffdrive.types import Pose, Twist, WheelVelocities
 
 __all__ = ["UPDATE_KINDS", "Odometry", "RefusedUpdateError"]
@@ -70,7 +71,7 @@ class Odometry(OdometryCore):
 
     def __init__(
         self,
-        robot: DiffDrive,
+        robot: DiffDrive | SkidSteer,
         method: Method = "exact",
         initial_pose: Pose | None = None,
         ticks_per_revolution: float | None = None,
@@ -82,8 +83,8 @@ class Odometry(OdometryCore):
         initial_covariance: object = None,
         velocity_window: float = 0.1,
     ) -> None:
-        if not isinstance(robot, DiffDrive):
-            raise TypeError(f"robot must be a DiffDrive, got {type(robot).__name__}")
+        if not isinstance(robot, DiffDrive | SkidSteer):
+            raise TypeError(f"robot must be a DiffDrive or SkidSteer, got {type(robot).__name__}")
         check_method(method)
         counter_bits = check_counter_bits(counter_bits)
         rad_per_tick = 0.0
@@ -104,11 +105,16 @@ class Odometry(OdometryCore):
         self.method: Method = method
         self.ticks_per_revolution = ticks_per_revolution
         self.counter_bits = counter_bits
+        # A skid-steer robot runs as its equivalent drive, whose reference point lies
+        # ``_offset`` m left of the body origin; poses and covariances are moved back.
+        geometry, self._offset = robot, 0.0
+        if isinstance(robot, SkidSteer):
+            geometry, self._offset = robot.equivalent, robot.reference_offset
         super().__init__(
-            robot.left_wheel_radius,
-            robot.right_wheel_radius,
-            robot.track_width,
-            robot.axle_offset,
+            geometry.left_wheel_radius,
+            geometry.right_wheel_radius,
+            geometry.track_width,
+            geometry.axle_offset,
             METHODS.index(method),
             rad_per_tick,
             speed_limit,
@@ -126,11 +132,16 @@ class Odometry(OdometryCore):
     def pose(self) -> Pose:
         """The pose now; ``theta`` unwrapped (rad)."""
         x, y, theta, _, _ = self._state()
-        return Pose(x, y, theta)
+        return (
+            Pose(x, y, theta).compose(Pose(0.0, -self._offset))
+            if self._offset
+            else Pose(x, y, theta)
+        )
 
     @property
     def distance(self) -> float:
-        """Distance travelled by the reference point since the start or the last reset, m."""
+        """Distance travelled by the reference point since the start or the last reset, m
+        (for a ``SkidSteer``, by the midpoint of its ICRs)."""
         return self._state()[3]
 
     @property
@@ -142,7 +153,11 @@ class Odometry(OdometryCore):
     @property
     def covariance(self) -> np.ndarray:
         """The pose covariance, 3x3 over ``(x, y, theta)``: m^2, m rad, rad^2."""
-        return np.array(self._covariance()).reshape(3, 3)
+        covariance = np.array(self._covariance()).reshape(3, 3)
+        if not self._offset:
+            return covariance
+        moved = _offset_jacobian(self._state()[2], -self._offset)
+        return moved @ covariance @ moved.T
 
     @property
     def wheel_velocities(self) -> WheelVelocities:
@@ -179,6 +194,9 @@ class Odometry(OdometryCore):
             raise ValueError("covariance must be finite and symmetric")
         if np.linalg.eigvalsh(matrix).min() < -1e-12 * max(1.0, np.abs(matrix).max()):
             raise ValueError("covariance must be positive semi-definite")
+        if self._offset:  # to the equivalent drive's reference point
+            moved = _offset_jacobian(pose.theta, self._offset)
+            pose, matrix = pose.compose(Pose(0.0, self._offset)), moved @ matrix @ moved.T
         self._set_pose(pose.x, pose.y, pose.theta, tuple(matrix.ravel().tolist()))
 
     def update_arrays(
@@ -210,6 +228,13 @@ class Odometry(OdometryCore):
         refused = self._run(UPDATE_KINDS.index(kind), *rows, thirds, poses, covariances)
         if refused is not None:
             raise RefusedUpdateError(*refused)
+        if self._offset:
+            from diffdrive import batch
+
+            moved = _offset_jacobian(poses[:, 2], -self._offset)
+            poses = batch.compose(poses, np.array([0.0, -self._offset, 0.0]))
+            if covariances is not None:
+                covariances = moved @ covariances @ np.swapaxes(moved, -1, -2)
         return poses, covariances
 
     def jacobians(self, left: float, right: float) -> tuple[np.ndarray, np.ndarray]:
@@ -219,10 +244,28 @@ class Odometry(OdometryCore):
         with respect to the current pose (3x3) and with respect to the increments (3x2,
         columns ``[left, right]``), for this odometry's method.
         """
-        pose_jacobian, wheel_jacobian = self._jacobians(
-            finite("left", left), finite("right", right)
-        )
-        return np.array(pose_jacobian).reshape(3, 3), np.array(wheel_jacobian).reshape(3, 2)
+        left, right = finite("left", left), finite("right", right)
+        pose_jacobian, wheel_jacobian = self._jacobians(left, right)
+        pose_jacobian = np.array(pose_jacobian).reshape(3, 3)
+        wheel_jacobian = np.array(wheel_jacobian).reshape(3, 2)
+        if self._offset:  # through the equivalent drive: into its frame and back
+            geometry, theta = self.robot.equivalent, self._state()[2]
+            turn = (geometry.right_wheel_radius * right - geometry.left_wheel_radius * left) / (
+                geometry.track_width
+            )
+            back = _offset_jacobian(theta + turn, -self._offset)
+            pose_jacobian = back @ pose_jacobian @ _offset_jacobian(theta, self._offset)
+            wheel_jacobian = back @ wheel_jacobian
+        return pose_jacobian, wheel_jacobian
 
     def __repr__(self) -> str:
         return f"Odometry({self.robot!r}, method={self.method!r}, pose={self.pose!r})"
+
+
+def _offset_jacobian(theta: object, offset: float) -> np.ndarray:
+    """d(pose composed with (0, offset, 0))/d(pose) at headings ``theta``: ``(..., 3, 3)``."""
+    theta = np.asarray(theta, dtype=float)
+    jacobian = np.broadcast_to(np.eye(3), (*theta.shape, 3, 3)).copy()
+    jacobian[..., 0, 2] = -offset * np.cos(theta)
+    jacobian[..., 1, 2] = -offset * np.sin(theta)
+    return jacobian

@@ -28,6 +28,7 @@ from diffdrive.batch.kinematics import WHEELS
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive
+from diffdrive.skid_steer import SkidSteer
 from diffdrive.trajectory import Trajectory
 
 __all__ = ["integrate_increments", "simulate"]
@@ -182,7 +183,7 @@ def _sample_function(function: WheelFunction, times: np.ndarray, name: str) -> n
 
 
 def simulate(
-    robot: DiffDrive,
+    robot: DiffDrive | SkidSteer,
     wheel_velocities: object = None,
     *,
     wheel_positions: object = None,
@@ -345,6 +346,10 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
     """
     from diffdrive._compiled import integrate_history
 
+    offset = 0.0
+    if isinstance(robot, SkidSteer):  # its equivalent drive moves the ICRs' midpoint
+        robot, offset = robot.equivalent, robot.reference_offset
+        start = batch.compose(start, np.array([0.0, offset, 0.0]))
     leading, samples = poses.shape[:-2], poses.shape[-2]
     robots = math.prod(leading)
 
@@ -366,3 +371,5 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
         method,
         poses.reshape(robots, samples, 3),
     )
+    if offset:
+        poses[...] = batch.compose(poses, np.array([0.0, -offset, 0.0]))

@@ -13,6 +13,7 @@ from typing import Any
 from diffdrive._arrays import components, finite_positive_dt, leading_shape, namespace
 from diffdrive.batch.se2 import TWIST
 from diffdrive.model import DiffDrive
+from diffdrive.skid_steer import SkidSteer
 
 __all__ = [
     "advance_wheel_positions",
@@ -30,20 +31,30 @@ def _wheels(xp: Any, value: object, name: str = "wheels") -> Any:
     return components(xp, value, name, WHEELS)
 
 
-def to_twist(robot: DiffDrive, wheels: object) -> Any:
-    """Body twists ``(..., 3)`` from wheel velocities ``(..., 2)`` (forward kinematics)."""
+def to_twist(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
+    """Body twists ``(..., 3)`` from wheel velocities ``(..., 2)`` (forward kinematics).
+
+    A ``SkidSteer`` goes through its equivalent drive, its twist moved to the body origin.
+    """
     xp = namespace(wheels)
     w = _wheels(xp, wheels)
+    shift = 0.0
+    if isinstance(robot, SkidSteer):
+        robot, shift = robot.equivalent, robot.reference_offset
     left = robot.left_wheel_radius * w[..., 0]
     right = robot.right_wheel_radius * w[..., 1]
     omega = (right - left) / robot.track_width
-    return xp.stack([0.5 * (right + left), robot.axle_offset * omega, omega], axis=-1)
+    forward = 0.5 * (right + left) + shift * omega if shift else 0.5 * (right + left)
+    return xp.stack([forward, robot.axle_offset * omega, omega], axis=-1)
 
 
-def to_wheel_velocities(robot: DiffDrive, twists: object) -> Any:
+def to_wheel_velocities(robot: DiffDrive | SkidSteer, twists: object) -> Any:
     """Wheel velocities ``(..., 2)`` that drive ``twists`` ``(..., 3)``; ``vy`` is not used."""
     xp = namespace(twists)
     v = components(xp, twists, "twists", TWIST)
+    if isinstance(robot, SkidSteer):  # its equivalent drive, at its reference point
+        shift, robot = robot.reference_offset, robot.equivalent
+        v = xp.stack([v[..., 0] - shift * v[..., 2], v[..., 1], v[..., 2]], axis=-1)
     half_turn = 0.5 * robot.track_width * v[..., 2]
     return xp.stack(
         [
