@@ -180,3 +180,42 @@ def test_the_command_line_takes_a_gyro_column_and_writes_slip_columns(tmp_path, 
     code = main(["odometry", str(log), "--heading", "gyro", "--gyro-bias", "0.01", "-o",
                  str(out), "-q"])  # fmt: skip
     assert code == 0
+
+
+def test_commanded_wheel_velocities_flag_a_wheel_that_spins_up_beyond_its_command():
+    """A gyro that cannot see it: the slip turns the robot as the ground does (both wheels
+    spin up together), but the drives were commanded otherwise."""
+    t = np.arange(301) * DT
+    wheels = np.tile([6.0, 6.0], (300, 1))
+    measured = wheels * DT
+    spin = np.zeros(300, dtype=bool)
+    spin[100:120] = True
+    measured[spin] *= 1.5  # both wheels spin 50 % faster than commanded, straight ahead
+    gyro = Gyro(t, np.zeros(301))
+    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", bias=0.0, commanded=wheels,
+                           command_sigma=0.5)  # fmt: skip
+    flagged = result.slip[1:]
+    assert flagged[spin].all()
+    assert not flagged[~spin].any()
+    without = gyro_odometry(ROBOT, t, measured, gyro, "fused", bias=0.0)
+    assert not without.slip.any()  # the gyro alone sees nothing: no turn
+    assert result.covariances[-1, 0, 0] > without.covariances[-1, 0, 0]  # inflated travel
+    with pytest.raises(ValueError, match=r"commanded must be \(300, 2\)"):
+        gyro_odometry(ROBOT, t, measured, gyro, "fused", bias=0.0, commanded=wheels[:5])
+
+
+def test_the_command_line_reads_command_columns(tmp_path, capsys):
+    from diffdrive.cli import main
+
+    t = np.arange(301) * DT
+    measured = np.tile([6.0, 6.0], (300, 1)) * DT
+    measured[100:120] *= 1.5
+    angles = np.vstack([[0.0, 0.0], np.cumsum(measured, axis=0)])
+    rows = "\n".join(f"{a!r},{b!r},{c!r},0.0,6.0,6.0" for a, (b, c) in
+                     zip(t.tolist(), angles.tolist(), strict=True))  # fmt: skip
+    log = tmp_path / "log.csv"
+    log.write_text("t,left_angle,right_angle,gyro_z,left_command,right_command\n" + rows + "\n")
+    out = tmp_path / "o.csv"
+    assert main(["odometry", str(log), "--wheel-radius", "0.05", "--track-width", "0.3",
+                 "--gyro-bias", "0", "-o", str(out)]) == 0  # fmt: skip
+    assert "slip: 20 of 300 intervals flagged" in capsys.readouterr().out

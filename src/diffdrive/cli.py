@@ -451,7 +451,7 @@ def _gyro_odometry(args, robot: DiffDrive, log: WheelLog, ticks, gyro, note: str
                "k_right": 1e-4 if args.k_right is None else args.k_right}  # fmt: skip
     result = gyro_odometry(robot, log.times, log.increments(ticks, args.counter_bits), gyro,
                            args.heading or "fused", _start(log), bias=args.gyro_bias,
-                           **options)  # fmt: skip
+                           commanded=_commands(args, robot, log), **options)  # fmt: skip
     columns = {"slip": result.slip.astype(float), "slip_score": result.slip_score,
                "gyro_bias": result.bias}  # fmt: skip
     if args.covariance:
@@ -469,6 +469,21 @@ def _gyro_odometry(args, robot: DiffDrive, log: WheelLog, ticks, gyro, note: str
     return 0
 
 
+def _commands(args, robot, log: WheelLog):
+    """The wheel velocities commanded over each interval ``(T, 2)``: a bag's Twist topic
+    (each held until the next) through inverse kinematics, the log's command columns, or
+    None."""
+    if args.command_topic is not None:
+        from diffdrive import ros
+
+        commands = ros.read_twists(args.input, args.command_topic)
+        held = np.searchsorted(commands.times, log.times[:-1], side="right") - 1
+        v, omega = commands.twists[np.maximum(held, 0)].T
+        wheels = batch.to_wheel_velocities(robot, np.column_stack([v, 0.0 * v, omega]))
+        return np.where((held >= 0)[:, None], wheels, 0.0)  # before the first: standing
+    return None if log.commands is None else log.commands[:-1]
+
+
 def _cut(log: WheelLog, keep: np.ndarray) -> WheelLog:
     """The rows ``keep`` (a contiguous run) of a log."""
     from dataclasses import replace
@@ -477,7 +492,8 @@ def _cut(log: WheelLog, keep: np.ndarray) -> WheelLog:
         return None if values is None else values[keep]
 
     return replace(log, times=log.times[keep], wheels=log.wheels[keep], truth=part(log.truth),
-                   lines=part(log.lines), gyro_rates=part(log.gyro_rates))  # fmt: skip
+                   lines=part(log.lines), gyro_rates=part(log.gyro_rates),
+                   commands=part(log.commands))  # fmt: skip
 
 
 # The covariance's distinct entries, by their index in the row-major 3x3 matrix.
@@ -848,6 +864,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="RAD_S",
         help="the gyro's bias (default: its mean while the wheels stand still)",
     )
+    gyro.add_argument("--command-topic", metavar="TOPIC",
+                      help="geometry_msgs/Twist commands of the bag, to flag wheels that spin "
+                      "beyond them (or left_command, right_command columns)")  # fmt: skip
     odo.add_argument(
         "--twist",
         action="store_true",

@@ -23,7 +23,12 @@ Slip. Every interval, the wheels' heading change is compared with the gyro's (le
 the innovation squared over its variance is chi-square with one degree of freedom when neither
 slips. Past ``slip_threshold`` (default 10.83, a false-alarm probability of 0.1 %) the interval
 is flagged: its wheel heading is left out of the fused estimate and its forward-travel variance
-is multiplied by ``slip_inflation``. Flags and scores are kept for every interval.
+is multiplied by ``slip_inflation``. Where the log also has the commanded wheel velocities,
+each interval's measured wheel velocities are compared with them as well: the sum of both
+wheels' squared differences over ``command_sigma^2`` (rad/s, how closely the drives follow
+their commands) is chi-square with two degrees of freedom, flagged past 13.82 (0.1 %): a wheel
+that spins up far beyond its command has lost the ground. Flags and scores are kept for every
+interval.
 
 The gyro's yaw rate is in the body frame: ``Gyro.from_imu`` rotates an IMU's three rates by the
 mounting rotation (IMU frame to body frame), which must be a rotation; ``Gyro.from_yaw`` takes a
@@ -43,7 +48,7 @@ import numpy as np
 from diffdrive._validate import finite, positive
 from diffdrive.model import DiffDrive
 from diffdrive.se2 import sinc
-from diffdrive.types import Pose
+from diffdrive.types import Pose, WheelVelocities
 
 __all__ = [
     "HEADINGS",
@@ -59,6 +64,8 @@ Heading = Literal["wheels", "gyro", "fused"]
 HEADINGS: tuple[Heading, ...] = ("wheels", "gyro", "fused")
 # chi-square, one degree of freedom: P(score > 10.83) = 0.001.
 SLIP_THRESHOLD = 10.83
+# chi-square, two degrees of freedom (both wheels): P(score > 13.82) = 0.001.
+COMMAND_THRESHOLD = 13.82
 
 
 @dataclass(frozen=True)
@@ -177,6 +184,7 @@ class GyroOdometry:
         k_right: float = 1e-4,
         slip_threshold: float = SLIP_THRESHOLD,
         slip_inflation: float = 100.0,
+        command_sigma: float = 1.0,
     ) -> None:
         if not isinstance(robot, DiffDrive):
             raise TypeError(f"robot must be a DiffDrive, got {type(robot).__name__}")
@@ -190,11 +198,13 @@ class GyroOdometry:
         self.k = (float(k_left), float(k_right))
         self.slip_threshold = positive("slip_threshold", slip_threshold)
         self.slip_inflation = positive("slip_inflation", slip_inflation)
+        self.command_sigma = positive("command_sigma", command_sigma)
         pose = Pose() if initial_pose is None else Pose.coerce(initial_pose, "initial_pose")
         self.state = np.array([pose.x, pose.y, pose.theta, finite("bias", bias)])
         self.covariance4 = np.diag([0.0, 0.0, 0.0, self.noise.initial_bias_sigma**2])
         self.slip = False
         self.slip_score = 0.0
+        self.command_score = 0.0
 
     @property
     def pose(self) -> Pose:
@@ -210,18 +220,34 @@ class GyroOdometry:
         """The pose covariance, 3x3 over ``(x, y, theta)``."""
         return self.covariance4[:3, :3].copy()
 
-    def update(self, left: float, right: float, gyro_angle: float, dt: float) -> None:
-        """One interval of ``dt`` s: wheel-angle increments ``left``, ``right`` (rad) and the
-        angle the gyro turned (rad, bias included). A refused update changes nothing."""
+    def update(
+        self,
+        left: float,
+        right: float,
+        gyro_angle: float,
+        dt: float,
+        commanded: object = None,
+    ) -> None:
+        """One interval of ``dt`` s: wheel-angle increments ``left``, ``right`` (rad), the
+        angle the gyro turned (rad, bias included) and, if known, the ``commanded`` wheel
+        velocities ``(left, right)`` (rad/s). A refused update changes nothing."""
         r = self.robot
         dl = finite("left", left) * r.left_wheel_radius
         dr = finite("right", right) * r.right_wheel_radius
         gyro_angle, dt = finite("gyro_angle", gyro_angle), positive("dt", dt)
+        command_score = 0.0
+        if commanded is not None:
+            wanted = WheelVelocities.coerce(commanded, "commanded")
+            measured = (float(left) / dt - wanted.left, float(right) / dt - wanted.right)
+            command_score = (measured[0] ** 2 + measured[1] ** 2) / self.command_sigma**2
         with np.errstate(over="ignore", invalid="ignore"):  # refused below, not warned about
-            state, covariance, slip, score = _step(self, dl, dr, gyro_angle, dt)
+            state, covariance, slip, score = _step(
+                self, dl, dr, gyro_angle, dt, command_score > COMMAND_THRESHOLD
+            )
         if not (np.all(np.isfinite(state)) and np.all(np.isfinite(covariance))):
             raise ValueError("the update would overflow the state; refused, nothing changed")
         self.state, self.covariance4, self.slip, self.slip_score = state, covariance, slip, score
+        self.command_score = float(command_score)
 
 
 def _move(robot: DiffDrive, state: np.ndarray, forward: float, turn: float) -> np.ndarray:
@@ -250,7 +276,7 @@ def _jacobians(robot, state, forward, turn, dt):
     return base, by_state, by_input
 
 
-def _step(o: GyroOdometry, dl: float, dr: float, gyro_angle: float, dt: float):
+def _step(o: GyroOdometry, dl: float, dr: float, gyro_angle: float, dt: float, forced: bool):
     """The next state and covariance, the slip flag and score of one interval."""
     robot, noise, (k_l, k_r) = o.robot, o.noise, o.k
     forward, wheel_turn = 0.5 * (dl + dr), (dr - dl) / robot.track_width
@@ -274,7 +300,7 @@ def _step(o: GyroOdometry, dl: float, dr: float, gyro_angle: float, dt: float):
     innovation = wheel_turn - gyro_turn
     gyro_side = gyro_var + dt**2 * previous[3, 3]
     score = innovation**2 / (wheel_turn_var + gyro_side)
-    slip = bool(score > o.slip_threshold)
+    slip = bool(score > o.slip_threshold) or forced
     state = moved
     if o.heading == "fused" and not slip:
         h = np.array([0.0, 0.0, 1.0, 0.0, -1.0])
@@ -315,18 +341,24 @@ def gyro_odometry(
     initial_pose: object = None,
     *,
     bias: float | None = None,
+    commanded: object = None,
     **options,
 ) -> GyroTrajectory:
     """A whole log: wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s,
     and the ``gyro``, integrated over each interval. ``bias`` (rad/s) defaults to the gyro's
     mean rate while the wheels stand still (refused for ``"gyro"`` when they never do; 0 for
-    ``"fused"``, which estimates it). ``options`` go to ``GyroOdometry``."""
+    ``"fused"``, which estimates it). ``commanded`` ``(N-1, 2)`` rad/s, if given, are the
+    wheel velocities commanded over each interval. ``options`` go to ``GyroOdometry``."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     if increments.shape != (len(times) - 1, 2) or len(times) < 2:
         raise ValueError(f"increments must be (N-1, 2) for {len(times)} times, got "
                          f"{increments.shape}")  # fmt: skip
     turned = np.diff(gyro.angles(times))
+    if commanded is not None:
+        commanded = np.asarray(commanded, dtype=float)
+        if commanded.shape != increments.shape:
+            raise ValueError(f"commanded must be {increments.shape}, got {commanded.shape}")
     if bias is None:
         bias = stationary_bias(times, increments, turned)
         if bias is None:
@@ -344,7 +376,8 @@ def gyro_odometry(
     dts = np.diff(times)
     for k in range(1, n):
         try:
-            odometry.update(increments[k - 1, 0], increments[k - 1, 1], turned[k - 1], dts[k - 1])
+            odometry.update(increments[k - 1, 0], increments[k - 1, 1], turned[k - 1], dts[k - 1],
+                            None if commanded is None else commanded[k - 1])  # fmt: skip
         except ValueError as exc:
             raise ValueError(
                 f"interval {k - 1} ({times[k - 1]!r} to {times[k]!r} s): {exc}"

@@ -2,7 +2,8 @@
 
 One type, ``WheelLog``, for every format the command line reads: a table (``diffdrive.files``)
 with a time column ``t`` and one pair of wheel columns, and optionally ``x, y, theta`` (ground
-truth) and ``gyro_z`` (the body yaw rate of a gyro, rad/s), or an OptiOdom run file
+truth), ``gyro_z`` (the body yaw rate of a gyro, rad/s) and ``left_command, right_command``
+(the commanded wheel velocities, rad/s), or an OptiOdom run file
 (``diffdrive.datasets``). The wheel columns are one of
 
 - ``left_ticks, right_ticks``: absolute counter readings (whole counts, read exactly);
@@ -39,6 +40,7 @@ WHEEL_COLUMNS: dict[WheelKind, tuple[str, str]] = {
     "velocity": ("left_velocity", "right_velocity"),
 }
 _TRUTH = ("x", "y", "theta")
+_COMMANDS = ("left_command", "right_command")
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,7 +51,8 @@ class WheelLog:
     ``source`` names where it came from and ``lines`` the line of each row in it (None when
     unknown), for messages; ``ticks_per_revolution`` is the encoders' resolution when the
     format fixes it; ``gyro_rates`` ``(T+1,)`` the body yaw rate (rad/s) of a ``gyro_z``
-    column, or None.
+    column, and ``commands`` ``(T+1, 2)`` the commanded wheel velocities (rad/s, held until
+    the next row) of ``left_command, right_command`` columns, or None.
     """
 
     times: np.ndarray
@@ -60,6 +63,7 @@ class WheelLog:
     lines: np.ndarray | None = None
     ticks_per_revolution: float | None = None
     gyro_rates: np.ndarray | None = None
+    commands: np.ndarray | None = None
 
     def where(self, row: int) -> str:
         """``source:line`` of row ``row`` (0-based), for messages."""
@@ -142,8 +146,11 @@ def read_log(path: str | Path, time_unit: str | None = None) -> WheelLog:
         )
     columns = WHEEL_COLUMNS[kind]
     integers = columns if kind == "ticks" else ()
-    table = read_table(path, ["t", *columns], (*_TRUTH, "gyro_z"), integers=integers,
-                       time_unit=time_unit)  # fmt: skip
+    table = read_table(path, ["t", *columns], (*_TRUTH, "gyro_z", *_COMMANDS),
+                       integers=integers, time_unit=time_unit)  # fmt: skip
+    commands = None
+    if all(name in table for name in _COMMANDS):
+        commands = np.column_stack([table[name] for name in _COMMANDS])
     if len(table["t"]) < 2:
         raise TableError(f"{path}: a log needs at least 2 rows")
     left, right = table[columns[0]], table[columns[1]]
@@ -153,7 +160,7 @@ def read_log(path: str | Path, time_unit: str | None = None) -> WheelLog:
         left, right = left.astype(np.uint64), right.astype(np.uint64)
     return WheelLog(
         table["t"], kind, np.column_stack([left, right]), _truth(table, path), str(path),
-        table.lines, gyro_rates=table.get("gyro_z"),
+        table.lines, gyro_rates=table.get("gyro_z"), commands=commands,
     )  # fmt: skip
 
 
