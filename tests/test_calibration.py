@@ -61,8 +61,25 @@ def test_a_long_fit_shows_its_progress_when_asked(capsys):
 
 def test_straight_runs_cannot_fix_the_track_width():
     straight = [synthetic_run(TRUE, np.tile([8.0, 8.0 * 0.0497 / 0.0502], (200, 1)))]
-    with pytest.raises(CalibrationError, match="least determined is track_width"):
+    with pytest.raises(CalibrationError, match="turn in place in both directions to identify"):
         calibrate(NOMINAL, straight)
+    fixed = calibrate(NOMINAL, straight, fixed=("track_width",))
+    assert fixed.robot.track_width == NOMINAL.track_width
+    assert fixed.covariance[2, 2] == 0.0
+    assert fixed.robot.left_wheel_radius == pytest.approx(0.0497, abs=1e-7)
+
+
+def test_runs_that_turn_one_way_or_barely_drive_are_refused_with_advice():
+    circle = [synthetic_run(TRUE, np.tile([6.0, 9.0], (300, 1)))]
+    with pytest.raises(CalibrationError, match=r"turn only left \(counter-clockwise\).*other way"):
+        calibrate(NOMINAL, circle)
+    spin = [synthetic_run(TRUE, np.tile([-0.5, 0.5], (20, 1)))]
+    with pytest.raises(CalibrationError, match="too little to identify the wheel radii"):
+        calibrate(NOMINAL, spin)
+    with pytest.raises(ValueError, match="fixed names 'track'"):
+        calibrate(NOMINAL, circle, fixed=("track",))
+    one_way = calibrate(NOMINAL, circle, fixed=("track_width",))
+    assert one_way.robot.track_width == NOMINAL.track_width
 
 
 def test_bad_runs_are_refused():

@@ -348,7 +348,7 @@ def test_calibrate_refuses_runs_that_cannot_fix_the_track(tmp_path, capsys):
     log.write_text("t,left_angle,right_angle,x,y,theta\n" + rows + "\n")
     code, _, err = run(["calibrate", log, "-o", tmp_path / "robot.toml"], capsys)
     assert code == 1
-    assert "least determined is track_width" in err
+    assert "too little to identify the track_width" in err
     assert not (tmp_path / "robot.toml").exists()
 
 

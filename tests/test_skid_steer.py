@@ -118,7 +118,7 @@ def test_calibration_says_when_straight_runs_cannot_find_the_icr_spread():
     straight = [(np.tile([0.3, 0.3], (200, 1)), odometry_of(ASYMMETRIC, np.tile([0.3, 0.3],
                                                                                (200, 1)),
                                                               np.zeros(3)))]  # fmt: skip
-    with pytest.raises(CalibrationError, match="least determined is track_width"):
+    with pytest.raises(CalibrationError, match="too little to identify the track_width"):
         calibrate(dd.SkidSteer(0.11, 0.3, -0.25), straight)
 
 

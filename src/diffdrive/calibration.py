@@ -141,6 +141,7 @@ def calibrate(
     heading_weight: float = 1.0,
     names: list[str] | None = None,
     progress: bool = False,
+    fixed: tuple[str, ...] = (),
 ) -> CalibrationResult:
     """Calibrate ``nominal_robot``'s wheel radii and track width on ``runs``; see the module.
 
@@ -148,23 +149,32 @@ def calibrate(
     reproduction names rk2, the authors' method); ``square_side`` (m) is UMBmark's square;
     ``loss`` and ``loss_scale`` (m) are scipy's robust loss for least squares. ``names``
     name the runs in messages (default ``run 0``, ``run 1``, ...); ``progress`` shows a
-    progress bar of the fit's evaluations on standard error.
+    progress bar of the fit's evaluations on standard error. ``fixed`` names parameters held
+    at their nominal values (``"track_width"``, say, when the runs cannot identify it).
+
+    Before fitting, the runs must excite every free parameter: they must drive (the wheel
+    radii), turn (the track width) and turn both ways (a difference between the wheels apart
+    from the track width); ``CalibrationError`` names what is missing and which runs would
+    supply it. Past that, the fit's condition number decides.
     """
     check_method(integration)
     names = [f"run {k}" for k in range(len(runs))] if names is None else list(names)
     checked = _check_runs(runs, names)
+    free = _free(fixed)
+    if method != "umbmark":
+        _check_excitation(checked, free)
     if method == "umbmark":
         if square_side is None or not square_side > 0:
             raise CalibrationError(f"umbmark needs square_side > 0 (m), got {square_side!r}")
         return _umbmark(nominal_robot, checked, names, float(square_side), integration)
     if method == "increments":
-        parameters, covariance, condition = _fit_increments(nominal_robot, checked)
+        parameters, covariance, condition = _fit_increments(nominal_robot, checked, free)
         robot = _robot_with(nominal_robot, parameters)
         residuals = _position_errors(robot, checked, integration)
         return CalibrationResult(robot, method, covariance, residuals, condition)
     if method in ("least_squares", "minimax"):
         parameters, covariance, condition = _fit_least_squares(
-            nominal_robot, checked, integration, loss, loss_scale, heading_weight, progress
+            nominal_robot, checked, integration, loss, loss_scale, heading_weight, free, progress
         )
         if method == "minimax":
             parameters = _minimax(nominal_robot, checked, integration, parameters)
@@ -250,11 +260,17 @@ def _umbmark(nominal: DiffDrive, runs, names, side: float, integration: Method):
     return CalibrationResult(robot, "umbmark", covariance, residuals)
 
 
-def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str, scale: float,
-                       heading_weight: float, progress: bool = False):  # fmt: skip
+def _fit_least_squares(
+    nominal: DiffDrive,
+    runs,
+    integration: Method,
+    loss: str,
+    scale: float,
+    heading_weight: float,
+    free: np.ndarray,
+    progress: bool = False,
+):
     """scipy's robust least squares over every ground-truth pose of every run."""
-    from scipy.optimize import least_squares
-
     start = _parameters(nominal)
     bar = _progress_bar(progress, f"fitting {len(runs)} runs")
 
@@ -269,24 +285,42 @@ def _fit_least_squares(nominal: DiffDrive, runs, integration: Method, loss: str,
             pieces.append(error.ravel())
         return np.concatenate(pieces)
 
-    # The parameters relative to the nominal ones, so that all three are of order 1.
     try:
-        fit = least_squares(residuals, np.ones(3), loss=loss, f_scale=scale, x_scale=1e-3,
-                            bounds=_bounds(nominal), method="trf")  # fmt: skip
+        return _solve(nominal, residuals, free, loss=loss, f_scale=scale)
     finally:
         if bar is not None:
             bar.close()
-    condition = _check_condition(fit.jac)
-    dof = max(1, fit.fun.size - 3)
-    variance = float(np.sum(fit.fun**2) / dof)
-    covariance = variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start, start)
-    return start * fit.x, covariance, condition
 
 
-def _fit_increments(nominal: DiffDrive, runs):
-    """Least squares of every step's distance and turn (see the module)."""
+def _solve(nominal, residuals, free: np.ndarray, **options):
+    """Least squares over the ``free`` parameters, relative to the nominal ones (so that all
+    are of order 1): ``(parameters, covariance (zero for fixed ones), condition)``."""
     from scipy.optimize import least_squares
 
+    start = _parameters(nominal)
+    lower, upper = (np.asarray(b)[free] for b in _bounds(nominal))
+
+    def reduced(x: np.ndarray) -> np.ndarray:
+        relative = np.ones(3)
+        relative[free] = x
+        return residuals(relative)
+
+    fit = least_squares(reduced, np.ones(int(free.sum())), x_scale=1e-3, bounds=(lower, upper),
+                        method="trf", **options)  # fmt: skip
+    condition = _check_condition(fit.jac, free)
+    dof = max(1, fit.fun.size - int(free.sum()))
+    variance = float(np.sum(fit.fun**2) / dof)
+    covariance = np.zeros((3, 3))
+    covariance[np.ix_(free, free)] = (
+        variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start[free], start[free])
+    )
+    relative = np.ones(3)
+    relative[free] = fit.x
+    return start * relative, covariance, condition
+
+
+def _fit_increments(nominal: DiffDrive, runs, free: np.ndarray):
+    """Least squares of every step's distance and turn (see the module)."""
     wheels = np.concatenate([increments for increments, _ in runs])
     motion = np.concatenate([batch.log(batch.relative_to(t[1:], t[:-1])) for _, t in runs])
     start = _parameters(nominal)
@@ -297,13 +331,7 @@ def _fit_increments(nominal: DiffDrive, runs):
         return np.concatenate([motion[:, 0] - steps[:, 0],
                                weight * (motion[:, 2] - steps[:, 2])])  # fmt: skip
 
-    fit = least_squares(residuals, np.ones(3), x_scale=1e-3, bounds=_bounds(nominal),
-                        method="trf")  # fmt: skip
-    condition = _check_condition(fit.jac)
-    dof = max(1, fit.fun.size - 3)
-    variance = float(np.sum(fit.fun**2) / dof)
-    covariance = variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start, start)
-    return start * fit.x, covariance, condition
+    return _solve(nominal, residuals, free)
 
 
 def _progress_bar(shown: bool, label: str):
@@ -317,19 +345,70 @@ def _progress_bar(shown: bool, label: str):
     return tqdm(desc=label, unit=" evaluations", file=sys.stderr)
 
 
-def _check_condition(jacobian: np.ndarray) -> float:
+def _check_condition(jacobian: np.ndarray, free: np.ndarray) -> float:
     """The scaled Jacobian's condition number; ``CalibrationError`` past the limit."""
     singular = np.linalg.svd(jacobian, compute_uv=False)
     condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else math.inf
     if condition > _CONDITION_LIMIT:
         _, _, vt = np.linalg.svd(jacobian)
-        weakest = PARAMETERS[int(np.argmax(np.abs(vt[-1])))]
+        names = [name for name, is_free in zip(PARAMETERS, free, strict=True) if is_free]
+        weakest = names[int(np.argmax(np.abs(vt[-1])))]
         raise CalibrationError(
             f"the runs cannot identify the parameters: the fit's condition number is "
             f"{condition:.3g} (limit {_CONDITION_LIMIT:g}); the least determined is {weakest}. "
-            "Straight runs alone cannot fix the track width: add runs that turn."
+            f"{_ADVICE[weakest]}, or fix it at its nominal value (fixed=('{weakest}',); --fix "
+            f"{weakest})."
         )
     return condition
+
+
+# What kind of run identifies each parameter.
+_ADVICE = {
+    "left_wheel_radius": "Add runs that drive, and turn both ways",
+    "right_wheel_radius": "Add runs that drive, and turn both ways",
+    "track_width": "Turn in place in both directions to identify the track width",
+}
+# Below these the runs do not excite a parameter: the distance driven (m), the turning (rad),
+# and the smaller direction's share of the turning.
+_LEAST_DISTANCE, _LEAST_TURN, _LEAST_OTHER_WAY = 0.5, 0.5, 0.1
+
+
+def _free(fixed) -> np.ndarray:
+    """The mask of the parameters not ``fixed``."""
+    fixed = (fixed,) if isinstance(fixed, str) else tuple(fixed)
+    unknown = [name for name in fixed if name not in PARAMETERS]
+    if unknown:
+        raise ValueError(f"fixed names {unknown[0]!r}; the parameters are {', '.join(PARAMETERS)}")
+    free = np.array([name not in fixed for name in PARAMETERS])
+    if not free.any():
+        raise ValueError("every parameter is fixed: nothing to calibrate")
+    return free
+
+
+def _check_excitation(runs, free: np.ndarray) -> None:
+    """Refuse runs that do not drive, turn, or turn both ways, as the free parameters need."""
+    distance = sum(float(np.sum(np.hypot(*np.diff(t[:, :2], axis=0).T))) for _, t in runs)
+    turns = np.concatenate([np.diff(t[:, 2]) for _, t in runs])
+    left, right = float(np.sum(np.clip(turns, 0, None))), float(np.sum(np.clip(-turns, 0, None)))
+    radii = bool(free[0] or free[1])
+    if radii and distance < _LEAST_DISTANCE:
+        raise CalibrationError(
+            f"the runs drive {distance:.3g} m in all: too little to identify the wheel radii; "
+            f"add runs that drive {_LEAST_DISTANCE:g} m or more"
+        )
+    if free[2] and left + right < _LEAST_TURN:
+        raise CalibrationError(
+            f"the runs turn {left + right:.3g} rad in all: too little to identify the "
+            "track_width; turn in place in both directions to identify the track width (or "
+            "fix it: fixed=('track_width',); --fix track_width)"
+        )
+    if free[2] and radii and min(left, right) < _LEAST_OTHER_WAY * max(left, right):
+        way = "left (counter-clockwise)" if left > right else "right (clockwise)"
+        raise CalibrationError(
+            f"the runs turn only {way}: a difference between the wheels cannot be told from "
+            "the track_width; add runs that turn the other way too, or fix one "
+            "(fixed=('track_width',); --fix track_width)"
+        )
 
 
 def _bounds(nominal) -> tuple[list[float], list[float]]:

@@ -16,7 +16,7 @@ import numpy as np
 
 from diffdrive import batch, se2, sources
 from diffdrive.calibration import METHODS as CALIBRATION_METHODS
-from diffdrive.calibration import calibrate, odometry_of
+from diffdrive.calibration import PARAMETERS, calibrate, odometry_of
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
 from diffdrive.evaluation import RPE_PAIRS, associate, ate, interpolate, rpe, run_errors, worst
 from diffdrive.examples import (
@@ -599,8 +599,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
     else:
         runs, what = _example_runs(), "the built-in example runs"
     names = [str(path) for path in args.runs] or ["example", "mirrored example"]
+    fixed = tuple(args.fix or ())
     result = calibrate(nominal, runs, args.method, integration=args.integration,
-                       square_side=args.square_side, names=names,
+                       square_side=args.square_side, names=names, fixed=fixed,
                        progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
     robot = result.robot
     settings = {"left_wheel_radius": robot.left_wheel_radius,
@@ -614,8 +615,33 @@ def run_calibrate(args: argparse.Namespace) -> int:
     write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")
     if not args.quiet:
         print(calibration_report(nominal, result, runs, args.integration))
+        if args.cv != "none" and args.method != "umbmark":
+            print(held_out_report(nominal, runs, names, args, fixed))
         print(f"calibrate: wrote the robot to {args.output}")
     return 0
+
+
+def held_out_report(nominal, runs, names, args, fixed) -> str:
+    """The in-sample and held-out errors side by side, and the parameters' spread."""
+    from diffdrive.validation import cross_validate
+
+    if len(runs) < 2:
+        return "held-out errors: none (one run: nothing to hold out; --cv none hides this)"
+    scheme = "loo" if args.cv == "loo" else int(args.cv)
+    cv = cross_validate(nominal, runs, args.method, scheme, integration=args.integration,
+                        names=names, fixed=fixed)  # fmt: skip
+    label = "leave one run out" if scheme == "loo" else f"{scheme} folds"
+    lines = [f"{'errors over the runs':28} {'in-sample':>10} {'held-out':>10}   ({label})"]
+    for name, unit in (("max_position", "m"), ("final_position", "m"),
+                       ("max_heading", "deg"), ("final_heading", "deg")):  # fmt: skip
+        held = "n/a" if cv.held_out is None else f"{getattr(cv.held_out, name):10.4f}"
+        lines.append(f"{name + ', ' + unit:28} {getattr(cv.in_sample, name):10.4f} {held:>10}")
+    if len(cv.fitted) > 1:
+        spread = ", ".join(f"{p} +-{s:.2g}" for p, s in zip(PARAMETERS, cv.spread, strict=True))
+        lines.append(f"parameters across the folds: {spread}")
+    lines.extend(f"fold holding out {', '.join(names[k] for k in fold.held_out)} refused: "
+                 f"{fold.refusal}" for fold in cv.refused)  # fmt: skip
+    return "\n".join(lines)
 
 
 def calibration_report(nominal: DiffDrive, result, runs, integration: str) -> str:
@@ -904,6 +930,16 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--integration", choices=METHODS, default="exact",
                      help="the odometry's method (default exact)")  # fmt: skip
     cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
+    cal.add_argument("--cv", default="loo", metavar="loo|K|none",
+                     help="held-out errors by cross-validation over the runs: leave one run "
+                     "out (default), K folds, or none")  # fmt: skip
+    cal.add_argument(
+        "--fix",
+        nargs="+",
+        choices=PARAMETERS,
+        metavar="PARAMETER",
+        help="hold these at their nominal values (e.g. track_width)",
+    )
     cal.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     ev = command("evaluate", "a trajectory against ground truth", [times], run_evaluate)
     ev.add_argument("input", nargs="?", type=Path, help="trajectory; none: built-in")

@@ -1,0 +1,123 @@
+"""Calibration while the robot drives: recursive least squares on the kinematics' linear form.
+
+Over an interval in which the wheels turn ``dphi_l``, ``dphi_r`` (rad) and a reference (motion
+capture, scan matching, visual odometry) measures the robot's motion, a distance ``s`` and a
+turn ``dtheta`` (the SE(2) logarithm of the relative pose), the kinematics are linear in two
+pairs of unknowns (Antonelli, Chiaverini and Fusco, IEEE T-RO 21(5), 2005; Censi, Franchi,
+Marchionni and Oriolo, IEEE T-RO 29(2), 2013):
+
+    s      = r_l dphi_l / 2 + r_r dphi_r / 2            in (r_l, r_r)
+    dtheta = c_r dphi_r - c_l dphi_l,  c = r / track     in (c_l, c_r)
+
+``OnlineCalibrator`` keeps a recursive least-squares estimate of each pair, starting from the
+nominal robot with a relative prior ``prior_sigma``, with measurement noise ``sigma_distance``
+(m) and ``sigma_turn`` (rad) per interval. Each measurement is gated first: its innovation
+squared over its predicted variance is chi-square with one degree of freedom, and past ``gate``
+(10.83: 0.1 % of good measurements) it is left out and counted (a jump of the reference, a
+slip). The track width is ``(r_l + r_r) / (c_l + c_r)``; the parameters' covariance comes from
+the two estimates' through that map. With the same data and prior, the estimate equals the
+batch weighted least squares of all the intervals at once (``batch_solution``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive._validate import finite, positive
+from diffdrive.model import DiffDrive
+
+__all__ = ["OnlineCalibrator"]
+
+GATE = 10.83  # chi-square, one degree of freedom: P(score > 10.83) = 0.001
+
+
+class OnlineCalibrator:
+    """Recursive least-squares calibration of a ``DiffDrive`` (see the module)."""
+
+    def __init__(
+        self,
+        nominal: DiffDrive,
+        *,
+        sigma_distance: float = 1e-3,
+        sigma_turn: float = 1e-2,
+        prior_sigma: float = 0.1,
+        gate: float = GATE,
+    ) -> None:
+        if not isinstance(nominal, DiffDrive):
+            raise TypeError(f"nominal must be a DiffDrive, got {type(nominal).__name__}")
+        self.nominal = nominal
+        self.noise = (positive("sigma_distance", sigma_distance) ** 2,
+                      positive("sigma_turn", sigma_turn) ** 2)  # fmt: skip
+        self.gate = positive("gate", gate)
+        prior = positive("prior_sigma", prior_sigma)
+        radii = np.array([nominal.left_wheel_radius, nominal.right_wheel_radius])
+        self.estimates = [radii.copy(), radii / nominal.track_width]
+        self.covariances = [np.diag((prior * e) ** 2) for e in self.estimates]
+        self.accepted = 0
+        self.rejected = 0
+
+    def update(self, left: float, right: float, relative_pose: object) -> bool:
+        """One interval: wheel-angle increments (rad) and the reference's relative pose
+        ``(dx, dy, dtheta)`` in the frame at the interval's start. Returns whether it was
+        accepted; a refused (non-finite) input changes nothing."""
+        left, right = finite("left", left), finite("right", right)
+        pose = np.asarray(relative_pose, dtype=float)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f"relative_pose must be 3 finite numbers, got {relative_pose!r}")
+        motion = batch.log(pose)
+        rows = (np.array([0.5 * left, 0.5 * right]), np.array([-left, right]))
+        values = (motion[0], motion[2])
+        pairs = zip(rows, values, self.estimates, self.covariances, self.noise, strict=True)
+        scores = [(v - h @ e) ** 2 / (h @ p @ h + n) for h, v, e, p, n in pairs]
+        if max(scores) > self.gate:
+            self.rejected += 1
+            return False
+        for k, (h, v, n) in enumerate(zip(rows, values, self.noise, strict=True)):
+            p = self.covariances[k]
+            gain = p @ h / (h @ p @ h + n)
+            self.estimates[k] = self.estimates[k] + gain * (v - h @ self.estimates[k])
+            self.covariances[k] = p - np.outer(gain, h @ p)
+        self.accepted += 1
+        return True
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """``[left_wheel_radius, right_wheel_radius, track_width]``, m."""
+        (r_l, r_r), (c_l, c_r) = self.estimates
+        return np.array([r_l, r_r, (r_l + r_r) / (c_l + c_r)])
+
+    @property
+    def robot(self) -> DiffDrive:
+        left, right, track = self.parameters
+        return DiffDrive(left_wheel_radius=left, right_wheel_radius=right, track_width=track,
+                         axle_offset=self.nominal.axle_offset)  # fmt: skip
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """3x3 over ``[left_wheel_radius, right_wheel_radius, track_width]``, m^2."""
+        (r_l, r_r), (c_l, c_r) = self.estimates
+        radius_sum, rate_sum = r_l + r_r, c_l + c_r
+        jacobian = np.array([[1, 0, 0, 0], [0, 1, 0, 0],
+                             [1 / rate_sum, 1 / rate_sum, -radius_sum / rate_sum**2,
+                              -radius_sum / rate_sum**2]])  # fmt: skip
+        joint = np.zeros((4, 4))
+        joint[:2, :2], joint[2:, 2:] = self.covariances
+        return jacobian @ joint @ jacobian.T
+
+    def batch_solution(self, increments: object, relative_poses: object) -> np.ndarray:
+        """The same prior and noise, all intervals at once (weighted least squares):
+        ``[left_wheel_radius, right_wheel_radius, track_width]``. No gating."""
+        increments = np.asarray(increments, dtype=float)
+        motion = batch.log(np.asarray(relative_poses, dtype=float))
+        fresh = OnlineCalibrator(self.nominal)  # the prior, as this one started
+        designs = (0.5 * increments, increments * np.array([-1.0, 1.0]))
+        solved = []
+        for k, (design, values) in enumerate(zip(designs, (motion[:, 0], motion[:, 2]),
+                                                 strict=True)):  # fmt: skip
+            information = np.linalg.inv(fresh.covariances[k])
+            normal = information + design.T @ design / self.noise[k]
+            right = information @ fresh.estimates[k] + design.T @ values / self.noise[k]
+            solved.append(np.linalg.solve(normal, right))
+        (r_l, r_r), (c_l, c_r) = solved
+        return np.array([r_l, r_r, (r_l + r_r) / (c_l + c_r)])
