@@ -11,7 +11,13 @@ runs (m), with rk2 odometry from each run's first ground-truth pose:
 - ours with a stricter protocol the paper does not use: calibrate on the runs of the other
   nine experiments only, evaluate on this one, which the calibration never saw.
 
-Prints a Markdown table and draws one run: ground truth, nominal and calibrated odometry.
+Then a second table, scored on runs the calibration never saw: each experiment's runs left out
+one at a time, each scored by the calibration on the others (``cross_validate``), for least
+squares alone and with the extra parameters ``axle_offset`` and ``heading_offset``, and for
+minimax with them. A fold whose remaining runs cannot identify the parameters is refused
+("refused"), never scored with a guessed robot.
+
+Prints both Markdown tables and draws one run: ground truth, nominal and calibrated odometry.
 
     pip install -e '.[examples]'
     python examples/optiodom_calibration.py [--data ../shared/data/optiodom-diffdrive]
@@ -29,6 +35,7 @@ import numpy as np
 from diffdrive.calibration import calibrate, odometry_of
 from diffdrive.datasets import optiodom_robot, read_optiodom_run
 from diffdrive.evaluation import run_errors, worst
+from diffdrive.validation import cross_validate
 
 ROOT = Path(__file__).resolve().parents[1]
 AUTHORS = {
@@ -78,6 +85,45 @@ def results(experiments: dict[str, list]) -> dict[str, dict[str, float]]:
             row[f"{method}, unseen"] = largest_error(unseen, runs)
         table[experiment] = row
     return table
+
+
+OFFSETS = ("axle_offset", "heading_offset")
+HELD_OUT = {  # column: (method, extra parameters)
+    "least_squares": ("least_squares", ()),
+    "with offsets": ("least_squares", OFFSETS),
+    "minimax with offsets": ("minimax", OFFSETS),
+}
+
+
+def held_out(experiments: dict[str, list]) -> dict[str, dict[str, object]]:
+    """Per experiment of 2 runs or more: its run count, and the in-sample and
+    leave-one-run-out worst-run max position errors (m) of each column, or "refused"."""
+    table = {}
+    for experiment, runs in experiments.items():
+        if len(runs) < 2:
+            continue
+        row: dict[str, object] = {"runs": len(runs)}
+        for column, (method, extra) in HELD_OUT.items():
+            cv = cross_validate(optiodom_robot(), runs, method, "loo", integration="rk2",
+                                extra=extra)  # fmt: skip
+            row[f"{column}, in-sample"] = cv.in_sample.max_position
+            row[f"{column}, held out"] = (
+                "refused" if cv.held_out is None or cv.refused else cv.held_out.max_position
+            )
+        table[experiment] = row
+    return table
+
+
+def held_out_markdown(rows: dict[str, dict[str, object]], authors) -> str:
+    """The held-out table, mm; the authors' in-sample OptiOdom figure first."""
+    columns = [c for c in rows[next(iter(rows))] if c != "runs"]
+    lines = ["| experiment | runs | OptiOdom (theirs, in-sample) | " + " | ".join(columns) + " |",
+             "|---" * (len(columns) + 3) + "|"]  # fmt: skip
+    for experiment, row in rows.items():
+        cells = [f"{1000 * authors[experiment]['OptiOdom']:.1f}"]
+        cells += [row[c] if isinstance(row[c], str) else f"{1000 * row[c]:.1f}" for c in columns]
+        lines.append(f"| {experiment} | {row['runs']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def markdown(ours: dict[str, dict[str, float]], authors: dict[str, dict[str, float]]) -> str:
@@ -140,6 +186,8 @@ def main(argv: list[str] | None = None) -> None:
     experiments, authors = load(args.data)
     print("largest position error over each experiment's runs, mm\n")
     print(markdown(results(experiments), authors))
+    print("\nthe same, on runs held out one at a time (leave one run out), mm\n")
+    print(held_out_markdown(held_out(experiments), authors))
     args.output.parent.mkdir(parents=True, exist_ok=True)
     draw(experiments[DRAWN], args.output)
     print(f"\nfigure: {args.output}")

@@ -69,6 +69,10 @@ def test_optiodom_calibration_table_and_figure_on_two_experiments(tmp_path):
     for name, row in ours.items():
         assert row["minimax"] <= authors[name]["OptiOdom"]
         assert row["least_squares"] < row["nominal"]
+    held = script.held_out(two)
+    assert held["ivanjko/231220200104"]["least_squares, held out"] == "refused"
+    assert held["circular/250620202345"]["with offsets, held out"] == "refused"
+    assert "| ivanjko/231220200104 | 3 | 11.5 |" in script.held_out_markdown(held, authors)
     script.draw(experiments[script.DRAWN], tmp_path / "figure.png")
     import matplotlib.image
 

@@ -53,6 +53,10 @@ __all__ = ["CalibrationError", "CalibrationResult", "calibrate", "odometry_of"]
 CalibrationMethod = Literal["umbmark", "least_squares", "minimax", "increments"]
 METHODS: tuple[CalibrationMethod, ...] = ("umbmark", "least_squares", "minimax", "increments")
 PARAMETERS = ("left_wheel_radius", "right_wheel_radius", "track_width")
+# Optional extra parameters of least squares and minimax: where the reference point lies ahead
+# of the axle (m), and a constant heading between the reference's body and the robot (rad).
+EXTRAS = ("axle_offset", "heading_offset")
+_EXTRA_BOUNDS = {"axle_offset": (-0.5, 0.5), "heading_offset": (-0.5, 0.5)}
 # Past this condition number of the scaled Jacobian, a parameter is not identified.
 _CONDITION_LIMIT = 1e6
 
@@ -68,7 +72,9 @@ class CalibrationResult:
     ``covariance`` is 3x3 over ``PARAMETERS`` (m^2), or None when the runs give none (then
     ``uncertainty_note`` says why); ``residuals`` are the fit's position errors at the
     solution, m, one array per run (for UMBmark, the final errors of each run);
-    ``condition`` is the condition number of the scaled Jacobian (least squares), or None.
+    ``condition`` is the condition number of the scaled Jacobian (least squares), or None;
+    ``heading_offset`` (rad) the fitted constant between the reference's heading and the
+    robot's (0 unless fitted); a fitted axle offset is the robot's own.
     """
 
     robot: DiffDrive
@@ -77,6 +83,7 @@ class CalibrationResult:
     residuals: list[np.ndarray] = field(repr=False)
     condition: float | None = None
     uncertainty_note: str = ""
+    heading_offset: float = 0.0
 
     @property
     def standard_errors(self) -> np.ndarray | None:
@@ -84,9 +91,9 @@ class CalibrationResult:
         return None if self.covariance is None else np.sqrt(np.diag(self.covariance))
 
 
-def _robot_with(nominal: DiffDrive | SkidSteer, parameters: np.ndarray) -> DiffDrive | SkidSteer:
+def _robot_with(nominal, parameters: np.ndarray, axle_offset: float | None = None):
     """``nominal`` with new wheel radii and track (a skid-steer robot's ICR spread, about the
-    same midpoint and with the same ``icr_x``)."""
+    same midpoint and with the same ``icr_x``), and ``axle_offset`` if given."""
     left, right, track = (float(p) for p in parameters)
     if isinstance(nominal, SkidSteer):
         middle = nominal.reference_offset
@@ -97,7 +104,7 @@ def _robot_with(nominal: DiffDrive | SkidSteer, parameters: np.ndarray) -> DiffD
         left_wheel_radius=left,
         right_wheel_radius=right,
         track_width=track,
-        axle_offset=nominal.axle_offset,
+        axle_offset=nominal.axle_offset if axle_offset is None else axle_offset,
     )
 
 
@@ -142,6 +149,7 @@ def calibrate(
     names: list[str] | None = None,
     progress: bool = False,
     fixed: tuple[str, ...] = (),
+    extra: tuple[str, ...] = (),
 ) -> CalibrationResult:
     """Calibrate ``nominal_robot``'s wheel radii and track width on ``runs``; see the module.
 
@@ -151,6 +159,10 @@ def calibrate(
     name the runs in messages (default ``run 0``, ``run 1``, ...); ``progress`` shows a
     progress bar of the fit's evaluations on standard error. ``fixed`` names parameters held
     at their nominal values (``"track_width"``, say, when the runs cannot identify it).
+    ``extra`` adds parameters to least squares and minimax: ``"axle_offset"`` (the tracked
+    point is not on the axle) and ``"heading_offset"`` (a constant heading between the
+    reference's body and the robot). On the OptiOdom runs held out one at a time, both lower
+    the errors (see the README).
 
     Before fitting, the runs must excite every free parameter: they must drive (the wheel
     radii), turn (the track width) and turn both ways (a difference between the wheels apart
@@ -161,8 +173,9 @@ def calibrate(
     names = [f"run {k}" for k in range(len(runs))] if names is None else list(names)
     checked = _check_runs(runs, names)
     free = _free(fixed)
+    extra = _check_extra(extra, method, nominal_robot)
     if method != "umbmark":
-        _check_excitation(checked, free)
+        _check_excitation(nominal_robot, checked, free)
     if method == "umbmark":
         if square_side is None or not square_side > 0:
             raise CalibrationError(f"umbmark needs square_side > 0 (m), got {square_side!r}")
@@ -173,14 +186,18 @@ def calibrate(
         residuals = _position_errors(robot, checked, integration)
         return CalibrationResult(robot, method, covariance, residuals, condition)
     if method in ("least_squares", "minimax"):
-        parameters, covariance, condition = _fit_least_squares(
-            nominal_robot, checked, integration, loss, loss_scale, heading_weight, free, progress
-        )
+        parameters, covariance, condition, found = _fit_least_squares(
+            nominal_robot, checked, integration, loss, loss_scale, heading_weight, free, progress,
+            extra,
+        )  # fmt: skip
+        offset = found.get("heading_offset", 0.0)
+        axle = found.get("axle_offset")
         if method == "minimax":
-            parameters = _minimax(nominal_robot, checked, integration, parameters)
-        robot = _robot_with(nominal_robot, parameters)
-        residuals = _position_errors(robot, checked, integration)
-        return CalibrationResult(robot, method, covariance, residuals, condition)
+            parameters = _minimax(nominal_robot, checked, integration, parameters, axle, offset)
+        robot = _robot_with(nominal_robot, parameters, axle)
+        residuals = _position_errors(robot, checked, integration, offset)
+        return CalibrationResult(robot, method, covariance, residuals, condition,
+                                 heading_offset=offset)  # fmt: skip
     raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
 
 
@@ -269,54 +286,64 @@ def _fit_least_squares(
     heading_weight: float,
     free: np.ndarray,
     progress: bool = False,
+    extra: tuple[str, ...] = (),
 ):
-    """scipy's robust least squares over every ground-truth pose of every run."""
+    """scipy's robust least squares over every ground-truth pose of every run:
+    ``(parameters, covariance, condition, {extra parameter: value})``."""
     start = _parameters(nominal)
     bar = _progress_bar(progress, f"fitting {len(runs)} runs")
 
-    def residuals(relative: np.ndarray) -> np.ndarray:
+    def residuals(relative: np.ndarray, extras: np.ndarray) -> np.ndarray:
         if bar is not None:
             bar.update()
-        robot = _robot_with(nominal, start * relative)
+        found = dict(zip(extra, extras.tolist(), strict=True))
+        robot = _robot_with(nominal, start * relative, found.get("axle_offset"))
+        offset = found.get("heading_offset", 0.0)
         pieces = []
         for increments, truth in runs:
-            error = odometry_of(robot, increments, truth[0], integration)[1:] - truth[1:]
-            error[:, 2] = heading_weight * batch.wrap_angle(error[:, 2])
+            begin = truth[0] + np.array([0.0, 0.0, offset])
+            error = odometry_of(robot, increments, begin, integration)[1:] - truth[1:]
+            error[:, 2] = heading_weight * batch.wrap_angle(error[:, 2] - offset)
             pieces.append(error.ravel())
         return np.concatenate(pieces)
 
+    initial = [nominal.axle_offset if name == "axle_offset" else 0.0 for name in extra]
     try:
-        return _solve(nominal, residuals, free, loss=loss, f_scale=scale)
+        return _solve(nominal, residuals, free, extra, initial, loss=loss, f_scale=scale)
     finally:
         if bar is not None:
             bar.close()
 
 
-def _solve(nominal, residuals, free: np.ndarray, **options):
+def _solve(nominal, residuals, free: np.ndarray, extra=(), initial=(), **options):
     """Least squares over the ``free`` parameters, relative to the nominal ones (so that all
-    are of order 1): ``(parameters, covariance (zero for fixed ones), condition)``."""
+    are of order 1), and the ``extra`` ones from ``initial``: ``(parameters, covariance (zero
+    for fixed ones), condition, {extra: value})``."""
     from scipy.optimize import least_squares
 
     start = _parameters(nominal)
-    lower, upper = (np.asarray(b)[free] for b in _bounds(nominal))
+    count = int(free.sum())
+    lower, upper = (list(np.asarray(b)[free]) for b in _bounds(nominal))
+    lower += [_EXTRA_BOUNDS[name][0] for name in extra]
+    upper += [_EXTRA_BOUNDS[name][1] for name in extra]
 
     def reduced(x: np.ndarray) -> np.ndarray:
         relative = np.ones(3)
-        relative[free] = x
-        return residuals(relative)
+        relative[free] = x[:count]
+        return residuals(relative, x[count:])
 
-    fit = least_squares(reduced, np.ones(int(free.sum())), x_scale=1e-3, bounds=(lower, upper),
-                        method="trf", **options)  # fmt: skip
-    condition = _check_condition(fit.jac, free)
-    dof = max(1, fit.fun.size - int(free.sum()))
+    fit = least_squares(reduced, np.array([1.0] * count + list(initial)), x_scale=1e-3,
+                        bounds=(lower, upper), method="trf", **options)  # fmt: skip
+    condition = _check_condition(fit.jac, free, extra)
+    dof = max(1, fit.fun.size - len(fit.x))
     variance = float(np.sum(fit.fun**2) / dof)
+    full = variance * np.linalg.inv(fit.jac.T @ fit.jac)
     covariance = np.zeros((3, 3))
-    covariance[np.ix_(free, free)] = (
-        variance * np.linalg.inv(fit.jac.T @ fit.jac) * np.outer(start[free], start[free])
-    )
+    covariance[np.ix_(free, free)] = full[:count, :count] * np.outer(start[free], start[free])
     relative = np.ones(3)
-    relative[free] = fit.x
-    return start * relative, covariance, condition
+    relative[free] = fit.x[:count]
+    return start * relative, covariance, condition, dict(zip(extra, fit.x[count:].tolist(),
+                                                             strict=True))  # fmt: skip
 
 
 def _fit_increments(nominal: DiffDrive, runs, free: np.ndarray):
@@ -326,12 +353,12 @@ def _fit_increments(nominal: DiffDrive, runs, free: np.ndarray):
     start = _parameters(nominal)
     weight = 0.5 * nominal.track_width
 
-    def residuals(relative: np.ndarray) -> np.ndarray:
+    def residuals(relative: np.ndarray, _extras: np.ndarray) -> np.ndarray:
         steps = batch.to_twist(_robot_with(nominal, start * relative), wheels)
         return np.concatenate([motion[:, 0] - steps[:, 0],
                                weight * (motion[:, 2] - steps[:, 2])])  # fmt: skip
 
-    return _solve(nominal, residuals, free)
+    return _solve(nominal, residuals, free)[:3]
 
 
 def _progress_bar(shown: bool, label: str):
@@ -345,13 +372,14 @@ def _progress_bar(shown: bool, label: str):
     return tqdm(desc=label, unit=" evaluations", file=sys.stderr)
 
 
-def _check_condition(jacobian: np.ndarray, free: np.ndarray) -> float:
+def _check_condition(jacobian: np.ndarray, free: np.ndarray, extra=()) -> float:
     """The scaled Jacobian's condition number; ``CalibrationError`` past the limit."""
     singular = np.linalg.svd(jacobian, compute_uv=False)
     condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else math.inf
     if condition > _CONDITION_LIMIT:
         _, _, vt = np.linalg.svd(jacobian)
         names = [name for name, is_free in zip(PARAMETERS, free, strict=True) if is_free]
+        names += list(extra)
         weakest = names[int(np.argmax(np.abs(vt[-1])))]
         raise CalibrationError(
             f"the runs cannot identify the parameters: the fit's condition number is "
@@ -367,10 +395,26 @@ _ADVICE = {
     "left_wheel_radius": "Add runs that drive, and turn both ways",
     "right_wheel_radius": "Add runs that drive, and turn both ways",
     "track_width": "Turn in place in both directions to identify the track width",
+    "axle_offset": "Turn while driving (arcs, both ways) to identify the axle offset",
+    "heading_offset": "Drive straight for a while to identify the heading offset",
 }
 # Below these the runs do not excite a parameter: the distance driven (m), the turning (rad),
 # and the smaller direction's share of the turning.
 _LEAST_DISTANCE, _LEAST_TURN, _LEAST_OTHER_WAY = 0.5, 0.5, 0.1
+_TURN_WINDOW = 20
+
+
+def _check_extra(extra, method: str, nominal) -> tuple[str, ...]:
+    """``extra`` as a tuple of known names, for a method and robot that take them."""
+    extra = (extra,) if isinstance(extra, str) else tuple(extra)
+    unknown = [name for name in extra if name not in EXTRAS]
+    if unknown:
+        raise ValueError(
+            f"extra names {unknown[0]!r}; the extra parameters are {', '.join(EXTRAS)}"
+        )
+    if extra and (method not in ("least_squares", "minimax") or isinstance(nominal, SkidSteer)):
+        raise ValueError("extra parameters are for least_squares and minimax on a DiffDrive")
+    return extra
 
 
 def _free(fixed) -> np.ndarray:
@@ -385,10 +429,19 @@ def _free(fixed) -> np.ndarray:
     return free
 
 
-def _check_excitation(runs, free: np.ndarray) -> None:
-    """Refuse runs that do not drive, turn, or turn both ways, as the free parameters need."""
-    distance = sum(float(np.sum(np.hypot(*np.diff(t[:, :2], axis=0).T))) for _, t in runs)
-    turns = np.concatenate([np.diff(t[:, 2]) for _, t in runs])
+def _check_excitation(nominal, runs, free: np.ndarray) -> None:
+    """Refuse runs that do not drive, turn, or turn both ways, as the free parameters need.
+
+    Judged from the wheels with the nominal geometry, the turns summed over windows of
+    ``_TURN_WINDOW`` steps, and of each run only the windows that turn at least a tenth as
+    much as its sharpest: a square's steering corrections on its straight sides do not count
+    as turning the other way.
+    """
+    increments = np.concatenate([increments for increments, _ in runs])
+    motion = batch.to_twist(nominal, increments)  # per step: distance and turn
+    distance = float(np.sum(np.abs(motion[:, 0])))
+    turns = np.concatenate([_significant(_window_sums(batch.to_twist(nominal, inc)[:, 2]))
+                            for inc, _ in runs])  # fmt: skip
     left, right = float(np.sum(np.clip(turns, 0, None))), float(np.sum(np.clip(-turns, 0, None)))
     radii = bool(free[0] or free[1])
     if radii and distance < _LEAST_DISTANCE:
@@ -411,6 +464,19 @@ def _check_excitation(runs, free: np.ndarray) -> None:
         )
 
 
+def _significant(turns: np.ndarray) -> np.ndarray:
+    """The turns at least a tenth of the largest (in magnitude)."""
+    if not len(turns):
+        return turns
+    return turns[np.abs(turns) >= 0.1 * np.abs(turns).max()]
+
+
+def _window_sums(values: np.ndarray) -> np.ndarray:
+    """Sums of consecutive windows of ``_TURN_WINDOW`` values (the last may be shorter)."""
+    edges = np.arange(0, len(values), _TURN_WINDOW)
+    return np.add.reduceat(values, edges) if len(values) else values
+
+
 def _bounds(nominal) -> tuple[list[float], list[float]]:
     """The parameters' range relative to the nominal ones: radii within 50 %; the track too,
     but a skid-steer robot's ICR spread up to 3 times its nominal (1.5-2 times the wheels'
@@ -423,22 +489,25 @@ def _parameters(robot: DiffDrive) -> np.ndarray:
     return np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
 
 
-def _position_errors(robot: DiffDrive, runs, integration: Method) -> list[np.ndarray]:
+def _position_errors(robot, runs, integration: Method, heading_offset: float = 0.0):
     """Each run's position error (m) at each ground-truth pose."""
+    shift = np.array([0.0, 0.0, heading_offset])
     return [
-        np.hypot(*(odometry_of(robot, increments, truth[0], integration)[:, :2]
+        np.hypot(*(odometry_of(robot, increments, truth[0] + shift, integration)[:, :2]
                    - truth[:, :2]).T)
         for increments, truth in runs
     ]  # fmt: skip
 
 
-def _minimax(nominal: DiffDrive, runs, integration: Method, parameters: np.ndarray):
-    """The parameters, from ``parameters``, that minimise the largest position error."""
+def _minimax(nominal, runs, integration: Method, parameters: np.ndarray, axle=None, offset=0.0):
+    """The parameters, from ``parameters``, that minimise the largest position error (the
+    extra parameters stay as least squares found them)."""
     from scipy.optimize import minimize
 
     def largest(relative: np.ndarray) -> float:
-        robot = _robot_with(nominal, parameters * relative)
-        return max(float(error.max()) for error in _position_errors(robot, runs, integration))
+        robot = _robot_with(nominal, parameters * relative, axle)
+        errors = _position_errors(robot, runs, integration, offset)
+        return max(float(error.max()) for error in errors)
 
     # Within 2 % of the least-squares answer: the largest error alone can be flat along a
     # parameter (the track width, on runs that turn only in place), and it must not drift.

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch, se2, sources
+from diffdrive.calibration import EXTRAS, PARAMETERS, calibrate, odometry_of
 from diffdrive.calibration import METHODS as CALIBRATION_METHODS
-from diffdrive.calibration import PARAMETERS, calibrate, odometry_of
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
 from diffdrive.evaluation import RPE_PAIRS, associate, ate, interpolate, rpe, run_errors, worst
 from diffdrive.examples import (
@@ -600,8 +600,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
         runs, what = _example_runs(), "the built-in example runs"
     names = [str(path) for path in args.runs] or ["example", "mirrored example"]
     fixed = tuple(args.fix or ())
+    if args.extra is None:  # the default: what predicted best on held-out OptiOdom runs
+        extra = EXTRAS if args.method in ("least_squares", "minimax") else ()
+    else:
+        extra = tuple(name for name in args.extra if name != "none")
     result = calibrate(nominal, runs, args.method, integration=args.integration,
-                       square_side=args.square_side, names=names, fixed=fixed,
+                       square_side=args.square_side, names=names, fixed=fixed, extra=extra,
                        progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
     robot = result.robot
     settings = {"left_wheel_radius": robot.left_wheel_radius,
@@ -616,12 +620,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(calibration_report(nominal, result, runs, args.integration))
         if args.cv != "none" and args.method != "umbmark":
-            print(held_out_report(nominal, runs, names, args, fixed))
+            print(held_out_report(nominal, runs, names, args, fixed, extra))
         print(f"calibrate: wrote the robot to {args.output}")
     return 0
 
 
-def held_out_report(nominal, runs, names, args, fixed) -> str:
+def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
     """The in-sample and held-out errors side by side, and the parameters' spread."""
     from diffdrive.validation import cross_validate
 
@@ -629,7 +633,7 @@ def held_out_report(nominal, runs, names, args, fixed) -> str:
         return "held-out errors: none (one run: nothing to hold out; --cv none hides this)"
     scheme = "loo" if args.cv == "loo" else int(args.cv)
     cv = cross_validate(nominal, runs, args.method, scheme, integration=args.integration,
-                        names=names, fixed=fixed)  # fmt: skip
+                        names=names, fixed=fixed, extra=extra)  # fmt: skip
     label = "leave one run out" if scheme == "loo" else f"{scheme} folds"
     lines = [f"{'errors over the runs':28} {'in-sample':>10} {'held-out':>10}   ({label})"]
     for name, unit in (("max_position", "m"), ("final_position", "m"),
@@ -654,8 +658,17 @@ def calibration_report(nominal: DiffDrive, result, runs, integration: str) -> st
             f"{name:20} {getattr(nominal, name):10.6f} {getattr(result.robot, name):11.6f} "
             f"{spread:>10}"
         )
+    shift = np.array([0.0, 0.0, result.heading_offset])
     before = worst([run_errors(odometry_of(nominal, i, t[0], integration), t) for i, t in runs])
-    after = worst([run_errors(odometry_of(result.robot, i, t[0], integration), t) for i, t in runs])
+    after = worst([run_errors(odometry_of(result.robot, i, t[0] + shift, integration), t)
+                   for i, t in runs])  # fmt: skip
+    if getattr(result.robot, "axle_offset", 0.0) != getattr(nominal, "axle_offset", 0.0):
+        lines.append(f"{'axle_offset':20} {nominal.axle_offset:10.6f} "
+                     f"{result.robot.axle_offset:11.6f}")  # fmt: skip
+    if result.heading_offset:
+        lines.append(
+            f"heading offset of the reference: {np.degrees(result.heading_offset):.3f} deg"
+        )
     if result.condition is not None:
         lines.append(f"condition number of the fit: {result.condition:.3g}")
     if sigma is None:
@@ -939,6 +952,15 @@ def build_parser() -> argparse.ArgumentParser:
         choices=PARAMETERS,
         metavar="PARAMETER",
         help="hold these at their nominal values (e.g. track_width)",
+    )
+    cal.add_argument(
+        "--extra",
+        nargs="+",
+        choices=(*EXTRAS, "none"),
+        metavar="PARAMETER",
+        help="fit these too: axle_offset (the tracked point is not on the axle), "
+        "heading_offset (the reference's heading is the robot's plus a constant); default "
+        "both for least_squares and minimax, which predicted held-out runs best; none: neither",
     )
     cal.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     ev = command("evaluate", "a trajectory against ground truth", [times], run_evaluate)

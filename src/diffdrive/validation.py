@@ -81,14 +81,20 @@ def cross_validate(
     integration = options.get("integration", "exact")
     names = options.pop("names", None) or [f"run {k}" for k in range(len(runs))]
 
-    def scored(robot, indices):
+    def scored(result, indices):
+        """The runs ``indices`` dead-reckoned with a calibration, from each run's first
+        reference pose (turned by its fitted heading offset)."""
+        shift = np.array([0.0, 0.0, result.heading_offset])
         return tuple(
-            run_errors(odometry_of(robot, runs[k][0], runs[k][1][0], integration), runs[k][1])
+            run_errors(
+                odometry_of(result.robot, runs[k][0], runs[k][1][0] + shift, integration),
+                runs[k][1],
+            )
             for k in indices
         )
 
     everything = calibrate(nominal_robot, runs, method, names=names, **options)
-    in_sample = worst(list(scored(everything.robot, range(len(runs)))))
+    in_sample = worst(list(scored(everything, range(len(runs)))))
     folds = []
     for held in _folds(scheme, len(runs)):
         train = [k for k in range(len(runs)) if k not in held]
@@ -99,6 +105,6 @@ def cross_validate(
             folds.append(Fold(held, None, (), str(refusal)))
             continue
         parameters = np.array([getattr(fit.robot, name) for name in PARAMETERS])
-        folds.append(Fold(held, parameters, scored(fit.robot, held)))
+        folds.append(Fold(held, parameters, scored(fit, held)))
     held_errors = [e for fold in folds for e in fold.errors]
     return CrossValidation(in_sample, worst(held_errors) if held_errors else None, tuple(folds))
