@@ -113,3 +113,17 @@ def test_gyro_slip_example_fuses_better_on_the_synthetic_run(tmp_path, capsys):
     husky = next(line for line in lines if line.startswith("Husky"))
     for part in husky.split(": ", 1)[1].split(", "):
         assert part.split()[1] + " m" in readme
+
+
+def test_online_calibration_example_settles_near_batch_least_squares(tmp_path, capsys):
+    from data import data_folder
+
+    script = load("online_calibration")
+    script.main(["--data", str(data_folder("optiodom-diffdrive")), "--output",
+                 str(tmp_path / "online.png")])  # fmt: skip
+    printed = capsys.readouterr().out
+    line = next(row for row in printed.splitlines() if "whole-path least squares" in row)
+    differences = [float(part.strip(" %")) for part in line.split(": ")[1].split(",")]
+    assert max(abs(d) for d in differences) < 1.0
+    readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
+    assert ", ".join(f"{abs(d):.2f} %" for d in differences[:2]) in readme

@@ -1,0 +1,95 @@
+"""Calibration while the robot drives: the OnlineCalibrator's estimates settling on OptiOdom runs.
+
+The free-path experiment's four runs (../shared/data/optiodom-diffdrive/free/030120210006) are
+streamed one 50 ms cycle at a time: the wheel increments, and the motion-capture relative pose
+over the cycle. The recursive least-squares estimates of the wheel radii and the track width
+are drawn as they settle, next to the batch answers on the same runs: the same linear model
+all at once (``batch_solution``), the per-step fit (``calibrate(..., "increments")``) and whole-
+path least squares. Prints the final estimates and their differences.
+
+    pip install -e '.[examples]'
+    python examples/online_calibration.py [--data ../shared/data/optiodom-diffdrive]
+        [--output docs/figures/online_calibration.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive.calibration import calibrate
+from diffdrive.datasets import optiodom_robot, read_optiodom_run
+from diffdrive.online_calibration import OnlineCalibrator
+
+ROOT = Path(__file__).resolve().parents[1]
+EXPERIMENT = "free/030120210006"
+NAMES = ("left wheel radius, mm", "right wheel radius, mm", "track width, mm")
+
+
+def stream(runs: list) -> tuple[OnlineCalibrator, np.ndarray]:
+    """Every cycle of every run through one calibrator; its estimates after each cycle."""
+    online = OnlineCalibrator(optiodom_robot(), sigma_distance=1e-3, sigma_turn=5e-3)
+    history = []
+    for increments, truth in runs:
+        relative = batch.relative_to(truth[1:], truth[:-1])
+        for k in range(len(increments)):
+            online.update(*increments[k], relative[k])
+            history.append(online.parameters)
+    return online, np.array(history)
+
+
+def batch_answers(runs: list, online: OnlineCalibrator) -> dict[str, np.ndarray]:
+    increments = np.concatenate([i for i, _ in runs])
+    relative = np.concatenate([batch.relative_to(t[1:], t[:-1]) for _, t in runs])
+    found = {"same model, all at once": online.batch_solution(increments, relative)}
+    for label, method in (("per-step fit", "increments"), ("whole-path least squares",
+                                                           "least_squares")):  # fmt: skip
+        robot = calibrate(optiodom_robot(), runs, method, integration="rk2").robot
+        found[label] = np.array([robot.left_wheel_radius, robot.right_wheel_radius,
+                                 robot.track_width])  # fmt: skip
+    return found
+
+
+def draw(history: np.ndarray, answers: dict[str, np.ndarray], output: Path) -> None:
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(12, 4), layout="constrained")
+    for k, ax in enumerate(figure.subplots(1, 3)):
+        ax.plot(1000 * history[:, k], color="tab:blue", label="online")
+        for (label, values), style in zip(answers.items(), ("--", ":", "-."), strict=True):
+            ax.axhline(1000 * values[k], linestyle=style, color="0.3", label=label)
+        ax.set(xlabel="cycles (50 ms)", title=NAMES[k])
+        ax.grid(True, alpha=0.3)
+    ax.legend(loc="best")
+    figure.savefig(output, dpi=100)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path,
+                        default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive")  # fmt: skip
+    parser.add_argument("--output", type=Path,
+                        default=ROOT / "docs" / "figures" / "online_calibration.png")  # fmt: skip
+    args = parser.parse_args(argv)
+    paths = sorted((args.data / EXPERIMENT).glob("*_run-*.csv"))
+    runs = [(np.diff(r.wheel_angles(), axis=0), r.ground_truth) for r in map(read_optiodom_run,
+                                                                              paths)]  # fmt: skip
+    online, history = stream(runs)
+    answers = batch_answers(runs, online)
+    final = online.parameters
+    print(f"{EXPERIMENT}: {len(history)} cycles, {online.rejected} gated out")
+    print(f"online: radii {1000 * final[0]:.3f}, {1000 * final[1]:.3f} mm, track "
+          f"{1000 * final[2]:.2f} mm")  # fmt: skip
+    for label, values in answers.items():
+        difference = 100 * (final / values - 1)
+        print(f"  against {label}: " + ", ".join(f"{d:+.2f} %" for d in difference))
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    draw(history, answers, args.output)
+    print(f"figure: {args.output}")
+
+
+if __name__ == "__main__":
+    main()
