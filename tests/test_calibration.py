@@ -185,3 +185,17 @@ def test_minimax_beats_optiodom_on_every_experiment_with_the_papers_protocol():
     assert len(ours) == 10
     assert np.mean(ours) < np.mean(theirs)
     assert math.isfinite(sum(ours))
+
+
+def test_a_prior_pulls_the_fit_toward_the_nominal_geometry():
+    t = np.arange(160) * 0.05
+    wheels = np.stack([8 + 3 * np.sin(0.8 * t), 8 - 3 * np.sin(0.8 * t)], -1)
+    increments, truth = synthetic_run(TRUE, wheels)
+    truth[1:, :2] += np.random.default_rng(1).normal(0, 0.03, truth[1:, :2].shape)
+    track = {sigma: calibrate(NOMINAL, [(increments, truth)], prior_sigma=sigma).robot.track_width
+             for sigma in (None, 0.01, 1e-4)}  # fmt: skip
+    assert abs(track[None] - 0.3) > 0.004  # the data alone move it 1.9 %
+    assert abs(track[1e-4] - 0.3) < 0.3 * abs(track[None] - 0.3)
+    assert abs(track[1e-4] - 0.3) <= abs(track[0.01] - 0.3) <= abs(track[None] - 0.3)
+    with pytest.raises(ValueError, match="prior_sigma must be a finite number > 0"):
+        calibrate(NOMINAL, [(increments, truth)], prior_sigma=0.0)

@@ -150,6 +150,7 @@ def calibrate(
     progress: bool = False,
     fixed: tuple[str, ...] = (),
     extra: tuple[str, ...] = (),
+    prior_sigma: float | None = None,
 ) -> CalibrationResult:
     """Calibrate ``nominal_robot``'s wheel radii and track width on ``runs``; see the module.
 
@@ -162,7 +163,11 @@ def calibrate(
     ``extra`` adds parameters to least squares and minimax: ``"axle_offset"`` (the tracked
     point is not on the axle) and ``"heading_offset"`` (a constant heading between the
     reference's body and the robot). On the OptiOdom runs held out one at a time, both lower
-    the errors (see the README).
+    the errors (see the README); a per-run start-pose offset raised them and a time offset
+    changed nothing, so neither is offered. ``prior_sigma`` (relative, e.g. 0.02) pulls least
+    squares toward the nominal geometry: a Gaussian prior of that relative standard deviation
+    on each geometry parameter, as residuals ``loss_scale * (p / p_nominal - 1) /
+    prior_sigma``, so that a few runs cannot push the parameters far.
 
     Before fitting, the runs must excite every free parameter: they must drive (the wheel
     radii), turn (the track width) and turn both ways (a difference between the wheels apart
@@ -188,7 +193,7 @@ def calibrate(
     if method in ("least_squares", "minimax"):
         parameters, covariance, condition, found = _fit_least_squares(
             nominal_robot, checked, integration, loss, loss_scale, heading_weight, free, progress,
-            extra,
+            extra, _checked_prior(prior_sigma),
         )  # fmt: skip
         offset = found.get("heading_offset", 0.0)
         axle = found.get("axle_offset")
@@ -287,9 +292,10 @@ def _fit_least_squares(
     free: np.ndarray,
     progress: bool = False,
     extra: tuple[str, ...] = (),
+    prior: float | None = None,
 ):
-    """scipy's robust least squares over every ground-truth pose of every run:
-    ``(parameters, covariance, condition, {extra parameter: value})``."""
+    """scipy's robust least squares over every ground-truth pose of every run (and the prior's
+    residuals): ``(parameters, covariance, condition, {extra parameter: value})``."""
     start = _parameters(nominal)
     bar = _progress_bar(progress, f"fitting {len(runs)} runs")
 
@@ -305,6 +311,8 @@ def _fit_least_squares(
             error = odometry_of(robot, increments, begin, integration)[1:] - truth[1:]
             error[:, 2] = heading_weight * batch.wrap_angle(error[:, 2] - offset)
             pieces.append(error.ravel())
+        if prior is not None:
+            pieces.append(_quadratic_under(loss, scale, scale * (relative[free] - 1.0) / prior))
         return np.concatenate(pieces)
 
     initial = [nominal.axle_offset if name == "axle_offset" else 0.0 for name in extra]
@@ -402,6 +410,28 @@ _ADVICE = {
 # and the smaller direction's share of the turning.
 _LEAST_DISTANCE, _LEAST_TURN, _LEAST_OTHER_WAY = 0.5, 0.5, 0.1
 _TURN_WINDOW = 20
+
+
+def _quadratic_under(loss: str, scale: float, residuals: np.ndarray) -> np.ndarray:
+    """Residuals whose robust ``loss`` (scale ``scale``) is the plain square of
+    ``residuals``: a Gaussian prior must not be down-weighted as an outlier would be."""
+    if loss == "linear":
+        return residuals
+    if loss == "soft_l1":  # rho(z) = 2 (sqrt(1 + z) - 1), z = (r / scale)^2: invert rho
+        cost = residuals**2 / (2.0 * scale**2)
+        return np.sign(residuals) * scale * np.sqrt((1.0 + cost) ** 2 - 1.0)
+    raise ValueError(f"prior_sigma works with the linear and soft_l1 losses, not {loss!r}")
+
+
+def _checked_prior(prior_sigma) -> float | None:
+    """``prior_sigma`` as a float > 0, or None."""
+    if prior_sigma is None:
+        return None
+    if isinstance(prior_sigma, str | bool) or not float(prior_sigma) > 0 or not math.isfinite(
+        float(prior_sigma)
+    ):  # fmt: skip
+        raise ValueError(f"prior_sigma must be a finite number > 0, got {prior_sigma!r}")
+    return float(prior_sigma)
 
 
 def _check_extra(extra, method: str, nominal) -> tuple[str, ...]:
