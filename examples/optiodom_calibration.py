@@ -13,9 +13,9 @@ runs (m), with rk2 odometry from each run's first ground-truth pose:
 
 Then a second table, scored on runs the calibration never saw: each experiment's runs left out
 one at a time, each scored by the calibration on the others (``cross_validate``), for least
-squares alone and with the extra parameters ``axle_offset`` and ``heading_offset``, and for
-minimax with them. A fold whose remaining runs cannot identify the parameters is refused
-("refused"), never scored with a guessed robot.
+squares and minimax, each alone and with the extra parameters ``axle_offset`` and
+``heading_offset``, and for the per-step fit ``increments``. A fold whose remaining runs
+cannot identify the parameters is refused ("refused"), never scored with a guessed robot.
 
 Prints both Markdown tables and draws one run: ground truth, nominal and calibrated odometry.
 
@@ -91,7 +91,9 @@ OFFSETS = ("axle_offset", "heading_offset")
 HELD_OUT = {  # column: (method, extra parameters)
     "least_squares": ("least_squares", ()),
     "with offsets": ("least_squares", OFFSETS),
+    "minimax": ("minimax", ()),
     "minimax with offsets": ("minimax", OFFSETS),
+    "increments": ("increments", ()),
 }
 
 
