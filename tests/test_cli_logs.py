@@ -138,7 +138,7 @@ def test_a_log_in_other_time_units(tmp_path, capsys, unit, scale):
             for line in text[1:]]  # fmt: skip
     epoch.write_text(text[0] + "\n" + "\n".join(rows) + "\n")
     base = ["odometry", *ROBOT, "--ticks-per-revolution", TICKS]
-    for path in ([other] if unit != "ms" else []) + [epoch]:
+    for path in (other, epoch):
         code, _, err = run([*base, path, "-o", tmp_path / "x.csv"], capsys)
         assert code == 1
         assert "is not in seconds" in err
@@ -283,7 +283,7 @@ def test_a_step_too_small_to_hold_in_memory_is_refused(capsys):
 
 
 @given(
-    st.lists(st.tuples(st.floats(0.001, 10.0), st.integers(-(2**62), 2**62),
+    st.lists(st.tuples(st.floats(0.001, 5.0), st.integers(-(2**62), 2**62),
                        st.floats(-1e6, 1e6, allow_subnormal=False)), min_size=1, max_size=30),
     st.sampled_from(["", "\n", "\n\n"]),
 )  # fmt: skip

@@ -8,7 +8,7 @@ separated by semicolons or tabs a decimal comma (``0,5``) is read as a decimal p
 that is wrong; a file that cannot be read whole is refused whole.
 
 Time columns are in seconds unless told otherwise (``time_unit``: ``s``, ``ms``, ``us``, ``ns``).
-A time column that plainly is not in seconds (rows 1000 s or more apart, or stamps since 1970
+A time column that plainly is not in seconds (rows 10 s or more apart, or stamps since 1970
 in ms, us or ns) is refused with the likely unit named, rather than read as seconds.
 
 Every writer writes a temporary file beside the target and renames it, so a failure leaves no
@@ -67,8 +67,10 @@ ROBOT_KEYS = (
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 # Stamps since 1970 in seconds stay below 1e11 until the year 5138; larger ones are finer units.
 _EPOCH_LIMIT = 1e11
-# Rows this far apart (s) are no log of a moving robot.
-_LONGEST_STEP = 1e3
+# Rows this far apart (s, the median) are no log of a moving robot: a log in ms at 100 Hz
+# or slower steps by 10 or more. Hand-written histories that hold each row this long need
+# --time-unit s.
+_LONGEST_STEP = 10.0
 
 
 class TableError(ValueError):
@@ -82,10 +84,6 @@ class Table(dict):
         super().__init__(columns)
         self.path = path
         self.lines = lines
-
-    def where(self, row: int) -> str:
-        """``file:line`` of data row ``row`` (0-based), for messages."""
-        return f"{self.path}:{int(self.lines[row])}"
 
 
 def text_lines(path: str | Path) -> Iterator[tuple[int, str]]:
