@@ -301,12 +301,12 @@ def _start(log: WheelLog) -> np.ndarray:
     return np.zeros(3) if log.truth is None else log.truth[0]
 
 
-def _check_wheel_speeds(args, log: WheelLog, robot: DiffDrive, ticks) -> str:
-    """A line on the log's largest wheel speed; refuses one no robot drives at.
-
-    Without --max-wheel-speed the limit is a rim speed of _RIM_SPEED_LIMIT m/s.
-    """
-    speed, side, row = log.largest_wheel_speed(ticks, args.counter_bits)
+def _checked_increments(args, log: WheelLog, robot: DiffDrive, ticks) -> tuple[np.ndarray, str]:
+    """The log's wheel increments ``(T, 2)`` rad, and a line on its largest wheel speed;
+    refuses a counter width that does not fit, and a speed no robot drives at (without
+    --max-wheel-speed, a rim speed of _RIM_SPEED_LIMIT m/s)."""
+    increments = log.increments(ticks, args.counter_bits)
+    speed, side, row = log.largest_wheel_speed(increments)
     radius = robot.left_wheel_radius if side == "left" else robot.right_wheel_radius
     line = (
         f"largest wheel speed in the log: {speed:.4g} rad/s ({speed * radius:.3g} m/s at the "
@@ -330,7 +330,7 @@ def _check_wheel_speeds(args, log: WheelLog, robot: DiffDrive, ticks) -> str:
             f"({speed * radius:.3g} m/s at its rim), faster than any wheeled robot drives;"
             f"{hint} Give --max-wheel-speed to set the limit yourself"
         )
-    return line
+    return increments, line
 
 
 def run_simulate(args: argparse.Namespace) -> int:
@@ -342,14 +342,13 @@ def run_simulate(args: argparse.Namespace) -> int:
                f"simulated the built-in {EXAMPLE_DURATION:g} s driving history")  # fmt: skip
         return 0
     log = _read_log(args)
-    note = _check_wheel_speeds(args, log, robot, ticks)
+    increments, note = _checked_increments(args, log, robot, ticks)
     if log.kind == "velocity":
         trajectory = simulate(
             robot, log.wheels[:-1], times=log.times, initial_pose=_start(log), method=args.method
         )
         poses = trajectory.poses
     else:
-        increments = log.increments(ticks, args.counter_bits)
         twists = batch.to_twist(robot, increments)
         poses = integrate_increments(twists, _start(log), args.method)
     _write(args, log.times, poses, f"simulated {args.input}")
@@ -375,7 +374,7 @@ def run_odometry(args: argparse.Namespace) -> int:
     robot, ticks = _robot(args)
     log = _read_log(args)
     ticks = ticks or log.ticks_per_revolution
-    note = _check_wheel_speeds(args, log, robot, ticks)
+    increments, note = _checked_increments(args, log, robot, ticks)
     gyro = _gyro(args, log)
     if gyro is not None:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
@@ -403,7 +402,7 @@ def run_odometry(args: argparse.Namespace) -> int:
         if covariances is not None:
             covariances = np.vstack([np.zeros((1, 3, 3)), covariances])
     columns = {}
-    twists = batch.to_twist(robot, log.increments(ticks, args.counter_bits))
+    twists = batch.to_twist(robot, increments)
     twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
     if args.twist:
         columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])

@@ -96,13 +96,10 @@ class WheelLog:
             raise TableError(f"ticks per revolution {ticks!r} gives no finite angle per count")
         return count_changes(self.wheels, counter_bits) * radians
 
-    def largest_wheel_speed(
-        self, ticks_per_revolution: float | None = None, counter_bits: int | None = None
-    ) -> tuple[float, str, int]:
-        """The fastest wheel over any interval: ``(rad/s, "left" or "right", row)``, where
-        ``row`` (0-based) ends the interval."""
-        speeds = np.abs(self.increments(ticks_per_revolution, counter_bits))
-        speeds = speeds / np.diff(self.times)[:, None]
+    def largest_wheel_speed(self, increments: np.ndarray) -> tuple[float, str, int]:
+        """The fastest wheel over any interval, from this log's ``increments()`` ``(T, 2)``:
+        ``(rad/s, "left" or "right", row)``, where ``row`` (0-based) ends the interval."""
+        speeds = np.abs(increments) / np.diff(self.times)[:, None]
         interval, side = np.unravel_index(int(np.argmax(speeds)), speeds.shape)
         return float(speeds[interval, side]), ("left", "right")[side], int(interval) + 1
 

@@ -52,18 +52,7 @@ class DiffDrive:
         axle_offset: float = 0.0,
         half_track: float | None = None,
     ) -> None:
-        sides = (left_wheel_radius, right_wheel_radius)
-        if wheel_radius is not None:
-            if any(side is not None for side in sides):
-                raise ValueError(
-                    "give either wheel_radius or left_wheel_radius and right_wheel_radius, not both"
-                )
-            left = right = positive("wheel_radius", wheel_radius)
-        elif all(side is not None for side in sides):
-            left = positive("left_wheel_radius", left_wheel_radius)
-            right = positive("right_wheel_radius", right_wheel_radius)
-        else:
-            raise ValueError("give wheel_radius, or both left_wheel_radius and right_wheel_radius")
+        left, right = wheel_radii(wheel_radius, left_wheel_radius, right_wheel_radius)
         if (track_width is None) == (half_track is None):
             raise ValueError(
                 "give either track_width (the full wheel-to-wheel distance) or half_track "
@@ -132,10 +121,7 @@ class DiffDrive:
         Positive when turning left (centre on +y), ``+-inf`` when driving straight, ``0`` when
         spinning in place, and NaN when the robot stands still (no centre exists).
         """
-        twist = self.to_twist(wheels)
-        if twist.omega != 0.0:
-            return twist.vx / twist.omega
-        return math.copysign(math.inf, twist.vx) if twist.vx != 0.0 else math.nan
+        return path_radius(self.to_twist(wheels))
 
     def instantaneous_center(self, wheels: WheelVelocities) -> tuple[float, float]:
         """The instantaneous centre of curvature in the body frame, ``(x, y)`` in m.
@@ -204,3 +190,26 @@ class DiffDrive:
         """3x2 ``H+ = H^T (H H^T)^-1`` of seed 004. Right only when ``axle_offset == 0``."""
         h = self.h_matrix()
         return h.T @ np.linalg.inv(h @ h.T)
+
+
+def wheel_radii(
+    wheel_radius: float | None, left: float | None, right: float | None
+) -> tuple[float, float]:
+    """``(left, right)`` wheel radii, m, from one radius or both, checked."""
+    if wheel_radius is not None:
+        if left is not None or right is not None:
+            raise ValueError(
+                "give either wheel_radius or left_wheel_radius and right_wheel_radius, not both"
+            )
+        radius = positive("wheel_radius", wheel_radius)
+        return radius, radius
+    if left is None or right is None:
+        raise ValueError("give wheel_radius, or both left_wheel_radius and right_wheel_radius")
+    return positive("left_wheel_radius", left), positive("right_wheel_radius", right)
+
+
+def path_radius(twist: Twist) -> float:
+    """Signed radius ``vx / omega`` of a path, m: ``+-inf`` straight, NaN standing still."""
+    if twist.omega != 0.0:
+        return twist.vx / twist.omega
+    return math.copysign(math.inf, twist.vx) if twist.vx != 0.0 else math.nan

@@ -25,11 +25,10 @@ it and move the poses back to the body origin, exactly (a rigid offset).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from diffdrive._validate import finite, positive
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, path_radius, wheel_radii
 from diffdrive.types import Pose, Twist, WheelVelocities
 
 __all__ = ["SkidSteer"]
@@ -62,12 +61,7 @@ class SkidSteer:
         icr_x: float = 0.0,
         wheels_per_side: int = 1,
     ) -> None:
-        radii = DiffDrive(
-            wheel_radius,
-            1.0,
-            left_wheel_radius=left_wheel_radius,
-            right_wheel_radius=right_wheel_radius,
-        )  # the radius checks, once
+        radii = wheel_radii(wheel_radius, left_wheel_radius, right_wheel_radius)
         if icr_left is None or icr_right is None:
             raise ValueError("give icr_left and icr_right (m), the sides' ICRs on body y")
         left, right = finite("icr_left", icr_left), finite("icr_right", icr_right)
@@ -79,8 +73,8 @@ class SkidSteer:
             raise ValueError(
                 f"wheels_per_side must be a whole number >= 1, got {wheels_per_side!r}"
             )
-        object.__setattr__(self, "left_wheel_radius", radii.left_wheel_radius)
-        object.__setattr__(self, "right_wheel_radius", radii.right_wheel_radius)
+        object.__setattr__(self, "left_wheel_radius", radii[0])
+        object.__setattr__(self, "right_wheel_radius", radii[1])
         object.__setattr__(self, "icr_left", left)
         object.__setattr__(self, "icr_right", right)
         object.__setattr__(self, "icr_x", finite("icr_x", icr_x))
@@ -150,10 +144,7 @@ class SkidSteer:
 
     def turning_radius(self, wheels: WheelVelocities) -> float:
         """Signed radius of the body origin's path, m (as ``DiffDrive.turning_radius``)."""
-        twist = self.to_twist(wheels)
-        if twist.omega != 0.0:
-            return twist.vx / twist.omega
-        return math.copysign(math.inf, twist.vx) if twist.vx != 0.0 else math.nan
+        return path_radius(self.to_twist(wheels))
 
     def to_reference(self, pose: object) -> Pose:
         """The equivalent drive's pose for the body pose ``pose``."""
