@@ -32,6 +32,7 @@ _LAZY = (
     "examples",
     "files",
     "gyro",
+    "learn",
     "logs",
     "plot",
     "ros",

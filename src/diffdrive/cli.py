@@ -158,6 +158,11 @@ stamp within --t-max-diff s, after adding --t-offset to the trajectory's times;
 --interpolate instead samples the trajectory at every ground-truth time along its arcs.""",
     "info": """example:
   diffdrive info robot.bag      topics, types, counts, rates, and which diffdrive can use""",
+    "learn": """examples:
+  diffdrive learn                 serve the page on this machine and open it in the browser
+  diffdrive learn --no-browser --port 2718     serve only; open http://127.0.0.1:2718
+  diffdrive learn --export page.html           a static snapshot for a course website
+needs the extra: pip install 'diffdrive[learn]'""",
     "fk": """example:
   diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist
   diffdrive fk 1 -1e-3          (negative numbers are numbers, not options)""",
@@ -760,6 +765,20 @@ def run_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def run_learn(args: argparse.Namespace) -> int:
+    from diffdrive import learn
+
+    reason = learn.missing_extra()
+    if reason is not None:
+        print(f"diffdrive learn: error: {reason}", file=sys.stderr)
+        return 1
+    if args.export is not None:
+        learn.export(args.export)
+        print(f"wrote {args.export}: a static snapshot (it loads marimo's scripts from a CDN)")
+        return 0
+    return learn.serve(args.port, browser=not args.no_browser)
+
+
 def run_fk(args: argparse.Namespace) -> int:
     robot, _ = _robot(args)
     wheels = WheelVelocities(args.left, args.right)
@@ -996,6 +1015,11 @@ def build_parser() -> argparse.ArgumentParser:
     info = command("info", "what a ROS bag or MCAP file holds, and what diffdrive can use",
                    [], run_info)  # fmt: skip
     info.add_argument("input", type=Path, help="a ROS 1 bag, ROS 2 bag folder or MCAP file")
+    learn = command("learn", "an interactive page for learning the kinematics, in the browser",
+                    [], run_learn)  # fmt: skip
+    learn.add_argument("--port", type=_between(1, 65535), help="port (default: a free one)")
+    learn.add_argument("--no-browser", action="store_true", help="serve without opening it")
+    learn.add_argument("--export", type=Path, metavar="HTML", help="write a static snapshot")
     fk = command("fk", "wheel velocities to the body twist", [robot], run_fk)
     fk._negative_number_matcher = _NEGATIVE_NUMBER  # -1e-3 is a number, not an option
     fk.add_argument("left", type=float, help="rad/s")
