@@ -1,11 +1,13 @@
 """Calibration while the robot drives: the OnlineCalibrator's estimates settling on OptiOdom runs.
 
-The free-path experiment's four runs (../shared/data/optiodom-diffdrive/free/030120210006) are
-streamed one 50 ms cycle at a time: the wheel increments, and the motion-capture relative pose
-over the cycle. The recursive least-squares estimates of the wheel radii and the track width
-are drawn as they settle, next to the batch answers on the same runs: the same linear model
-all at once (``batch_solution``), the per-step fit (``calibrate(..., "increments")``) and whole-
-path least squares. Prints the final estimates and their differences.
+Each experiment's runs (../shared/data/optiodom-diffdrive) are streamed one 50 ms cycle at a
+time: the wheel increments, and the motion-capture relative pose over the cycle; the
+calibrator makes one measurement of every 20 cycles (its default window). Printed for each
+experiment: the final estimates of the wheel radii and the track width, and their differences
+from the batch answers on the same runs: the same linear model all at once
+(``batch_solution``), the per-step fit (``calibrate(..., "increments")``) and whole-path least
+squares. Then the same with a window of one cycle. The figure draws the estimates settling on
+the first circular experiment (one run each way), against the batch answers.
 
     pip install -e '.[examples]'
     python examples/online_calibration.py [--data ../shared/data/optiodom-diffdrive]
@@ -25,13 +27,20 @@ from diffdrive.datasets import optiodom_robot, read_optiodom_run
 from diffdrive.online_calibration import OnlineCalibrator
 
 ROOT = Path(__file__).resolve().parents[1]
-EXPERIMENT = "free/030120210006"
+EXPERIMENTS = ("circular/231220200141", "circular/250620202345", "free/030120210006")
 NAMES = ("left wheel radius, mm", "right wheel radius, mm", "track width, mm")
 
 
-def stream(runs: list) -> tuple[OnlineCalibrator, np.ndarray]:
+def read_runs(folder: Path) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(wheel-angle increments, ground-truth poses)`` of each run of an experiment."""
+    paths = sorted(folder.glob("*_run-*.csv"))
+    return [(np.diff(r.wheel_angles(), axis=0), r.ground_truth) for r in map(read_optiodom_run,
+                                                                              paths)]  # fmt: skip
+
+
+def stream(runs: list, window: int = 20) -> tuple[OnlineCalibrator, np.ndarray]:
     """Every cycle of every run through one calibrator; its estimates after each cycle."""
-    online = OnlineCalibrator(optiodom_robot(), sigma_distance=1e-3, sigma_turn=5e-3)
+    online = OnlineCalibrator(optiodom_robot(), window=window)
     history = []
     for increments, truth in runs:
         relative = batch.relative_to(truth[1:], truth[:-1])
@@ -42,6 +51,8 @@ def stream(runs: list) -> tuple[OnlineCalibrator, np.ndarray]:
 
 
 def batch_answers(runs: list, online: OnlineCalibrator) -> dict[str, np.ndarray]:
+    # Streamed one after another, a window may span the end of one run and the start of the
+    # next: their relative poses compose all the same, and the batch answer windows alike.
     increments = np.concatenate([i for i, _ in runs])
     relative = np.concatenate([batch.relative_to(t[1:], t[:-1]) for _, t in runs])
     found = {"same model, all at once": online.batch_solution(increments, relative)}
@@ -53,10 +64,11 @@ def batch_answers(runs: list, online: OnlineCalibrator) -> dict[str, np.ndarray]
     return found
 
 
-def draw(history: np.ndarray, answers: dict[str, np.ndarray], output: Path) -> None:
+def draw(history: np.ndarray, answers: dict[str, np.ndarray], title: str, output: Path) -> None:
     from matplotlib.figure import Figure
 
     figure = Figure(figsize=(12, 4), layout="constrained")
+    figure.suptitle(title)
     for k, ax in enumerate(figure.subplots(1, 3)):
         ax.plot(1000 * history[:, k], color="tab:blue", label="online")
         for (label, values), style in zip(answers.items(), ("--", ":", "-."), strict=True):
@@ -67,6 +79,20 @@ def draw(history: np.ndarray, answers: dict[str, np.ndarray], output: Path) -> N
     figure.savefig(output, dpi=100)
 
 
+def report(name: str, runs: list, window: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Stream one experiment and print the estimates against the batch answers."""
+    online, history = stream(runs, window)
+    answers = batch_answers(runs, online)
+    final = online.parameters
+    print(f"{name}, window {window}: {len(history)} cycles, {online.accepted} measurements, "
+          f"{online.rejected} gated out; radii {1000 * final[0]:.3f}, {1000 * final[1]:.3f} mm, "
+          f"track {1000 * final[2]:.2f} mm")  # fmt: skip
+    for label, values in answers.items():
+        difference = 100 * (final / values - 1)
+        print(f"  against {label}: " + ", ".join(f"{d:+.2f} %" for d in difference))
+    return history, answers
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path,
@@ -74,20 +100,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--output", type=Path,
                         default=ROOT / "docs" / "figures" / "online_calibration.png")  # fmt: skip
     args = parser.parse_args(argv)
-    paths = sorted((args.data / EXPERIMENT).glob("*_run-*.csv"))
-    runs = [(np.diff(r.wheel_angles(), axis=0), r.ground_truth) for r in map(read_optiodom_run,
-                                                                              paths)]  # fmt: skip
-    online, history = stream(runs)
-    answers = batch_answers(runs, online)
-    final = online.parameters
-    print(f"{EXPERIMENT}: {len(history)} cycles, {online.rejected} gated out")
-    print(f"online: radii {1000 * final[0]:.3f}, {1000 * final[1]:.3f} mm, track "
-          f"{1000 * final[2]:.2f} mm")  # fmt: skip
-    for label, values in answers.items():
-        difference = 100 * (final / values - 1)
-        print(f"  against {label}: " + ", ".join(f"{d:+.2f} %" for d in difference))
+    drawn = None
+    for window in (20, 1):
+        for name in EXPERIMENTS:
+            shown = report(name, read_runs(args.data / name), window)
+            drawn = drawn or (name, *shown)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    draw(history, answers, args.output)
+    name, history, answers = drawn
+    draw(history, answers, f"{name}: one run each way, 20 cycles a measurement", args.output)
     print(f"figure: {args.output}")
 
 

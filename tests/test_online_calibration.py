@@ -26,7 +26,7 @@ def intervals(seed=0, n=4000):
 
 def test_it_converges_to_the_robot_that_made_the_data():
     wheels, relative, truth = intervals()
-    online = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4)
+    online = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, window=1)
     for k in range(len(wheels)):
         assert online.update(*wheels[k], relative[k])
     np.testing.assert_allclose(online.parameters, [0.0497, 0.0502, 0.306], rtol=2e-3)
@@ -38,19 +38,37 @@ def test_it_converges_to_the_robot_that_made_the_data():
                                 batch.track_width], rtol=2e-3)  # fmt: skip
 
 
-def test_recursive_equals_batch_weighted_least_squares_on_the_same_data():
-    wheels, relative, _ = intervals(1, 500)
-    online = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, gate=1e12)
+@pytest.mark.parametrize("window", [1, 7, 20])
+def test_recursive_equals_batch_weighted_least_squares_on_the_same_data(window):
+    wheels, relative, _ = intervals(1, 503)  # not a multiple of 7 or 20: a window left over
+    online = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, gate=1e12,
+                              window=window)  # fmt: skip
     for k in range(len(wheels)):
         online.update(*wheels[k], relative[k])
+    assert online.accepted == len(wheels) // window
     np.testing.assert_allclose(online.parameters, online.batch_solution(wheels, relative),
                                rtol=1e-9)  # fmt: skip
 
 
+def test_a_window_composes_the_relative_poses_and_sums_the_wheels():
+    wheels, relative, truth = intervals(3, 40)
+    by_cycle = OnlineCalibrator(NOMINAL, window=20, gate=1e12)
+    by_window = OnlineCalibrator(NOMINAL, window=1, gate=1e12)
+    for k in range(40):
+        by_cycle.update(*wheels[k], relative[k])
+    for start in (0, 20):
+        cycles = [dd.se2.to_matrix(dd.Pose(*p)) for p in relative[start : start + 20]]
+        composed = dd.se2.from_matrix(np.linalg.multi_dot(cycles), atol=1e-6)
+        moved = dd.batch.relative_to(truth[start + 20], truth[start])
+        np.testing.assert_allclose(composed.to_array(), moved, atol=5e-3)  # 0.2 mm a cycle
+        by_window.update(*wheels[start : start + 20].sum(axis=0), composed.to_array())
+    np.testing.assert_allclose(by_cycle.parameters, by_window.parameters, rtol=1e-12)
+
+
 def test_measurements_that_cannot_be_right_are_gated_out():
     wheels, relative, _ = intervals(2, 2000)
-    clean = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4)
-    jumpy = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4)
+    clean = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, window=1)
+    jumpy = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, window=1)
     bad = relative.copy()
     bad[[500, 900, 1300, 1700, 1900], 0] += 0.05  # the reference jumps 5 cm
     for k in range(len(wheels)):
@@ -70,5 +88,29 @@ def test_bad_input_is_refused_and_changes_nothing():
         online.update(np.inf, 0.1, [0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="prior_sigma must be > 0"):
         OnlineCalibrator(NOMINAL, prior_sigma=0.0)
+    with pytest.raises(ValueError, match="window must be a whole number from 1"):
+        OnlineCalibrator(NOMINAL, window=2.5)
     np.testing.assert_array_equal(online.parameters, before)
     assert online.accepted == online.rejected == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("experiment", ["circular/231220200141", "circular/250620202345"])
+def test_one_circular_experiment_lands_within_1_percent_of_batch_least_squares(experiment):
+    """One OptiOdom circle run each way, streamed cycle by cycle with the default window: every
+    parameter within 1 % of whole-path least squares on the same runs (0.77 % at worst)."""
+    from data import data_folder
+    from diffdrive.datasets import optiodom_robot, read_optiodom_run
+
+    folder = data_folder("optiodom-diffdrive") / experiment
+    runs = [(np.diff(r.wheel_angles(), axis=0), r.ground_truth)
+            for r in map(read_optiodom_run, sorted(folder.glob("*_run-*.csv")))]  # fmt: skip
+    online = OnlineCalibrator(optiodom_robot())
+    for increments, truth in runs:
+        relative = dd.batch.relative_to(truth[1:], truth[:-1])
+        for k in range(len(increments)):
+            online.update(*increments[k], relative[k])
+    batch = calibrate(optiodom_robot(), runs, "least_squares", integration="rk2").robot
+    want = [batch.left_wheel_radius, batch.right_wheel_radius, batch.track_width]
+    np.testing.assert_allclose(online.parameters, want, rtol=0.01)
+    assert online.rejected == 0

@@ -28,3 +28,15 @@ def positive(name: str, value: object) -> float:
     if number <= 0.0:
         raise ValueError(f"{name} must be > 0, got {number}")
     return number
+
+
+def whole(name: str, value: object, smallest: int = 0) -> int:
+    """``value`` as an int; ``ValueError`` naming ``name`` unless it is a whole number (2 or
+    2.0, not 2.5) of at least ``smallest``; ``TypeError`` for booleans and what is not a
+    number."""
+    if isinstance(value, bool):
+        raise TypeError(f"{name} must be a whole number, got {value!r}")
+    number = finite(name, value)
+    if not number.is_integer() or number < smallest:
+        raise ValueError(f"{name} must be a whole number from {smallest}, got {value!r}")
+    return int(number)

@@ -18,6 +18,7 @@ from typing import Literal
 import numpy as np
 
 from diffdrive import integrate, se2
+from diffdrive._validate import whole
 from diffdrive.commands import Keep, desaturate
 from diffdrive.integrate import METHODS, Method
 from diffdrive.model import DiffDrive
@@ -440,6 +441,8 @@ class CheckLesson:
         v, w, h = self.twist.vx, self.twist.omega, self.step
         r, half = self.robot.wheel_radius, self.robot.half_track
         lines = [
+            "Seed 002's discrete model with step $T$ and heading $\\theta$ (seed 000 writes "
+            "them $h$ and $\\alpha$).",
             f"With $r = {_tex(r)}$ m and $L = {_tex(half)}$ m (half track): "
             f"$v = \\frac{{r}}{{2}}(\\dot\\varphi_R + \\dot\\varphi_L) = {_tex(v)}$ m/s, "
             f"$\\omega = \\frac{{r}}{{2L}}(\\dot\\varphi_R - \\dot\\varphi_L) = {_tex(w)}$ "
@@ -491,9 +494,7 @@ def check_answer(
     """Section 5: ``track`` is the half track (the notes' b, d, D, L) or the full one."""
     if track_meaning not in ("half", "full"):
         raise ValueError(f"track_meaning must be 'half' or 'full', got {track_meaning!r}")
-    if isinstance(steps, bool) or not float(steps).is_integer() or steps < 1:
-        raise ValueError(f"the number of steps k must be a whole number from 1, got {steps}")
-    steps = int(steps)
+    steps = whole("the number of steps k", steps, smallest=1)
     if track_meaning == "half":
         robot = DiffDrive(wheel_radius, half_track=track)
     else:
