@@ -15,9 +15,7 @@ from __future__ import annotations
 
 import argparse
 import platform
-import statistics
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,17 +23,9 @@ import numpy as np
 import diffdrive as dd
 from diffdrive.cli import main as cli
 from diffdrive.examples import example_robot
+from timing import median_time  # benchmarks/timing.py
 
 TICKS = 4096
-
-
-def median_time(work, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def encoder_log(path: Path, rows: int) -> None:

@@ -26,10 +26,8 @@ import math
 import os
 import platform
 import shutil
-import statistics
 import subprocess
 import tempfile
-import time
 import tracemalloc
 import warnings
 from functools import partial
@@ -39,6 +37,7 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive.examples import example_robot
+from timing import median_time  # benchmarks/timing.py
 
 C_SOURCE = r"""
 #include <math.h>
@@ -156,17 +155,6 @@ def wpimath_loop():
     return run
 
 
-def median_time(call, repeats):
-    """Median wall time of ``repeats`` calls, after one untimed call."""
-    call()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        call()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
 def peak_memory_ratio(call, output_bytes):
     tracemalloc.start()
     call()
@@ -216,19 +204,23 @@ def bench_case(label, robot, wheels, dt, c_loop, loops, repeats) -> None:
     def ours(backend):
         return lambda: dd.simulate(robot, wheels, dt=dt, backend=backend)
 
-    row = {"diffdrive numba": median_time(ours("numba"), repeats)}
-    row["diffdrive NumPy"] = median_time(ours("numpy"), repeats)
+    row = {"diffdrive numba": median_time(ours("numba"), repeats, warm_up=True)}
+    row["diffdrive NumPy"] = median_time(ours("numpy"), repeats, warm_up=True)
     expected = ours("numpy")().poses
     assert np.allclose(ours("numba")().poses, expected, rtol=0, atol=1e-9), "numba disagrees"
     if c_loop is not None:
-        row["C -O3 loop"] = median_time(lambda: run_c_loop(c_loop, robot, wheels, dt), repeats)
+        row["C -O3 loop"] = median_time(
+            lambda: run_c_loop(c_loop, robot, wheels, dt), repeats, warm_up=True
+        )
         check = run_c_loop(c_loop, robot, wheels, dt).reshape(expected.shape)
         assert np.allclose(check, expected, atol=1e-6), "the C loop disagrees with diffdrive"
     first_robot = wheels.reshape(-1, 2)
     for name, (loop, length) in loops.items():
         if loop is not None:
             sample = first_robot[:length]
-            per_run = median_time(partial(loop, robot, sample, dt), max(1, repeats // 2))
+            per_run = median_time(
+                partial(loop, robot, sample, dt), max(1, repeats // 2), warm_up=True
+            )
             row[name] = per_run / len(sample) * robot_steps
     output_bytes = (robot_steps + robot_steps // wheels.shape[-2]) * 3 * 8
     print(f"case {label}: peak memory / pose array:", end="")

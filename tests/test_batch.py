@@ -183,6 +183,9 @@ ALL_CALLS = {
     "turning_radius": lambda a3, a2: batch.turning_radius(ROBOT, a2),
     "instantaneous_center": lambda a3, a2: batch.instantaneous_center(ROBOT, a2),
     "advance_wheel_positions": lambda a3, a2: batch.advance_wheel_positions(a2, a2, 0.1),
+    "accumulate": lambda a3, a2: batch.accumulate(a3, method="rk2"),
+    "rollout": lambda a3, a2: batch.rollout(ROBOT, a2, 0.1),
+    "twists": lambda a3, a2: batch.twists(np.asarray([0.1, 0.1, 0.5, 0.05], a2.dtype), a2),
     "wheel_velocities_from_positions": lambda a3, a2: batch.wheel_velocities_from_positions(
         a2, a2, 0.1
     ),

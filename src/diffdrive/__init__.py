@@ -27,6 +27,7 @@ __version__ = "0.1.0"
 _LAZY = (
     "calibration",
     "datasets",
+    "distributed",
     "encoders",
     "evaluation",
     "examples",
@@ -34,6 +35,7 @@ _LAZY = (
     "gyro",
     "learn",
     "logs",
+    "montecarlo",
     "plot",
     "ros",
     "sources",

@@ -1,8 +1,9 @@
 """Array coercion and shape checks for the batch layer.
 
-Batch kernels are written against the Python array API: an input that carries
-``__array_namespace__`` is computed in its own library, anything else becomes a NumPy array.
-Floating dtypes are kept; integers become float64.
+Batch kernels are written against the Python array API: an array of another library (JAX,
+PyTorch, CuPy, array-api-strict, ...) is computed in that library, on its device, through
+``array-api-compat``; anything else becomes a NumPy array. Floating dtypes are kept; integers
+become float64.
 """
 
 from __future__ import annotations
@@ -10,16 +11,24 @@ from __future__ import annotations
 from types import ModuleType
 from typing import Any
 
+import array_api_compat
 import numpy as np
 
 
 def namespace(*arrays: object) -> ModuleType:
-    """The array library of the first input that has one; NumPy otherwise."""
+    """The array library of the first input that is an array of a library other than NumPy
+    (its array-API namespace); NumPy itself otherwise."""
     for array in arrays:
-        get = getattr(array, "__array_namespace__", None)
-        if get is not None:
-            return get()
+        if isinstance(array, np.ndarray | np.generic):
+            continue
+        if array_api_compat.is_array_api_obj(array):
+            return array_api_compat.array_namespace(array)
     return np
+
+
+def device(array: Any) -> Any:
+    """The device ``array`` lives on (``"cpu"`` for NumPy)."""
+    return array_api_compat.device(array)
 
 
 def floating(xp: ModuleType, value: object, name: str, like: Any = None) -> Any:
@@ -29,7 +38,7 @@ def floating(xp: ModuleType, value: object, name: str, like: Any = None) -> Any:
     ``dt=0.1`` does not turn float32 data into float64.
     """
     if like is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
-        return xp.asarray(value, dtype=like.dtype)
+        return xp.asarray(value, dtype=like.dtype, device=device(like))
     array = xp.asarray(value)
     if xp is np and not array.dtype.isnative:  # big-endian data: compiled kernels want native
         array = array.astype(array.dtype.newbyteorder("="))

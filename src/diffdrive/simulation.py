@@ -23,7 +23,7 @@ from typing import Any, Literal
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._arrays import components, floating
+from diffdrive._arrays import components, floating, namespace
 from diffdrive.batch.kinematics import WHEELS
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
@@ -79,8 +79,14 @@ def integrate_increments(
     An increment is a step's twist times its duration, ``twist * dt``, which is the integral of
     the body twist over the step. The first pose is ``initial_pose`` (default: the origin,
     broadcast against the leading axes). The poses have ``dtype`` (default: the increments').
+    Increments of another array library (JAX, PyTorch, ...) give poses of that library on the
+    same device, from ``batch.accumulate`` (in their dtype; ``dtype`` must then be None).
     """
     check_method(method)
+    if namespace(increments, initial_pose) is not np:
+        if dtype is not None:
+            raise ValueError("dtype is for NumPy increments; convert other arrays yourself")
+        return batch.accumulate(increments, initial_pose, method)
     inc = components(np, increments, "increments", "dx, dy, dtheta")
     if inc.ndim < 2:
         raise ValueError(f"increments must have shape (..., T, 3), got {inc.shape}")

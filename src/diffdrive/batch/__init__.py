@@ -13,6 +13,7 @@ from diffdrive.batch.kinematics import (
     turning_radius,
     wheel_velocities_from_positions,
 )
+from diffdrive.batch.rollout import accumulate, rollout, twists
 from diffdrive.batch.se2 import (
     compose,
     exp,
@@ -29,6 +30,7 @@ from diffdrive.batch.se2 import (
 )
 
 __all__ = [
+    "accumulate",
     "advance_wheel_positions",
     "compose",
     "delta",
@@ -39,6 +41,7 @@ __all__ = [
     "log",
     "pose_derivative",
     "relative_to",
+    "rollout",
     "rotation_matrix",
     "sinc",
     "step",
@@ -47,6 +50,7 @@ __all__ = [
     "to_wheel_velocities",
     "transform_points",
     "turning_radius",
+    "twists",
     "wheel_velocities_from_positions",
     "wrap_angle",
 ]

@@ -1,0 +1,112 @@
+"""Beyond one machine: Monte Carlo and many logs on a Dask cluster (extra ``diffdrive[dask]``).
+
+``monte_carlo`` shares the chunks of ``diffdrive.montecarlo.monte_carlo`` out among Dask tasks,
+each of which reduces its robots on its worker: what travels back is each robot's final pose
+and each task's per-step mean and sums of squared deviations, never a robot's path. The
+statistics merge to those of one process, to rounding (the chunks draw the same numbers
+wherever they run). ``map_runs`` runs one task per item (a log to calibrate or to evaluate).
+
+Without a ``client``, both start a ``LocalCluster`` of one single-threaded worker process per
+core for the call. Tasks set numba to one thread, so that workers do not oversubscribe the
+cores. On a cluster, pass its client; the calls are the same:
+
+    from dask_jobqueue import SLURMCluster            # or dask_kubernetes' KubeCluster
+    from distributed import Client
+    cluster = SLURMCluster(cores=1, memory="4GB", processes=1)
+    cluster.scale(jobs=64)
+    with Client(cluster) as client:
+        result = monte_carlo(robot, wheels, 0.01, 10**7, k_left=1e-4, client=client)
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+import os
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+from diffdrive.model import DiffDrive
+from diffdrive.montecarlo import Moments, MonteCarlo, Plan, plan, run_chunks
+
+__all__ = ["map_runs", "monte_carlo"]
+
+
+def _one_numba_thread() -> None:
+    """numba's threads to one: the worker processes share out the cores."""
+    if importlib.util.find_spec("numba") is not None:
+        import numba
+
+        numba.set_num_threads(1)
+
+
+def _task(setup: Plan, first: int, stop: int) -> tuple[np.ndarray, Moments]:
+    """Chunks ``first:stop`` of a Monte Carlo, reduced on the worker."""
+    _one_numba_thread()
+    return run_chunks(setup, range(first, stop))
+
+
+def _call(function: Callable[[Any], Any], item: Any) -> Any:
+    _one_numba_thread()
+    return function(item)
+
+
+@contextmanager
+def _client(client: Any) -> Iterator[Any]:
+    """The given client, or one on a LocalCluster made (and closed) for the call."""
+    if client is not None:
+        yield client
+        return
+    from distributed import Client, LocalCluster
+
+    workers = os.cpu_count() or 1
+    with (
+        LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                     dashboard_address=None) as cluster,
+        Client(cluster) as local,
+    ):  # fmt: skip
+        yield local
+
+
+def _threads(client: Any) -> int:
+    return max(1, sum(client.nthreads().values()))
+
+
+def monte_carlo(
+    robot: DiffDrive,
+    wheel_velocities: object,
+    dt: float,
+    robots: int,
+    *,
+    client: Any = None,
+    tasks: int | None = None,
+    **options: Any,
+) -> MonteCarlo:
+    """``diffdrive.montecarlo.monte_carlo`` over Dask tasks (default: one per worker thread),
+    each reducing a contiguous run of chunks; ``options`` are that function's (``k_left``,
+    ``geometry_sigma``, ``seed``, ``chunk``, ``backend``, ...). Give ``seed`` for results
+    that can be repeated."""
+    setup = plan(robot, wheel_velocities, dt, robots, **options)
+    with _client(client) as active:
+        count = min(setup.chunks, tasks or _threads(active))
+        bounds = np.linspace(0, setup.chunks, count + 1).round().astype(int)
+        shared = active.scatter(setup, broadcast=True)
+        futures = [active.submit(_task, shared, int(a), int(b), pure=False)
+                   for a, b in itertools.pairwise(bounds)]  # fmt: skip
+        results = active.gather(futures)
+    finals, parts = zip(*results, strict=True)
+    return MonteCarlo(np.concatenate(finals), Moments.combine(parts))
+
+
+def map_runs(function: Callable[[Any], Any], items: Iterable[Any], *, client: Any = None) -> list:
+    """``[function(item) for item in items]``, one Dask task per item, in order.
+
+    ``function`` must be importable by the workers (a module's function, or a
+    ``functools.partial`` of one): e.g. a calibration or an evaluation of one log file.
+    """
+    items = list(items)
+    with _client(client) as active:
+        return active.gather(active.map(_call, [function] * len(items), items, pure=False))

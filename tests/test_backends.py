@@ -1,0 +1,198 @@
+"""One table of integration cases through every backend that integrates a driving history.
+
+Every method, axle offsets, turns on both sides of the sinc threshold, straight runs and spins,
+float32 and float64, and a long run, each held to a plain loop of the scalar step
+(``integrate.step``, seed 000's recurrence for euler): ``simulate`` (NumPy prefix sums and the
+numba kernel), ``Odometry`` (the C update), the Monte Carlo kernel with no noise, and
+``batch.rollout`` in NumPy, array-api-strict, JAX and PyTorch. Then JAX's gradient of a
+final-pose loss with respect to the geometry, against finite differences.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+import diffdrive as dd
+from diffdrive import batch, integrate
+from diffdrive.montecarlo import monte_carlo
+
+jax = pytest.importorskip("jax", reason="jax is part of the test extra")
+torch = pytest.importorskip("torch", reason="torch is part of the test extra")
+xps = pytest.importorskip("array_api_strict", reason="array-api-strict is in the test extra")
+jnp = jax.numpy
+
+
+@dataclass(frozen=True, eq=False)  # hashed by identity, for the cache of the reference
+class Case:
+    name: str
+    robot: dd.DiffDrive
+    wheels: np.ndarray  # (T, 2) rad/s
+    dt: float
+    start: tuple[float, float, float] = (0.3, -0.2, 0.7)
+
+
+def _weave(steps: int, dt: float) -> np.ndarray:
+    t = np.arange(steps) * dt
+    return np.stack([8 + 5 * np.sin(0.9 * t), 8 - 5 * np.sin(0.6 * t + 1)], axis=-1)
+
+
+ROBOT = dd.DiffDrive(0.05, 0.3)
+OFFSET = dd.DiffDrive(left_wheel_radius=0.049, right_wheel_radius=0.051, track_width=0.31,
+                      axle_offset=0.07)  # fmt: skip
+CASES = [
+    Case("weave", ROBOT, _weave(200, 0.02), 0.02),
+    Case("weave, axle offset", OFFSET, _weave(200, 0.02), 0.02),
+    # A turn per step of 1e-5 rad: far below sinc's Taylor threshold (9e-3 rad in float64).
+    Case("tiny turns", ROBOT, np.tile([10.0, 10.0 + 3e-3], (100, 1)), 0.01),
+    # 0.5 rad a step: far above it, where the three methods differ most.
+    Case("sharp turns", OFFSET, np.tile([-5.0, 25.0], (60, 1)), 0.1),
+    Case("straight", ROBOT, np.tile([7.0, 7.0], (50, 1)), 0.05),
+    Case("spin in place", OFFSET, np.tile([-6.0, 6.0], (50, 1)), 0.05),
+    Case("long run", OFFSET, _weave(20_000, 0.005), 0.005),
+]
+
+
+@functools.cache
+def loop(case: Case, method: str) -> np.ndarray:
+    """The reference: the scalar step, one pose after another."""
+    pose, poses = dd.Pose(*case.start), [case.start]
+    for wheels in case.wheels:
+        pose = integrate.step(pose, case.robot.to_twist(wheels), case.dt, method)
+        poses.append(pose.to_array())
+    return np.array(poses)
+
+
+def _simulate(backend):
+    def run(case, method, dtype):
+        wheels = case.wheels.astype(dtype)
+        return dd.simulate(case.robot, wheels, dt=case.dt, initial_pose=case.start,
+                           method=method, backend=backend).poses  # fmt: skip
+
+    return run
+
+
+def _odometry(case, method, dtype):
+    odometry = dd.Odometry(case.robot, method, initial_pose=dd.Pose(*case.start))
+    poses, _ = odometry.update_arrays("increments", *(case.wheels * case.dt).T)
+    return np.concatenate([[case.start], poses])
+
+
+def _monte_carlo(case, method, dtype):
+    result = monte_carlo(case.robot, case.wheels, case.dt, 1, initial_pose=case.start,
+                         method=method, backend="numba", seed=0)  # fmt: skip
+    return result.mean  # one robot and no noise: its path
+
+
+def _rollout(convert, rollout=batch.rollout):
+    def run(case, method, dtype):
+        poses = rollout(case.robot, convert(case.wheels.astype(dtype)), case.dt,
+                        convert(np.array(case.start, dtype=dtype)), method)  # fmt: skip
+        return np.asarray(poses)
+
+    return run
+
+
+def _jax_array(values: np.ndarray):
+    return jnp.asarray(values)
+
+
+BACKENDS = {
+    "simulate numpy": (_simulate("numpy"), ("float32", "float64")),
+    "simulate numba": (_simulate("numba"), ("float32", "float64")),
+    "odometry (C)": (_odometry, ("float64",)),
+    "monte carlo (numba)": (_monte_carlo, ("float64",)),
+    "rollout numpy": (_rollout(np.asarray), ("float32", "float64")),
+    "rollout array-api-strict": (_rollout(xps.asarray), ("float32", "float64")),
+    # Compiled as a whole (as JAX users run it), not one primitive at a time.
+    "rollout jax": (
+        _rollout(_jax_array, jax.jit(batch.rollout, static_argnums=(0, 2, 4))),
+        ("float32", "float64"),
+    ),
+    "rollout torch": (_rollout(torch.asarray), ("float32", "float64")),
+}
+
+
+@pytest.fixture(autouse=True, scope="module")
+def jax_in_float64():
+    """JAX keeps float64 only when asked; the table wants both dtypes."""
+    jax.config.update("jax_enable_x64", True)
+    yield
+    jax.config.update("jax_enable_x64", False)
+
+
+def _tolerance(case: Case, dtype: str, backend: str) -> float:
+    """Absolute, m or rad: rounding over the path, by dtype and summation."""
+    length = float(np.sum(np.abs(case.wheels).max(axis=1) * case.robot.wheel_radius * case.dt))
+    scale = 1.0 + length + float(np.sum(np.abs(np.diff(case.wheels, axis=1))))
+    if dtype == "float32":
+        # Plain float32 prefix sums lose about sqrt(T) ulps; simulate sums in float64.
+        steps = len(case.wheels)
+        return 2e-6 * scale * (1.0 if backend.startswith("simulate") else np.sqrt(steps))
+    return 1e-11 * scale
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("method", integrate.METHODS)
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_every_backend_follows_the_scalar_step(case, method, backend):
+    run, dtypes = BACKENDS[backend]
+    want = loop(case, method)
+    for dtype in dtypes:
+        got = run(case, method, dtype)
+        assert got.shape == want.shape, (backend, dtype)
+        np.testing.assert_allclose(got, want, rtol=0, atol=_tolerance(case, dtype, backend),
+                                   err_msg=f"{backend}, {dtype}")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("convert", "kind"),
+    [
+        (torch.asarray, torch.Tensor),
+        (xps.asarray, type(xps.asarray(0.0))),
+        (_jax_array, jax.Array),
+    ],
+)
+def test_results_stay_in_the_callers_library(convert, kind):
+    wheels = convert(_weave(10, 0.1).astype(np.float32))
+    poses = batch.rollout(ROBOT, wheels, 0.1)
+    assert isinstance(poses, kind)
+    assert poses.dtype == wheels.dtype
+    increments = batch.to_twist(ROBOT, wheels) * 0.1
+    assert isinstance(dd.simulation.integrate_increments(increments), kind)
+    with pytest.raises(ValueError, match="dtype is for NumPy"):
+        dd.simulation.integrate_increments(increments, dtype=np.float64)
+
+
+def test_an_array_geometry_broadcasts_one_robot_per_row():
+    wheels = _weave(50, 0.02)
+    geometry = np.array([[0.05, 0.05, 0.3, 0.0], [0.049, 0.051, 0.31, 0.07]])
+    poses = batch.rollout(geometry, wheels, 0.02)
+    assert poses.shape == (2, 51, 3)
+    np.testing.assert_allclose(poses[1], batch.rollout(OFFSET, wheels, 0.02), atol=1e-14)
+    with pytest.raises(ValueError, match=r"geometry must have shape \(\.\.\., 3\) or"):
+        batch.rollout(np.ones(5), wheels, 0.02)
+    with pytest.raises(ValueError, match="dt must be finite and > 0"):
+        batch.rollout(ROBOT, wheels, 0.0)
+
+
+def test_jax_differentiates_a_final_pose_loss_with_respect_to_the_geometry():
+    wheels = jnp.asarray(_weave(300, 0.02))
+    target = jnp.asarray([1.0, 0.5, 0.3])
+
+    def loss(geometry):
+        final = batch.rollout(geometry, wheels, 0.02)[-1]
+        return jnp.sum((final - target) ** 2)
+
+    geometry = jnp.asarray([0.05, 0.051, 0.3, 0.01])
+    gradient = np.asarray(jax.jit(jax.grad(loss))(geometry))
+    value, step = jax.jit(loss), 1e-6
+    differences = [
+        (value(geometry.at[i].add(step)) - value(geometry.at[i].add(-step))) / (2 * step)
+        for i in range(4)
+    ]
+    np.testing.assert_allclose(gradient, np.asarray(differences), rtol=1e-6, atol=1e-8)
+    assert np.all(np.abs(gradient) > 1e-3)  # every parameter moves the final pose
