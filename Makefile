@@ -15,9 +15,10 @@ $(BIN)/diffdrive: pyproject.toml setup.py src/diffdrive/_odometry.c
 demo: $(BIN)/diffdrive            ## the main job on the built-in example
 	$(BIN)/diffdrive
 
-test: $(BIN)/diffdrive            ## linter, then the whole test suite
+test: $(BIN)/diffdrive            ## linter, type check, then the whole test suite
 	$(BIN)/ruff check
 	$(BIN)/ruff format --check
+	$(BIN)/mypy
 	$(BIN)/python -m pytest
 
 bench: $(BIN)/diffdrive           ## benchmarks/, with numba and the peer libraries

@@ -79,3 +79,20 @@ def test_auto_loads_numba_only_for_calls_where_it_pays_off():
     )
     out = python_lines(code)
     assert out[:2] == ["False", "True"]
+
+
+def test_the_wheel_carries_the_type_information_and_the_page(tmp_path):
+    """A built wheel, not the editable tree: py.typed, the C extension's stub, the marimo page."""
+    import zipfile
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", str(root), "--no-deps", "--no-build-isolation",
+         "-q", "-w", str(tmp_path)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    (wheel,) = tmp_path.glob("diffdrive-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for needed in ("diffdrive/py.typed", "diffdrive/_odometry.pyi", "diffdrive/learn/page.py"):
+        assert needed in names, needed

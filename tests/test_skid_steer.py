@@ -147,3 +147,18 @@ def test_the_command_line_takes_a_skid_steer_robot_file(tmp_path, capsys):
     assert main(["fk", "8", "10", "--robot", str(robot), "--json"]) == 0
     assert '"omega": 0.2588' in capsys.readouterr().out
     assert main(["simulate", "--robot", str(robot), "-o", str(tmp_path / "s.csv"), "-q"]) == 0
+    # Drawing it: the centre of curvature is the robot's ICR, at x = icr_x (this raised an
+    # AttributeError, axle_offset, before).
+    assert main(["plot", "--robot", str(robot), "-o", str(tmp_path / "p.png"), "-q"]) == 0
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+    log = tmp_path / "gyro.csv"
+    log.write_text("t,left_angle,right_angle,gyro_z\n0,0,0,0\n0.1,0.5,0.6,0.1\n0.2,1,1.3,0.1\n")
+    assert main(["odometry", str(log), "--robot", str(robot), "-o", str(tmp_path / "o.csv")]) == 1
+    assert "not a skid-steer robot file" in capsys.readouterr().err
+
+
+def test_the_centre_of_curvature_of_a_skid_steer_robot_is_its_icr():
+    centres = dd.batch.instantaneous_center(ASYMMETRIC, WHEELS[:5])
+    np.testing.assert_array_equal(centres[:, 0], 0.03)
+    radii = [ASYMMETRIC.turning_radius(w) for w in WHEELS[:5]]
+    np.testing.assert_allclose(centres[:, 1], radii, rtol=1e-12)

@@ -46,7 +46,7 @@ from diffdrive import batch
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import integrate_increments
-from diffdrive.skid_steer import SkidSteer
+from diffdrive.skid_steer import Robot, SkidSteer
 
 __all__ = ["CalibrationError", "CalibrationResult", "calibrate", "odometry_of"]
 
@@ -109,7 +109,7 @@ def _robot_with(nominal, parameters: np.ndarray, axle_offset: float | None = Non
 
 
 def odometry_of(
-    robot: DiffDrive, increments: np.ndarray, start: np.ndarray, method: Method = "exact"
+    robot: Robot, increments: np.ndarray, start: np.ndarray, method: Method = "exact"
 ) -> np.ndarray:
     """Dead-reckoned poses ``(T+1, 3)`` from wheel-angle increments ``(T, 2)`` and a start."""
     return integrate_increments(batch.to_twist(robot, increments), start, method)
@@ -137,7 +137,7 @@ def _check_runs(runs: list, names: list[str]) -> list[tuple[np.ndarray, np.ndarr
 
 
 def calibrate(
-    nominal_robot: DiffDrive,
+    nominal_robot: Robot,
     runs: list,
     method: CalibrationMethod = "least_squares",
     *,
@@ -229,7 +229,7 @@ def _check_square(name: str, truth: np.ndarray, side: float) -> None:
         )
 
 
-def _umbmark_parameters(nominal: DiffDrive, x_cw: float, x_ccw: float, side: float):
+def _umbmark_parameters(nominal: Robot, x_cw: float, x_ccw: float, side: float) -> np.ndarray:
     """Borenstein and Feng's corrections from the mean final x errors of each direction."""
     alpha = (x_cw + x_ccw) / (-4.0 * side)
     beta = (x_cw - x_ccw) / (-4.0 * side)
@@ -242,8 +242,8 @@ def _umbmark_parameters(nominal: DiffDrive, x_cw: float, x_ccw: float, side: flo
     return np.array([mean * 2 / (ratio + 1), mean * 2 / (1 / ratio + 1), track])
 
 
-def _umbmark(nominal: DiffDrive, runs, names, side: float, integration: Method):
-    errors = {"cw": [], "ccw": []}
+def _umbmark(nominal: Robot, runs, names, side: float, integration: Method):
+    errors: dict[str, list[np.ndarray]] = {"cw": [], "ccw": []}
     residuals = []
     for name, (increments, truth) in zip(names, runs, strict=True):
         _check_square(name, truth, side)
@@ -271,19 +271,20 @@ def _umbmark(nominal: DiffDrive, runs, names, side: float, integration: Method):
         return CalibrationResult(robot, "umbmark", None, residuals, uncertainty_note=note)
     # The standard error of each direction's mean, through the formulas' Jacobian.
     variances = np.array([x[way].var(ddof=1) / len(x[way]) for way in ("cw", "ccw")])
-    step = 1e-6 * side
-    jacobian = np.column_stack([
-        (_umbmark_parameters(nominal, *(np.array([x["cw"].mean(), x["ccw"].mean()]) + d), side)
-         - _umbmark_parameters(nominal, *(np.array([x["cw"].mean(), x["ccw"].mean()]) - d), side))
-        / (2 * step)
-        for d in step * np.eye(2)
-    ])  # fmt: skip
+    means, step = np.array([x["cw"].mean(), x["ccw"].mean()]), 1e-6 * side
+
+    def at(cw_and_ccw: np.ndarray) -> np.ndarray:
+        return _umbmark_parameters(nominal, cw_and_ccw[0], cw_and_ccw[1], side)
+
+    jacobian = np.column_stack(
+        [(at(means + d) - at(means - d)) / (2 * step) for d in step * np.eye(2)]
+    )
     covariance = jacobian @ np.diag(variances) @ jacobian.T
     return CalibrationResult(robot, "umbmark", covariance, residuals)
 
 
 def _fit_least_squares(
-    nominal: DiffDrive,
+    nominal: Robot,
     runs,
     integration: Method,
     loss: str,
@@ -315,7 +316,8 @@ def _fit_least_squares(
             pieces.append(_quadratic_under(loss, scale, scale * (relative[free] - 1.0) / prior))
         return np.concatenate(pieces)
 
-    initial = [nominal.axle_offset if name == "axle_offset" else 0.0 for name in extra]
+    offset = nominal.axle_offset if isinstance(nominal, DiffDrive) else 0.0  # no extras: SkidSteer
+    initial = [offset if name == "axle_offset" else 0.0 for name in extra]
     try:
         return _solve(nominal, residuals, free, extra, initial, loss=loss, f_scale=scale)
     finally:
@@ -354,7 +356,7 @@ def _solve(nominal, residuals, free: np.ndarray, extra=(), initial=(), **options
                                                              strict=True))  # fmt: skip
 
 
-def _fit_increments(nominal: DiffDrive, runs, free: np.ndarray):
+def _fit_increments(nominal: Robot, runs, free: np.ndarray):
     """Least squares of every step's distance and turn (see the module)."""
     wheels = np.concatenate([increments for increments, _ in runs])
     motion = np.concatenate([batch.log(batch.relative_to(t[1:], t[:-1])) for _, t in runs])
@@ -515,7 +517,7 @@ def _bounds(nominal) -> tuple[list[float], list[float]]:
     return [0.5, 0.5, 0.5], [1.5, 1.5, top]
 
 
-def _parameters(robot: DiffDrive) -> np.ndarray:
+def _parameters(robot: Robot) -> np.ndarray:
     return np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
 
 

@@ -11,6 +11,7 @@ import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 
@@ -33,12 +34,12 @@ from diffdrive.files import (
     read_robot,
     write_robot,
 )
-from diffdrive.integrate import METHODS
+from diffdrive.integrate import METHODS, Method
 from diffdrive.logs import WheelLog, narrower_counter
 from diffdrive.model import DiffDrive
-from diffdrive.odometry import Odometry, RefusedUpdateError
+from diffdrive.odometry import Odometry, RefusedUpdateError, UpdateKind
 from diffdrive.simulation import integrate_increments, simulate
-from diffdrive.skid_steer import SkidSteer
+from diffdrive.skid_steer import Robot, SkidSteer
 from diffdrive.trajectories import FORMATS, write_trajectory
 from diffdrive.types import Pose, Twist, WheelVelocities
 
@@ -237,9 +238,9 @@ def _output_options(default: str) -> argparse.ArgumentParser:
     return options
 
 
-def _robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
+def _robot(args: argparse.Namespace) -> tuple[DiffDrive | SkidSteer, float | None]:
     """The robot of the command's options, and its ticks per revolution if known."""
-    settings = read_robot(args.robot) if args.robot else {}
+    settings: dict[str, Any] = dict(read_robot(args.robot)) if args.robot else {}
     for name in ROBOT_KEYS:
         value = getattr(args, name)
         if value is not None:
@@ -263,21 +264,21 @@ def _robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
         raise ValueError(f"robot{where}: {exc}") from None
 
 
-OUTPUT_FORMATS = (*FORMATS, "mcap", "ros2")
+OutputFormat = Literal["csv", "jsonl", "tum", "mcap", "ros2"]
+OUTPUT_FORMATS: tuple[OutputFormat, ...] = (*FORMATS, "mcap", "ros2")
 
 
-def _format(args: argparse.Namespace) -> str:
-    if args.format:
-        return args.format
-    suffix = args.output.suffix.lstrip(".").lower()
-    return suffix if suffix in OUTPUT_FORMATS else "csv"
+def _format(args: argparse.Namespace) -> OutputFormat:
+    """``--format``, else the output's suffix if it names a format, else csv."""
+    wanted = args.format or args.output.suffix.lstrip(".").lower()
+    return next((known for known in OUTPUT_FORMATS if known == wanted), "csv")
 
 
 def _write(args, times, poses, what: str, columns=None, covariances=None, twists=None) -> None:
     """Write the trajectory in the chosen format: a file of poses and ``columns``, or
     ``nav_msgs/Odometry`` and ``/tf`` with ``covariances`` and ``twists`` to a bag."""
     format = _format(args)
-    if format in ("mcap", "ros2"):
+    if format == "mcap" or format == "ros2":
         from diffdrive.ros import write_odometry
 
         written = [write_odometry(args.output, times, poses, covariances, twists,
@@ -306,7 +307,7 @@ def _start(log: WheelLog) -> np.ndarray:
     return np.zeros(3) if log.truth is None else log.truth[0]
 
 
-def _checked_increments(args, log: WheelLog, robot: DiffDrive, ticks) -> tuple[np.ndarray, str]:
+def _checked_increments(args, log: WheelLog, robot: Robot, ticks) -> tuple[np.ndarray, str]:
     """The log's wheel increments ``(T, 2)`` rad, and a line on its largest wheel speed;
     refuses a counter width that does not fit, and a speed no robot drives at (without
     --max-wheel-speed, a rim speed of _RIM_SPEED_LIMIT m/s)."""
@@ -382,6 +383,9 @@ def run_odometry(args: argparse.Namespace) -> int:
     increments, note = _checked_increments(args, log, robot, ticks)
     gyro = _gyro(args, log)
     if gyro is not None:
+        if isinstance(robot, SkidSteer):
+            raise ValueError("the gyro heading takes a differential drive (track_width), not a "
+                             "skid-steer robot file (icr_left, icr_right)")  # fmt: skip
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
@@ -392,7 +396,9 @@ def run_odometry(args: argparse.Namespace) -> int:
     )  # fmt: skip
     times, wheels = log.times, log.wheels
     to_bag = _format(args) in ("mcap", "ros2")
-    kind = {"ticks": "ticks", "angle": "positions", "velocity": "velocities"}[log.kind]
+    kinds: dict[str, UpdateKind] = {"ticks": "ticks", "angle": "positions",
+                                    "velocity": "velocities"}  # fmt: skip
+    kind = kinds[log.kind]
     first = 1 if kind == "velocities" else 0  # a velocity is held until the next row
     third = np.diff(times) if kind == "velocities" else times
     left, right = (wheels[:-1, 0], wheels[:-1, 1]) if first else (wheels[:, 0], wheels[:, 1])
@@ -406,12 +412,12 @@ def run_odometry(args: argparse.Namespace) -> int:
         poses = np.vstack([start, poses])
         if covariances is not None:
             covariances = np.vstack([np.zeros((1, 3, 3)), covariances])
-    columns = {}
+    columns: dict[str, np.ndarray] = {}
     twists = batch.to_twist(robot, increments)
     twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
     if args.twist:
         columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])
-    if args.covariance:
+    if args.covariance and covariances is not None:
         flat = covariances.reshape(-1, 9)
         for name, index in COVARIANCE_COLUMNS.items():
             columns[name] = flat[:, index]
@@ -516,14 +522,14 @@ def error_summary(poses: np.ndarray, truth: np.ndarray) -> str:
     )
 
 
-def _example_trajectory(robot: DiffDrive, dt: float = 0.01, method: str = "exact"):
+def _example_trajectory(robot: Robot, dt: float = 0.01, method: Method = "exact"):
     """The built-in driving history, simulated."""
     return simulate(
         robot, example_wheel_velocities, dt=dt, duration=EXAMPLE_DURATION, method=method
     )
 
 
-def _trajectory_or_example(args: argparse.Namespace, robot: DiffDrive):
+def _trajectory_or_example(args: argparse.Namespace, robot: Robot):
     """``(times, poses, what)`` from the input trajectory (file or bag topic), or the
     built-in example."""
     if args.input is None:
@@ -652,7 +658,7 @@ def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
     return "\n".join(lines)
 
 
-def calibration_report(nominal: DiffDrive, result, runs, integration: str) -> str:
+def calibration_report(nominal: Robot, result, runs, integration: Method) -> str:
     """Parameters with their standard errors, and the largest errors before and after."""
     sigma = result.standard_errors
     lines = [f"{'parameter':20} {'nominal':>10} {'calibrated':>11} {'+-':>10}"]
@@ -666,9 +672,9 @@ def calibration_report(nominal: DiffDrive, result, runs, integration: str) -> st
     before = worst([run_errors(odometry_of(nominal, i, t[0], integration), t) for i, t in runs])
     after = worst([run_errors(odometry_of(result.robot, i, t[0] + shift, integration), t)
                    for i, t in runs])  # fmt: skip
-    if getattr(result.robot, "axle_offset", 0.0) != getattr(nominal, "axle_offset", 0.0):
-        lines.append(f"{'axle_offset':20} {nominal.axle_offset:10.6f} "
-                     f"{result.robot.axle_offset:11.6f}")  # fmt: skip
+    offsets = [getattr(robot, "axle_offset", 0.0) for robot in (nominal, result.robot)]
+    if offsets[0] != offsets[1]:  # fitted (a SkidSteer has icr_x instead)
+        lines.append(f"{'axle_offset':20} {offsets[0]:10.6f} {offsets[1]:11.6f}")
     if result.heading_offset:
         lines.append(
             f"heading offset of the reference: {np.degrees(result.heading_offset):.3f} deg"
@@ -838,7 +844,7 @@ def _at_least(smallest: int):
     return parse
 
 
-def example_outputs(robot: DiffDrive, folder: Path) -> str:
+def example_outputs(robot: Robot, folder: Path) -> str:
     """Write the built-in trajectory (CSV, and a picture if matplotlib is there) to ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
     trajectory = _example_trajectory(robot)

@@ -61,7 +61,7 @@ class OptiOdomRun:
 def read_optiodom_run(path: str | Path) -> OptiOdomRun:
     """Read one ``<experiment>_run-NN.csv``; ``ValueError`` naming the file and line if bad."""
     path = Path(path)
-    rows = []
+    rows: list[list[float]] = []
     for number, line in text_lines(path):
         fields = line.strip().split(",")
         if fields == [""]:

@@ -60,7 +60,7 @@ def count_changes(readings: object, bits: int | None, axis: int = 0) -> np.ndarr
             raise ValueError("a counter changed by 2^63 counts or more between readings")
         return changes.astype(np.int64)
     # Modular arithmetic in uint64: wraps exactly for every width up to 64.
-    raw = np.diff(array.astype(np.uint64), axis=axis)
+    raw: np.ndarray = np.diff(array.astype(np.uint64), axis=axis)
     if bits < 64:
         mask = np.uint64((1 << bits) - 1)
         raw &= mask

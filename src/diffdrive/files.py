@@ -23,6 +23,7 @@ import csv
 import io
 import math
 import os
+import sys
 import tempfile
 import warnings
 from collections.abc import Iterator, Sequence
@@ -141,7 +142,7 @@ def number_row(path: Path, number: int, fields: list[str], size: int, what: str)
 def _splitter(header: str):
     """A function that splits a line into cells, chosen by the separator the header uses."""
     counts = {sep: header.count(sep) for sep in (",", ";", "\t")}
-    separator = max(counts, key=counts.get)
+    separator = max(counts, key=lambda sep: counts[sep])
     if counts[separator] == 0:
         return str.split
     decimal_comma = separator != ","
@@ -264,10 +265,10 @@ def read_table(
     index = {name: names.index(name) for name in wanted}
     fast = _read_plain_csv(path, index, integers, increasing)
     if fast is not None:
-        table, lines = fast
+        table, fast_lines = fast
         if increasing is not None and increasing in table:
             times_in_seconds(table, increasing, time_unit, path)
-        return Table(path, table, lines)
+        return Table(path, table, fast_lines)
     values: dict[str, list] = {name: [] for name in wanted}
     lines: list[int] = []
     try:
@@ -358,9 +359,9 @@ def read_robot(path: str | Path) -> dict[str, float]:
     Returns them as a dict; ``TableError`` names the file (and the line, for a syntax error)
     of anything wrong.
     """
-    try:
+    if sys.version_info >= (3, 11):
         import tomllib
-    except ModuleNotFoundError:  # Python 3.10
+    else:
         import tomli as tomllib
     path = Path(path)
     try:

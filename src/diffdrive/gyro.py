@@ -368,7 +368,8 @@ def gyro_odometry(
                     "log in which the wheels stand still for a while"
                 )
             bias = 0.0
-    odometry = GyroOdometry(robot, heading, initial_pose, bias=bias, **options)
+    start = None if initial_pose is None else Pose.coerce(initial_pose, "initial_pose")
+    odometry = GyroOdometry(robot, heading, start, bias=bias, **options)
     n = len(times)
     poses, covariances = np.empty((n, 3)), np.empty((n, 3, 3))
     biases, slips, scores = np.empty(n), np.zeros(n, dtype=bool), np.zeros(n)

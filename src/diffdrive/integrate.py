@@ -27,9 +27,10 @@ __all__ = ["METHODS", "Method", "check_method", "delta", "step"]
 
 def check_method(method: str) -> Method:
     """``method`` itself if it names an integration method; ``ValueError`` listing them if not."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-    return method  # type: ignore[return-value]
+    for known in METHODS:
+        if method == known:
+            return known
+    raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
 
 
 def delta(twist: Twist, dt: float, method: Method = "exact") -> Pose:

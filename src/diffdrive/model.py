@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive._validate import finite, positive
-from diffdrive.types import Pose, Twist, WheelVelocities
+from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
 __all__ = ["DiffDrive"]
 
@@ -78,7 +78,7 @@ class DiffDrive:
 
     # -- (v, omega) form: seeds 002 and 003 -------------------------------------------------
 
-    def to_twist(self, wheels: WheelVelocities) -> Twist:
+    def to_twist(self, wheels: WheelsLike) -> Twist:
         """Body twist of the reference point from the wheel velocities (forward kinematics).
 
         ``wheels`` is a ``WheelVelocities`` or two numbers ``(left, right)``, rad/s.
@@ -89,7 +89,7 @@ class DiffDrive:
         omega = (right - left) / self.track_width
         return Twist(0.5 * (right + left), self.axle_offset * omega, omega)
 
-    def to_wheel_velocities(self, twist: Twist) -> WheelVelocities:
+    def to_wheel_velocities(self, twist: TwistLike) -> WheelVelocities:
         """Wheel velocities that drive ``twist`` (inverse kinematics).
 
         A differential drive cannot choose ``vy``: it is ``axle_offset * omega``. The given
@@ -115,7 +115,7 @@ class DiffDrive:
 
     # -- turning: seed 002 ------------------------------------------------------------------
 
-    def turning_radius(self, wheels: WheelVelocities) -> float:
+    def turning_radius(self, wheels: WheelsLike) -> float:
         """Signed radius of the axle midpoint's path, m: ``v/omega`` (seed 002's ``R``).
 
         Positive when turning left (centre on +y), ``+-inf`` when driving straight, ``0`` when
@@ -123,7 +123,7 @@ class DiffDrive:
         """
         return path_radius(self.to_twist(wheels))
 
-    def instantaneous_center(self, wheels: WheelVelocities) -> tuple[float, float]:
+    def instantaneous_center(self, wheels: WheelsLike) -> tuple[float, float]:
         """The instantaneous centre of curvature in the body frame, ``(x, y)`` in m.
 
         It lies on the axle line, ``(-axle_offset, turning_radius)``: ``y`` is infinite when

@@ -107,9 +107,8 @@ class Odometry(OdometryCore):
         self.counter_bits = counter_bits
         # A skid-steer robot runs as its equivalent drive, whose reference point lies
         # ``_offset`` m left of the body origin; poses and covariances are moved back.
-        geometry, self._offset = robot, 0.0
-        if isinstance(robot, SkidSteer):
-            geometry, self._offset = robot.equivalent, robot.reference_offset
+        geometry: DiffDrive = robot.equivalent if isinstance(robot, SkidSteer) else robot
+        self._offset = robot.reference_offset if isinstance(robot, SkidSteer) else 0.0
         super().__init__(
             geometry.left_wheel_radius,
             geometry.right_wheel_radius,
@@ -225,7 +224,7 @@ class Odometry(OdometryCore):
             raise ValueError(f"third must have {len(rows[0])} values, got {len(thirds)}")
         poses = np.empty((len(thirds), 3))
         covariances = np.empty((len(thirds), 3, 3)) if covariance else None
-        refused = self._run(UPDATE_KINDS.index(kind), *rows, thirds, poses, covariances)
+        refused = self._run(UPDATE_KINDS.index(kind), rows[0], rows[1], thirds, poses, covariances)
         if refused is not None:
             raise RefusedUpdateError(*refused)
         if self._offset:
@@ -245,10 +244,10 @@ class Odometry(OdometryCore):
         columns ``[left, right]``), for this odometry's method.
         """
         left, right = finite("left", left), finite("right", right)
-        pose_jacobian, wheel_jacobian = self._jacobians(left, right)
-        pose_jacobian = np.array(pose_jacobian).reshape(3, 3)
-        wheel_jacobian = np.array(wheel_jacobian).reshape(3, 2)
-        if self._offset:  # through the equivalent drive: into its frame and back
+        by_pose, by_wheels = self._jacobians(left, right)
+        pose_jacobian = np.array(by_pose).reshape(3, 3)
+        wheel_jacobian = np.array(by_wheels).reshape(3, 2)
+        if isinstance(self.robot, SkidSteer):  # through the equivalent drive, and back
             geometry, theta = self.robot.equivalent, self._state()[2]
             turn = (geometry.right_wheel_radius * right - geometry.left_wheel_radius * left) / (
                 geometry.track_width

@@ -85,7 +85,7 @@ class OnlineCalibrator:
             self._gathered = (wheels, motion, count + 1)
             return True
         self._gathered = (np.zeros(2), np.zeros(3), 0)
-        return self._measure(*wheels, motion)
+        return self._measure(float(wheels[0]), float(wheels[1]), motion)
 
     def _measure(self, left: float, right: float, relative_pose: np.ndarray) -> bool:
         motion = batch.log(relative_pose)
@@ -132,16 +132,16 @@ class OnlineCalibrator:
         """The same prior, noise and window, all measurements at once (weighted least
         squares): ``[left_wheel_radius, right_wheel_radius, track_width]``. No gating; the
         updates after the last whole window are not used, as online."""
-        increments, poses = np.asarray(increments, dtype=float), np.asarray(relative_poses, float)
-        whole_windows = len(increments) // self.window * self.window
-        increments = increments[:whole_windows].reshape(-1, self.window, 2).sum(axis=1)
+        wheels, poses = np.asarray(increments, dtype=float), np.asarray(relative_poses, float)
+        whole_windows = len(wheels) // self.window * self.window
+        summed = wheels[:whole_windows].reshape(-1, self.window, 2).sum(axis=1)
         blocks = poses[:whole_windows].reshape(-1, self.window, 3)
         composed = blocks[:, 0]
         for k in range(1, self.window):
             composed = batch.compose(composed, blocks[:, k])
         motion = batch.log(composed)
         fresh = OnlineCalibrator(self.nominal)  # the prior, as this one started
-        designs = (0.5 * increments, increments * np.array([-1.0, 1.0]))
+        designs = (0.5 * summed, summed * np.array([-1.0, 1.0]))
         solved = []
         for k, (design, values) in enumerate(zip(designs, (motion[:, 0], motion[:, 2]),
                                                  strict=True)):  # fmt: skip

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch
-from diffdrive.model import DiffDrive
+from diffdrive.skid_steer import Robot
 
 __all__ = ["animate", "animation_writer", "plot_trajectory", "wheel_velocities_of"]
 
@@ -35,14 +35,14 @@ def _three_panels():
     return figure, (*panels, figure.add_subplot(grid[1, 1]))
 
 
-def wheel_velocities_of(robot: DiffDrive, times: np.ndarray, poses: np.ndarray) -> np.ndarray:
+def wheel_velocities_of(robot: Robot, times: np.ndarray, poses: np.ndarray) -> np.ndarray:
     """Wheel velocities ``(T, 2)`` rad/s held over each step of poses ``(T+1, 3)``."""
     steps = batch.relative_to(poses[1:], poses[:-1])
     twists = batch.log(steps) / np.diff(times)[:, None]
     return batch.to_wheel_velocities(robot, twists)
 
 
-def _draw_robot(ax, robot: DiffDrive, pose: np.ndarray) -> None:
+def _draw_robot(ax, robot: Robot, pose: np.ndarray) -> None:
     """The robot's outline (a box the size of its track) and its heading, at ``pose``."""
     half = robot.track_width / 2
     corners = np.array([[-half, -half], [half, -half], [half, half], [-half, half], [-half, -half]])
@@ -52,7 +52,7 @@ def _draw_robot(ax, robot: DiffDrive, pose: np.ndarray) -> None:
     ax.plot(nose[:, 0], nose[:, 1], color=_ROBOT_COLOUR, linewidth=1.5)
 
 
-def _centre_of_curvature(ax, robot: DiffDrive, pose: np.ndarray, wheels: np.ndarray) -> None:
+def _centre_of_curvature(ax, robot: Robot, pose: np.ndarray, wheels: np.ndarray) -> None:
     """The instantaneous centre of rotation when it is within a few metres of the robot."""
     centre = batch.instantaneous_center(robot, wheels)
     if np.all(np.isfinite(centre)) and np.hypot(*centre) < 3.0:
@@ -61,7 +61,7 @@ def _centre_of_curvature(ax, robot: DiffDrive, pose: np.ndarray, wheels: np.ndar
 
 
 def plot_trajectory(
-    robot: DiffDrive,
+    robot: Robot,
     times: np.ndarray,
     poses: np.ndarray,
     output: str | Path,
@@ -155,7 +155,7 @@ def animation_writer(output: str | Path) -> tuple[str, Path]:
 
 
 def animate(
-    robot: DiffDrive,
+    robot: Robot,
     times: np.ndarray,
     poses: np.ndarray,
     output: str | Path,

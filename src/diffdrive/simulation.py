@@ -140,6 +140,7 @@ def _step_times(
     if (dt is None) == (times is None):
         raise ValueError("give exactly one of dt (a uniform step, s) or times (s)")
     if dt is not None:
+        assert steps is not None, "a uniform dt comes with its number of steps"
         step = floating(np, dt, "dt")
         if step.ndim != 0 or not np.isfinite(step) or step <= 0:
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
@@ -158,9 +159,9 @@ def _step_times(
     not_increasing = np.diff(t, axis=-1) <= 0
     if not_increasing.any():
         index = _first_bad(not_increasing)
+        after = (*index[:-1], index[-1] + 1)
         raise ValueError(
-            f"times must increase strictly; times{(*index[:-1], index[-1] + 1)} = "
-            f"{t[(*index[:-1], index[-1] + 1)]} follows {t[index]}"
+            f"times must increase strictly; times{after} = {t[after]} follows {t[index]}"
         )
     if steps is not None and t.shape[-1] != steps + 1:
         raise ValueError(

@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 from diffdrive._validate import finite, positive
 from diffdrive.model import DiffDrive, path_radius, wheel_radii
-from diffdrive.types import Pose, Twist, WheelVelocities
+from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
-__all__ = ["SkidSteer"]
+__all__ = ["Robot", "SkidSteer"]
 
 
 @dataclass(frozen=True, slots=True, init=False)
@@ -128,7 +128,7 @@ class SkidSteer:
             sides.append(sum(values) / len(values))
         return WheelVelocities(*sides)
 
-    def to_twist(self, wheels: WheelVelocities) -> Twist:
+    def to_twist(self, wheels: WheelsLike) -> Twist:
         """The body twist from the sides' wheel velocities (the ICR kinematics, computed as
         the equivalent drive's, so that the ideal case is a ``DiffDrive`` to the bit)."""
         twist = self.equivalent.to_twist(WheelVelocities.coerce(wheels, "wheels"))
@@ -136,13 +136,13 @@ class SkidSteer:
             return twist
         return Twist(twist.vx + self.reference_offset * twist.omega, twist.vy, twist.omega)
 
-    def to_wheel_velocities(self, twist: Twist) -> WheelVelocities:
+    def to_wheel_velocities(self, twist: TwistLike) -> WheelVelocities:
         """The sides' wheel velocities that drive ``twist``; its ``vy`` is not used."""
         twist = Twist.coerce(twist, "twist")
         at_reference = Twist(twist.vx - self.reference_offset * twist.omega, 0.0, twist.omega)
         return self.equivalent.to_wheel_velocities(at_reference)
 
-    def turning_radius(self, wheels: WheelVelocities) -> float:
+    def turning_radius(self, wheels: WheelsLike) -> float:
         """Signed radius of the body origin's path, m (as ``DiffDrive.turning_radius``)."""
         return path_radius(self.to_twist(wheels))
 
@@ -153,3 +153,6 @@ class SkidSteer:
     def from_reference(self, pose: object) -> Pose:
         """The body pose for the equivalent drive's pose ``pose``."""
         return Pose.coerce(pose, "pose").compose(Pose(0.0, -self.reference_offset, 0.0))
+
+
+Robot = DiffDrive | SkidSteer  # what the whole-path functions take: either kind of robot

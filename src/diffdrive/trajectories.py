@@ -171,10 +171,10 @@ def write_trajectory(
         raise ValueError(f"poses must have shape (T+1, 3) or (N, T+1, 3), got {poses.shape}")
     times = np.broadcast_to(np.asarray(times, dtype=float), poses.shape[:-1])
     extra = {name: np.asarray(values, dtype=float) for name, values in (columns or {}).items()}
-    for name, values in extra.items():
-        if values.shape != poses.shape[:-1]:
+    for name, given in extra.items():
+        if given.shape != poses.shape[:-1]:
             raise ValueError(
-                f"column {name!r} must have shape {poses.shape[:-1]}, got {values.shape}"
+                f"column {name!r} must have shape {poses.shape[:-1]}, got {given.shape}"
             )
     if format == "tum":
         if extra:
@@ -182,22 +182,22 @@ def write_trajectory(
         return _write_tum(Path(path), times, poses)
     robots = poses.shape[0] if poses.ndim == 3 else None
     names = (["robot"] if robots else []) + list(_POSE) + list(extra)
-    values = [times, poses[..., 0], poses[..., 1], poses[..., 2], *extra.values()]
+    arrays = [times, poses[..., 0], poses[..., 1], poses[..., 2], *extra.values()]
     if robots:
-        values.insert(0, np.broadcast_to(np.arange(robots)[:, None], times.shape))
-    columns = [np.reshape(column, -1).tolist() for column in values]
+        arrays.insert(0, np.broadcast_to(np.arange(robots)[:, None], times.shape))
+    cells: list[list] = [np.reshape(column, -1).tolist() for column in arrays]
     if robots:
-        columns[0] = [int(k) for k in columns[0]]
+        cells[0] = [int(k) for k in cells[0]]
     with atomic_write(path) as stream:
         if format == "csv":
             stream.write(",".join(names) + "\n")
-            text = [_float_texts(column) for column in columns]
+            text = [_float_texts(column) for column in cells]
             for start in range(0, len(text[0]), _ROWS_PER_WRITE):
                 chunk = [column[start : start + _ROWS_PER_WRITE] for column in text]
                 stream.write("\n".join(map(",".join, zip(*chunk, strict=True))) + "\n")
         else:
             stream.writelines(
-                json.dumps(_record(names, row)) + "\n" for row in zip(*columns, strict=True)
+                json.dumps(_record(names, list(row))) + "\n" for row in zip(*cells, strict=True)
             )
     return [Path(path)]
 

@@ -8,6 +8,7 @@ when built, so NaN never enters the scalar layer silently.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import astuple, dataclass, fields
 from typing import TypeVar
 
@@ -149,3 +150,9 @@ class WheelPositions(_Vector):
         """The wheel angles after turning at ``velocities`` for ``dt`` s (seed 001, eq. 5-6)."""
         dt = positive("dt", dt)
         return WheelPositions(self.left + velocities.left * dt, self.right + velocities.right * dt)
+
+
+# What a scalar function takes for a value: the type itself, or its numbers in field order.
+PoseLike = Pose | Sequence[float] | np.ndarray
+TwistLike = Twist | Sequence[float] | np.ndarray
+WheelsLike = WheelVelocities | Sequence[float] | np.ndarray

@@ -10,12 +10,20 @@ the parameters is recorded with the reason, never scored with a guessed robot.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive.calibration import PARAMETERS, CalibrationError, calibrate, odometry_of
+from diffdrive.calibration import (
+    PARAMETERS,
+    CalibrationError,
+    CalibrationMethod,
+    calibrate,
+    odometry_of,
+)
 from diffdrive.evaluation import RunErrors, run_errors, worst
+from diffdrive.skid_steer import Robot
 
 __all__ = ["CrossValidation", "Fold", "cross_validate"]
 
@@ -72,7 +80,11 @@ def _folds(scheme, count: int) -> list[tuple[int, ...]]:
 
 
 def cross_validate(
-    nominal_robot, runs: list, method: str = "least_squares", scheme="loo", **options
+    nominal_robot: Robot,
+    runs: list,
+    method: CalibrationMethod = "least_squares",
+    scheme: str | int | Sequence[int] = "loo",
+    **options,
 ) -> CrossValidation:
     """Calibrate on all ``runs`` (in-sample) and by ``scheme`` (see the module); ``options``
     go to ``calibrate`` (``integration`` also scores the runs)."""

@@ -18,10 +18,10 @@ def delta(twists: object, dt: object, method: Method = "exact") -> Any:
         return exp(twists, dt)
     xp = namespace(twists, dt)
     v = components(xp, twists, "twists", TWIST)
-    dt = floating(xp, dt, "dt", like=v)
-    leading_shape(twists=tuple(v.shape[:-1]), dt=tuple(dt.shape))
-    turn = v[..., 2] * dt
-    dx, dy = v[..., 0] * dt, v[..., 1] * dt
+    step = floating(xp, dt, "dt", like=v)
+    leading_shape(twists=tuple(v.shape[:-1]), dt=tuple(step.shape))
+    turn = v[..., 2] * step
+    dx, dy = v[..., 0] * step, v[..., 1] * step
     if method == "euler":
         return xp.stack([dx, dy, turn], axis=-1)
     c, s = xp.cos(0.5 * turn), xp.sin(0.5 * turn)

@@ -38,14 +38,13 @@ def to_twist(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
     """
     xp = namespace(wheels)
     w = _wheels(xp, wheels)
-    shift = 0.0
-    if isinstance(robot, SkidSteer):
-        robot, shift = robot.equivalent, robot.reference_offset
-    left = robot.left_wheel_radius * w[..., 0]
-    right = robot.right_wheel_radius * w[..., 1]
-    omega = (right - left) / robot.track_width
+    drive: DiffDrive = robot.equivalent if isinstance(robot, SkidSteer) else robot
+    shift = robot.reference_offset if isinstance(robot, SkidSteer) else 0.0
+    left = drive.left_wheel_radius * w[..., 0]
+    right = drive.right_wheel_radius * w[..., 1]
+    omega = (right - left) / drive.track_width
     forward = 0.5 * (right + left) + shift * omega if shift else 0.5 * (right + left)
-    return xp.stack([forward, robot.axle_offset * omega, omega], axis=-1)
+    return xp.stack([forward, drive.axle_offset * omega, omega], axis=-1)
 
 
 def to_wheel_velocities(robot: DiffDrive | SkidSteer, twists: object) -> Any:
@@ -65,7 +64,7 @@ def to_wheel_velocities(robot: DiffDrive | SkidSteer, twists: object) -> Any:
     )
 
 
-def turning_radius(robot: DiffDrive, wheels: object) -> Any:
+def turning_radius(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
     """Signed radius ``(...)`` of the axle midpoint's path, m: ``v/omega``.
 
     ``+-inf`` driving straight, 0 spinning in place, NaN standing still.
@@ -79,26 +78,28 @@ def turning_radius(robot: DiffDrive, wheels: object) -> Any:
     return xp.where(turning, radius, straight)
 
 
-def instantaneous_center(robot: DiffDrive, wheels: object) -> Any:
-    """Instantaneous centres of curvature ``(..., 2)`` in the body frame, m."""
+def instantaneous_center(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
+    """Instantaneous centres of curvature ``(..., 2)`` in the body frame, m: on the axle line
+    (``x = -axle_offset``), or for a ``SkidSteer`` at ``x = icr_x``."""
     xp = namespace(wheels)
     radius = turning_radius(robot, wheels)
-    return xp.stack([xp.full_like(radius, -robot.axle_offset), radius], axis=-1)
+    x = robot.icr_x if isinstance(robot, SkidSteer) else -robot.axle_offset
+    return xp.stack([xp.full_like(radius, x), radius], axis=-1)
 
 
 def advance_wheel_positions(positions: object, velocities: object, dt: object) -> Any:
     """Wheel angles ``(..., 2)`` after turning at ``velocities`` for ``dt`` s (seed 001)."""
     xp = namespace(positions, velocities, dt)
     p, w = _wheels(xp, positions, "positions"), _wheels(xp, velocities, "velocities")
-    dt = finite_positive_dt(xp, dt, like=p)
+    step = finite_positive_dt(xp, dt, like=p)
     leading_shape(positions=tuple(p.shape[:-1]), velocities=tuple(w.shape[:-1]))
-    return p + w * dt[..., None]
+    return p + w * step[..., None]
 
 
 def wheel_velocities_from_positions(before: object, after: object, dt: object) -> Any:
     """Mean wheel velocities ``(..., 2)`` between two wheel-angle readings ``dt`` s apart."""
     xp = namespace(before, after, dt)
     p0, p1 = _wheels(xp, before, "before"), _wheels(xp, after, "after")
-    dt = finite_positive_dt(xp, dt, like=p0)
+    step = finite_positive_dt(xp, dt, like=p0)
     leading_shape(before=tuple(p0.shape[:-1]), after=tuple(p1.shape[:-1]))
-    return (p1 - p0) / dt[..., None]
+    return (p1 - p0) / step[..., None]

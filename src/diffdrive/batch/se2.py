@@ -65,10 +65,10 @@ def wrap_angle(angles: object) -> Any:
 def sinc(u: object) -> Any:
     """``sin(u)/u`` elementwise, with a Taylor form near 0 chosen by the dtype's epsilon."""
     xp = namespace(u)
-    u = floating(xp, u, "u")
-    small = xp.abs(u) < sinc_threshold(float(xp.finfo(u.dtype).eps))
-    safe = xp.where(small, xp.ones_like(u), u)
-    u2 = u * u
+    x = floating(xp, u, "u")
+    small = xp.abs(x) < sinc_threshold(float(xp.finfo(x.dtype).eps))
+    safe = xp.where(small, xp.ones_like(x), x)
+    u2 = x * x
     return xp.where(small, 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0), xp.sin(safe) / safe)
 
 
@@ -79,10 +79,10 @@ def exp(twists: object, dt: object = 1.0) -> Any:
     """
     xp = namespace(twists, dt)
     v = components(xp, twists, "twists", TWIST)
-    dt = floating(xp, dt, "dt", like=v)
-    leading_shape(twists=tuple(v.shape[:-1]), dt=tuple(dt.shape))
-    half = 0.5 * v[..., 2] * dt
-    chord = dt * sinc(half)
+    step = floating(xp, dt, "dt", like=v)
+    leading_shape(twists=tuple(v.shape[:-1]), dt=tuple(step.shape))
+    half = 0.5 * v[..., 2] * step
+    chord = step * sinc(half)
     c, s = xp.cos(half), xp.sin(half)
     vx, vy = v[..., 0], v[..., 1]
     return xp.stack([chord * (c * vx - s * vy), chord * (s * vx + c * vy), 2.0 * half], axis=-1)

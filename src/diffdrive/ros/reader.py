@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.files import TableError
-from diffdrive.logs import WheelLog
+from diffdrive.logs import WheelKind, WheelLog
 
 __all__ = [
     "BagError",
@@ -87,7 +87,7 @@ class Topic:
 def topics(path: str | Path) -> list[Topic]:
     """The topics of a bag, in name order."""
     with _open(path) as reader:
-        found = {}
+        found: dict[tuple[str, str], int] = {}
         for connection in reader.connections:
             name, kind = connection.topic, connection.msgtype
             count = found.get((name, kind), 0) + connection.msgcount
@@ -199,7 +199,7 @@ def read_joint_states(
     ordered, rows, _ = _collect(path, topic, ("sensor_msgs/msg/JointState",), wheels)
     if len(rows) < 2 or not np.all(np.isfinite(rows)):
         raise BagError(f"{path}: {topic}: needs 2 or more messages of finite wheel {chosen[0]}s")
-    kind = "angle" if chosen[0] == "position" else "velocity"
+    kind: WheelKind = "angle" if chosen[0] == "position" else "velocity"
     return WheelLog(ordered.times, kind, rows, None, f"{path} {topic} ({ordered.source} stamps)")
 
 

@@ -87,7 +87,9 @@ def write_odometry(
     return path
 
 
-def _checked(times, poses, covariances, twists):
+def _checked(
+    times: object, poses: object, covariances: object, twists: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     times = np.asarray(times, dtype=float)
     poses = np.asarray(poses, dtype=float)
     if times.ndim != 1 or poses.shape != (len(times), 3) or len(times) == 0:

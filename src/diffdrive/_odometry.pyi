@@ -1,0 +1,52 @@
+"""Signatures of the C extension ``diffdrive._odometry`` (``_odometry.c``), for type checkers
+and editors. Use ``diffdrive.Odometry``, which subclasses ``OdometryCore``."""
+
+from typing import Any
+
+Covariance = tuple[float, float, float, float, float, float, float, float, float]
+
+class OdometryCore:
+    """The state and update of diffdrive.Odometry; use that class."""
+
+    def __init__(
+        self,
+        left_wheel_radius: float,
+        right_wheel_radius: float,
+        track_width: float,
+        axle_offset: float,
+        method: int,  # index into diffdrive.integrate.METHODS
+        rad_per_tick: float,  # NaN when the counts per revolution are not known
+        max_wheel_speed: float,  # rad/s; infinite for no limit
+        counter_bits: int,  # 0: counters that never roll over
+        k_left: float,
+        k_right: float,
+        velocity_window: float,
+        x: float,
+        y: float,
+        theta: float,
+    ) -> None: ...
+    def update_ticks(self, left: Any, right: Any, t: float | None = None) -> Any:
+        """Absolute encoder counter readings."""
+    def update_increments(self, left: float, right: float, t: float | None = None) -> Any:
+        """Wheel-angle increments since the last update, rad."""
+    def update_positions(self, left: float, right: float, t: float | None = None) -> Any:
+        """Accumulated wheel angles, rad."""
+    def update_velocities(self, left: float, right: float, dt: float) -> Any:
+        """Wheel velocities, rad/s, held over dt s."""
+    def _run(
+        self,
+        kind: int,
+        lefts: list[Any],
+        rights: list[Any],
+        thirds: list[Any],
+        poses: Any,  # a writable C-contiguous float64 buffer (n, 3)
+        covariances: Any,  # the same (n, 9), or None
+    ) -> tuple[int, str] | None: ...
+    def _state(self) -> tuple[float, float, float, float, float]:
+        """``(x, y, theta, distance, time)``."""
+    def _covariance(self) -> Covariance: ...
+    def _window_velocities(self) -> tuple[float, float, float] | None: ...
+    def _set_pose(self, x: float, y: float, theta: float, covariance: Covariance) -> None: ...
+    def _jacobians(
+        self, left: float, right: float
+    ) -> tuple[Covariance, tuple[float, float, float, float, float, float]]: ...
