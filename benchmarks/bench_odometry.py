@@ -5,7 +5,8 @@ robotpy-wpimath's ``DifferentialDriveOdometry.update``, which takes a ``Rotation
 heading) that has to be built for every call. Both are fed the same drive, precomputed as
 Python floats; each timing includes the ``for`` loop around the call, whose own cost is printed
 too. diffdrive is also timed with time stamps and with the covariance propagated (the C update
-always propagates it; here k is non-zero so the numbers mean something).
+always propagates it; here k is non-zero so the numbers mean something), and on the pure-Python
+core that an installation without a C compiler gets.
 
     pip install -e '.[bench]'
     python benchmarks/bench_odometry.py [--repeats 7] [--updates 100000]
@@ -57,9 +58,9 @@ def main() -> None:
             pass
         return n
 
-    def ours(**options):
+    def ours(kind=dd.Odometry, **options):
         def loop():
-            odometry = dd.Odometry(robot, **options)
+            odometry = kind(robot, **options)
             update = odometry.update_positions
             for a, b in zip(left, right, strict=True):
                 update(a, b)
@@ -79,6 +80,9 @@ def main() -> None:
         "diffdrive update_positions": per_call(ours(), args.repeats),
         "  with k_left, k_right": per_call(ours(k_left=1e-4, k_right=1e-4), args.repeats),
         "  with k and t": per_call(ours_timed, args.repeats),
+        "  on the pure-Python core (no C compiler)": per_call(
+            ours(dd.odometry.PythonOdometry), args.repeats
+        ),
     }
     try:
         from wpimath.geometry import Pose2d, Rotation2d

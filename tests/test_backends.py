@@ -19,6 +19,7 @@ import pytest
 import diffdrive as dd
 from diffdrive import batch, integrate
 from diffdrive.montecarlo import monte_carlo
+from diffdrive.odometry import COMPILED, PythonOdometry
 
 jax = pytest.importorskip("jax", reason="jax is part of the test extra")
 torch = pytest.importorskip("torch", reason="torch is part of the test extra")
@@ -75,10 +76,13 @@ def _simulate(backend):
     return run
 
 
-def _odometry(case, method, dtype):
-    odometry = dd.Odometry(case.robot, method, initial_pose=dd.Pose(*case.start))
-    poses, _ = odometry.update_arrays("increments", *(case.wheels * case.dt).T)
-    return np.concatenate([[case.start], poses])
+def _odometry(kind):
+    def run(case, method, dtype):
+        odometry = kind(case.robot, method, initial_pose=dd.Pose(*case.start))
+        poses, _ = odometry.update_arrays("increments", *(case.wheels * case.dt).T)
+        return np.concatenate([[case.start], poses])
+
+    return run
 
 
 def _monte_carlo(case, method, dtype):
@@ -103,7 +107,8 @@ def _jax_array(values: np.ndarray):
 BACKENDS = {
     "simulate numpy": (_simulate("numpy"), ("float32", "float64")),
     "simulate numba": (_simulate("numba"), ("float32", "float64")),
-    "odometry (C)": (_odometry, ("float64",)),
+    "odometry (C)": (_odometry(dd.Odometry), ("float64",)),
+    "odometry (pure Python)": (_odometry(PythonOdometry), ("float64",)),
     "monte carlo (numba)": (_monte_carlo, ("float64",)),
     "rollout numpy": (_rollout(np.asarray), ("float32", "float64")),
     "rollout array-api-strict": (_rollout(xps.asarray), ("float32", "float64")),
@@ -146,6 +151,10 @@ def test_every_backend_follows_the_scalar_step(case, method, backend):
         assert got.shape == want.shape, (backend, dtype)
         np.testing.assert_allclose(got, want, rtol=0, atol=_tolerance(case, dtype, backend),
                                    err_msg=f"{backend}, {dtype}")  # fmt: skip
+
+
+def test_the_c_core_was_built_here():
+    assert COMPILED, "the C extension is missing: Odometry runs on its pure-Python twin"
 
 
 @pytest.mark.parametrize(

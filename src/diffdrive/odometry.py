@@ -30,11 +30,12 @@ Rules, stated once:
 from __future__ import annotations
 
 import math
-from typing import Literal
+import os
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from diffdrive._odometry import OdometryCore
+from diffdrive import _odometry_py
 from diffdrive._validate import finite, positive
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
@@ -42,7 +43,17 @@ from diffdrive.model import DiffDrive
 from diffdrive.skid_steer import SkidSteer
 from diffdrive.types import Pose, Twist, WheelVelocities
 
-__all__ = ["UPDATE_KINDS", "Odometry", "RefusedUpdateError"]
+__all__ = ["COMPILED", "UPDATE_KINDS", "Odometry", "PythonOdometry", "RefusedUpdateError"]
+
+# The C core when it was built (pip builds it where a C compiler is found), else its
+# pure-Python twin; DIFFDRIVE_PURE_PYTHON=1 asks for the twin anyway.
+try:
+    if os.environ.get("DIFFDRIVE_PURE_PYTHON") == "1":
+        raise ImportError("DIFFDRIVE_PURE_PYTHON=1")
+    from diffdrive._odometry import OdometryCore as _Core
+except ImportError:
+    _Core = _odometry_py.OdometryCore  # type: ignore[assignment, misc]
+COMPILED: bool = _Core is not _odometry_py.OdometryCore
 
 UpdateKind = Literal["ticks", "positions", "increments", "velocities"]
 UPDATE_KINDS: tuple[UpdateKind, ...] = ("ticks", "positions", "increments", "velocities")
@@ -57,7 +68,13 @@ class RefusedUpdateError(ValueError):
         self.reason = message
 
 
-class Odometry(OdometryCore):
+if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
+    _Base = _odometry_py.OdometryCore
+else:
+    _Base = object
+
+
+class _OdometryMethods(_Base):
     """Dead reckoning from wheel encoders, one update at a time.
 
     ``robot`` gives the geometry; ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"``;
@@ -259,6 +276,15 @@ class Odometry(OdometryCore):
 
     def __repr__(self) -> str:
         return f"Odometry({self.robot!r}, method={self.method!r}, pose={self.pose!r})"
+
+
+class Odometry(_OdometryMethods, _Core):
+    __doc__ = _OdometryMethods.__doc__
+
+
+class PythonOdometry(_OdometryMethods, _odometry_py.OdometryCore):
+    """``Odometry`` on the pure-Python core, whether or not the C core was built: the same
+    results, slower (for tests, and where a C compiler never ran)."""
 
 
 def _offset_jacobian(theta: object, offset: float) -> np.ndarray:
