@@ -18,7 +18,7 @@ from diffdrive import (
     integrate,
     se2,
 )
-from diffdrive._series import sinc_threshold
+from diffdrive._step import TAYLOR_LIMIT
 from strategies import BATCH_SHAPES, batch_of, geometry
 
 TOL = 1e-12
@@ -213,7 +213,7 @@ def test_names_cover_the_batch_api():
 
 def test_float32_sinc_is_continuous_across_its_threshold():
     eps = float(np.finfo(np.float32).eps)
-    t = np.float32(sinc_threshold(eps))
+    t = np.float32(TAYLOR_LIMIT)
     u = np.array([np.nextafter(t, np.float32(0)), t, np.nextafter(t, np.float32(1))])
     values = batch.sinc(u)
     assert values.dtype == np.float32

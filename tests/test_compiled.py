@@ -144,3 +144,15 @@ def test_float16_stays_on_the_numpy_path():
     assert dd.simulate(ROBOT, wheels, dt=0.01).poses.dtype == np.float16
     with pytest.raises(ValueError, match="backend='numba' takes float32 or float64 data"):
         dd.simulate(ROBOT, wheels, dt=0.01, backend="numba")
+
+
+def test_one_sinc_in_every_layer():
+    """``_step.sinc`` as written, compiled, over arrays and behind ``se2.sinc``: one rule."""
+    from diffdrive import _step, batch, se2
+
+    grid = np.concatenate([np.geomspace(1e-9, 3.0, 400), [_step.TAYLOR_LIMIT, 0.0]])
+    for u in np.concatenate([grid, -grid]):
+        want = _step.sinc(float(u))
+        assert se2.sinc(float(u)) == want
+        assert _compiled.STEP["sinc"](float(u)) == want
+        assert abs(float(batch.sinc(np.float64(u))) - want) <= math.ulp(1.0), u

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from diffdrive import Pose, Twist, se2, wrap_angle
-from diffdrive._series import sinc_threshold
+from diffdrive._step import TAYLOR_LIMIT
 from strategies import reals
 
 poses = st.builds(Pose, reals(), reals(), reals(20.0))
@@ -174,7 +174,7 @@ def test_from_matrix_refuses_what_is_not_a_rigid_motion(matrix, message):
 
 
 def test_sinc_is_continuous_across_its_threshold():
-    threshold = sinc_threshold(sys.float_info.epsilon)
+    threshold = TAYLOR_LIMIT
     below, above = math.nextafter(threshold, 0.0), math.nextafter(threshold, 1.0)
     values = [se2.sinc(u) for u in (below, threshold, above)]
     assert max(values) - min(values) <= 4 * sys.float_info.epsilon
@@ -183,7 +183,7 @@ def test_sinc_is_continuous_across_its_threshold():
 
 
 def test_exp_is_continuous_across_the_threshold():
-    threshold = 2 * sinc_threshold(sys.float_info.epsilon)  # omega*dt/2 crosses it
+    threshold = 2 * TAYLOR_LIMIT  # omega*dt/2 crosses it
     below = se2.exp(Twist(1.0, 0.3, math.nextafter(threshold, 0.0)))
     above = se2.exp(Twist(1.0, 0.3, math.nextafter(threshold, 1.0)))
     assert pose_close(below, above, 4e-16)

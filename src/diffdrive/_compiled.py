@@ -26,16 +26,18 @@ Importing this module imports numba; ``diffdrive.simulation`` does so only when 
 from __future__ import annotations
 
 import math
+import types
+from typing import Any
 
 import numba
 import numpy as np
 
+from diffdrive import _step
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive
 
 __all__ = ["METHOD_FLAGS", "chunk_count", "integrate_history"]
 
-_TAYLOR_LIMIT = 1.0 / 16.0
 # Steps between fresh cos and sin of the heading; in between they turn with each step, and
 # the rounding that gathers (a few ulp per step) stays below 1e-13.
 _ANCHOR = 64
@@ -61,19 +63,20 @@ def _wheel_arcs(history, times, geometry, n, k, angles):
     return geometry[0] * left, geometry[1] * right
 
 
-@numba.njit(cache=True, inline="always")
-def _sinc_cos(u):
-    """``(sin(u)/u, cos u)``: Taylor forms for ``|u| < 1/16``, accurate to an ulp, else libm."""
-    if abs(u) >= _TAYLOR_LIMIT:
-        return math.sin(u) / u, math.cos(u)
-    u2 = u * u
-    # The first terms left out, u**10/11! and u**10/10!, are under 1e-18 here. Multiplying
-    # by reciprocals (not dividing) is what lets this run at the speed of a few multiplies.
-    sinc = 1.0 - u2 * (1 / 6) * (
-        1.0 - u2 * (1 / 20) * (1.0 - u2 * (1 / 42) * (1.0 - u2 * (1 / 72)))
-    )
-    cosine = 1.0 - u2 * 0.5 * (1.0 - u2 * (1 / 12) * (1.0 - u2 * (1 / 30) * (1.0 - u2 * (1 / 56))))
-    return sinc, cosine
+def _compile_step() -> dict[str, Any]:
+    """``diffdrive._step``'s functions compiled as written: each one's copy sees the compiled
+    versions of those it calls (the callees come first), so nothing is written twice."""
+    compiled: dict[str, Any] = {}
+    for name in ("sinc", "sinc_cos", "wheel_move", "body_move"):
+        function = getattr(_step, name)
+        scope = {**vars(_step), **compiled}
+        copy = types.FunctionType(function.__code__, scope, name, function.__defaults__)
+        compiled[name] = numba.njit(cache=True, inline="always")(copy)
+    return compiled
+
+
+STEP = _compile_step()
+_sinc_cos = STEP["sinc_cos"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -173,11 +176,10 @@ def _integrate(history, times, angles, start, geometry, midpoint, chord, chunks,
                     out[n, k, 1] += shift_y
 
 
-# Per method: turn the move to the mid-step heading? scale it to the chord of the arc?
+# Per method, from ``diffdrive._step``: turn the move to the mid-step heading (a weight of
+# 1/2; euler's is 0)? scale it to the chord of the arc?
 METHOD_FLAGS: dict[Method, tuple[bool, bool]] = {
-    "euler": (False, False),
-    "rk2": (True, False),
-    "exact": (True, True),
+    method: (weight == 0.5, chord) for method, (weight, chord) in _step.METHOD_FLAGS.items()
 }
 
 

@@ -1,10 +1,10 @@
 /* The state and the update of diffdrive.Odometry, in C so that one update costs well under a
  * microsecond (the Python class diffdrive.odometry.Odometry derives from OdometryCore).
  *
- * One update: wheel-angle increments (rad) -> wheel arcs (m) -> forward travel, sideways
- * travel (axle offset) and turn -> the pose moved along the start heading (euler) or the
- * mid-step heading (rk2, exact; exact scales by the chord factor sinc(turn/2)), and the
- * covariance moved with the same step's Jacobians. Every check runs before any state changes,
+ * One update is the step of diffdrive/_step.py, mirrored here: wheel-angle increments (rad)
+ * -> wheel arcs (m) -> forward travel, sideways travel (axle offset) and turn -> the pose moved
+ * along the start heading (euler) or the mid-step heading (rk2, exact; exact scales by the
+ * chord factor sinc(turn/2)), and the covariance moved with the same step's Jacobians. Every check runs before any state changes,
  * so a refused update leaves the object exactly as it was.
  *
  * Uncertainty (Siegwart, Nourbakhsh and Scaramuzza, "Introduction to Autonomous Mobile
@@ -15,7 +15,6 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
-#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
@@ -71,15 +70,13 @@ static Num num(double v) {
 
 /* -- the maths of one step ------------------------------------------------------------- */
 
-/* sin(u)/u; the Taylor form below (2520 eps)^(1/6), as diffdrive.se2.sinc. */
+/* sin(u)/u by the rule of diffdrive._step.sinc, which this file mirrors: its Taylor form to
+ * u^8 below 1/16, libm above, with the same operations in the same order. */
 static double sinc(double u) {
-    static double threshold = 0.0;
-    if (threshold == 0.0) threshold = pow(2520.0 * DBL_EPSILON, 1.0 / 6.0);
-    if (fabs(u) < threshold) {
-        double u2 = u * u;
-        return 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0);
-    }
-    return sin(u) / u;
+    if (fabs(u) >= 1.0 / 16.0) return sin(u) / u;
+    double u2 = u * u;
+    return 1.0 - u2 * (1.0 / 6) *
+                     (1.0 - u2 * (1.0 / 20) * (1.0 - u2 * (1.0 / 42) * (1.0 - u2 * (1.0 / 72))));
 }
 
 /* d/du of sin(u)/u: (u cos u - sin u)/u^2, with its Taylor form near 0 where that cancels. */

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from diffdrive.se2 import sinc
+from diffdrive._step import sinc
 
 __all__ = ["OdometryCore"]
 

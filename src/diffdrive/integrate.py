@@ -12,15 +12,11 @@ displacement, which is what lets batch integration be a prefix sum (``diffdrive.
 
 from __future__ import annotations
 
-import math
-from typing import Literal
-
-from diffdrive import se2
+from diffdrive._step import METHOD_FLAGS, Method, twist_move
 from diffdrive._validate import finite
 from diffdrive.types import Pose, Twist
 
-Method = Literal["euler", "rk2", "exact"]
-METHODS: tuple[Method, ...] = ("euler", "rk2", "exact")
+METHODS: tuple[Method, ...] = tuple(METHOD_FLAGS)
 
 __all__ = ["METHODS", "Method", "check_method", "delta", "step"]
 
@@ -35,17 +31,9 @@ def check_method(method: str) -> Method:
 
 def delta(twist: Twist, dt: float, method: Method = "exact") -> Pose:
     """The body-frame pose change over one step of ``dt`` s with ``twist`` held constant."""
-    check_method(method)
+    weight, chord = METHOD_FLAGS[check_method(method)]
     twist = Twist.coerce(twist, "twist")
-    if method == "exact":
-        return se2.exp(twist, dt)
-    dt = finite("dt", dt)
-    turn = twist.omega * dt
-    dx, dy = twist.vx * dt, twist.vy * dt
-    if method == "euler":
-        return Pose(dx, dy, turn)
-    c, s = math.cos(0.5 * turn), math.sin(0.5 * turn)
-    return Pose(c * dx - s * dy, s * dx + c * dy, turn)
+    return Pose(*twist_move(twist.vx, twist.vy, twist.omega, finite("dt", dt), weight, chord))
 
 
 def step(pose: Pose, twist: Twist, dt: float, method: Method = "exact") -> Pose:

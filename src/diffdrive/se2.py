@@ -4,7 +4,8 @@ The exponential uses the half-angle form: moving along a constant twist ``(vx, v
 for ``dt`` s turns the body by ``phi = omega*dt`` and displaces it by the chord
 ``dt * sinc(phi/2) * R(phi/2) @ (vx, vy)``. This is seed 001's ``T_bb'`` written so that the
 only division, ``sin(u)/u``, has a Taylor form near zero; ``1 - cos`` never appears, so no
-cancellation. The same formulas, over arrays, are in ``diffdrive.batch``.
+cancellation. It is the exact method's step of ``diffdrive._step``; the same formulas, over
+arrays, are in ``diffdrive.batch``.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import sys
 
 import numpy as np
 
-from diffdrive._series import sinc_threshold
+from diffdrive import _step
 from diffdrive._validate import finite
 from diffdrive.angles import wrap_angle
 from diffdrive.types import Pose, Twist
@@ -33,21 +34,17 @@ __all__ = [
     "wrap_angle",
 ]
 
-_SINC_THRESHOLD = sinc_threshold(sys.float_info.epsilon)
-
 compose = Pose.compose
 inverse = Pose.inverse
 relative_to = Pose.relative_to
 
 
 def sinc(u: float) -> float:
-    """``sin(u)/u`` (unnormalised), 1 at u = 0, smooth through 0; u must be finite."""
+    """``sin(u)/u`` (unnormalised), 1 at u = 0, smooth through 0 (``diffdrive._step``'s rule);
+    u must be finite."""
     if not math.isfinite(u):
         raise ValueError(f"sinc needs a finite u, got {u!r}")
-    if abs(u) < _SINC_THRESHOLD:
-        u2 = u * u
-        return 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0)
-    return math.sin(u) / u
+    return _step.sinc(u)
 
 
 def exp(twist: Twist, dt: float = 1.0) -> Pose:
@@ -58,14 +55,8 @@ def exp(twist: Twist, dt: float = 1.0) -> Pose:
     """
     twist = Twist.coerce(twist, "twist")
     dt = finite("dt", dt)
-    half = 0.5 * twist.omega * dt
-    chord = dt * sinc(half)
-    c, s = math.cos(half), math.sin(half)
-    return Pose(
-        chord * (c * twist.vx - s * twist.vy),
-        chord * (s * twist.vx + c * twist.vy),
-        2.0 * half,
-    )
+    return Pose(*_step.twist_move(twist.vx, twist.vy, twist.omega, dt,
+                                  *_step.METHOD_FLAGS["exact"]))  # fmt: skip
 
 
 def log(pose: Pose) -> Twist:

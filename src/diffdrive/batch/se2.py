@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from diffdrive._arrays import components, floating, leading_shape, namespace
-from diffdrive._series import sinc_threshold
+from diffdrive._step import METHOD_FLAGS, TAYLOR_LIMIT, Method
 from diffdrive.angles import TAU
 
 __all__ = [
@@ -63,13 +63,14 @@ def wrap_angle(angles: object) -> Any:
 
 
 def sinc(u: object) -> Any:
-    """``sin(u)/u`` elementwise, with a Taylor form near 0 chosen by the dtype's epsilon."""
+    """``sin(u)/u`` elementwise, by ``diffdrive._step``'s rule: its Taylor form below 1/16."""
     xp = namespace(u)
     x = floating(xp, u, "u")
-    small = xp.abs(x) < sinc_threshold(float(xp.finfo(x.dtype).eps))
+    small = xp.abs(x) < TAYLOR_LIMIT
     safe = xp.where(small, xp.ones_like(x), x)
     u2 = x * x
-    return xp.where(small, 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0), xp.sin(safe) / safe)
+    taylor = 1.0 - u2 * (1 / 6) * (1.0 - u2 * (1 / 20) * (1.0 - u2 * (1 / 42) * (1.0 - u2 / 72)))
+    return xp.where(small, taylor, xp.sin(safe) / safe)
 
 
 def exp(twists: object, dt: object = 1.0) -> Any:
@@ -77,15 +78,26 @@ def exp(twists: object, dt: object = 1.0) -> Any:
 
     ``dt`` (s) is a number or an array that broadcasts against the twists' leading axes.
     """
+    return moves(twists, dt, "exact")
+
+
+def moves(twists: object, dt: object, method: Method) -> Any:
+    """Body-frame pose changes ``(..., 3)`` of ``twists`` held for ``dt`` s by ``method``'s
+    step (``diffdrive._step``'s flags): ``batch.delta``, and ``exp`` for the exact one."""
+    weight, chord = METHOD_FLAGS[method]
     xp = namespace(twists, dt)
     v = components(xp, twists, "twists", TWIST)
     step = floating(xp, dt, "dt", like=v)
     leading_shape(twists=tuple(v.shape[:-1]), dt=tuple(step.shape))
-    half = 0.5 * v[..., 2] * step
-    chord = step * sinc(half)
-    c, s = xp.cos(half), xp.sin(half)
+    turn = v[..., 2] * step
+    # The velocity turned and scaled first, then times the step: linear in the travel, and
+    # an overflowing step gives inf, not inf * 0.
     vx, vy = v[..., 0], v[..., 1]
-    return xp.stack([chord * (c * vx - s * vy), chord * (s * vx + c * vy), 2.0 * half], axis=-1)
+    if weight:
+        c, s = xp.cos(weight * turn), xp.sin(weight * turn)
+        vx, vy = c * vx - s * vy, s * vx + c * vy
+    scale = step * sinc(0.5 * turn) if chord else step
+    return xp.stack([scale * vx, scale * vy, turn], axis=-1)
 
 
 def log(poses: object) -> Any:
