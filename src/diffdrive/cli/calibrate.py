@@ -1,0 +1,145 @@
+"""``diffdrive calibrate``: wheel radii and track width from runs with ground truth."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive.calibration import EXTRAS, PARAMETERS, calibrate, odometry_of
+from diffdrive.cli.options import read_log_of, robot_from
+from diffdrive.evaluation import run_errors, worst
+from diffdrive.examples import (
+    EXAMPLE_DURATION,
+    example_wheel_velocities,
+)
+from diffdrive.files import (
+    TableError,
+    write_robot,
+)
+from diffdrive.integrate import Method
+from diffdrive.model import DiffDrive
+from diffdrive.simulation import simulate
+from diffdrive.skid_steer import Robot, SkidSteer
+
+
+def _mirrored_example(t: np.ndarray) -> np.ndarray:
+    """The built-in history with the wheels swapped: the same path, turning the other way."""
+    return example_wheel_velocities(t)[:, ::-1]
+
+
+def _example_runs() -> list[tuple[np.ndarray, np.ndarray]]:
+    """Runs of the built-in history by a robot a little off the nominal one, with its truth:
+    ``(increments (T, 2) rad, truth (T+1, 3))``."""
+    true_robot = DiffDrive(
+        left_wheel_radius=0.04166, right_wheel_radius=0.04163, track_width=0.2019
+    )
+    runs = []
+    for history in (example_wheel_velocities, _mirrored_example):
+        run = simulate(true_robot, history, dt=0.05, duration=EXAMPLE_DURATION)
+        runs.append((np.diff(run.wheel_positions, axis=0), run.poses))
+    return runs
+
+
+def _calibration_run(args, path: Path, ticks: float | None):
+    """``(increments, truth)`` of a run, and the ticks per revolution its format fixes."""
+    log = read_log_of(args, path)
+    if log.truth is None:
+        raise TableError(
+            f"{path}: a run to calibrate on needs ground truth: columns x, y, theta, or a bag's "
+            "--reference-topic"
+        )
+    return (log.increments(ticks, args.counter_bits), log.truth), log.ticks_per_revolution
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    nominal, ticks = robot_from(args)
+    if args.runs:
+        read = [_calibration_run(args, path, ticks) for path in args.runs]
+        runs = [run for run, _ in read]
+        ticks = ticks or next((own for _, own in read if own is not None), None)
+        what = f"{len(runs)} runs"
+    else:
+        runs, what = _example_runs(), "the built-in example runs"
+    names = [str(path) for path in args.runs] or ["example", "mirrored example"]
+    fixed = tuple(args.fix or ())
+    if args.extra is None:  # the default: what predicted best on held-out OptiOdom runs
+        extra = EXTRAS if args.method in ("least_squares", "minimax") else ()
+    else:
+        extra = tuple(name for name in args.extra if name != "none")
+    result = calibrate(nominal, runs, args.method, integration=args.integration,
+                       square_side=args.square_side, names=names, fixed=fixed, extra=extra,
+                       progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
+    robot = result.robot
+    settings = {"left_wheel_radius": robot.left_wheel_radius,
+                "right_wheel_radius": robot.right_wheel_radius}  # fmt: skip
+    if isinstance(robot, SkidSteer):
+        settings.update(icr_left=robot.icr_left, icr_right=robot.icr_right, icr_x=robot.icr_x)
+    else:
+        settings.update(track_width=robot.track_width, axle_offset=robot.axle_offset)
+    if ticks is not None:
+        settings["ticks_per_revolution"] = ticks
+    write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")
+    if not args.quiet:
+        print(calibration_report(nominal, result, runs, args.integration))
+        if args.cv != "none" and args.method != "umbmark":
+            print(held_out_report(nominal, runs, names, args, fixed, extra))
+        print(f"calibrate: wrote the robot to {args.output}")
+    return 0
+
+
+def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
+    """The in-sample and held-out errors side by side, and the parameters' spread."""
+    from diffdrive.validation import cross_validate
+
+    if len(runs) < 2:
+        return "held-out errors: none (one run: nothing to hold out; --cv none hides this)"
+    scheme = "loo" if args.cv == "loo" else int(args.cv)
+    cv = cross_validate(nominal, runs, args.method, scheme, integration=args.integration,
+                        names=names, fixed=fixed, extra=extra)  # fmt: skip
+    label = "leave one run out" if scheme == "loo" else f"{scheme} folds"
+    lines = [f"{'errors over the runs':28} {'in-sample':>10} {'held-out':>10}   ({label})"]
+    for name, unit in (("max_position", "m"), ("final_position", "m"),
+                       ("max_heading", "deg"), ("final_heading", "deg")):  # fmt: skip
+        held = "n/a" if cv.held_out is None else f"{getattr(cv.held_out, name):10.4f}"
+        lines.append(f"{name + ', ' + unit:28} {getattr(cv.in_sample, name):10.4f} {held:>10}")
+    if len(cv.fitted) > 1:
+        spread = ", ".join(f"{p} +-{s:.2g}" for p, s in zip(PARAMETERS, cv.spread, strict=True))
+        lines.append(f"parameters across the folds: {spread}")
+    lines.extend(f"fold holding out {', '.join(names[k] for k in fold.held_out)} refused: "
+                 f"{fold.refusal}" for fold in cv.refused)  # fmt: skip
+    return "\n".join(lines)
+
+
+def calibration_report(nominal: Robot, result, runs, integration: Method) -> str:
+    """Parameters with their standard errors, and the largest errors before and after."""
+    sigma = result.standard_errors
+    lines = [f"{'parameter':20} {'nominal':>10} {'calibrated':>11} {'+-':>10}"]
+    for k, name in enumerate(("left_wheel_radius", "right_wheel_radius", "track_width")):
+        spread = "n/a" if sigma is None else f"{sigma[k]:.2g}"
+        lines.append(
+            f"{name:20} {getattr(nominal, name):10.6f} {getattr(result.robot, name):11.6f} "
+            f"{spread:>10}"
+        )
+    shift = np.array([0.0, 0.0, result.heading_offset])
+    before = worst([run_errors(odometry_of(nominal, i, t[0], integration), t) for i, t in runs])
+    after = worst([run_errors(odometry_of(result.robot, i, t[0] + shift, integration), t)
+                   for i, t in runs])  # fmt: skip
+    offsets = [getattr(robot, "axle_offset", 0.0) for robot in (nominal, result.robot)]
+    if offsets[0] != offsets[1]:  # fitted (a SkidSteer has icr_x instead)
+        lines.append(f"{'axle_offset':20} {offsets[0]:10.6f} {offsets[1]:11.6f}")
+    if result.heading_offset:
+        lines.append(
+            f"heading offset of the reference: {np.degrees(result.heading_offset):.3f} deg"
+        )
+    if result.condition is not None:
+        lines.append(f"condition number of the fit: {result.condition:.3g}")
+    if sigma is None:
+        lines.append(f"+-: {result.uncertainty_note}")
+    lines.append(
+        f"largest position error over the runs: {before.max_position:.4f} m nominal, "
+        f"{after.max_position:.4f} m calibrated ({integration} odometry)"
+    )
+    return "\n".join(lines)

@@ -1,0 +1,155 @@
+"""``diffdrive odometry``: dead reckoning over an encoder log, with a gyro if there is one."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from diffdrive import batch, sources
+from diffdrive.cli.options import (
+    COVARIANCE_COLUMNS,
+    checked_increments,
+    output_format,
+    read_log_of,
+    robot_from,
+    start_pose,
+    write_output,
+)
+from diffdrive.cli.report import error_summary
+from diffdrive.files import TableError
+from diffdrive.logs import WheelLog
+from diffdrive.model import DiffDrive
+from diffdrive.odometry import Odometry, RefusedUpdateError, UpdateKind
+from diffdrive.skid_steer import SkidSteer
+from diffdrive.types import Pose
+
+
+def run_odometry(args: argparse.Namespace) -> int:
+    robot, ticks = robot_from(args)
+    log = read_log_of(args)
+    ticks = ticks or log.ticks_per_revolution
+    increments, note = checked_increments(args, log, robot, ticks)
+    gyro = _gyro(args, log)
+    if gyro is not None:
+        if isinstance(robot, SkidSteer):
+            raise ValueError("the gyro heading takes a differential drive (track_width), not a "
+                             "skid-steer robot file (icr_left, icr_right)")  # fmt: skip
+        return _gyro_odometry(args, robot, log, ticks, gyro, note)
+    if args.heading not in (None, "wheels"):
+        raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
+    odometry = Odometry(
+        robot, args.method, Pose(*start_pose(log)), ticks if log.kind == "ticks" else None,
+        args.counter_bits, max_wheel_speed=args.max_wheel_speed, k_left=args.k_left or 0.0,
+        k_right=args.k_right or 0.0,
+    )  # fmt: skip
+    times, wheels = log.times, log.wheels
+    to_bag = output_format(args) in ("mcap", "ros2")
+    kinds: dict[str, UpdateKind] = {"ticks": "ticks", "angle": "positions",
+                                    "velocity": "velocities"}  # fmt: skip
+    kind = kinds[log.kind]
+    first = 1 if kind == "velocities" else 0  # a velocity is held until the next row
+    third = np.diff(times) if kind == "velocities" else times
+    left, right = (wheels[:-1, 0], wheels[:-1, 1]) if first else (wheels[:, 0], wheels[:, 1])
+    try:
+        poses, covariances = odometry.update_arrays(kind, left, right, third,
+                                                    args.covariance or to_bag)  # fmt: skip
+    except RefusedUpdateError as refused:
+        raise TableError(f"{log.where(refused.row + first)}: {refused.reason}") from None
+    if first:
+        start = start_pose(log)[None, :]
+        poses = np.vstack([start, poses])
+        if covariances is not None:
+            covariances = np.vstack([np.zeros((1, 3, 3)), covariances])
+    columns: dict[str, np.ndarray] = {}
+    twists = batch.to_twist(robot, increments)
+    twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
+    if args.twist:
+        columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])
+    if args.covariance and covariances is not None:
+        flat = covariances.reshape(-1, 9)
+        for name, index in COVARIANCE_COLUMNS.items():
+            columns[name] = flat[:, index]
+    write_output(args, times, poses, f"odometry of {log.source}", columns, covariances, twists)
+    if not args.quiet:
+        print(note)
+        if log.truth is not None:
+            print(error_summary(poses, log.truth))
+    return 0
+
+
+def _gyro(args, log: WheelLog):
+    """The gyro of the command: a bag's IMU topic (rotated by --imu-rpy), or the log's gyro_z
+    column; None without one."""
+    from diffdrive.gyro import Gyro, rotation_from_rpy
+
+    if args.gyro_topic is not None:
+        if args.input is None or not sources.is_bag(args.input):
+            raise TableError("--gyro-topic needs a bag as the log")
+        from diffdrive import ros
+
+        imu = ros.read_imu(args.input, args.gyro_topic)
+        mounting = rotation_from_rpy(*np.radians(args.imu_rpy))
+        return Gyro.from_imu(imu.times, imu.angular_velocity, mounting)
+    if log.gyro_rates is not None:
+        return Gyro(log.times, log.gyro_rates)
+    return None
+
+
+def _gyro_odometry(args, robot: DiffDrive, log: WheelLog, ticks, gyro, note: str) -> int:
+    """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
+    from diffdrive.gyro import gyro_odometry
+
+    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{log.source}: the gyro does not cover the log's times")
+    if not inside.all():  # a bag's IMU may start a little after the wheels: keep the overlap
+        log = _cut(log, inside)
+        note += f"\nthe log is cut to [{log.times[0]:g}, {log.times[-1]:g}] s, where the gyro is"
+    options = {"k_left": 1e-4 if args.k_left is None else args.k_left,
+               "k_right": 1e-4 if args.k_right is None else args.k_right}  # fmt: skip
+    result = gyro_odometry(robot, log.times, log.increments(ticks, args.counter_bits), gyro,
+                           args.heading or "fused", start_pose(log), bias=args.gyro_bias,
+                           commanded=_commands(args, robot, log), **options)  # fmt: skip
+    columns = {"slip": result.slip.astype(float), "slip_score": result.slip_score,
+               "gyro_bias": result.bias}  # fmt: skip
+    if args.covariance:
+        flat = result.covariances.reshape(-1, 9)
+        columns.update({name: flat[:, index] for name, index in COVARIANCE_COLUMNS.items()})
+    what = f"odometry of {log.source} ({result.heading} heading)"
+    write_output(args, log.times, result.poses, what, columns, result.covariances)
+    if not args.quiet:
+        print(note)
+        flagged = f"{int(result.slip.sum())} of {len(result.slip) - 1} intervals flagged"
+        print(f"slip: {flagged}; gyro bias {result.bias[0]:.5f} rad/s at the start, "
+              f"{result.bias[-1]:.5f} at the end")  # fmt: skip
+        if log.truth is not None:
+            print(error_summary(result.poses, log.truth))
+    return 0
+
+
+def _commands(args, robot, log: WheelLog):
+    """The wheel velocities commanded over each interval ``(T, 2)``: a bag's Twist topic
+    (each held until the next) through inverse kinematics, the log's command columns, or
+    None."""
+    if args.command_topic is not None:
+        from diffdrive import ros
+
+        commands = ros.read_twists(args.input, args.command_topic)
+        held = np.searchsorted(commands.times, log.times[:-1], side="right") - 1
+        v, omega = commands.twists[np.maximum(held, 0)].T
+        wheels = batch.to_wheel_velocities(robot, np.column_stack([v, 0.0 * v, omega]))
+        return np.where((held >= 0)[:, None], wheels, 0.0)  # before the first: standing
+    return None if log.commands is None else log.commands[:-1]
+
+
+def _cut(log: WheelLog, keep: np.ndarray) -> WheelLog:
+    """The rows ``keep`` (a contiguous run) of a log."""
+    from dataclasses import replace
+
+    def part(values):
+        return None if values is None else values[keep]
+
+    return replace(log, times=log.times[keep], wheels=log.wheels[keep], truth=part(log.truth),
+                   lines=part(log.lines), gyro_rates=part(log.gyro_rates),
+                   commands=part(log.commands))  # fmt: skip

@@ -1,0 +1,282 @@
+"""What the subcommands share: their options, the robot they describe, reading logs and
+writing results."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from diffdrive import sources
+from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
+from diffdrive.examples import (
+    EXAMPLE_DURATION,
+    example_log,
+    example_robot,
+    example_wheel_velocities,
+)
+from diffdrive.files import (
+    ROBOT_KEYS,
+    TIME_UNITS,
+    TableError,
+    read_robot,
+)
+from diffdrive.integrate import METHODS, Method
+from diffdrive.logs import WheelLog, narrower_counter
+from diffdrive.model import DiffDrive
+from diffdrive.simulation import simulate
+from diffdrive.skid_steer import Robot, SkidSteer
+from diffdrive.trajectories import FORMATS, write_trajectory
+
+ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
+
+
+LOG_COLUMNS = """input: a table (CSV, or separated by ; tab or spaces; UTF-8, a BOM is fine)
+with columns t (s, or --time-unit) and one pair of wheel columns:
+  left_ticks, right_ticks        absolute counter readings (give --ticks-per-revolution,
+                                 and --counter-bits for counters that roll over)
+  left_angle, right_angle        accumulated wheel angles, rad
+  left_velocity, right_velocity  rad/s, each held from its row's time until the next row's
+                                 (the last row's is not used), in every command
+and optionally x, y, theta (ground truth): the run then starts from its first pose. An
+OptiOdom run file (no header: t, x, y, theta, ticks_right, ticks_left) is read too."""
+
+
+TRAJECTORY_FILES = """trajectory files: CSV (t, x, y, theta), JSON lines or TUM
+(t x y z qx qy qz qw), told apart by their content; a robot column holds several robots."""
+
+
+# Past this speed at the rim (m/s) a wheel-speed jump is no motion of a wheeled robot but a
+# misread log, unless the user sets the limit (--max-wheel-speed).
+RIM_SPEED_LIMIT = 50.0
+
+
+def robot_options() -> argparse.ArgumentParser:
+    options = argparse.ArgumentParser(add_help=False)
+    group = options.add_argument_group(f"robot (default: {ROBOT_DEFAULTS})")
+    group.add_argument("--robot", type=Path, help="a robot file (TOML) with the settings below")
+    helps = {
+        "ticks_per_revolution": "encoder counts per wheel revolution",
+        "track_width": "m, the FULL distance between the wheels' contact points",
+        "half_track": "m, half the track width (the notes' b, d, D or L); instead of it",
+        "icr_left": "m: a skid-steer robot's left ICR on body y (instead of the track)",
+        "icr_right": "m: its right ICR on body y",
+        "icr_x": "m: its ICR on body x (the point that does not slide sideways)",
+    }
+    for name in ROBOT_KEYS:
+        group.add_argument(
+            f"--{name.replace('_', '-')}", type=float, metavar="X", help=helps.get(name, "m")
+        )
+    return options
+
+
+def log_options() -> argparse.ArgumentParser:
+    options = argparse.ArgumentParser(add_help=False)
+    group = options.add_argument_group("log")
+    group.add_argument(
+        "--time-unit", choices=TIME_UNITS,
+        help="unit of the t column (default s; plainly other units are refused)",
+    )  # fmt: skip
+    group.add_argument(
+        "--counter-bits", type=between(MIN_COUNTER_BITS, MAX_COUNTER_BITS), metavar="B",
+        help=f"width of the encoder counters ({MIN_COUNTER_BITS}-{MAX_COUNTER_BITS}), for "
+        "roll-over; default: counters that never roll over",
+    )  # fmt: skip
+    bags = options.add_argument_group("a ROS bag or MCAP file as the log (diffdrive[ros])")
+    bags.add_argument(
+        "--joint-topic",
+        default="/joint_states",
+        metavar="TOPIC",
+        help="sensor_msgs/JointState topic (default /joint_states)",
+    )
+    bags.add_argument("--left-joint", metavar="NAME", help="the left wheel's joint name")
+    bags.add_argument("--right-joint", metavar="NAME", help="the right wheel's joint name")
+    bags.add_argument(
+        "--reference-topic",
+        metavar="TOPIC",
+        help="nav_msgs/Odometry (or tf:PARENT:CHILD) as the ground truth",
+    )
+    return options
+
+
+def output_options(default: str) -> argparse.ArgumentParser:
+    options = argparse.ArgumentParser(add_help=False)
+    options.add_argument("-o", "--output", type=Path, default=Path(default), help="file to write")
+    options.add_argument("--format", choices=OUTPUT_FORMATS,
+                         help="default: from the file's suffix; mcap (a file) and ros2 (a bag "
+                         "folder) write nav_msgs/Odometry and /tf")  # fmt: skip
+    options.add_argument("--frame", default="odom", help="bag output: the parent frame (odom)")
+    options.add_argument("--child-frame", default="base_link",
+                         help="bag output: the robot's frame (base_link)")  # fmt: skip
+    options.add_argument("--method", choices=METHODS, default="exact", help="default: exact")
+    options.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    return options
+
+
+def robot_from(args: argparse.Namespace) -> tuple[DiffDrive | SkidSteer, float | None]:
+    """The robot of the command's options, and its ticks per revolution if known."""
+    settings: dict[str, Any] = dict(read_robot(args.robot)) if args.robot else {}
+    for name in ROBOT_KEYS:
+        value = getattr(args, name)
+        if value is not None:
+            settings[name] = value
+            if name in ("track_width", "half_track"):  # a flag overrides the file's either
+                settings.pop("half_track" if name == "track_width" else "track_width", None)
+    ticks = settings.pop("ticks_per_revolution", None)
+    if ticks is not None and not (math.isfinite(ticks) and ticks > 0):
+        raise ValueError(f"ticks_per_revolution must be finite and > 0, got {ticks!r}")
+    if not settings:
+        return example_robot(), ticks
+    where = f" (in {args.robot})" if args.robot else ""
+    try:
+        if any(key.startswith("icr_") for key in settings):  # a skid-steer robot
+            if {"track_width", "half_track", "axle_offset"} & settings.keys():
+                raise ValueError("a skid-steer robot has icr_left, icr_right and icr_x instead "
+                                 "of track_width, half_track and axle_offset")  # fmt: skip
+            return SkidSteer(**settings), ticks
+        return DiffDrive(**settings), ticks
+    except ValueError as exc:
+        raise ValueError(f"robot{where}: {exc}") from None
+
+
+OutputFormat = Literal["csv", "jsonl", "tum", "mcap", "ros2"]
+OUTPUT_FORMATS: tuple[OutputFormat, ...] = (*FORMATS, "mcap", "ros2")
+
+
+def output_format(args: argparse.Namespace) -> OutputFormat:
+    """``--format``, else the output's suffix if it names a format, else csv."""
+    wanted = args.format or args.output.suffix.lstrip(".").lower()
+    return next((known for known in OUTPUT_FORMATS if known == wanted), "csv")
+
+
+def write_output(
+    args, times, poses, what: str, columns=None, covariances=None, twists=None
+) -> None:
+    """Write the trajectory in the chosen format: a file of poses and ``columns``, or
+    ``nav_msgs/Odometry`` and ``/tf`` with ``covariances`` and ``twists`` to a bag."""
+    format = output_format(args)
+    if format == "mcap" or format == "ros2":
+        from diffdrive.ros import write_odometry
+
+        written = [write_odometry(args.output, times, poses, covariances, twists,
+                                  format=format, frame=args.frame,
+                                  child_frame=args.child_frame)]  # fmt: skip
+    else:
+        written = write_trajectory(args.output, times, poses, format, columns)
+    if not args.quiet:
+        where = ", ".join(map(str, written))
+        print(f"{what}: wrote {poses.shape[-2]} poses to {where} ({format})")
+
+
+def read_log_of(args: argparse.Namespace, path: Path | None = None) -> WheelLog:
+    """The log of ``path`` (default: the command's input), a file or a bag topic."""
+    path = args.input if path is None else path
+    if path is None:
+        return example_log()
+    return sources.wheel_log(
+        path, args.time_unit, joint_topic=args.joint_topic, left_joint=args.left_joint,
+        right_joint=args.right_joint, reference_topic=args.reference_topic,
+    )  # fmt: skip
+
+
+def start_pose(log: WheelLog) -> np.ndarray:
+    """Where a log's run starts: its first ground-truth pose, else the origin."""
+    return np.zeros(3) if log.truth is None else log.truth[0]
+
+
+def checked_increments(args, log: WheelLog, robot: Robot, ticks) -> tuple[np.ndarray, str]:
+    """The log's wheel increments ``(T, 2)`` rad, and a line on its largest wheel speed;
+    refuses a counter width that does not fit, and a speed no robot drives at (without
+    --max-wheel-speed, a rim speed of RIM_SPEED_LIMIT m/s)."""
+    increments = log.increments(ticks, args.counter_bits)
+    speed, side, row = log.largest_wheel_speed(increments)
+    radius = robot.left_wheel_radius if side == "left" else robot.right_wheel_radius
+    line = (
+        f"largest wheel speed in the log: {speed:.4g} rad/s ({speed * radius:.3g} m/s at the "
+        f"rim), {side} wheel, {log.where(row)}"
+    )
+    limit = getattr(args, "max_wheel_speed", None)
+    narrower = narrower_counter(log, args.counter_bits) if limit is None else None
+    if narrower is not None:
+        bits, row = narrower
+        change = int(np.abs(count_changes(log.wheels[row - 1 : row + 1], args.counter_bits)).max())
+        read_as = f"{args.counter_bits}-bit" if args.counter_bits else "never rolling over"
+        raise TableError(
+            f"{log.where(row)}: the counters jump by {change} counts, yet every reading fits "
+            f"{bits} bits: a {bits}-bit counter rolling over, read as {read_as}? Give "
+            f"--counter-bits {bits}; or --max-wheel-speed to take the jump as read"
+        )
+    if limit is None and speed * radius > RIM_SPEED_LIMIT:
+        hint = " a wrong --counter-bits or --ticks-per-revolution?" if log.kind == "ticks" else ""
+        raise TableError(
+            f"{log.where(row)}: the {side} wheel would turn at {speed:.4g} rad/s "
+            f"({speed * radius:.3g} m/s at its rim), faster than any wheeled robot drives;"
+            f"{hint} Give --max-wheel-speed to set the limit yourself"
+        )
+    return increments, line
+
+
+# The covariance's distinct entries, by their index in the row-major 3x3 matrix.
+COVARIANCE_COLUMNS = {
+    "cov_xx": 0, "cov_xy": 1, "cov_xtheta": 2, "cov_yy": 4, "cov_ytheta": 5, "cov_thetatheta": 8,
+}  # fmt: skip
+
+
+def example_trajectory(robot: Robot, dt: float = 0.01, method: Method = "exact"):
+    """The built-in driving history, simulated."""
+    return simulate(
+        robot, example_wheel_velocities, dt=dt, duration=EXAMPLE_DURATION, method=method
+    )
+
+
+def trajectory_or_example(args: argparse.Namespace, robot: Robot):
+    """``(times, poses, what)`` from the input trajectory (file or bag topic), or the
+    built-in example."""
+    if args.input is None:
+        example = example_trajectory(robot)
+        return example.times, example.poses, "the built-in example"
+    what = f"{args.input} {args.topic}" if args.topic else str(args.input)
+    return (*sources.trajectory(args.input, args.time_unit, args.topic), what)
+
+
+def print_values(values: dict[str, float], as_json: bool, units: dict[str, str]) -> None:
+    if as_json:
+        print(json.dumps({k: (v if math.isfinite(v) else str(v)) for k, v in values.items()}))
+        return
+    for name, value in values.items():
+        print(f"{name:15} {value:12.6g} {units[name]}")
+
+
+# argparse's own pattern misses the exponent form (-1e-3), which it then takes for an option.
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+
+
+def between(smallest: int, largest: int):
+    """An argparse type: a whole number from ``smallest`` to ``largest``."""
+
+    def parse(text: str) -> int:
+        value = int(text)
+        if not smallest <= value <= largest:
+            raise argparse.ArgumentTypeError(f"must be from {smallest} to {largest}, got {value}")
+        return value
+
+    parse.__name__ = "int"
+    return parse
+
+
+def at_least(smallest: int):
+    """An argparse type: a whole number >= ``smallest``."""
+
+    def parse(text: str) -> int:
+        value = int(text)
+        if value < smallest:
+            raise argparse.ArgumentTypeError(f"must be at least {smallest}, got {value}")
+        return value
+
+    parse.__name__ = "int"
+    return parse

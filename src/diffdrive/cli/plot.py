@@ -1,0 +1,44 @@
+"""``diffdrive plot`` and ``diffdrive animate``: pictures of a trajectory."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from diffdrive import sources
+from diffdrive.cli.options import robot_from, trajectory_or_example
+from diffdrive.files import (
+    TableError,
+    atomic_output,
+)
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    from diffdrive.plot import plot_trajectory
+
+    robot, _ = robot_from(args)
+    times, poses, what = trajectory_or_example(args, robot)
+    truth = None
+    if args.truth is not None:
+        truth = sources.trajectory(args.truth, args.time_unit, args.truth_topic)
+    with atomic_output(args.output) as temporary:
+        plot_trajectory(robot, times, poses, temporary, truth)
+    if not args.quiet:
+        print(f"plotted {what} to {args.output}")
+    return 0
+
+
+def run_animate(args: argparse.Namespace) -> int:
+    from diffdrive.plot import animate, animation_writer
+
+    robot, _ = robot_from(args)
+    times, poses, what = trajectory_or_example(args, robot)
+    if poses.ndim != 2:
+        raise TableError(f"{args.input}: animate draws one robot; the file has {len(poses)}")
+    writer, output = animation_writer(args.output)
+    with atomic_output(output) as temporary:
+        animate(robot, times, poses, temporary, writer, frames=args.frames, fps=args.fps,
+                progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
+    if not args.quiet:
+        print(f"animated {what} to {output} ({writer})")
+    return 0

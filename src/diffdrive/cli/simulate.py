@@ -1,0 +1,59 @@
+"""``diffdrive simulate``: integrate a driving history into a trajectory."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from diffdrive import batch
+from diffdrive.cli.options import (
+    checked_increments,
+    example_trajectory,
+    read_log_of,
+    robot_from,
+    start_pose,
+    write_output,
+)
+from diffdrive.examples import EXAMPLE_DURATION
+from diffdrive.simulation import integrate_increments, simulate
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    robot, ticks = robot_from(args)
+    if args.input is None:
+        _check_step_count(args.dt)
+        trajectory = example_trajectory(robot, args.dt, args.method)
+        write_output(args, trajectory.times, trajectory.poses,
+               f"simulated the built-in {EXAMPLE_DURATION:g} s driving history")  # fmt: skip
+        return 0
+    log = read_log_of(args)
+    increments, note = checked_increments(args, log, robot, ticks)
+    if log.kind == "velocity":
+        trajectory = simulate(
+            robot,
+            log.wheels[:-1],
+            times=log.times,
+            initial_pose=start_pose(log),
+            method=args.method,
+        )
+        poses = trajectory.poses
+    else:
+        twists = batch.to_twist(robot, increments)
+        poses = integrate_increments(twists, start_pose(log), args.method)
+    write_output(args, log.times, poses, f"simulated {args.input}")
+    if not args.quiet:
+        print(note)
+    return 0
+
+
+def _check_step_count(dt: float) -> None:
+    """Refuse a step for the built-in history that is not a number of steps memory can hold."""
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"--dt must be finite and > 0, got {dt}")
+    steps = EXAMPLE_DURATION / dt
+    if steps > 1e8:
+        raise ValueError(
+            f"--dt {dt:g} s makes {steps:.3g} steps of the {EXAMPLE_DURATION:g} s history, "
+            f"{steps * 56 / 2**30:.3g} GiB of poses and wheel velocities; use a step of "
+            f"{EXAMPLE_DURATION / 1e8:g} s or more"
+        )
