@@ -9,7 +9,14 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.calibration import EXTRAS, PARAMETERS, calibrate, odometry_of
-from diffdrive.cli.options import read_log_of, robot_from
+from diffdrive.calibration import METHODS as CALIBRATION_METHODS
+from diffdrive.cli.options import (
+    LOG_COLUMNS,
+    Command,
+    Parents,
+    read_log_of,
+    robot_from,
+)
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.examples import (
     EXAMPLE_DURATION,
@@ -19,7 +26,7 @@ from diffdrive.files import (
     TableError,
     write_robot,
 )
-from diffdrive.integrate import Method
+from diffdrive.integrate import METHODS, Method
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import simulate
 from diffdrive.skid_steer import Robot, SkidSteer
@@ -143,3 +150,46 @@ def calibration_report(nominal: Robot, result, runs, integration: Method) -> str
         f"{after.max_position:.4f} m calibrated ({integration} odometry)"
     )
     return "\n".join(lines)
+
+
+EPILOGS = {
+    "calibrate": f"""examples:
+  diffdrive calibrate                      the built-in example runs -> robot.toml
+  diffdrive calibrate runs/*_run-*.csv --method least_squares -o robot.toml
+
+runs with ground truth, each as below (x, y, theta needed; OptiOdom files count 2796.8 a
+turn unless told).
+{LOG_COLUMNS}""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive calibrate``."""
+    cal = command("calibrate", "fit wheel radii and track width to ground truth",
+                  [parents.robot, parents.logs], run_calibrate, EPILOGS["calibrate"])  # fmt: skip
+    cal.add_argument("runs", nargs="*", type=Path, help="runs with ground truth; none: built-in")
+    cal.add_argument("-o", "--output", type=Path, default=Path("robot.toml"))
+    cal.add_argument("--method", choices=CALIBRATION_METHODS, default="least_squares")
+    cal.add_argument("--integration", choices=METHODS, default="exact",
+                     help="the odometry's method (default exact)")  # fmt: skip
+    cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
+    cal.add_argument("--cv", default="loo", metavar="loo|K|none",
+                     help="held-out errors by cross-validation over the runs: leave one run "
+                     "out (default), K folds, or none")  # fmt: skip
+    cal.add_argument(
+        "--fix",
+        nargs="+",
+        choices=PARAMETERS,
+        metavar="PARAMETER",
+        help="hold these at their nominal values (e.g. track_width)",
+    )
+    cal.add_argument(
+        "--extra",
+        nargs="+",
+        choices=(*EXTRAS, "none"),
+        metavar="PARAMETER",
+        help="fit these too: axle_offset (the tracked point is not on the axle), "
+        "heading_offset (the reference's heading is the robot's plus a constant); default "
+        "both for least_squares and minimax, which predicted held-out runs best; none: neither",
+    )
+    cal.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")

@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 import numpy as np
 
 from diffdrive import sources
 from diffdrive.calibration import odometry_of
-from diffdrive.evaluation import associate, ate, interpolate, rpe, run_errors
+from diffdrive.cli.options import (
+    TRAJECTORY_FILES,
+    Command,
+    Parents,
+)
+from diffdrive.evaluation import RPE_PAIRS, associate, ate, interpolate, rpe, run_errors
 from diffdrive.examples import (
     example_log,
     example_robot,
@@ -85,3 +91,56 @@ def _paired(args, times, estimate, truth_times, truth):
             f"{args.input}'s (after --t-offset {args.t_offset} s); 2 or more are needed"
         )
     return truth_times[j], estimate[i], truth[j]
+
+
+EPILOGS = {
+    "evaluate": f"""examples:
+  diffdrive evaluate                       the built-in example's odometry against its truth
+  diffdrive evaluate odometry.tum --truth truth.csv --rpe 1.0 --json
+  diffdrive evaluate est.tum --truth gt.tum --t-offset -0.003 --rpe 10 --rpe-unit poses
+
+{TRAJECTORY_FILES} Poses are paired by time as evo pairs them: the nearest
+stamp within --t-max-diff s, after adding --t-offset to the trajectory's times;
+--interpolate instead samples the trajectory at every ground-truth time along its arcs.""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive evaluate``."""
+    ev = command(
+        "evaluate",
+        "a trajectory against ground truth",
+        [parents.times],
+        run_evaluate,
+        EPILOGS["evaluate"],
+    )
+    ev.add_argument("input", nargs="?", type=Path, help="trajectory; none: built-in")
+    ev.add_argument("--truth", type=Path, help="ground-truth trajectory")
+    ev.add_argument(
+        "--t-max-diff",
+        type=float,
+        default=0.01,
+        metavar="S",
+        help="largest time difference of a pair of poses, s (default 0.01, as evo)",
+    )
+    ev.add_argument(
+        "--t-offset",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="added to the trajectory's times before pairing, s (default 0)",
+    )
+    ev.add_argument(
+        "--interpolate",
+        action="store_true",
+        help="sample the trajectory at the truth's times along its arcs",
+    )
+    ev.add_argument("--rpe", type=float, default=1.0, help="RPE window (default 1)")
+    ev.add_argument("--rpe-unit", choices=["m", "s", "poses"], default="m")
+    ev.add_argument(
+        "--rpe-pairs",
+        choices=RPE_PAIRS,
+        default="consecutive",
+        help="consecutive (evo's default) or all (evo's --all_pairs)",
+    )
+    ev.add_argument("--json", action="store_true")

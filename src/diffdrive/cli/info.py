@@ -3,6 +3,12 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from diffdrive.cli.options import (
+    Command,
+    Parents,
+)
 
 
 def run_info(args: argparse.Namespace) -> int:
@@ -14,3 +20,16 @@ def run_info(args: argparse.Namespace) -> int:
     for topic in found:
         print(f"{topic.name:32} {topic.msgtype:32} {topic.count:8} {topic.rate:7.2f}  {topic.use}")
     return 0
+
+
+EPILOGS = {
+    "info": """example:
+  diffdrive info robot.bag      topics, types, counts, rates, and which diffdrive can use""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive info``."""
+    info = command("info", "what a ROS bag or MCAP file holds, and what diffdrive can use",
+                   [], run_info, EPILOGS["info"])  # fmt: skip
+    info.add_argument("input", type=Path, help="a ROS 1 bag, ROS 2 bag folder or MCAP file")

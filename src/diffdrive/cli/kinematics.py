@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-from diffdrive.cli.options import print_values, robot_from
+from diffdrive.cli.options import (
+    NEGATIVE_NUMBER,
+    Command,
+    Parents,
+    print_values,
+    robot_from,
+)
 from diffdrive.types import Twist, WheelVelocities
 
 
@@ -27,3 +33,26 @@ def run_ik(args: argparse.Namespace) -> int:
     values = {"left": wheels.left, "right": wheels.right}
     print_values(values, args.json, {"left": "rad/s", "right": "rad/s"})
     return 0
+
+
+EPILOGS = {
+    "fk": """example:
+  diffdrive fk 8 10 --json      wheel velocities (rad/s) -> body twist
+  diffdrive fk 1 -1e-3          (negative numbers are numbers, not options)""",
+    "ik": """example:
+  diffdrive ik 0.5 1.0          forward speed (m/s) and turn rate (rad/s) -> wheel velocities""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive fk and ik``."""
+    fk = command("fk", "wheel velocities to the body twist", [parents.robot], run_fk, EPILOGS["fk"])
+    fk._negative_number_matcher = NEGATIVE_NUMBER  # -1e-3 is a number, not an option
+    fk.add_argument("left", type=float, help="rad/s")
+    fk.add_argument("right", type=float, help="rad/s")
+    fk.add_argument("--json", action="store_true")
+    ik = command("ik", "a body twist to wheel velocities", [parents.robot], run_ik, EPILOGS["ik"])
+    ik._negative_number_matcher = NEGATIVE_NUMBER
+    ik.add_argument("vx", type=float, help="forward speed, m/s")
+    ik.add_argument("omega", type=float, help="turn rate, rad/s")
+    ik.add_argument("--json", action="store_true")

@@ -3,14 +3,20 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
 from diffdrive import batch, sources
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
+    LOG_COLUMNS,
+    RIM_SPEED_LIMIT,
+    Command,
+    Parents,
     checked_increments,
     output_format,
+    output_options,
     read_log_of,
     robot_from,
     start_pose,
@@ -153,3 +159,72 @@ def _cut(log: WheelLog, keep: np.ndarray) -> WheelLog:
     return replace(log, times=log.times[keep], wheels=log.wheels[keep], truth=part(log.truth),
                    lines=part(log.lines), gyro_rates=part(log.gyro_rates),
                    commands=part(log.commands))  # fmt: skip
+
+
+EPILOGS = {
+    "odometry": f"""examples:
+  diffdrive odometry                      a built-in 20 Hz log of the example -> odometry.csv
+  diffdrive odometry log.csv --ticks-per-revolution 4096 --counter-bits 12 -o odometry.csv
+  diffdrive odometry log.csv --time-unit ns --max-wheel-speed 30 --twist --covariance
+
+{LOG_COLUMNS}
+With ground truth an error summary is printed. The largest wheel speed the log implies is
+printed with its line: thousands of rad/s mean a wrong --counter-bits or ticks per revolution.""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive odometry``."""
+    odo = command(
+        "odometry", "dead reckoning over an encoder log",
+        [parents.robot, parents.logs, output_options("odometry.csv")], run_odometry,
+        EPILOGS["odometry"],
+    )  # fmt: skip
+    odo.add_argument("input", nargs="?", type=Path, help="encoder log; none: built-in")
+    odo.add_argument(
+        "--max-wheel-speed", type=float, metavar="RAD_S",
+        help="refuse a row whose wheel turns faster (rad/s); default: a rim speed of "
+        f"{RIM_SPEED_LIMIT:g} m/s",
+    )  # fmt: skip
+    odo.add_argument("--k-left", type=float, metavar="M",
+                     help="left wheel-error constant of the covariance model, m (default 0; "
+                     "1e-4 with a gyro)")  # fmt: skip
+    odo.add_argument(
+        "--k-right",
+        type=float,
+        metavar="M",
+        help="right wheel-error constant, m (default 0; 1e-4 with a gyro)",
+    )
+    gyro = odo.add_argument_group("a gyro: a bag's IMU topic or a gyro_z column (rad/s)")
+    gyro.add_argument("--gyro-topic", metavar="TOPIC", help="sensor_msgs/Imu topic of the bag")
+    gyro.add_argument(
+        "--imu-rpy",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("ROLL", "PITCH", "YAW"),
+        help="the IMU's mounting in the body, degrees (default 0 0 0: z up)",
+    )
+    gyro.add_argument("--heading", choices=("wheels", "gyro", "fused"),
+                      help="heading from the wheels, the gyro, or both (default: fused with a "
+                      "gyro); writes slip, slip_score and gyro_bias columns")  # fmt: skip
+    gyro.add_argument(
+        "--gyro-bias",
+        type=float,
+        metavar="RAD_S",
+        help="the gyro's bias (default: its mean while the wheels stand still)",
+    )
+    gyro.add_argument("--command-topic", metavar="TOPIC",
+                      help="geometry_msgs/Twist commands of the bag, to flag wheels that spin "
+                      "beyond them (or left_command, right_command columns)")  # fmt: skip
+    odo.add_argument(
+        "--twist",
+        action="store_true",
+        help="add columns vx, vy, omega: the twist over the interval ending at "
+        "each row (nan on the first)",
+    )
+    odo.add_argument(
+        "--covariance",
+        action="store_true",
+        help=f"add columns {', '.join(COVARIANCE_COLUMNS)} (m^2, m rad, rad^2)",
+    )

@@ -7,6 +7,8 @@ import argparse
 import json
 import math
 import re
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -280,3 +282,17 @@ def at_least(smallest: int):
 
     parse.__name__ = "int"
     return parse
+
+
+# How a subcommand module adds its parser: command(name, help, parents, run, epilog).
+Command = Callable[..., argparse.ArgumentParser]
+
+
+@dataclass(frozen=True)
+class Parents:
+    """The option groups that several subcommands share (argparse parent parsers)."""
+
+    robot: argparse.ArgumentParser
+    logs: argparse.ArgumentParser
+    times: argparse.ArgumentParser
+    pictures: argparse.ArgumentParser

@@ -4,9 +4,17 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from diffdrive import sources
-from diffdrive.cli.options import robot_from, trajectory_or_example
+from diffdrive.cli.options import (
+    TRAJECTORY_FILES,
+    Command,
+    Parents,
+    at_least,
+    robot_from,
+    trajectory_or_example,
+)
 from diffdrive.files import (
     TableError,
     atomic_output,
@@ -42,3 +50,34 @@ def run_animate(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"animated {what} to {output} ({writer})")
     return 0
+
+
+EPILOGS = {
+    "plot": f"""examples:
+  diffdrive plot                          the built-in example -> trajectory.png
+  diffdrive plot odometry.csv --truth log.csv -o odometry.svg
+
+{TRAJECTORY_FILES} --truth is drawn underneath.""",
+    "animate": """examples:
+  diffdrive animate                       the built-in example -> trajectory.gif
+  diffdrive animate trajectory.csv -o drive.mp4     (MP4 needs ffmpeg; else a GIF)""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive plot and animate``."""
+    plot = command(
+        "plot", "draw a trajectory", [parents.robot, parents.pictures], run_plot, EPILOGS["plot"]
+    )
+    plot.add_argument("-o", "--output", type=Path, default=Path("trajectory.png"))
+    plot.add_argument("--truth", type=Path, help="ground-truth trajectory, drawn underneath")
+    movie = command(
+        "animate",
+        "animate a trajectory",
+        [parents.robot, parents.pictures],
+        run_animate,
+        EPILOGS["animate"],
+    )
+    movie.add_argument("-o", "--output", type=Path, default=Path("trajectory.gif"))
+    movie.add_argument("--fps", type=at_least(1), default=20)
+    movie.add_argument("--frames", type=at_least(2), default=120, help="frames to draw")

@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 from diffdrive import batch
 from diffdrive.cli.options import (
+    LOG_COLUMNS,
+    Command,
+    Parents,
     checked_increments,
     example_trajectory,
+    output_options,
     read_log_of,
     robot_from,
     start_pose,
@@ -57,3 +62,23 @@ def _check_step_count(dt: float) -> None:
             f"{steps * 56 / 2**30:.3g} GiB of poses and wheel velocities; use a step of "
             f"{EXAMPLE_DURATION / 1e8:g} s or more"
         )
+
+
+EPILOGS = {
+    "simulate": f"""examples:
+  diffdrive simulate                       the built-in driving history -> trajectory.csv
+  diffdrive simulate drive.csv -o out.tum --method rk2 --robot robot.toml
+
+{LOG_COLUMNS}""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive simulate``."""
+    sim = command(
+        "simulate", "integrate a driving history into a trajectory",
+        [parents.robot, parents.logs, output_options("trajectory.csv")], run_simulate,
+        EPILOGS["simulate"],
+    )  # fmt: skip
+    sim.add_argument("input", nargs="?", type=Path, help="driving history or log; none: built-in")
+    sim.add_argument("--dt", type=float, default=0.01, help="step for the built-in history, s")
