@@ -2,6 +2,7 @@
 
 import importlib.util
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -13,6 +14,8 @@ from diffdrive import _compiled, integrate, simulation
 from strategies import geometry
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+# Robot-steps from which "auto" takes the kernel once it is loaded (2^17: past its call cost).
+LOADED_THRESHOLD = 1 << 17
 
 
 def both(*args, **kwargs):
@@ -119,8 +122,26 @@ def test_auto_uses_the_kernel_for_large_calls_only(monkeypatch):
     )
     dd.simulate(ROBOT, np.ones((100, 2)), dt=0.01)
     assert calls == []
-    dd.simulate(ROBOT, np.ones((4, simulation._COMPILED_MIN_ROBOT_STEPS // 4, 2)), dt=0.01)
+    dd.simulate(ROBOT, np.ones((4, LOADED_THRESHOLD // 4, 2)), dt=0.01)
     assert calls == [1]
+
+
+def test_auto_weighs_loading_and_compiling_the_kernel(monkeypatch):
+    monkeypatch.delitem(sys.modules, "diffdrive._compiled", raising=False)
+    f64 = np.dtype("float64")
+    monkeypatch.setattr(simulation, "_kernel_cached", lambda: True)
+    assert not simulation._use_numba("auto", 5_000_000, f64)  # a load costs 1 s: 5.4e6 steps
+    assert simulation._use_numba("auto", 6_000_000, f64)
+    monkeypatch.setattr(simulation, "_kernel_cached", lambda: False)
+    assert not simulation._use_numba("auto", 40_000_000, f64)  # a first compile: 8 s
+    assert simulation._use_numba("auto", 50_000_000, f64)
+    assert not simulation._use_numba("auto", 50_000_000, np.dtype("float16"))
+
+
+def test_the_cache_is_found_beside_the_module():
+    simulate_once = dd.simulate(ROBOT, np.ones((10, 2)), dt=0.1, backend="numba")
+    assert simulate_once.poses.shape == (11, 3)
+    assert simulation._kernel_cached()
 
 
 def test_without_numba_auto_falls_back_and_numba_is_refused(monkeypatch):
@@ -128,7 +149,7 @@ def test_without_numba_auto_falls_back_and_numba_is_refused(monkeypatch):
     monkeypatch.setattr(
         importlib.util, "find_spec", lambda name, *a: None if name == "numba" else real(name, *a)
     )
-    wheels = np.ones((simulation._COMPILED_MIN_ROBOT_STEPS, 2))
+    wheels = np.ones((LOADED_THRESHOLD, 2))
     assert dd.simulate(ROBOT, wheels, dt=0.01).poses.shape == (wheels.shape[0] + 1, 3)
     with pytest.raises(ImportError, match=r"diffdrive\[fast\]"):
         dd.simulate(ROBOT, wheels, dt=0.01, backend="numba")
@@ -140,7 +161,7 @@ def test_an_unknown_backend_is_refused():
 
 
 def test_float16_stays_on_the_numpy_path():
-    wheels = np.ones((simulation._COMPILED_MIN_ROBOT_STEPS, 2), dtype=np.float16)
+    wheels = np.ones((LOADED_THRESHOLD, 2), dtype=np.float16)
     assert dd.simulate(ROBOT, wheels, dt=0.01).poses.dtype == np.float16
     with pytest.raises(ValueError, match="backend='numba' takes float32 or float64 data"):
         dd.simulate(ROBOT, wheels, dt=0.01, backend="numba")

@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -35,12 +37,15 @@ __all__ = ["integrate_increments", "simulate"]
 
 # Small enough that a block's temporaries are reused from the heap, not fresh pages each time.
 _BLOCK_ELEMENTS = 1 << 11
-# From this many robot-steps, "auto" takes the numba kernel once it is loaded in this process.
-_COMPILED_MIN_ROBOT_STEPS = 1 << 16
-# Loading it (importing numba and the cached kernel) costs 0.7-0.9 s in a fresh process, and
-# compiling it the first time ever about 7 s: NumPy (about 140 ns a robot-step) is faster
-# below about 2^23 robot-steps, so "auto" loads the kernel only for calls that large.
-_COMPILED_LOAD_ROBOT_STEPS = 1 << 23
+# What "auto" weighs, measured on the CI machine class (bench_simulate.py, and fresh
+# processes): seconds per robot-step of the NumPy path and of the kernel; a call of the
+# kernel (its threads start); loading it into a process (importing numba, reading the cached
+# machine code: 0.9-1.35 s) or, with no cache on disk yet, compiling it (about 7 s).
+_NUMPY_STEP_SECONDS = 200e-9
+_KERNEL_STEP_SECONDS = 15e-9
+_KERNEL_CALL_SECONDS = 0.012  # below 2^16 robot-steps NumPy wins even with the kernel loaded
+_KERNEL_LOAD_SECONDS = 1.0
+_KERNEL_COMPILE_SECONDS = 8.0
 
 WheelFunction = Callable[[np.ndarray], Any]
 Backend = Literal["auto", "numpy", "numba"]
@@ -219,11 +224,11 @@ def simulate(
     origin, as seed 002 says). Leading axes broadcast: N robots times T steps is one call.
     ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"`` (the default, exact for constant wheel
     velocities). ``backend`` is ``"numpy"`` (blocked prefix sums), ``"numba"`` (the compiled
-    kernel on every core; ``pip install diffdrive[fast]``) or ``"auto"``: numba when it is
-    installed and the call has at least 2**16 robot-steps with the kernel already loaded in
-    this process, or 2**23 when it would have to be loaded first (which takes most of a
-    second, and about 7 s the first time ever, to compile). All checks run before any
-    integration.
+    kernel on every core; ``pip install diffdrive[fast]``) or ``"auto"``: the one with the
+    lower expected cost, counting the kernel's call, and loading it into this process (about
+    1 s) or compiling it when no cache is on disk (about 8 s): numba from about 2**16
+    robot-steps once loaded, 5.4 million with a cache, 43 million without. All checks run
+    before any integration.
     """
     check_method(method)
     _check_backend(backend)
@@ -340,10 +345,31 @@ def _use_numba(backend: Backend, robot_steps: int, dtype: np.dtype) -> bool:
     if backend == "numba" and not compiled:
         raise ValueError(f"backend='numba' takes float32 or float64 data, got {dtype}")
     if backend == "auto":
-        loaded = "diffdrive._compiled" in sys.modules
-        least = _COMPILED_MIN_ROBOT_STEPS if loaded else _COMPILED_LOAD_ROBOT_STEPS
-        return compiled and robot_steps >= least and importlib.util.find_spec("numba") is not None
+        if not compiled or importlib.util.find_spec("numba") is None:
+            return False
+        kernel = _kernel_overhead() + robot_steps * _KERNEL_STEP_SECONDS
+        return kernel < robot_steps * _NUMPY_STEP_SECONDS  # the cheaper, by expected seconds
     return backend == "numba"
+
+
+def _kernel_overhead() -> float:
+    """Seconds before the kernel's first step: a call, plus loading or compiling it first."""
+    if "diffdrive._compiled" in sys.modules:
+        return _KERNEL_CALL_SECONDS
+    first = _KERNEL_LOAD_SECONDS if _kernel_cached() else _KERNEL_COMPILE_SECONDS
+    return _KERNEL_CALL_SECONDS + first
+
+
+def _kernel_cached() -> bool:
+    """Whether numba's cache of the kernel is on disk (beside the module, or in
+    NUMBA_CACHE_DIR), found without importing numba."""
+    spec = importlib.util.find_spec("diffdrive._compiled")
+    if spec is None or spec.origin is None:
+        return False
+    places = [Path(spec.origin).parent / "__pycache__"]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
+    return any(any(place.rglob("_compiled._integrate-*.nbi")) for place in places if place.is_dir())
 
 
 def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarray) -> None:
