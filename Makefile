@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 
 .PHONY: demo test bench clean
 
-$(BIN)/diffdrive: pyproject.toml setup.py src/diffdrive/_odometry.c
+$(BIN)/diffdrive: pyproject.toml setup.py src/diffdrive/backends/_odometry.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'

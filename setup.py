@@ -3,9 +3,12 @@
 Everything else about the package is in pyproject.toml; setuptools' own table for extension
 modules there is still experimental, so the one extension is declared here. It is optional:
 where no C compiler is found the build goes on without it, and ``diffdrive.Odometry`` runs on
-its pure-Python twin (``_odometry_py.py``; ``diffdrive.odometry.COMPILED`` says which).
+its pure-Python twin (``backends/odometry_python.py``; ``diffdrive.odometry.COMPILED`` says which).
 """
 
 from setuptools import Extension, setup
 
-setup(ext_modules=[Extension("diffdrive._odometry", ["src/diffdrive/_odometry.c"], optional=True)])
+CORE = Extension(
+    "diffdrive.backends._odometry", ["src/diffdrive/backends/_odometry.c"], optional=True
+)
+setup(ext_modules=[CORE])

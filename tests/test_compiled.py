@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from diffdrive import _compiled, integrate, simulation
+from diffdrive import integrate, simulation
+from diffdrive.backends import numba_simulate as _compiled
 from strategies import geometry
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
@@ -127,7 +128,7 @@ def test_auto_uses_the_kernel_for_large_calls_only(monkeypatch):
 
 
 def test_auto_weighs_loading_and_compiling_the_kernel(monkeypatch):
-    monkeypatch.delitem(sys.modules, "diffdrive._compiled", raising=False)
+    monkeypatch.delitem(sys.modules, "diffdrive.backends.numba_simulate", raising=False)
     f64 = np.dtype("float64")
     monkeypatch.setattr(simulation, "_kernel_cached", lambda: True)
     assert not simulation._use_numba("auto", 5_000_000, f64)  # a load costs 1 s: 5.4e6 steps

@@ -74,7 +74,7 @@ def test_auto_loads_numba_only_for_calls_where_it_pays_off():
         "dd.simulate(robot, np.ones((2**17, 2)), dt=0.01)\n"
         "print('numba' in sys.modules)\n"
         "from diffdrive.simulation import _use_numba\n"
-        "import diffdrive._compiled\n"
+        "import diffdrive.backends.numba_simulate\n"
         "print(_use_numba('auto', 2**17, np.dtype('float64')))\n"
     )
     out = python_lines(code)
@@ -94,5 +94,6 @@ def test_the_wheel_carries_the_type_information_and_the_page(tmp_path):
     )  # fmt: skip
     (wheel,) = tmp_path.glob("diffdrive-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    for needed in ("diffdrive/py.typed", "diffdrive/_odometry.pyi", "diffdrive/learn/page.py"):
+    wanted = ("diffdrive/py.typed", "diffdrive/backends/_odometry.pyi", "diffdrive/learn/page.py")
+    for needed in wanted:
         assert needed in names, needed

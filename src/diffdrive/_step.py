@@ -16,9 +16,10 @@ the body frame:
 ``u^8`` (the first term left out, ``u^10 / 11!``, is under 1e-20 there: an ulp even in float64),
 above it ``sin(u) / u``. ``sinc_cos`` gives ``cos u`` the same way.
 
-Who follows it: ``integrate.delta`` and the pure-Python odometry core use these functions as
-written; the numba kernels compile them; the batch layer applies the same flags and rule to
-arrays (``batch.integrate.delta``, ``batch.sinc``); the C core mirrors them (``_odometry.c``).
+Who follows it (``diffdrive.backends`` lists them): ``integrate.delta`` and the pure-Python
+odometry core use these functions as written; the numba kernels compile them; the batch layer
+applies the same flags and rule to arrays (``batch.integrate.delta``, ``batch.sinc``); the C
+core mirrors them (``backends/_odometry.c``).
 ``tests/test_backends.py`` holds every backend to one table of cases.
 """
 

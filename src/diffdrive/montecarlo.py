@@ -166,7 +166,7 @@ def _run_chunk(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
     count = min(setup.chunk, setup.robots - index * setup.chunk)
     robot = setup.robot
     if setup.backend == "numba":
-        from diffdrive._compiled_montecarlo import run_chunk
+        from diffdrive.backends.numba_montecarlo import run_chunk
 
         geometry = np.array([robot.left_wheel_radius, robot.right_wheel_radius,
                              robot.track_width, robot.axle_offset])  # fmt: skip

@@ -35,8 +35,8 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from diffdrive import _odometry_py
 from diffdrive._validate import finite, positive
+from diffdrive.backends import odometry_python
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import DiffDrive
@@ -50,10 +50,10 @@ __all__ = ["COMPILED", "UPDATE_KINDS", "Odometry", "PythonOdometry", "RefusedUpd
 try:
     if os.environ.get("DIFFDRIVE_PURE_PYTHON") == "1":
         raise ImportError("DIFFDRIVE_PURE_PYTHON=1")
-    from diffdrive._odometry import OdometryCore as _Core
+    from diffdrive.backends._odometry import OdometryCore as _Core
 except ImportError:
-    _Core = _odometry_py.OdometryCore  # type: ignore[assignment, misc]
-COMPILED: bool = _Core is not _odometry_py.OdometryCore
+    _Core = odometry_python.OdometryCore  # type: ignore[assignment, misc]
+COMPILED: bool = _Core is not odometry_python.OdometryCore
 
 UpdateKind = Literal["ticks", "positions", "increments", "velocities"]
 UPDATE_KINDS: tuple[UpdateKind, ...] = ("ticks", "positions", "increments", "velocities")
@@ -69,7 +69,7 @@ class RefusedUpdateError(ValueError):
 
 
 if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
-    _Base = _odometry_py.OdometryCore
+    _Base = odometry_python.OdometryCore
 else:
     _Base = object
 
@@ -282,7 +282,7 @@ class Odometry(_OdometryMethods, _Core):
     __doc__ = _OdometryMethods.__doc__
 
 
-class PythonOdometry(_OdometryMethods, _odometry_py.OdometryCore):
+class PythonOdometry(_OdometryMethods, odometry_python.OdometryCore):
     """``Odometry`` on the pure-Python core, whether or not the C core was built: the same
     results, slower (for tests, and where a C compiler never ran)."""
 

@@ -8,7 +8,7 @@ the same arithmetic as composing the deltas one after another. The steps are tak
 of about ``_BLOCK_ELEMENTS`` values, each block's wheel travel and twists made only when it is
 integrated: the temporaries stay small, and the running sums restart from carries that are
 held in float64, so float32 input loses no accuracy to a long sequential sum. The numba one
-(``diffdrive._compiled``) is a loop per robot over every core, for large calls.
+(``diffdrive.backends.numba_simulate``) is a loop per robot over every core, for large calls.
 """
 
 from __future__ import annotations
@@ -354,7 +354,7 @@ def _use_numba(backend: Backend, robot_steps: int, dtype: np.dtype) -> bool:
 
 def _kernel_overhead() -> float:
     """Seconds before the kernel's first step: a call, plus loading or compiling it first."""
-    if "diffdrive._compiled" in sys.modules:
+    if "diffdrive.backends.numba_simulate" in sys.modules:
         return _KERNEL_CALL_SECONDS
     first = _KERNEL_LOAD_SECONDS if _kernel_cached() else _KERNEL_COMPILE_SECONDS
     return _KERNEL_CALL_SECONDS + first
@@ -363,13 +363,15 @@ def _kernel_overhead() -> float:
 def _kernel_cached() -> bool:
     """Whether numba's cache of the kernel is on disk (beside the module, or in
     NUMBA_CACHE_DIR), found without importing numba."""
-    spec = importlib.util.find_spec("diffdrive._compiled")
+    spec = importlib.util.find_spec("diffdrive.backends.numba_simulate")
     if spec is None or spec.origin is None:
         return False
     places = [Path(spec.origin).parent / "__pycache__"]
     if os.environ.get("NUMBA_CACHE_DIR"):
         places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
-    return any(any(place.rglob("_compiled._integrate-*.nbi")) for place in places if place.is_dir())
+    return any(
+        any(place.rglob("numba_simulate._integrate-*.nbi")) for place in places if place.is_dir()
+    )
 
 
 def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarray) -> None:
@@ -377,7 +379,7 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
 
     A history or times shared by every robot goes as a single row, not a broadcast copy.
     """
-    from diffdrive._compiled import integrate_history
+    from diffdrive.backends.numba_simulate import integrate_history
 
     offset = 0.0
     if isinstance(robot, SkidSteer):  # its equivalent drive moves the ICRs' midpoint

@@ -728,7 +728,7 @@ static PyMethodDef core_methods[] = {
 };
 
 static PyTypeObject CoreType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "diffdrive._odometry.OdometryCore",
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "diffdrive.backends._odometry.OdometryCore",
     .tp_basicsize = sizeof(Core),
     .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE,
     .tp_doc = "The state and update of diffdrive.Odometry; use that class.",
@@ -740,7 +740,7 @@ static PyTypeObject CoreType = {
 
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT,
-    .m_name = "diffdrive._odometry",
+    .m_name = "diffdrive.backends._odometry",
     .m_doc = "The compiled core of diffdrive.Odometry.",
     .m_size = -1,
 };

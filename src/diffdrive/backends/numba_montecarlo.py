@@ -17,8 +17,8 @@ import math
 import numba
 import numpy as np
 
-from diffdrive._compiled import STEP
 from diffdrive._step import METHOD_FLAGS
+from diffdrive.backends.numba_simulate import STEP
 from diffdrive.integrate import Method
 
 __all__ = ["run_chunk"]

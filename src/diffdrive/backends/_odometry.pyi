@@ -1,5 +1,5 @@
-"""Signatures of the C extension ``diffdrive._odometry`` (``_odometry.c``), for type checkers
-and editors. Use ``diffdrive.Odometry``, which subclasses ``OdometryCore``."""
+"""Signatures of the C extension ``diffdrive.backends._odometry`` (``_odometry.c``), for type
+checkers and editors. Use ``diffdrive.Odometry``, which subclasses ``OdometryCore``."""
 
 from typing import Any
 
