@@ -38,7 +38,7 @@ import numpy as np
 from diffdrive._arrays import components
 from diffdrive._validate import finite, whole
 from diffdrive.batch.kinematics import WHEELS
-from diffdrive.batch.rollout import accumulate
+from diffdrive.batch.rollout import accumulate, twists
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive
@@ -176,21 +176,22 @@ def _run_chunk(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
         return final, Moments(count, mean, m2)
     rng = np.random.default_rng(sequence)
     nominal = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
-    geometry = nominal * (1.0 + setup.geometry_sigma * rng.standard_normal((count, 3)))
+    drawn = nominal * (1.0 + setup.geometry_sigma * rng.standard_normal((count, 3)))
+    geometry = np.column_stack([drawn, np.full(count, robot.axle_offset)])  # (count, 4)
+    radii = geometry[:, None, :2]
     steps = len(setup.travel)
     block = max(1, _BLOCK_ELEMENTS // count)
     pose = np.broadcast_to(setup.start, (count, 3)).copy()
     first = Moments(count, pose.mean(axis=0)[None], np.zeros((1, 3, 3)))
     means, m2s = [first.mean], [first.m2]
     for k0 in range(0, steps, block):
-        travel = setup.travel[k0 : k0 + block]  # (B, 2) rad
-        arcs = geometry[:, None, :2] * travel  # (count, B, 2) m
-        if np.any(setup.k):
-            arcs = arcs + np.sqrt(setup.k * np.abs(arcs)) * rng.standard_normal(arcs.shape)
-        turn = (arcs[..., 1] - arcs[..., 0]) / geometry[:, None, 2]
-        increments = np.stack(
-            [0.5 * (arcs[..., 0] + arcs[..., 1]), robot.axle_offset * turn, turn], axis=-1
-        )
+        angles = setup.travel[k0 : k0 + block]  # (B, 2) rad, the same for every robot
+        if np.any(setup.k):  # noise on each wheel's travel (m), as an angle: (count, B, 2)
+            arcs = radii * angles
+            angles = (
+                angles + np.sqrt(setup.k * np.abs(arcs)) * rng.standard_normal(arcs.shape) / radii
+            )
+        increments = twists(geometry, angles)  # (count, B, 3): the step's wheel-to-body map
         poses = accumulate(increments, pose, setup.method)[:, 1:]  # (count, B, 3)
         mean = poses.mean(axis=0)
         deviation = poses - mean

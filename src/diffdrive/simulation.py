@@ -345,19 +345,15 @@ def _use_numba(backend: Backend, robot_steps: int, dtype: np.dtype) -> bool:
     if backend == "numba" and not compiled:
         raise ValueError(f"backend='numba' takes float32 or float64 data, got {dtype}")
     if backend == "auto":
-        if not compiled or importlib.util.find_spec("numba") is None:
+        # The cheaper by expected seconds; the cheap tests first, so that a small call (the
+        # usual one) neither looks for numba nor reads a folder.
+        saved = robot_steps * (_NUMPY_STEP_SECONDS - _KERNEL_STEP_SECONDS) - _KERNEL_CALL_SECONDS
+        if not compiled or saved <= 0 or importlib.util.find_spec("numba") is None:
             return False
-        kernel = _kernel_overhead() + robot_steps * _KERNEL_STEP_SECONDS
-        return kernel < robot_steps * _NUMPY_STEP_SECONDS  # the cheaper, by expected seconds
+        if "diffdrive.backends.numba_simulate" in sys.modules:
+            return True
+        return saved > (_KERNEL_LOAD_SECONDS if _kernel_cached() else _KERNEL_COMPILE_SECONDS)
     return backend == "numba"
-
-
-def _kernel_overhead() -> float:
-    """Seconds before the kernel's first step: a call, plus loading or compiling it first."""
-    if "diffdrive.backends.numba_simulate" in sys.modules:
-        return _KERNEL_CALL_SECONDS
-    first = _KERNEL_LOAD_SECONDS if _kernel_cached() else _KERNEL_COMPILE_SECONDS
-    return _KERNEL_CALL_SECONDS + first
 
 
 def _kernel_cached() -> bool:

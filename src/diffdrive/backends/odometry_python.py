@@ -13,11 +13,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from diffdrive._step import sinc
+from diffdrive._step import METHOD_FLAGS, sinc, wheel_move
 
 __all__ = ["OdometryCore"]
 
-EULER, RK2, EXACT = 0, 1, 2
 WINDOW_SAMPLES = 1024  # the velocity window keeps samples window / 1024 s apart at least
 _INT64 = (-(1 << 63), (1 << 63) - 1)
 Covariance = tuple[float, float, float, float, float, float, float, float, float]
@@ -118,7 +117,9 @@ class OdometryCore:
     ) -> None:
         self._r_left, self._r_right = left_wheel_radius, right_wheel_radius
         self._track, self._axle = track_width, axle_offset
-        self._method, self._rad_per_tick = method, rad_per_tick
+        # The method's flags, by its index in diffdrive.integrate.METHODS (as the C core takes it).
+        self._weight, self._chord = list(METHOD_FLAGS.values())[method]
+        self._rad_per_tick = rad_per_tick
         self._max_wheel_speed, self._counter_bits = max_wheel_speed, counter_bits
         self._k_left, self._k_right, self._window = k_left, k_right, velocity_window
         self._pose = [x, y, theta, 0.0]  # x, y, theta, distance: sums ...
@@ -133,14 +134,14 @@ class OdometryCore:
     # -- the maths of one step --------------------------------------------------------------
 
     def _step(self, theta: float, dl: float, dr: float):
-        left, right = self._r_left * dl, self._r_right * dr
-        turn = (right - left) / self._track
-        forward, sideways = 0.5 * (left + right), self._axle * turn
-        weight = 0.0 if self._method == EULER else 0.5
+        forward, sideways, turn = wheel_move(
+            self._r_left, self._r_right, self._track, self._axle, dl, dr
+        )
+        weight = self._weight
         angle = theta + weight * turn
         ca, sa = math.cos(angle), math.sin(angle)
         scale, scale_slope = 1.0, 0.0
-        if self._method == EXACT:
+        if self._chord:
             scale = sinc(0.5 * turn)
             scale_slope = 0.5 * _sinc_derivative(0.5 * turn)
         gx, gy = ca * forward - sa * sideways, sa * forward + ca * sideways
