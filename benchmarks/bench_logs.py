@@ -5,7 +5,7 @@ The CSV log is split into its phases (read, odometry, write) and set against the
 loop itself (``Odometry.update_arrays``, the checked update of every row in C) and against the
 same updates called one at a time from Python (what ``diffdrive odometry`` did before). The bag
 is a ROS 2 MCAP bag of ``sensor_msgs/JointState`` messages written here with rosbags; decoding
-is rosbags' (``diffdrive.ros.read_joint_states``). Medians of several runs.
+is rosbags' (``diffdrive.io.ros.read_joint_states``). Medians of several runs.
 
     pip install -e '.[ros]'
     python benchmarks/bench_logs.py [--rows 1000000] [--messages 200000] [--repeats 3]
@@ -63,8 +63,8 @@ def csv_phases(folder: Path, rows: int, repeats: int) -> dict[str, float]:
     log_path, out = folder / "log.csv", folder / "odometry.csv"
     encoder_log(log_path, rows)
     robot = example_robot()
-    log = dd.logs.read_log(log_path)
-    times = {"read": median_time(lambda: dd.logs.read_log(log_path), repeats)}
+    log = dd.io.read_log(log_path)
+    times = {"read": median_time(lambda: dd.io.read_log(log_path), repeats)}
 
     def c_loop():
         odometry = dd.Odometry(robot, ticks_per_revolution=TICKS)
@@ -72,9 +72,7 @@ def csv_phases(folder: Path, rows: int, repeats: int) -> dict[str, float]:
 
     times["odometry (C loop)"] = median_time(c_loop, repeats)
     poses, _ = c_loop()
-    times["write"] = median_time(
-        lambda: dd.trajectories.write_trajectory(out, log.times, poses), repeats
-    )
+    times["write"] = median_time(lambda: dd.io.write_trajectory(out, log.times, poses), repeats)
     argv = ["odometry", str(log_path), "--ticks-per-revolution", str(TICKS), "-o", str(out), "-q"]
     times["whole command"] = median_time(lambda: cli(argv), repeats)
     left, right = log.wheels[:, 0].tolist(), log.wheels[:, 1].tolist()
@@ -97,7 +95,7 @@ def bag_phases(folder: Path, messages: int, repeats: int) -> dict[str, float]:
     out = folder / "bag_odometry.csv"
 
     def decode():
-        dd.ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
+        dd.io.ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
 
     argv = ["odometry", str(bag), *joints, "--wheel-radius", "0.05", "--track-width", "0.3",
             "-o", str(out), "-q"]  # fmt: skip

@@ -22,9 +22,10 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive import batch, ros
+from diffdrive import batch
 from diffdrive.evaluation import align, ate, interpolate
 from diffdrive.gyro import HEADINGS, Gyro, gyro_odometry, rotation_from_rpy
+from diffdrive.io import ros
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)

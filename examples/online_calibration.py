@@ -23,7 +23,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive.calibration import calibrate
-from diffdrive.datasets import optiodom_robot, read_optiodom_run
+from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 from diffdrive.online_calibration import OnlineCalibrator
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,8 +34,7 @@ NAMES = ("left wheel radius, mm", "right wheel radius, mm", "track width, mm")
 def read_runs(folder: Path) -> list[tuple[np.ndarray, np.ndarray]]:
     """``(wheel-angle increments, ground-truth poses)`` of each run of an experiment."""
     paths = sorted(folder.glob("*_run-*.csv"))
-    return [(np.diff(r.wheel_angles(), axis=0), r.ground_truth) for r in map(read_optiodom_run,
-                                                                              paths)]  # fmt: skip
+    return [(run.increments(), run.truth) for run in map(read_optiodom_run, paths)]
 
 
 def stream(runs: list, window: int = 20) -> tuple[OnlineCalibrator, np.ndarray]:

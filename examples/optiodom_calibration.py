@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.calibration import calibrate, odometry_of
-from diffdrive.datasets import optiodom_robot, read_optiodom_run
 from diffdrive.evaluation import run_errors, worst
+from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 from diffdrive.validation import cross_validate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,9 +59,8 @@ def load(folder: Path) -> tuple[dict[str, list], dict[str, dict[str, float]]]:
     experiments = {}
     for experiment in authors:
         paths = sorted((folder / experiment).glob("*_run-*.csv"))
-        runs = [read_optiodom_run(path) for path in paths]
         experiments[experiment] = [
-            (np.diff(run.wheel_angles(), axis=0), run.ground_truth) for run in runs
+            (run.increments(), run.truth) for run in map(read_optiodom_run, paths)
         ]
     return experiments, authors
 

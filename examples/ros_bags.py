@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive import ros, sources
 from diffdrive.calibration import calibrate, odometry_of
 from diffdrive.evaluation import align, ate, interpolate, run_errors
+from diffdrive.io import read_run, ros
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
 NOMINAL_TB3 = dd.DiffDrive(wheel_radius=0.033, track_width=0.287)  # the Waffle's datasheet
@@ -33,10 +33,10 @@ HUSKY_ODOMETRY = "/husky_velocity_controller/odom"
 
 def turtlebot3(bags: Path) -> dict:
     """Calibration against /odom, and the dead reckoning it gives."""
-    log = sources.wheel_log(bags / "turtlebot3_fuse.bag", left_joint="wheel_left_joint",
-                            right_joint="wheel_right_joint", reference_topic="/odom")  # fmt: skip
+    log = read_run(bags / "turtlebot3_fuse.bag", left_joint="wheel_left_joint",
+                   right_joint="wheel_right_joint", reference_topic="/odom")  # fmt: skip
     increments = log.increments()
-    result = calibrate(NOMINAL_TB3, [(increments, log.truth)], "increments")
+    result = calibrate(NOMINAL_TB3, [log], "increments")
     found = {}
     for name, robot in (("nominal", NOMINAL_TB3), ("calibrated", result.robot)):
         poses = odometry_of(robot, increments, log.truth[0])

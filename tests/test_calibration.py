@@ -9,8 +9,8 @@ import pytest
 import diffdrive as dd
 from data import data_folder
 from diffdrive.calibration import CalibrationError, calibrate, odometry_of
-from diffdrive.datasets import optiodom_robot, read_optiodom_run
 from diffdrive.evaluation import run_errors, worst
+from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 
 NOMINAL = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 TRUE = dd.DiffDrive(left_wheel_radius=0.0497, right_wheel_radius=0.0502, track_width=0.306)
@@ -151,8 +151,7 @@ def authors(method_prefix):
 
 
 def runs_of(experiment):
-    runs = [read_optiodom_run(p) for p in sorted((FOLDER / experiment).glob("*_run-*.csv"))]
-    return [(np.diff(run.wheel_angles(), axis=0), run.ground_truth) for run in runs]
+    return [read_optiodom_run(p) for p in sorted((FOLDER / experiment).glob("*_run-*.csv"))]
 
 
 @pytest.mark.parametrize(
@@ -178,7 +177,8 @@ def test_minimax_beats_optiodom_on_every_experiment_with_the_papers_protocol():
         runs = runs_of(row["experiment"])
         # The paper's protocol and its odometry method, rk2.
         robot = calibrate(optiodom_robot(), runs, "minimax", integration="rk2").robot
-        errors = worst([run_errors(odometry_of(robot, i, t[0], "rk2"), t) for i, t in runs])
+        errors = worst([run_errors(odometry_of(robot, run.increments(), run.truth[0], "rk2"),
+                                   run.truth) for run in runs])  # fmt: skip
         ours.append(errors.max_position)
         theirs.append(float(row["calib_max_pos_err_m"]))
         assert ours[-1] <= theirs[-1], row["experiment"]

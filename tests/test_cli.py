@@ -61,7 +61,7 @@ import json  # noqa: E402
 import numpy as np  # noqa: E402
 
 import diffdrive as dd  # noqa: E402
-from diffdrive.files import atomic_write  # noqa: E402
+from diffdrive.io import atomic_write  # noqa: E402
 
 
 def run(argv, capsys):
@@ -316,7 +316,7 @@ def test_odometry_with_no_log_runs_the_built_in_one(tmp_path, capsys, monkeypatc
 
 
 def test_calibrate_the_built_in_runs_to_a_robot_file_that_reads_back(tmp_path, capsys):
-    from diffdrive.files import read_robot
+    from diffdrive.io import read_robot
 
     output = tmp_path / "robot.toml"
     code, out, _ = run(["calibrate", "-o", output, "--integration", "exact"], capsys)
@@ -331,7 +331,7 @@ def test_calibrate_the_built_in_runs_to_a_robot_file_that_reads_back(tmp_path, c
 
 def test_calibrate_real_square_runs_with_umbmark(tmp_path, capsys):
     from data import data_folder
-    from diffdrive.files import read_robot
+    from diffdrive.io import read_robot
 
     runs = sorted((data_folder("optiodom-diffdrive") / "square" / "230620202042").glob("*run*"))
     output = tmp_path / "robot.toml"

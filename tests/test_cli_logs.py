@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 import diffdrive as dd
 from data import data_folder
 from diffdrive.cli import main
-from diffdrive.trajectories import read_trajectory, write_trajectory
+from diffdrive.io.trajectories import read_trajectory, write_trajectory
 
 TICKS = 4096
 ROBOT = ["--wheel-radius", "0.05", "--track-width", "0.3"]
@@ -292,7 +292,7 @@ def test_numpys_csv_parser_reads_what_the_cell_by_cell_reader_reads(rows, ending
     import tempfile
     from unittest import mock
 
-    from diffdrive import files
+    from diffdrive.io import tables as files
 
     steps = np.cumsum([r[0] for r in rows])
     text = "t,left_ticks,x\n" + "\n".join(

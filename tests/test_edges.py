@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive.cli import main
-from diffdrive.trajectories import read_trajectory
+from diffdrive.io.trajectories import read_trajectory
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 

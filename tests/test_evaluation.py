@@ -109,7 +109,7 @@ EVO_RPE = [  # (delta, unit, pairs, pairs along the truth, RMSE m, RMSE deg)
 
 @pytest.fixture(scope="module")
 def evo_files(tmp_path_factory):
-    from diffdrive.trajectories import write_trajectory
+    from diffdrive.io.trajectories import write_trajectory
 
     folder = tmp_path_factory.mktemp("evo")
     truth, estimate = evo_pair()
@@ -120,7 +120,7 @@ def evo_files(tmp_path_factory):
 
 def paired(folder):
     from diffdrive.evaluation import associate
-    from diffdrive.trajectories import read_trajectory
+    from diffdrive.io.trajectories import read_trajectory
 
     times, estimate = read_trajectory(folder / "estimate.tum")
     truth_times, truth = read_trajectory(folder / "truth.tum")

@@ -100,13 +100,13 @@ def test_one_circular_experiment_lands_within_1_percent_of_batch_least_squares(e
     """One OptiOdom circle run each way, streamed cycle by cycle with the default window: every
     parameter within 1 % of whole-path least squares on the same runs (0.77 % at worst)."""
     from data import data_folder
-    from diffdrive.datasets import optiodom_robot, read_optiodom_run
+    from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 
     folder = data_folder("optiodom-diffdrive") / experiment
-    runs = [(np.diff(r.wheel_angles(), axis=0), r.ground_truth)
-            for r in map(read_optiodom_run, sorted(folder.glob("*_run-*.csv")))]  # fmt: skip
+    runs = [read_optiodom_run(path) for path in sorted(folder.glob("*_run-*.csv"))]
     online = OnlineCalibrator(optiodom_robot())
-    for increments, truth in runs:
+    for run in runs:
+        increments, truth = run.increments(), run.truth
         relative = dd.batch.relative_to(truth[1:], truth[:-1])
         for k in range(len(increments)):
             online.update(*increments[k], relative[k])

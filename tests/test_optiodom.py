@@ -9,7 +9,7 @@ import pytest
 
 import diffdrive as dd
 from data import data_folder
-from diffdrive.datasets import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
+from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
 
 FOLDER = data_folder("optiodom-diffdrive")
 # The runs the authors call outliers, for the rows "(without worse runs)" that leave them out.
@@ -25,14 +25,12 @@ def reference_rows():
 
 def run_errors(run, robot):
     """Max and final position error (m) and heading error (deg) of rk2 dead reckoning."""
-    odometry = dd.Odometry(
-        robot, "rk2", dd.Pose(*run.ground_truth[0]), OPTIODOM_TICKS_PER_REVOLUTION
-    )
+    odometry = dd.Odometry(robot, "rk2", dd.Pose(*run.truth[0]), OPTIODOM_TICKS_PER_REVOLUTION)
     poses = []
-    for (left, right), t in zip(run.counters.tolist(), run.times.tolist(), strict=True):
+    for (left, right), t in zip(run.wheels.tolist(), run.times.tolist(), strict=True):
         odometry.update_ticks(left, right, t)
         poses.append(odometry.pose.to_array())
-    error = np.array(poses) - run.ground_truth
+    error = np.array(poses) - run.truth
     position = np.hypot(error[:, 0], error[:, 1])
     heading = np.degrees(np.abs(error[:, 2]))
     return np.array([position.max(), heading.max(), position[-1], heading[-1]])

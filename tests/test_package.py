@@ -42,7 +42,7 @@ def test_the_heavier_modules_are_attributes_loaded_on_first_use():
     code = (
         "import sys, diffdrive as dd\n"
         "before = 'diffdrive.calibration' in sys.modules\n"
-        "names = ['calibration', 'evaluation', 'files', 'plot', 'trajectories', 'logs']\n"
+        "names = ['calibration', 'evaluation', 'io', 'plot', 'montecarlo']\n"
         "print(before, all(getattr(dd, n).__name__ == 'diffdrive.' + n for n in names))\n"
         "print('calibration' in dir(dd))\n"
     )

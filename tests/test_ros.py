@@ -10,9 +10,9 @@ import pytest
 
 import diffdrive as dd
 from data import data_folder
-from diffdrive import ros
 from diffdrive.cli import main
 from diffdrive.evaluation import ate
+from diffdrive.io import ros
 
 pytest.importorskip("rosbags")
 BAGS = data_folder("ros-bags")
@@ -198,7 +198,7 @@ def test_turtlebot3_calibration_from_joint_states_against_odom(tmp_path, capsys)
             "--wheel-radius", "0.033", "--track-width", "0.287", "-o", robot_file]  # fmt: skip
     code, out, err = run(argv, capsys)
     assert code == 0, err
-    settings = dd.files.read_robot(robot_file)
+    settings = dd.io.read_robot(robot_file)
     # The data README: a plain fit finds about 0.0325 m and 0.300 m.
     assert settings["left_wheel_radius"] == pytest.approx(0.0325, abs=2e-4)
     assert settings["right_wheel_radius"] == pytest.approx(0.0325, abs=2e-4)

@@ -87,11 +87,10 @@ def test_the_calibrate_report_gives_in_sample_and_held_out_side_by_side(tmp_path
 def test_held_out_optiodom_squares_beat_the_authors_in_sample_figure_with_the_offsets():
     """The README's held-out table: square/230620202042, six runs, one held out at a time."""
     from data import data_folder
-    from diffdrive.datasets import optiodom_robot, read_optiodom_run
+    from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 
     folder = data_folder("optiodom-diffdrive") / "square" / "230620202042"
-    runs = [(np.diff(run.wheel_angles(), axis=0), run.ground_truth)
-            for run in map(read_optiodom_run, sorted(folder.glob("*_run-*.csv")))]  # fmt: skip
+    runs = [read_optiodom_run(path) for path in sorted(folder.glob("*_run-*.csv"))]
     offsets = ("axle_offset", "heading_offset")
     with_offsets = cross_validate(optiodom_robot(), runs, "least_squares", "loo",
                                   integration="rk2", extra=offsets)  # fmt: skip

@@ -1,10 +1,9 @@
 """diffdrive: kinematics, odometry and simulation for differential-drive mobile robots.
 
 Scalar value types and the robot model work on floats; ``diffdrive.batch`` holds the same
-operations over arrays. Conventions: docs/conventions.md. The heavier parts
-(``calibration``, ``evaluation``, ``files``, ``trajectories``, ``logs``, ``plot``, ``ros``,
-...) load on
-first use as attributes, so ``import diffdrive`` stays light.
+operations over arrays; ``diffdrive.io`` every file format. Conventions: docs/conventions.md.
+The heavier parts (``calibration``, ``evaluation``, ``io``, ``plot``, ...) load on first use
+as attributes, so ``import diffdrive`` stays light.
 """
 
 import importlib
@@ -26,20 +25,15 @@ __version__ = "0.1.0"
 # Submodules loaded when first reached as attributes (dd.calibration, dd.plot, ...).
 _LAZY = (
     "calibration",
-    "datasets",
     "distributed",
     "encoders",
     "evaluation",
     "examples",
-    "files",
     "gyro",
+    "io",
     "learn",
-    "logs",
     "montecarlo",
     "plot",
-    "ros",
-    "sources",
-    "trajectories",
 )
 
 

@@ -1,8 +1,8 @@
 """Odometry calibration: the wheel radii and track width that make odometry match ground truth.
 
-``calibrate(nominal_robot, runs, method)`` with ``runs`` a list of ``(increments, truth)``:
-wheel-angle increments ``(T, 2)`` ``[left, right]`` in rad and ground-truth poses ``(T+1, 3)``
-at the same instants. Methods:
+``calibrate(nominal_robot, runs, method)`` with ``runs`` a list of ``diffdrive.io.Run`` with
+ground truth, or of ``(increments, truth)`` pairs: wheel-angle increments ``(T, 2)`` ``[left,
+right]`` in rad and ground-truth poses ``(T+1, 3)`` at the same instants. Methods:
 
 - ``"umbmark"`` (Borenstein and Feng 1996): clockwise and counter-clockwise square runs of
   side ``square_side``. From the mean final x error (ground truth minus odometry, in the start
@@ -37,6 +37,7 @@ the same midpoint) in the place of the track width: the simpler model of a skid-
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -44,11 +45,19 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive.integrate import Method, check_method
+from diffdrive.io.run import Run
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import integrate_increments
 from diffdrive.skid_steer import Robot, SkidSteer
 
-__all__ = ["CalibrationError", "CalibrationResult", "calibrate", "odometry_of"]
+__all__ = [
+    "CalibrationError",
+    "CalibrationResult",
+    "calibrate",
+    "checked_runs",
+    "odometry_of",
+    "run_names",
+]
 
 CalibrationMethod = Literal["umbmark", "least_squares", "minimax", "increments"]
 METHODS: tuple[CalibrationMethod, ...] = ("umbmark", "least_squares", "minimax", "increments")
@@ -115,13 +124,27 @@ def odometry_of(
     return integrate_increments(batch.to_twist(robot, increments), start, method)
 
 
-def _check_runs(runs: list, names: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+def run_names(runs: Sequence, names: Sequence[str] | None) -> list[str]:
+    """``names``, or each run's source (a ``Run``) or ``run k`` (a pair)."""
+    if names is not None:
+        return list(names)
+    return [run.source if isinstance(run, Run) else f"run {k}" for k, run in enumerate(runs)]
+
+
+def checked_runs(runs: Sequence, names: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``runs`` as checked ``(increments, truth)`` pairs; ``CalibrationError`` names the run."""
     if not runs:
         raise CalibrationError("calibrate needs at least one run")
     if len(names) != len(runs):
         raise ValueError(f"names must name each of the {len(runs)} runs, got {len(names)}")
     checked = []
-    for k, (increments, truth) in zip(names, runs, strict=True):
+    for k, run in zip(names, runs, strict=True):
+        if isinstance(run, Run):
+            if run.truth is None:
+                raise CalibrationError(f"{k}: the run has no ground truth to calibrate against")
+            increments, truth = run.increments(), run.truth
+        else:
+            increments, truth = run
         increments, truth = np.asarray(increments, float), np.asarray(truth, float)
         if increments.ndim != 2 or increments.shape[1] != 2:
             raise CalibrationError(f"{k}: increments must be (T, 2), got {increments.shape}")
@@ -138,7 +161,7 @@ def _check_runs(runs: list, names: list[str]) -> list[tuple[np.ndarray, np.ndarr
 
 def calibrate(
     nominal_robot: Robot,
-    runs: list,
+    runs: Sequence[Run | tuple[np.ndarray, np.ndarray]],
     method: CalibrationMethod = "least_squares",
     *,
     integration: Method = "exact",
@@ -157,7 +180,8 @@ def calibrate(
     ``integration`` is the odometry's method (default exact, as everywhere; the OptiOdom
     reproduction names rk2, the authors' method); ``square_side`` (m) is UMBmark's square;
     ``loss`` and ``loss_scale`` (m) are scipy's robust loss for least squares. ``names``
-    name the runs in messages (default ``run 0``, ``run 1``, ...); ``progress`` shows a
+    name the runs in messages (default: a ``Run``'s source, else ``run 0``, ``run 1``, ...;
+    a ``Run`` of ticks needs its own ticks per revolution); ``progress`` shows a
     progress bar of the fit's evaluations on standard error. ``fixed`` names parameters held
     at their nominal values (``"track_width"``, say, when the runs cannot identify it).
     ``extra`` adds parameters to least squares and minimax: ``"axle_offset"`` (the tracked
@@ -175,8 +199,8 @@ def calibrate(
     supply it. Past that, the fit's condition number decides.
     """
     check_method(integration)
-    names = [f"run {k}" for k in range(len(runs))] if names is None else list(names)
-    checked = _check_runs(runs, names)
+    names = run_names(runs, names)
+    checked = checked_runs(runs, names)
     free = _free(fixed)
     extra = _check_extra(extra, method, nominal_robot)
     if method != "umbmark":

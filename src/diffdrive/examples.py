@@ -55,11 +55,11 @@ def example_encoder_log(rate: float = 20.0) -> dict[str, np.ndarray]:
 
 
 def example_log():
-    """``example_encoder_log`` as the ``WheelLog`` every command reads (int64 counts)."""
-    from diffdrive.logs import WheelLog
+    """``example_encoder_log`` as the ``Run`` every command reads (int64 counts)."""
+    from diffdrive.io.run import Run
 
     log = example_encoder_log()
-    return WheelLog(
+    return Run(
         log["t"], "ticks",
         np.column_stack([log["left_ticks"], log["right_ticks"]]).astype(np.int64),
         np.column_stack([log["x"], log["y"], log["theta"]]), "the built-in encoder log",

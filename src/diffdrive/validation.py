@@ -20,9 +20,12 @@ from diffdrive.calibration import (
     CalibrationError,
     CalibrationMethod,
     calibrate,
+    checked_runs,
     odometry_of,
+    run_names,
 )
 from diffdrive.evaluation import RunErrors, run_errors, worst
+from diffdrive.io.run import Run
 from diffdrive.skid_steer import Robot
 
 __all__ = ["CrossValidation", "Fold", "cross_validate"]
@@ -81,7 +84,7 @@ def _folds(scheme, count: int) -> list[tuple[int, ...]]:
 
 def cross_validate(
     nominal_robot: Robot,
-    runs: list,
+    runs: Sequence[Run | tuple[np.ndarray, np.ndarray]],
     method: CalibrationMethod = "least_squares",
     scheme: str | int | Sequence[int] = "loo",
     **options,
@@ -91,7 +94,8 @@ def cross_validate(
     if len(runs) < 2:
         raise CalibrationError("cross-validation needs 2 or more runs: one to fit, one to score")
     integration = options.get("integration", "exact")
-    names = options.pop("names", None) or [f"run {k}" for k in range(len(runs))]
+    names = run_names(runs, options.pop("names", None))
+    runs = checked_runs(runs, names)
 
     def scored(result, indices):
         """The runs ``indices`` dead-reckoned with a calibration, from each run's first

@@ -19,7 +19,7 @@ from diffdrive.cli.options import (
 )
 from diffdrive.cli.report import example_outputs, kinematics_report, simulation_report
 from diffdrive.examples import example_robot
-from diffdrive.files import TIME_UNITS
+from diffdrive.io import TIME_UNITS
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -22,11 +22,8 @@ from diffdrive.examples import (
     EXAMPLE_DURATION,
     example_wheel_velocities,
 )
-from diffdrive.files import (
-    TableError,
-    write_robot,
-)
 from diffdrive.integrate import METHODS, Method
+from diffdrive.io import TableError, write_robot
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import simulate
 from diffdrive.skid_steer import Robot, SkidSteer

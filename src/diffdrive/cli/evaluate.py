@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive import sources
 from diffdrive.calibration import odometry_of
 from diffdrive.cli.options import (
     TRAJECTORY_FILES,
@@ -20,7 +19,7 @@ from diffdrive.examples import (
     example_log,
     example_robot,
 )
-from diffdrive.files import TableError
+from diffdrive.io import TableError, read_trajectory
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
@@ -31,8 +30,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     else:
         if args.truth is None:
             raise TableError("evaluate needs --truth with a ground-truth trajectory or bag")
-        times, estimate = sources.trajectory(args.input, args.time_unit, args.topic)
-        truth_times, truth = sources.trajectory(args.truth, args.time_unit, args.truth_topic)
+        times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
+        truth_times, truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
         for path, poses in ((args.input, estimate), (args.truth, truth)):
             if poses.ndim != 2:
                 raise TableError(f"{path}: evaluate takes one robot; the file has {len(poses)}")

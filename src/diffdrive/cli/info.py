@@ -12,7 +12,7 @@ from diffdrive.cli.options import (
 
 
 def run_info(args: argparse.Namespace) -> int:
-    from diffdrive import ros
+    from diffdrive.io import ros
 
     found = ros.topics(args.input)
     print(f"{args.input}: {len(found)} topics")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive import batch, sources
+from diffdrive import batch
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
     LOG_COLUMNS,
@@ -23,8 +23,7 @@ from diffdrive.cli.options import (
     write_output,
 )
 from diffdrive.cli.report import error_summary
-from diffdrive.files import TableError
-from diffdrive.logs import WheelLog
+from diffdrive.io import Run, TableError, is_bag
 from diffdrive.model import DiffDrive
 from diffdrive.odometry import Odometry, RefusedUpdateError, UpdateKind
 from diffdrive.skid_steer import SkidSteer
@@ -84,15 +83,15 @@ def run_odometry(args: argparse.Namespace) -> int:
     return 0
 
 
-def _gyro(args, log: WheelLog):
+def _gyro(args, log: Run):
     """The gyro of the command: a bag's IMU topic (rotated by --imu-rpy), or the log's gyro_z
     column; None without one."""
     from diffdrive.gyro import Gyro, rotation_from_rpy
 
     if args.gyro_topic is not None:
-        if args.input is None or not sources.is_bag(args.input):
+        if args.input is None or not is_bag(args.input):
             raise TableError("--gyro-topic needs a bag as the log")
-        from diffdrive import ros
+        from diffdrive.io import ros
 
         imu = ros.read_imu(args.input, args.gyro_topic)
         mounting = rotation_from_rpy(*np.radians(args.imu_rpy))
@@ -102,7 +101,7 @@ def _gyro(args, log: WheelLog):
     return None
 
 
-def _gyro_odometry(args, robot: DiffDrive, log: WheelLog, ticks, gyro, note: str) -> int:
+def _gyro_odometry(args, robot: DiffDrive, log: Run, ticks, gyro, note: str) -> int:
     """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
     from diffdrive.gyro import gyro_odometry
 
@@ -110,7 +109,7 @@ def _gyro_odometry(args, robot: DiffDrive, log: WheelLog, ticks, gyro, note: str
     if np.count_nonzero(inside) < 2:
         raise TableError(f"{log.source}: the gyro does not cover the log's times")
     if not inside.all():  # a bag's IMU may start a little after the wheels: keep the overlap
-        log = _cut(log, inside)
+        log = log.rows(inside)
         note += f"\nthe log is cut to [{log.times[0]:g}, {log.times[-1]:g}] s, where the gyro is"
     options = {"k_left": 1e-4 if args.k_left is None else args.k_left,
                "k_right": 1e-4 if args.k_right is None else args.k_right}  # fmt: skip
@@ -134,12 +133,12 @@ def _gyro_odometry(args, robot: DiffDrive, log: WheelLog, ticks, gyro, note: str
     return 0
 
 
-def _commands(args, robot, log: WheelLog):
+def _commands(args, robot, log: Run):
     """The wheel velocities commanded over each interval ``(T, 2)``: a bag's Twist topic
     (each held until the next) through inverse kinematics, the log's command columns, or
     None."""
     if args.command_topic is not None:
-        from diffdrive import ros
+        from diffdrive.io import ros
 
         commands = ros.read_twists(args.input, args.command_topic)
         held = np.searchsorted(commands.times, log.times[:-1], side="right") - 1
@@ -147,18 +146,6 @@ def _commands(args, robot, log: WheelLog):
         wheels = batch.to_wheel_velocities(robot, np.column_stack([v, 0.0 * v, omega]))
         return np.where((held >= 0)[:, None], wheels, 0.0)  # before the first: standing
     return None if log.commands is None else log.commands[:-1]
-
-
-def _cut(log: WheelLog, keep: np.ndarray) -> WheelLog:
-    """The rows ``keep`` (a contiguous run) of a log."""
-    from dataclasses import replace
-
-    def part(values):
-        return None if values is None else values[keep]
-
-    return replace(log, times=log.times[keep], wheels=log.wheels[keep], truth=part(log.truth),
-                   lines=part(log.lines), gyro_rates=part(log.gyro_rates),
-                   commands=part(log.commands))  # fmt: skip
 
 
 EPILOGS = {

@@ -14,7 +14,6 @@ from typing import Any, Literal
 
 import numpy as np
 
-from diffdrive import sources
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
 from diffdrive.examples import (
     EXAMPLE_DURATION,
@@ -22,18 +21,22 @@ from diffdrive.examples import (
     example_robot,
     example_wheel_velocities,
 )
-from diffdrive.files import (
+from diffdrive.integrate import METHODS, Method
+from diffdrive.io import (
+    FORMATS,
     ROBOT_KEYS,
     TIME_UNITS,
+    Run,
     TableError,
+    narrower_counter,
     read_robot,
+    read_run,
+    read_trajectory,
+    write_trajectory,
 )
-from diffdrive.integrate import METHODS, Method
-from diffdrive.logs import WheelLog, narrower_counter
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import simulate
 from diffdrive.skid_steer import Robot, SkidSteer
-from diffdrive.trajectories import FORMATS, write_trajectory
 
 ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
 
@@ -163,7 +166,7 @@ def write_output(
     ``nav_msgs/Odometry`` and ``/tf`` with ``covariances`` and ``twists`` to a bag."""
     format = output_format(args)
     if format == "mcap" or format == "ros2":
-        from diffdrive.ros import write_odometry
+        from diffdrive.io.ros import write_odometry
 
         written = [write_odometry(args.output, times, poses, covariances, twists,
                                   format=format, frame=args.frame,
@@ -175,23 +178,23 @@ def write_output(
         print(f"{what}: wrote {poses.shape[-2]} poses to {where} ({format})")
 
 
-def read_log_of(args: argparse.Namespace, path: Path | None = None) -> WheelLog:
+def read_log_of(args: argparse.Namespace, path: Path | None = None) -> Run:
     """The log of ``path`` (default: the command's input), a file or a bag topic."""
     path = args.input if path is None else path
     if path is None:
         return example_log()
-    return sources.wheel_log(
+    return read_run(
         path, args.time_unit, joint_topic=args.joint_topic, left_joint=args.left_joint,
         right_joint=args.right_joint, reference_topic=args.reference_topic,
     )  # fmt: skip
 
 
-def start_pose(log: WheelLog) -> np.ndarray:
+def start_pose(log: Run) -> np.ndarray:
     """Where a log's run starts: its first ground-truth pose, else the origin."""
     return np.zeros(3) if log.truth is None else log.truth[0]
 
 
-def checked_increments(args, log: WheelLog, robot: Robot, ticks) -> tuple[np.ndarray, str]:
+def checked_increments(args, log: Run, robot: Robot, ticks) -> tuple[np.ndarray, str]:
     """The log's wheel increments ``(T, 2)`` rad, and a line on its largest wheel speed;
     refuses a counter width that does not fit, and a speed no robot drives at (without
     --max-wheel-speed, a rim speed of RIM_SPEED_LIMIT m/s)."""
@@ -243,7 +246,7 @@ def trajectory_or_example(args: argparse.Namespace, robot: Robot):
         example = example_trajectory(robot)
         return example.times, example.poses, "the built-in example"
     what = f"{args.input} {args.topic}" if args.topic else str(args.input)
-    return (*sources.trajectory(args.input, args.time_unit, args.topic), what)
+    return (*read_trajectory(args.input, args.time_unit, args.topic), what)
 
 
 def print_values(values: dict[str, float], as_json: bool, units: dict[str, str]) -> None:

@@ -6,7 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from diffdrive import sources
 from diffdrive.cli.options import (
     TRAJECTORY_FILES,
     Command,
@@ -15,10 +14,7 @@ from diffdrive.cli.options import (
     robot_from,
     trajectory_or_example,
 )
-from diffdrive.files import (
-    TableError,
-    atomic_output,
-)
+from diffdrive.io import TableError, atomic_output, read_trajectory
 
 
 def run_plot(args: argparse.Namespace) -> int:
@@ -28,7 +24,7 @@ def run_plot(args: argparse.Namespace) -> int:
     times, poses, what = trajectory_or_example(args, robot)
     truth = None
     if args.truth is not None:
-        truth = sources.trajectory(args.truth, args.time_unit, args.truth_topic)
+        truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
     with atomic_output(args.output) as temporary:
         plot_trajectory(robot, times, poses, temporary, truth)
     if not args.quiet:

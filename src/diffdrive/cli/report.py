@@ -14,12 +14,11 @@ from diffdrive.examples import (
     EXAMPLE_DURATION,
     example_wheel_velocities,
 )
-from diffdrive.files import atomic_output
 from diffdrive.integrate import METHODS
+from diffdrive.io import atomic_output, write_trajectory
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import simulate
 from diffdrive.skid_steer import Robot
-from diffdrive.trajectories import write_trajectory
 from diffdrive.types import WheelVelocities
 
 # (label, left, right) wheel velocities in rad/s that show the characteristic motions.

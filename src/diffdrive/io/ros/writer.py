@@ -11,7 +11,7 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive.files import TableError
+from diffdrive.io.tables import TableError
 
 __all__ = ["BAG_FORMATS", "write_odometry"]
 

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.files import TableError
-from diffdrive.logs import WheelKind, WheelLog
+from diffdrive.io.run import Run, WheelKind
+from diffdrive.io.tables import TableError
 
 __all__ = [
     "BagError",
@@ -171,8 +171,8 @@ def read_joint_states(
     right_joint: str,
     topic: str = "/joint_states",
     field: str | None = None,
-) -> WheelLog:
-    """The wheels of ``sensor_msgs/JointState`` messages as a ``WheelLog``.
+) -> Run:
+    """The wheels of ``sensor_msgs/JointState`` messages as a ``Run``.
 
     Joints are looked up by name in every message. ``field`` is ``"position"`` (accumulated
     angles, rad) or ``"velocity"`` (rad/s, held until the next message, as every log); the
@@ -200,7 +200,7 @@ def read_joint_states(
     if len(rows) < 2 or not np.all(np.isfinite(rows)):
         raise BagError(f"{path}: {topic}: needs 2 or more messages of finite wheel {chosen[0]}s")
     kind: WheelKind = "angle" if chosen[0] == "position" else "velocity"
-    return WheelLog(ordered.times, kind, rows, None, f"{path} {topic} ({ordered.source} stamps)")
+    return Run(ordered.times, kind, rows, None, f"{path} {topic} ({ordered.source} stamps)")
 
 
 @dataclass(frozen=True, eq=False)

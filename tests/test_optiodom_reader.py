@@ -1,10 +1,11 @@
-"""The OptiOdom run reader: columns, tick order, and bad files named by file and line."""
+"""The OptiOdom run reader: columns, tick order, the ``Run`` it gives, and bad files named by
+file and line."""
 
 import numpy as np
 import pytest
 
 from data import data_folder
-from diffdrive.datasets import read_optiodom_run
+from diffdrive.io.optiodom import read_optiodom_run
 
 GOOD = "0,0,0,0,0,0\n0.05,0.001,0.0,0.01,12,10\n0.1,0.002,0.0,0.02,13,-2\n"
 
@@ -14,9 +15,12 @@ def test_columns_and_the_right_then_left_order(tmp_path):
     path.write_text(GOOD)
     run = read_optiodom_run(path)
     np.testing.assert_array_equal(run.times, [0.0, 0.05, 0.1])
-    np.testing.assert_array_equal(run.ground_truth[-1], [0.002, 0.0, 0.02])
-    np.testing.assert_array_equal(run.ticks, [[0, 0], [10, 12], [-2, 13]])  # [left, right]
-    np.testing.assert_array_equal(run.counters[-1], [8, 25])
+    np.testing.assert_array_equal(run.truth[-1], [0.002, 0.0, 0.02])
+    # [left, right] counter readings: the file's per-cycle counts, right first, accumulated
+    np.testing.assert_array_equal(run.wheels, [[0, 0], [10, 12], [8, 25]])
+    assert (run.kind, run.ticks_per_revolution) == ("ticks", 43.7 * 64)
+    assert run.where(2) == f"{path}:3"
+    np.testing.assert_allclose(run.increments()[1], np.array([-2, 13]) * 2 * np.pi / (43.7 * 64))
 
 
 @pytest.mark.parametrize(
@@ -42,5 +46,5 @@ def test_every_shared_run_reads():
     assert len(runs) == 37
     for path in runs:
         run = read_optiodom_run(path)
-        assert np.all(run.ticks[0] == 0)
-        assert np.all(run.ground_truth[0] == 0)
+        assert np.all(run.wheels[0] == 0)
+        assert np.all(run.truth[0] == 0)

@@ -1,6 +1,6 @@
 """Trajectory files: ``t, x, y, theta`` as CSV, JSON lines or TUM, for one robot or many.
 
-- CSV: a header ``t,x,y,theta`` (any table ``diffdrive.files`` reads), optionally a ``robot``
+- CSV: a header ``t,x,y,theta`` (any table ``diffdrive.io.tables`` reads), optionally a ``robot``
   column first for several robots, and further columns (twist, covariance) after.
 - JSON lines: one object a line with the keys ``t``, ``x``, ``y``, ``theta`` (``robot``, and
   any further keys, optional).
@@ -9,7 +9,8 @@
 
 Readers find the format from the content: a line of eight numbers is TUM, a line that starts
 with ``{`` is JSON lines, anything else is a table. Headings read from TUM are unwrapped (TUM
-keeps only the orientation); headings from the others are read as written.
+keeps only the orientation); headings from the others are read as written. ``read_trajectory``
+also reads a trajectory topic of a ROS bag or MCAP file (``diffdrive.io.ros``).
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive.files import (
+from diffdrive.io.atomic import atomic_output, atomic_write
+from diffdrive.io.run import is_bag
+from diffdrive.io.tables import (
     TableError,
-    atomic_output,
-    atomic_write,
     check_time_unit,
     is_number,
     number_row,
@@ -41,6 +42,7 @@ Format = Literal["csv", "jsonl", "tum"]
 FORMATS: tuple[Format, ...] = ("csv", "jsonl", "tum")
 _POSE = ("t", "x", "y", "theta")
 _ROWS_PER_WRITE = 1 << 16
+_BAG_TYPES = ("nav_msgs/msg/Odometry", "sensor_msgs/msg/NavSatFix")
 
 
 def trajectory_format(path: str | Path) -> Format:
@@ -59,14 +61,21 @@ def trajectory_format(path: str | Path) -> Format:
 
 
 def read_trajectory(
-    path: str | Path, time_unit: str | None = None
+    path: str | Path, time_unit: str | None = None, topic: str | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(times (T+1,), poses (T+1, 3))`` of a trajectory file, or ``(N, T+1, 3)`` poses when
-    the file holds ``N`` robots (a ``robot`` column) at the same times.
+    """``(times (T+1,), poses (T+1, 3))`` of a trajectory file or of a bag's ``topic``.
 
-    Times are in ``time_unit`` (None: seconds, refused when plainly not; see
-    ``diffdrive.files``), returned in seconds. ``TableError`` names the file and line.
+    A file may hold ``N`` robots (a ``robot`` column) at the same times: then the poses are
+    ``(N, T+1, 3)``. Its times are in ``time_unit`` (None: seconds, refused when plainly
+    not; see ``diffdrive.io.tables``), returned in seconds. A bag's topic is
+    ``nav_msgs/Odometry``, ``sensor_msgs/NavSatFix`` (local east, north; the heading
+    unknown, NaN) or ``tf:PARENT:CHILD`` (a transform chain). ``TableError`` names the file
+    and line.
     """
+    if is_bag(path):
+        return _read_bag(path, topic)
+    if topic is not None:
+        raise TableError(f"{path}: a topic needs a bag; this is a trajectory file")
     path = Path(path)
     check_time_unit(time_unit)
     format = trajectory_format(path)
@@ -84,6 +93,34 @@ def read_trajectory(
     bad = np.flatnonzero(np.diff(times) <= 0)
     if bad.size:
         raise TableError(f"{path}: the times do not increase after t = {times[bad[0]]!r}")
+    return times, poses
+
+
+def _read_bag(path: str | Path, topic: str | None) -> tuple[np.ndarray, np.ndarray]:
+    from diffdrive.io import ros
+
+    if topic is None:
+        usable = [t.name for t in ros.topics(path) if t.msgtype in _BAG_TYPES]
+        raise TableError(
+            f"{path}: give the topic of a trajectory (--topic or --truth-topic): one of "
+            f"{', '.join(usable) or 'none here'}, or tf:PARENT:CHILD"
+        )
+    if topic.startswith("tf:"):
+        frames = topic.split(":")
+        if len(frames) != 3:
+            raise TableError(f"a transform chain is tf:PARENT:CHILD, got {topic!r}")
+        times, poses = ros.read_tf(path, frames[1], frames[2])
+    else:
+        kind = {t.name: t.msgtype for t in ros.topics(path)}.get(topic)
+        if kind == "sensor_msgs/msg/NavSatFix":
+            fixes = ros.read_navsatfix(path, topic)
+            times = fixes.times
+            poses = np.column_stack([fixes.positions, np.full(len(times), np.nan)])
+        else:
+            odometry = ros.read_odometry(path, topic)  # names the topic if it is not one
+            times, poses = odometry.times, odometry.poses
+    if len(times) < 2:
+        raise TableError(f"{path}: {topic} needs 2 or more poses")
     return times, poses
 
 

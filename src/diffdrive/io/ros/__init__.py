@@ -15,7 +15,7 @@ dropped (counted in ``dropped``), since a log's times must increase.
   MCAP file or a ROS 2 bag folder, written atomically.
 """
 
-from diffdrive.ros.reader import (
+from diffdrive.io.ros.reader import (
     BagError,
     Imu,
     NavSatFix,
@@ -30,8 +30,8 @@ from diffdrive.ros.reader import (
     read_twists,
     topics,
 )
-from diffdrive.ros.writer import BAG_FORMATS, write_odometry
-from diffdrive.sources import is_bag
+from diffdrive.io.ros.writer import BAG_FORMATS, write_odometry
+from diffdrive.io.run import is_bag
 
 __all__ = [
     "BAG_FORMATS",

@@ -1,4 +1,4 @@
-"""Files: tables of numbers and robot files in; atomic writes out.
+"""Tables of numbers: the text files that loggers and spreadsheets write.
 
 Input tables are text with a header row of column names, as spreadsheets and loggers write
 them: UTF-8 (a byte-order mark, as Excel writes, is read), separated by commas, semicolons, tabs
@@ -10,59 +10,32 @@ that is wrong; a file that cannot be read whole is refused whole.
 Time columns are in seconds unless told otherwise (``time_unit``: ``s``, ``ms``, ``us``, ``ns``).
 A time column that plainly is not in seconds (rows 10 s or more apart, or stamps since 1970
 in ms, us or ns) is refused with the likely unit named, rather than read as seconds.
-
-Every writer writes a temporary file beside the target and renames it, so a failure leaves no
-partial file.
 """
 
 from __future__ import annotations
 
 import codecs
-import contextlib
 import csv
 import io
 import math
-import os
-import sys
-import tempfile
 import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 
 __all__ = [
-    "ROBOT_KEYS",
     "TIME_UNITS",
     "Table",
     "TableError",
-    "atomic_output",
-    "atomic_write",
     "check_time_unit",
     "is_number",
     "number_row",
     "read_header",
-    "read_robot",
     "read_table",
     "text_lines",
     "times_in_seconds",
-    "write_robot",
 ]
-
-# What a robot file may set: the DiffDrive's arguments, and the encoders' resolution.
-ROBOT_KEYS = (
-    "wheel_radius",
-    "left_wheel_radius",
-    "right_wheel_radius",
-    "track_width",
-    "half_track",
-    "axle_offset",
-    "icr_left",
-    "icr_right",
-    "icr_x",
-    "ticks_per_revolution",
-)
 
 # Seconds per unit of a time column.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -351,83 +324,3 @@ def _finite(cell: str) -> float:
     if not math.isfinite(number):
         raise ValueError(cell)
     return number
-
-
-def read_robot(path: str | Path) -> dict[str, float]:
-    """The settings of a robot file (TOML): ``ROBOT_KEYS``, lengths in m.
-
-    Returns them as a dict; ``TableError`` names the file (and the line, for a syntax error)
-    of anything wrong.
-    """
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:
-        import tomli as tomllib
-    path = Path(path)
-    try:
-        with path.open("rb") as handle:
-            settings = tomllib.load(handle)
-    except OSError as exc:
-        raise TableError(f"{path}: cannot read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise TableError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise TableError(
-            f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
-            "a robot file is TOML, which is UTF-8"
-        ) from None
-    unknown = sorted(set(settings) - set(ROBOT_KEYS))
-    if unknown:
-        raise TableError(
-            f"{path}: unknown setting {unknown[0]!r}; a robot file may set {', '.join(ROBOT_KEYS)}"
-        )
-    for key, value in settings.items():
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise TableError(f"{path}: {key} must be a number, got {value!r}")
-        if not math.isfinite(float(value)):
-            raise TableError(f"{path}: {key} must be finite, got {value!r}")
-    return {key: float(value) for key, value in settings.items()}
-
-
-@contextlib.contextmanager
-def atomic_output(path: str | Path) -> Iterator[Path]:
-    """A temporary path beside ``path`` (same suffix), renamed to ``path`` once written.
-
-    On any failure the temporary file goes and ``path`` is left as it was.
-    """
-    path = Path(path)
-    folder = path.parent
-    if not folder.is_dir():
-        raise TableError(f"cannot write {path}: the folder {folder} does not exist")
-    handle, temporary = tempfile.mkstemp(
-        dir=path.parent or ".", prefix=f".{path.stem}.", suffix=path.suffix
-    )
-    os.close(handle)
-    try:
-        yield Path(temporary)
-        # mkstemp makes the file private (0600); give it the mode a plain open would.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(temporary, 0o666 & ~umask)
-        os.replace(temporary, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
-        raise
-
-
-@contextlib.contextmanager
-def atomic_write(path: str | Path) -> Iterator[TextIO]:
-    """A text file to write that appears at ``path`` only once it is complete."""
-    with atomic_output(path) as temporary, temporary.open("w", newline="") as stream:
-        yield stream
-
-
-def write_robot(path: str | Path, settings: dict[str, float], comment: str = "") -> None:
-    """Write a robot file (TOML) that ``read_robot`` reads back: ``ROBOT_KEYS`` only."""
-    unknown = sorted(set(settings) - set(ROBOT_KEYS))
-    if unknown:
-        raise ValueError(f"not a robot setting: {unknown[0]!r}")
-    with atomic_write(path) as stream:
-        stream.writelines(f"# {line}\n" for line in comment.splitlines())
-        stream.writelines(f"{key} = {float(value)!r}\n" for key, value in settings.items())

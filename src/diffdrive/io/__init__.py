@@ -1,0 +1,47 @@
+"""Files in and out: every format diffdrive reads or writes, and the one ``Run`` type.
+
+- ``run``: ``Run``, a robot's wheels over time with ground truth where there is one, and
+  ``read_run`` for any file that holds one (a table, an OptiOdom file, a bag);
+- ``tables``: text tables of numbers as loggers and spreadsheets write them (the one parser
+  the others share), with their time units;
+- ``logs``: wheel-log tables; ``optiodom``: the OptiOdom run files (Sousa et al. 2022);
+- ``trajectories``: ``t, x, y, theta`` as CSV, JSON lines or TUM, or a bag's topic;
+- ``robots``: robot files (TOML);
+- ``ros``: ROS 1 bags, ROS 2 bags and MCAP files (the ``ros`` extra), loaded on first use;
+- ``atomic``: the atomic writes every writer goes through.
+
+Every reader refuses a bad file with ``TableError`` (a ``ValueError``) naming the file, and
+the line and column when known; every writer leaves the target as it was when it fails.
+"""
+
+from diffdrive.io.atomic import atomic_output, atomic_write
+from diffdrive.io.logs import read_log
+from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
+from diffdrive.io.robots import ROBOT_KEYS, read_robot, write_robot
+from diffdrive.io.run import WHEEL_COLUMNS, Run, WheelKind, is_bag, narrower_counter, read_run
+from diffdrive.io.tables import TIME_UNITS, TableError, read_table
+from diffdrive.io.trajectories import FORMATS, read_trajectory, write_trajectory
+
+__all__ = [
+    "FORMATS",
+    "OPTIODOM_TICKS_PER_REVOLUTION",
+    "ROBOT_KEYS",
+    "TIME_UNITS",
+    "WHEEL_COLUMNS",
+    "Run",
+    "TableError",
+    "WheelKind",
+    "atomic_output",
+    "atomic_write",
+    "is_bag",
+    "narrower_counter",
+    "optiodom_robot",
+    "read_log",
+    "read_optiodom_run",
+    "read_robot",
+    "read_run",
+    "read_table",
+    "read_trajectory",
+    "write_robot",
+    "write_trajectory",
+]

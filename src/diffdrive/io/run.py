@@ -1,0 +1,204 @@
+"""``Run``: what a robot recorded of its wheels, with ground truth where there is one.
+
+One type for every source: a wheel-log table (``diffdrive.io.logs``), an OptiOdom run file
+(``diffdrive.io.optiodom``), a bag's ``sensor_msgs/JointState`` topic (``diffdrive.io.ros``),
+or wheel-angle increments in memory (``Run.from_increments``). ``read_run`` reads any of the
+files. The wheels are one of
+
+- ``"ticks"``: absolute counter readings (whole counts, read exactly);
+- ``"angle"``: accumulated wheel angles, rad;
+- ``"velocity"``: wheel velocities, rad/s, each **held from its row's time until the next
+  row's** (the last row's is not used). Every command reads them this way.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from diffdrive.encoders import count_changes
+from diffdrive.io.tables import TableError
+
+__all__ = ["WHEEL_COLUMNS", "Run", "WheelKind", "is_bag", "narrower_counter", "read_run"]
+
+WheelKind = Literal["ticks", "angle", "velocity"]
+WHEEL_COLUMNS: dict[WheelKind, tuple[str, str]] = {
+    "ticks": ("left_ticks", "right_ticks"),
+    "angle": ("left_angle", "right_angle"),
+    "velocity": ("left_velocity", "right_velocity"),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """A run: ``times`` ``(T+1,)`` s; ``wheels`` ``(T+1, 2)`` ``[left, right]`` of the
+    ``kind`` (counts as int64 or uint64, rad, or rad/s); ``truth`` ``(T+1, 3)`` or None.
+
+    ``source`` names where it came from and ``lines`` the line of each row in it (None when
+    unknown), for messages; ``ticks_per_revolution`` is the encoders' resolution when the
+    format fixes it; ``gyro_rates`` ``(T+1,)`` the body yaw rate (rad/s) of a gyro, and
+    ``commands`` ``(T+1, 2)`` the commanded wheel velocities (rad/s, held until the next
+    row), or None.
+    """
+
+    times: np.ndarray
+    kind: WheelKind
+    wheels: np.ndarray
+    truth: np.ndarray | None
+    source: str
+    lines: np.ndarray | None = None
+    ticks_per_revolution: float | None = None
+    gyro_rates: np.ndarray | None = None
+    commands: np.ndarray | None = None
+
+    @classmethod
+    def from_increments(
+        cls,
+        increments: object,
+        truth: object = None,
+        times: object = None,
+        source: str = "increments",
+    ) -> Run:
+        """A run of wheel-angle ``increments`` ``(T, 2)`` rad (accumulated from 0), with
+        ``truth`` ``(T+1, 3)`` and ``times`` ``(T+1,)`` s (None: one second a step)."""
+        steps = np.asarray(increments, dtype=float)
+        if steps.ndim != 2 or steps.shape[1] != 2:
+            raise ValueError(f"{source}: increments must be (T, 2), got {steps.shape}")
+        wheels = np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
+        stamps = np.arange(len(wheels), dtype=float) if times is None else np.asarray(times, float)
+        if stamps.shape != (len(wheels),):
+            raise ValueError(
+                f"{source}: times must be (T+1,) = ({len(wheels)},), got {stamps.shape}"
+            )
+        poses = None if truth is None else np.asarray(truth, dtype=float)
+        if poses is not None and poses.shape != (len(wheels), 3):
+            raise ValueError(
+                f"{source}: ground truth must be (T+1, 3) = {(len(wheels), 3)}, got {poses.shape}"
+            )
+        return cls(stamps, "angle", wheels, poses, source)
+
+    def where(self, row: int) -> str:
+        """``source:line`` of row ``row`` (0-based), for messages."""
+        if self.lines is None:
+            return f"{self.source}, row {row + 1}"
+        return f"{self.source}:{int(self.lines[row])}"
+
+    def rows(self, keep: np.ndarray) -> Run:
+        """The run cut to the rows ``keep`` selects (a boolean mask or indices)."""
+
+        def cut(values):
+            return None if values is None else values[keep]
+
+        return replace(self, times=self.times[keep], wheels=self.wheels[keep],
+                       truth=cut(self.truth), lines=cut(self.lines),
+                       gyro_rates=cut(self.gyro_rates), commands=cut(self.commands))  # fmt: skip
+
+    def increments(
+        self, ticks_per_revolution: float | None = None, counter_bits: int | None = None
+    ) -> np.ndarray:
+        """The wheel angles turned over each interval, ``(T, 2)`` rad.
+
+        Ticks need ``ticks_per_revolution`` (or the run's own) and go through roll-overs of
+        ``counter_bits``-bit counters; velocities are held from each row to the next.
+        """
+        if self.kind == "velocity":
+            return self.wheels[:-1] * np.diff(self.times)[:, None]
+        if self.kind == "angle":
+            return np.diff(self.wheels, axis=0)
+        ticks = self.ticks_per_revolution if ticks_per_revolution is None else ticks_per_revolution
+        if ticks is not None and not (math.isfinite(ticks) and ticks > 0):
+            raise TableError(f"ticks per revolution must be finite and > 0, got {ticks!r}")
+        if ticks is None:
+            raise TableError(
+                f"{self.source}: ticks need the counts per wheel revolution: give "
+                "--ticks-per-revolution (or ticks_per_revolution in the robot file)"
+            )
+        radians = 2.0 * math.pi / ticks
+        if not math.isfinite(radians):
+            raise TableError(f"ticks per revolution {ticks!r} gives no finite angle per count")
+        return count_changes(self.wheels, counter_bits) * radians
+
+    def largest_wheel_speed(self, increments: np.ndarray) -> tuple[float, str, int]:
+        """The fastest wheel over any interval, from this run's ``increments()`` ``(T, 2)``:
+        ``(rad/s, "left" or "right", row)``, where ``row`` (0-based) ends the interval."""
+        speeds = np.abs(increments) / np.diff(self.times)[:, None]
+        interval, side = np.unravel_index(int(np.argmax(speeds)), speeds.shape)
+        return float(speeds[interval, side]), ("left", "right")[side], int(interval) + 1
+
+
+def narrower_counter(run: Run, counter_bits: int | None) -> tuple[int, int] | None:
+    """``(bits, row)`` when a ticks run looks read with the wrong counter width.
+
+    That is when every reading fits a counter of fewer ``bits`` than ``counter_bits`` (or
+    than 64 with None) and some change, ending at ``row``, is more than half that narrower
+    range: on the narrower counter it is a roll-over, not a jump of the wheel.
+    """
+    if run.kind != "ticks" or len(run.wheels) < 2:
+        return None
+    low, high = int(run.wheels.min()), int(run.wheels.max())
+    if low >= 0:
+        narrow = max(high.bit_length(), 2)
+    else:
+        narrow = max(high.bit_length(), (-low - 1).bit_length()) + 1
+    if narrow >= (counter_bits or 64):
+        return None
+    changes = np.abs(count_changes(run.wheels, counter_bits))
+    rows = np.flatnonzero(np.any(changes > 2 ** (narrow - 1), axis=1))
+    return (narrow, int(rows[0]) + 1) if rows.size else None
+
+
+def is_bag(path: str | Path) -> bool:
+    """Whether ``path`` is a ROS 1 bag, an MCAP file or a ROS 2 bag folder."""
+    path = Path(path)
+    return path.suffix in (".bag", ".mcap") or (path / "metadata.yaml").is_file()
+
+
+def read_run(
+    path: str | Path,
+    time_unit: str | None = None,
+    *,
+    joint_topic: str = "/joint_states",
+    left_joint: str | None = None,
+    right_joint: str | None = None,
+    reference_topic: str | None = None,
+) -> Run:
+    """The run in ``path``: a wheel-log table, an OptiOdom run file, or a bag.
+
+    ``time_unit`` is the unit of a table's ``t`` (``s``, ``ms``, ``us``, ``ns``; None:
+    seconds, refused when plainly not). A bag needs ``left_joint`` and ``right_joint``, the
+    names of the wheel joints on ``joint_topic``; a ``reference_topic`` of it becomes the
+    ground truth, sampled at the run's times along the reference's arcs (the run is cut to
+    the span the reference covers). ``TableError`` names the file, line and column of what
+    is wrong.
+    """
+    if not is_bag(path):
+        if reference_topic is not None:
+            raise TableError(f"{path}: a reference topic needs a bag; this is a log file")
+        from diffdrive.io.logs import read_log
+
+        return read_log(path, time_unit)
+    from diffdrive.io import ros
+    from diffdrive.io.trajectories import read_trajectory
+
+    if left_joint is None or right_joint is None:
+        raise TableError(
+            f"{path}: give the wheel joints by name: --left-joint NAME --right-joint NAME"
+        )
+    run = ros.read_joint_states(path, left_joint, right_joint, joint_topic)
+    if reference_topic is None:
+        return run
+    times, poses = read_trajectory(path, topic=reference_topic)
+    if np.isnan(poses[:, 2]).any():
+        raise TableError(f"{path}: {reference_topic} has no heading; a reference needs one")
+    inside = (run.times >= times[0]) & (run.times <= times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{path}: {reference_topic} does not span the joint states' times")
+    from diffdrive.evaluation import interpolate
+
+    truth = interpolate(times, poses, run.times[inside])
+    return replace(run.rows(inside), truth=truth,
+                   source=f"{run.source} against {reference_topic}")  # fmt: skip
