@@ -4,8 +4,8 @@ Every method, axle offsets, turns on both sides of the sinc threshold, straight 
 float32 and float64, and a long run, each held to a plain loop of the scalar step
 (``integrate.step``, seed 000's recurrence for euler): ``simulate`` (NumPy prefix sums and the
 numba kernel), ``Odometry`` (the C update), the Monte Carlo kernel with no noise, and
-``batch.rollout`` in NumPy, array-api-strict, JAX and PyTorch. Then JAX's gradient of a
-final-pose loss with respect to the geometry, against finite differences.
+``batch.rollout`` and ``simulate`` in NumPy, array-api-strict, JAX and PyTorch. Then JAX's
+gradient of a final-pose loss with respect to the geometry, against finite differences.
 """
 
 from __future__ import annotations
@@ -76,6 +76,19 @@ def _simulate(backend):
     return run
 
 
+def _simulate_in(convert):
+    """simulate on another library's history: the Trajectory stays in that library."""
+
+    def run(case, method, dtype):
+        wheels = convert(case.wheels.astype(dtype))
+        start = convert(np.array(case.start, dtype=dtype))
+        trajectory = dd.simulate(case.robot, wheels, dt=case.dt, method=method, initial_pose=start)
+        assert type(trajectory.poses) is type(wheels)
+        return np.asarray(trajectory.poses)
+
+    return run
+
+
 def _odometry(kind):
     def run(case, method, dtype):
         odometry = kind(case.robot, method, initial_pose=dd.Pose(*case.start))
@@ -118,6 +131,9 @@ BACKENDS = {
         ("float32", "float64"),
     ),
     "rollout torch": (_rollout(torch.asarray), ("float32", "float64")),
+    "simulate array-api-strict": (_simulate_in(xps.asarray), ("float32", "float64")),
+    "simulate jax": (_simulate_in(_jax_array), ("float32", "float64")),
+    "simulate torch": (_simulate_in(torch.asarray), ("float32", "float64")),
 }
 
 
@@ -136,7 +152,8 @@ def _tolerance(case: Case, dtype: str, backend: str) -> float:
     if dtype == "float32":
         # Plain float32 prefix sums lose about sqrt(T) ulps; simulate sums in float64.
         steps = len(case.wheels)
-        return 2e-6 * scale * (1.0 if backend.startswith("simulate") else np.sqrt(steps))
+        blocked = backend in ("simulate numpy", "simulate numba")
+        return 2e-6 * scale * (1.0 if blocked else np.sqrt(steps))
     return 1e-11 * scale
 
 
@@ -174,6 +191,50 @@ def test_results_stay_in_the_callers_library(convert, kind):
     assert isinstance(dd.simulation.integrate_increments(increments), kind)
     with pytest.raises(ValueError, match="dtype is for NumPy"):
         dd.simulation.integrate_increments(increments, dtype=np.float64)
+
+
+@pytest.mark.parametrize(
+    ("convert", "kind"),
+    [
+        (torch.asarray, torch.Tensor),
+        (xps.asarray, type(xps.asarray(0.0))),
+        (_jax_array, jax.Array),
+    ],
+)
+def test_a_trajectory_of_another_library_derives_everything_in_it(convert, kind):
+    """simulate's Trajectory of a batch of robots, each property against NumPy's."""
+    wheels = np.stack([_weave(40, 0.05), _weave(40, 0.05)[::-1]])  # (2, 40, 2)
+    start = np.array([[0.0, 0.0, 0.0], [1.0, -1.0, 2.0]])
+    times = np.concatenate([[0.0], np.cumsum(np.linspace(0.03, 0.07, 40))])
+    want = dd.simulate(OFFSET, wheels, times=times, initial_pose=start, method="rk2")
+    got = dd.simulate(OFFSET, convert(wheels), times=convert(times), initial_pose=convert(start),
+                      method="rk2")  # fmt: skip
+    for name in ("times", "poses", "durations", "twists", "wheel_positions", "final_pose",
+                 "wrapped_headings", "distance"):  # fmt: skip
+        value = getattr(got, name)
+        assert isinstance(value, kind), name
+        np.testing.assert_allclose(np.asarray(value), getattr(want, name), atol=1e-12,
+                                   err_msg=name)  # fmt: skip
+    at = np.array([0.0, 0.31, 1.0, times[-1]])
+    np.testing.assert_allclose(np.asarray(got.sample(convert(at))), want.sample(at), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(got.to_array()), want.to_array(), atol=1e-12)
+    angles = dd.simulate(OFFSET, wheel_positions=convert(want.wheel_positions), method="rk2",
+                         times=convert(times), initial_pose=convert(start))  # fmt: skip
+    np.testing.assert_allclose(np.asarray(angles.poses), want.poses, atol=1e-12)
+    assert "final_pose=<(2, 3) array>" in repr(got)
+
+
+def test_another_librarys_bad_history_is_named_as_numpys_is():
+    wheels = np.ones((5, 2))
+    wheels[3, 1] = np.nan
+    with pytest.raises(
+        ValueError, match=r"wheel_velocities must be finite, got nan at index \(3, 1\)"
+    ):
+        dd.simulate(ROBOT, torch.asarray(wheels), dt=0.1)
+    with pytest.raises(ValueError, match=r"times must increase strictly; times\(2,\) = 0\.1"):
+        dd.simulate(ROBOT, xps.asarray(np.ones((3, 2))), times=xps.asarray([0.0, 0.2, 0.1, 0.3]))
+    with pytest.raises(ValueError, match="backend='numba' takes NumPy arrays"):
+        dd.simulate(ROBOT, torch.ones((3, 2), dtype=torch.float64), dt=0.1, backend="numba")
 
 
 def test_an_array_geometry_broadcasts_one_robot_per_row():

@@ -9,6 +9,7 @@ of about ``_BLOCK_ELEMENTS`` values, each block's wheel travel and twists made o
 integrated: the temporaries stay small, and the running sums restart from carries that are
 held in float64, so float32 input loses no accuracy to a long sequential sum. The numba one
 (``diffdrive.backends.numba_simulate``) is a loop per robot over every core, for large calls.
+Histories of other array libraries stay in their library (``batch.rollout``).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from typing import Any, Literal
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._arrays import components, floating, namespace
+from diffdrive._arrays import components, device, floating, namespace
 from diffdrive.batch.kinematics import WHEELS
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
@@ -52,25 +53,30 @@ Backend = Literal["auto", "numpy", "numba"]
 BACKENDS: tuple[str, ...] = ("auto", "numpy", "numba")
 
 
-def _first_bad(mask: np.ndarray) -> tuple[int, ...]:
-    return tuple(int(i) for i in np.argwhere(mask)[0])
+def _first_bad(mask: Any) -> tuple[int, ...]:
+    """The index of the first true entry of a boolean array of any library (one is true)."""
+    xp = namespace(mask)
+    first = int(xp.argmax(xp.astype(xp.reshape(mask, (-1,)), xp.int8)))
+    return tuple(int(i) for i in np.unravel_index(first, tuple(mask.shape)))
 
 
-def _first_non_finite(array: np.ndarray) -> tuple[int, ...] | None:
+def _first_non_finite(array: Any) -> tuple[int, ...] | None:
     """The index of the first entry that is not finite, or None."""
-    # A finite sum means every entry is finite; only a non-finite one (or a sum that
-    # overflows) needs the slower search.
-    with np.errstate(over="ignore", invalid="ignore"):
-        if np.isfinite(np.sum(array, dtype=np.float64)):
-            return None
-    bad = ~np.isfinite(array)
-    return _first_bad(bad) if bad.any() else None
+    xp = namespace(array)
+    if xp is np:
+        # A finite sum means every entry is finite; only a non-finite one (or a sum that
+        # overflows) needs the slower search.
+        with np.errstate(over="ignore", invalid="ignore"):
+            if np.isfinite(np.sum(array, dtype=np.float64)):
+                return None
+    bad = ~xp.isfinite(array)
+    return _first_bad(bad) if bool(xp.any(bad)) else None
 
 
-def _check_finite(name: str, array: np.ndarray) -> None:
+def _check_finite(name: str, array: Any) -> None:
     index = _first_non_finite(array)
     if index is not None:
-        raise ValueError(f"{name} must be finite, got {array[index]} at index {index}")
+        raise ValueError(f"{name} must be finite, got {float(array[index])} at index {index}")
 
 
 def integrate_increments(
@@ -135,13 +141,13 @@ def _integrate_block(inc: np.ndarray, carry: np.ndarray, method: Method, out: np
     return carry + travel[..., -1, :]
 
 
-def _step_times(
-    steps: int | None, dt: object, times: object, like: np.ndarray | None
-) -> np.ndarray:
-    """The ``(..., T+1)`` sample times from either ``dt`` or ``times``, checked.
+def _step_times(steps: int | None, dt: object, times: object, like: Any = None) -> Any:
+    """The ``(..., T+1)`` sample times from either ``dt`` or ``times``, checked, in the
+    library of ``like`` (the history) or of ``times``.
 
     ``steps`` is T, known whenever ``dt`` is given; with ``times`` alone it may be None.
     """
+    xp = namespace(like, times)
     if (dt is None) == (times is None):
         raise ValueError("give exactly one of dt (a uniform step, s) or times (s)")
     if dt is not None:
@@ -154,24 +160,27 @@ def _step_times(
             raise ValueError(f"{steps} steps of dt = {dt!r} s run past the largest float")
         sample_times = np.arange(steps + 1, dtype=np.float64)
         sample_times *= float(step)
-        return sample_times
-    t = floating(np, times, "times", like)
-    if t.dtype not in (np.float32, np.float64):  # float16 times: no arithmetic in numba
+        if xp is np:
+            return sample_times
+        # Another library's times take the history's dtype (JAX may not hold float64); its
+        # integration uses dt itself, so only the record of the times is rounded.
+        return xp.asarray(sample_times, dtype=like.dtype, device=device(like))
+    t = floating(xp, times, "times", like)
+    if xp is np and t.dtype not in (np.float32, np.float64):  # float16: no arithmetic in numba
         t = t.astype(np.float64)
     if t.ndim == 0 or t.shape[-1] < 2:
-        raise ValueError(f"times must have shape (..., T+1) with T >= 1, got {t.shape}")
+        raise ValueError(f"times must have shape (..., T+1) with T >= 1, got {tuple(t.shape)}")
     _check_finite("times", t)
-    not_increasing = np.diff(t, axis=-1) <= 0
-    if not_increasing.any():
+    not_increasing = xp.diff(t, axis=-1) <= 0
+    if bool(xp.any(not_increasing)):
         index = _first_bad(not_increasing)
         after = (*index[:-1], index[-1] + 1)
-        raise ValueError(
-            f"times must increase strictly; times{after} = {t[after]} follows {t[index]}"
-        )
+        raise ValueError(f"times must increase strictly; times{after} = {float(t[after])} "
+                         f"follows {float(t[index])}")  # fmt: skip
     if steps is not None and t.shape[-1] != steps + 1:
         raise ValueError(
             f"times must have T+1 = {steps + 1} entries on its last axis for T = {steps} "
-            f"steps, got shape {t.shape}"
+            f"steps, got shape {tuple(t.shape)}"
         )
     return t
 
@@ -227,13 +236,24 @@ def simulate(
     kernel on every core; ``pip install diffdrive[fast]``) or ``"auto"``: the one with the
     lower expected cost, counting the kernel's call, and loading it into this process (about
     1 s) or compiling it when no cache is on disk (about 8 s): numba from about 2**16
-    robot-steps once loaded, 5.4 million with a cache, 43 million without. All checks run
-    before any integration.
+    robot-steps once loaded, 5.4 million with a cache, 43 million without. A history of
+    another array library (JAX, PyTorch, CuPy, array-api-strict) is integrated in that library
+    on its device by ``batch.rollout``'s arithmetic, and the ``Trajectory`` holds arrays of it
+    (``backend="numba"`` is refused; to jit or differentiate, call ``batch.rollout`` itself).
+    All checks run before any integration.
     """
     check_method(method)
     _check_backend(backend)
     if (wheel_velocities is None) == (wheel_positions is None):
         raise ValueError("give exactly one of wheel_velocities or wheel_positions")
+    xp = np
+    if not callable(wheel_velocities):
+        xp = namespace(wheel_velocities, wheel_positions, times, initial_pose)
+    if xp is not np and backend == "numba":
+        raise ValueError(
+            f"backend='numba' takes NumPy arrays; {xp.__name__} arrays are simulated in "
+            "their own library (backend='auto')"
+        )
     if callable(wheel_velocities):
         if times is None and (dt is None or duration is None):
             raise ValueError("with a wheel-velocity function, give times, or dt and duration")
@@ -243,24 +263,26 @@ def simulate(
     elif duration is not None:
         raise ValueError("duration is only for a wheel-velocity function")
     elif wheel_velocities is not None:
-        wheels = components(np, wheel_velocities, "wheel_velocities", WHEELS)
+        wheels = components(xp, wheel_velocities, "wheel_velocities", WHEELS)
         _check_history_shape("wheel_velocities", wheels, "T")
         sample_times = _step_times(wheels.shape[-2], dt, times, wheels)
     if wheel_velocities is not None:
         _check_finite("wheel_velocities", wheels)
         history = _History(wheels, sample_times, angles=False)
-        return _build(robot, history, wheels, initial_pose, method, backend)
-    angles = components(np, wheel_positions, "wheel_positions", WHEELS)
+        return _build(robot, history, wheels, initial_pose, method, backend, dt)
+    angles = components(xp, wheel_positions, "wheel_positions", WHEELS)
     _check_history_shape("wheel_positions", angles, "T+1")
     _check_finite("wheel_positions", angles)
     if angles.shape[-2] < 2:
-        raise ValueError(f"wheel_positions needs at least 2 samples, got shape {angles.shape}")
+        raise ValueError(
+            f"wheel_positions needs at least 2 samples, got shape {tuple(angles.shape)}"
+        )
     sample_times = _step_times(angles.shape[-2] - 1, dt, times, angles)
     history = _History(angles, sample_times, angles=True)
     with np.errstate(over="ignore", invalid="ignore"):
-        wheels = np.diff(angles, axis=-2) / np.diff(sample_times, axis=-1)[..., None]
+        wheels = xp.diff(angles, axis=-2) / xp.diff(sample_times, axis=-1)[..., None]
     _check_finite("the wheel velocities of wheel_positions (angle steps over time steps)", wheels)
-    return _build(robot, history, wheels, initial_pose, method, backend)
+    return _build(robot, history, wheels, initial_pose, method, backend, dt)
 
 
 def _check_backend(backend: str) -> None:
@@ -305,10 +327,12 @@ class _History:
         return self.values[..., k0:k1, :] * durations[..., None]
 
 
-def _build(robot, history: _History, wheels, initial_pose, method, backend) -> Trajectory:
+def _build(robot, history: _History, wheels, initial_pose, method, backend, dt) -> Trajectory:
     """Check that the parts broadcast, integrate with the chosen backend, wrap the result."""
-    start = np.zeros(3) if initial_pose is None else initial_pose
-    start = components(np, start, "initial_pose", POSE)
+    xp = namespace(wheels)
+    start = xp.zeros(3, dtype=wheels.dtype, device=device(wheels))
+    if initial_pose is not None:
+        start = components(xp, initial_pose, "initial_pose", POSE)
     _check_finite("initial_pose", start)
     times = history.times
     try:
@@ -316,21 +340,24 @@ def _build(robot, history: _History, wheels, initial_pose, method, backend) -> T
         leading = np.broadcast_shapes(wheels.shape[:-2], times.shape[:-1], start.shape[:-1])
     except ValueError:
         raise ValueError(
-            f"leading axes do not broadcast: wheels {wheels.shape[:-2]}, times "
-            f"{times.shape[:-1]}, initial_pose {start.shape[:-1]}"
+            f"leading axes do not broadcast: wheels {tuple(wheels.shape[:-2])}, times "
+            f"{tuple(times.shape[:-1])}, initial_pose {tuple(start.shape[:-1])}"
         ) from None
-    steps = wheels.shape[-2]
-    poses = np.empty((*leading, steps + 1, 3), dtype=wheels.dtype)
-    with np.errstate(over="ignore", invalid="ignore"):
-        if _use_numba(backend, math.prod(leading) * steps, poses.dtype):
-            _integrate_compiled(robot, history, start, method, poses)
-        else:
-            _integrate_blocks(
-                lambda k0, k1: batch.to_twist(robot, history.wheel_travel(k0, k1)),
-                start,
-                method,
-                poses,
-            )
+    if xp is not np:
+        poses = _integrate_functional(robot, history, wheels, start, method, dt)
+    else:
+        steps = wheels.shape[-2]
+        poses = np.empty((*leading, steps + 1, 3), dtype=wheels.dtype)
+        with np.errstate(over="ignore", invalid="ignore"):
+            if _use_numba(backend, math.prod(leading) * steps, poses.dtype):
+                _integrate_compiled(robot, history, start, method, poses)
+            else:
+                _integrate_blocks(
+                    lambda k0, k1: batch.to_twist(robot, history.wheel_travel(k0, k1)),
+                    start,
+                    method,
+                    poses,
+                )
     index = _first_non_finite(poses)
     if index is not None:
         raise ValueError(
@@ -338,6 +365,18 @@ def _build(robot, history: _History, wheels, initial_pose, method, backend) -> T
             f"travel or times go beyond what {poses.dtype} holds"
         )
     return Trajectory(robot, times, poses, wheels, method)
+
+
+def _integrate_functional(robot, history: _History, wheels, start, method, dt) -> Any:
+    """Poses of another library's history, in that library (``batch.rollout``'s way): the
+    increments of wheel angles as they are, wheel velocities times ``dt`` or the steps."""
+    xp = namespace(wheels)
+    start = xp.astype(start, wheels.dtype)
+    if history.angles:
+        increments = batch.twists(robot, xp.diff(history.values, axis=-2))
+        return batch.accumulate(increments, start, method)
+    durations = dt if dt is not None else xp.diff(history.times, axis=-1)
+    return batch.rollout(robot, wheels, durations, start, method)
 
 
 def _use_numba(backend: Backend, robot_steps: int, dtype: np.dtype) -> bool:
