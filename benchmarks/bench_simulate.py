@@ -10,9 +10,11 @@ update. Contenders:
   as its own ``run`` does) and robotpy-wpimath's ``Pose2d.exp`` (exact), when installed. These
   three are timed on the first 2e5 / 2e4 steps and reported per step.
 
-Every contender is called once before it is timed (numba compiles or loads its cache then).
-Prints the machine, the median of several runs, the ratios, and the peak memory (tracemalloc)
-of diffdrive's call relative to its output pose array.
+Every contender is called once before it is timed (the kernel compiles or loads its cache
+then). Prints the machine, the median of several runs, the ratios, and the peak memory
+(tracemalloc) of diffdrive's call relative to its output pose array. Then the start-up: the
+first kernel call of fresh processes, with the kernel's cache on disk and with an empty one,
+next to importing numba alone.
 
     pip install -e '.[bench]'        # numba and the peers
     python benchmarks/bench_simulate.py [--repeats 5] [--quick]
@@ -27,6 +29,7 @@ import os
 import platform
 import shutil
 import subprocess
+import sys
 import tempfile
 import tracemalloc
 import warnings
@@ -179,10 +182,12 @@ def main() -> None:
     c_loop = build_c_loop()
     import numba
 
+    from diffdrive.backends.simulate_kernel import threads
+
     print(
         f"machine: {platform.machine()}, {platform.processor() or 'cpu'}, "
         f"{os.cpu_count()} cores; python {platform.python_version()}, numpy {np.__version__}, "
-        f"numba {numba.__version__} on {numba.get_num_threads()} threads"
+        f"numba {numba.__version__}; the kernel on {threads()} threads"
     )
     missing = [name for name, (loop, _) in loops.items() if loop is None]
     if c_loop is None:
@@ -195,6 +200,48 @@ def main() -> None:
     for label, shape in cases:
         wheels = rng.uniform(-10.0, 10.0, shape)
         bench_case(label, robot, wheels, dt, c_loop, loops, args.repeats)
+    startup(args.repeats)
+
+
+# Run by a fresh process: seconds of its first kernel call (after importing diffdrive), and
+# whether it imported numba.
+_FIRST_CALL = """
+import sys, time, numpy as np, diffdrive as dd
+robot, wheels = dd.DiffDrive(0.05, 0.3), np.ones((1000, 2))
+start = time.perf_counter()
+dd.simulate(robot, wheels, dt=0.01, backend="numba")
+print(time.perf_counter() - start, "numba" in sys.modules)
+"""
+
+
+def fresh_seconds(code: str, cache: str) -> tuple[float, str]:
+    """What a fresh process running ``code`` prints, with the kernel's cache and numba's own
+    in ``cache``: an empty one compiles everything, as on a fresh install."""
+    env = {**os.environ, "DIFFDRIVE_CACHE_DIR": cache, "NUMBA_CACHE_DIR": cache}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         check=True).stdout.split()  # fmt: skip
+    return float(out[0]), " ".join(out[1:])
+
+
+def startup(repeats: int) -> None:
+    """The first call of fresh processes: compiling into an empty cache, then loading."""
+    import statistics
+
+    with tempfile.TemporaryDirectory() as cache:
+        compiled, _ = fresh_seconds(_FIRST_CALL, cache)
+        runs = [fresh_seconds(_FIRST_CALL, cache) for _ in range(repeats)]
+        loads = [seconds for seconds, _ in runs]
+        numba_imports = [
+            fresh_seconds("import time; t = time.perf_counter(); import numba; "
+                          "print(time.perf_counter() - t)", cache)[0]
+            for _ in range(repeats)
+        ]  # fmt: skip
+    load, numba_import = statistics.median(loads), statistics.median(numba_imports)
+    print(f"start-up, fresh processes, median of {repeats}:")
+    print(f"  first kernel call, cache on disk    {load:7.3f} s  (numba imported: {runs[0][1]})")
+    print(f"  first kernel call, empty cache      {compiled:7.3f} s  (one run: it fills the cache)")
+    print(f"  import numba alone                  {numba_import:7.3f} s  "
+          f"({numba_import / load:.1f}x the cached first call)")  # fmt: skip
 
 
 def bench_case(label, robot, wheels, dt, c_loop, loops, repeats) -> None:

@@ -1,8 +1,8 @@
-"""The numba kernel: equal to the NumPy path, its own pieces, and how simulate chooses it."""
+"""The numba kernel: equal to the NumPy path, its own pieces, its cache of machine code, and how
+simulate chooses it."""
 
 import importlib.util
 import math
-import sys
 
 import numpy as np
 import pytest
@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 import diffdrive as dd
 from diffdrive import integrate, simulation
 from diffdrive.backends import numba_simulate as _compiled
+from diffdrive.backends import simulate_kernel
 from strategies import geometry
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
@@ -76,25 +77,25 @@ def test_chunked_passes_equal_one_pass(chunks, method):
     wheels = np.random.default_rng(4).uniform(-30.0, 30.0, (2, 1001, 2))
     times = np.linspace(0.0, 10.0, 1002)[None]
     start = np.array([[1.0, -2.0, 3.0], [0.0, 0.5, -1.0]])
-    geometry_ = np.array([0.05, 0.06, 0.3, 0.1])
-    midpoint, chord = _compiled.METHOD_FLAGS[method]
+    robot = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.06, track_width=0.3,
+                         axle_offset=0.1)  # fmt: skip
     one, split = np.empty((2, 1002, 3)), np.empty((2, 1002, 3))
-    _compiled._integrate(wheels, times, False, start, geometry_, midpoint, chord, 1, one)
-    _compiled._integrate(wheels, times, False, start, geometry_, midpoint, chord, chunks, split)
+    simulate_kernel.integrate_history(robot, wheels, times, False, start, method, one, chunks=1)
+    simulate_kernel.integrate_history(robot, wheels, times, False, start, method, split, chunks)
     np.testing.assert_allclose(split, one, rtol=0, atol=1e-12)
 
 
 def test_every_method_has_its_flags():
-    assert tuple(_compiled.METHOD_FLAGS) == integrate.METHODS
+    assert tuple(simulate_kernel.METHOD_FLAGS) == integrate.METHODS
 
 
 def test_chunks_use_the_threads_only_where_they_pay():
-    threads = 4
-    assert _compiled.chunk_count(1, 10**7, np.float64, threads) == 4
-    assert _compiled.chunk_count(3, 10**7, np.float64, threads) == 2
-    assert _compiled.chunk_count(1000, 10**4, np.float64, threads) == 1
-    assert _compiled.chunk_count(1, 100, np.float64, threads) == 1  # too short to split
-    assert _compiled.chunk_count(1, 10**7, np.float32, threads) == 1  # keeps the half ulp
+    threads, chunk_count = 4, simulate_kernel.chunk_count
+    assert chunk_count(1, 10**7, np.float64, threads) == 4
+    assert chunk_count(3, 10**7, np.float64, threads) == 2
+    assert chunk_count(1000, 10**4, np.float64, threads) == 1
+    assert chunk_count(1, 100, np.float64, threads) == 1  # too short to split
+    assert chunk_count(1, 10**7, np.float32, threads) == 1  # keeps the half ulp
 
 
 def test_taylor_forms_are_within_an_ulp_of_libm():
@@ -128,21 +129,15 @@ def test_auto_uses_the_kernel_for_large_calls_only(monkeypatch):
 
 
 def test_auto_weighs_loading_and_compiling_the_kernel(monkeypatch):
-    monkeypatch.delitem(sys.modules, "diffdrive.backends.numba_simulate", raising=False)
     f64 = np.dtype("float64")
-    monkeypatch.setattr(simulation, "_kernel_cached", lambda: True)
-    assert not simulation._use_numba("auto", 5_000_000, f64)  # a load costs 1 s: 5.4e6 steps
-    assert simulation._use_numba("auto", 6_000_000, f64)
-    monkeypatch.setattr(simulation, "_kernel_cached", lambda: False)
-    assert not simulation._use_numba("auto", 40_000_000, f64)  # a first compile: 8 s
-    assert simulation._use_numba("auto", 50_000_000, f64)
+    monkeypatch.setattr(simulate_kernel, "loaded", lambda dtype: False)
+    monkeypatch.setattr(simulate_kernel, "cached", lambda dtype: True)
+    assert not simulation._use_numba("auto", 800_000, f64)  # a load costs 0.15 s: 0.88e6 steps
+    assert simulation._use_numba("auto", 1_000_000, f64)
+    monkeypatch.setattr(simulate_kernel, "cached", lambda dtype: False)
+    assert not simulation._use_numba("auto", 25_000_000, f64)  # a first compile: 5 s
+    assert simulation._use_numba("auto", 30_000_000, f64)
     assert not simulation._use_numba("auto", 50_000_000, np.dtype("float16"))
-
-
-def test_the_cache_is_found_beside_the_module():
-    simulate_once = dd.simulate(ROBOT, np.ones((10, 2)), dt=0.1, backend="numba")
-    assert simulate_once.poses.shape == (11, 3)
-    assert simulation._kernel_cached()
 
 
 def test_without_numba_auto_falls_back_and_numba_is_refused(monkeypatch):

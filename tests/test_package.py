@@ -74,7 +74,7 @@ def test_auto_loads_numba_only_for_calls_where_it_pays_off():
         "dd.simulate(robot, np.ones((2**17, 2)), dt=0.01)\n"
         "print('numba' in sys.modules)\n"
         "from diffdrive.simulation import _use_numba\n"
-        "import diffdrive.backends.numba_simulate\n"
+        "dd.simulate(robot, np.ones((2, 2)), dt=0.01, backend='numba')\n"
         "print(_use_numba('auto', 2**17, np.dtype('float64')))\n"
     )
     out = python_lines(code)

@@ -7,8 +7,8 @@ statistics merge to those of one process, to rounding (the chunks draw the same 
 wherever they run). ``map_runs`` runs one task per item (a log to calibrate or to evaluate).
 
 Without a ``client``, both start a ``LocalCluster`` of one single-threaded worker process per
-core for the call. Tasks set numba to one thread, so that workers do not oversubscribe the
-cores. On a cluster, pass its client; the calls are the same:
+core for the call. Tasks set the compiled kernels (numba's and simulate's) to one thread, so
+that workers do not oversubscribe the cores. On a cluster, pass its client; the calls are the same:
 
     from dask_jobqueue import SLURMCluster            # or dask_kubernetes' KubeCluster
     from distributed import Client
@@ -35,8 +35,11 @@ from diffdrive.montecarlo import Moments, MonteCarlo, Plan, plan, run_chunks
 __all__ = ["map_runs", "monte_carlo"]
 
 
-def _one_numba_thread() -> None:
-    """numba's threads to one: the worker processes share out the cores."""
+def _one_thread() -> None:
+    """The compiled kernels' threads to one: the worker processes share out the cores."""
+    from diffdrive.backends import simulate_kernel
+
+    simulate_kernel.set_threads(1)
     if importlib.util.find_spec("numba") is not None:
         import numba
 
@@ -45,12 +48,12 @@ def _one_numba_thread() -> None:
 
 def _task(setup: Plan, first: int, stop: int) -> tuple[np.ndarray, Moments]:
     """Chunks ``first:stop`` of a Monte Carlo, reduced on the worker."""
-    _one_numba_thread()
+    _one_thread()
     return run_chunks(setup, range(first, stop))
 
 
 def _call(function: Callable[[Any], Any], item: Any) -> Any:
-    _one_numba_thread()
+    _one_thread()
     return function(item)
 
 

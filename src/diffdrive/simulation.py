@@ -16,11 +16,8 @@ from __future__ import annotations
 
 import importlib.util
 import math
-import os
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -40,13 +37,13 @@ __all__ = ["integrate_increments", "simulate"]
 _BLOCK_ELEMENTS = 1 << 11
 # What "auto" weighs, measured on the CI machine class (bench_simulate.py, and fresh
 # processes): seconds per robot-step of the NumPy path and of the kernel; a call of the
-# kernel (its threads start); loading it into a process (importing numba, reading the cached
-# machine code: 0.9-1.35 s) or, with no cache on disk yet, compiling it (about 7 s).
+# kernel (its threads start); loading it into a process (importing llvmlite, loading the
+# cached machine code) or, with no cache on disk yet, compiling it with numba.
 _NUMPY_STEP_SECONDS = 200e-9
 _KERNEL_STEP_SECONDS = 15e-9
 _KERNEL_CALL_SECONDS = 0.012  # below 2^16 robot-steps NumPy wins even with the kernel loaded
-_KERNEL_LOAD_SECONDS = 1.0
-_KERNEL_COMPILE_SECONDS = 8.0
+_KERNEL_LOAD_SECONDS = 0.15
+_KERNEL_COMPILE_SECONDS = 5.0
 
 WheelFunction = Callable[[np.ndarray], Any]
 Backend = Literal["auto", "numpy", "numba"]
@@ -235,11 +232,12 @@ def simulate(
     velocities). ``backend`` is ``"numpy"`` (blocked prefix sums), ``"numba"`` (the compiled
     kernel on every core; ``pip install diffdrive[fast]``) or ``"auto"``: the one with the
     lower expected cost, counting the kernel's call, and loading it into this process (about
-    1 s) or compiling it when no cache is on disk (about 8 s): numba from about 2**16
-    robot-steps once loaded, 5.4 million with a cache, 43 million without. A history of
-    another array library (JAX, PyTorch, CuPy, array-api-strict) is integrated in that library
-    on its device by ``batch.rollout``'s arithmetic, and the ``Trajectory`` holds arrays of it
-    (``backend="numba"`` is refused; to jit or differentiate, call ``batch.rollout`` itself).
+    0.1 s, from machine code cached on disk) or compiling it when there is no cache of it
+    (about 5 s, once per dtype): numba from about 2**16 robot-steps once loaded, 0.9 million
+    with a cache, 27 million without. A history of another array library (JAX, PyTorch, CuPy,
+    array-api-strict) is integrated in that library on its device by ``batch.rollout``'s
+    arithmetic, and the ``Trajectory`` holds arrays of it (``backend="numba"`` is refused; to
+    jit or differentiate, call ``batch.rollout`` itself).
     All checks run before any integration.
     """
     check_method(method)
@@ -389,24 +387,13 @@ def _use_numba(backend: Backend, robot_steps: int, dtype: np.dtype) -> bool:
         saved = robot_steps * (_NUMPY_STEP_SECONDS - _KERNEL_STEP_SECONDS) - _KERNEL_CALL_SECONDS
         if not compiled or saved <= 0 or importlib.util.find_spec("numba") is None:
             return False
-        if "diffdrive.backends.numba_simulate" in sys.modules:
+        from diffdrive.backends import simulate_kernel
+
+        if simulate_kernel.loaded(dtype):
             return True
-        return saved > (_KERNEL_LOAD_SECONDS if _kernel_cached() else _KERNEL_COMPILE_SECONDS)
+        cached = simulate_kernel.cached(dtype)
+        return saved > (_KERNEL_LOAD_SECONDS if cached else _KERNEL_COMPILE_SECONDS)
     return backend == "numba"
-
-
-def _kernel_cached() -> bool:
-    """Whether numba's cache of the kernel is on disk (beside the module, or in
-    NUMBA_CACHE_DIR), found without importing numba."""
-    spec = importlib.util.find_spec("diffdrive.backends.numba_simulate")
-    if spec is None or spec.origin is None:
-        return False
-    places = [Path(spec.origin).parent / "__pycache__"]
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
-    return any(
-        any(place.rglob("numba_simulate._integrate-*.nbi")) for place in places if place.is_dir()
-    )
 
 
 def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarray) -> None:
@@ -414,7 +401,7 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
 
     A history or times shared by every robot goes as a single row, not a broadcast copy.
     """
-    from diffdrive.backends.numba_simulate import integrate_history
+    from diffdrive.backends.simulate_kernel import integrate_history
 
     offset = 0.0
     if isinstance(robot, SkidSteer):  # its equivalent drive moves the ICRs' midpoint

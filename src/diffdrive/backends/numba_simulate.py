@@ -13,14 +13,17 @@ the arc. Three choices make it fast and keep it accurate:
 - each block of ``_ANCHOR`` steps sums its moves from zero, and the blocks' sums are added with
   Kahan's compensation, so 10^7 steps lose about what 64 do.
 
-Both cores are used. Robots are shared out among the threads. When there are fewer robots than
-threads, each robot's steps are cut into chunks integrated at the same time in three passes:
-the turn of each chunk (cheap: no trigonometry), then each chunk from its start heading and a
-zero position, then each chunk's positions shifted by the sum of the chunks before it. The
-shift rounds the positions a second time, so float32 output keeps one chunk per robot and with
-it the half-ulp bound of the NumPy path.
+The work comes in tasks: a robot, or a chunk of one robot's steps when there are fewer robots
+than threads. Chunks are integrated in three passes: the turn of each chunk (cheap: no
+trigonometry), then each chunk from its start heading and a zero position, then each chunk's
+positions shifted by the sum of the chunks before it (``diffdrive.backends.simulate_kernel``
+runs the passes over threads). The shift rounds the positions a second time, so float32
+output keeps one chunk per robot and with it the half-ulp bound of the NumPy path.
 
-Importing this module imports numba; ``diffdrive.simulation`` does so only when asked to.
+``kernel_ir`` gives the entry point as LLVM IR, a C function over raw arrays that
+``simulate_kernel`` turns into machine code cached on disk; ``run_tasks`` is the same entry
+as a numba function, for platforms where that cache is not used. Importing this module
+imports numba; nothing imports it until the kernel must be compiled.
 """
 
 from __future__ import annotations
@@ -31,18 +34,18 @@ from typing import Any
 
 import numba
 import numpy as np
+from numba import types as nb
 
 from diffdrive import _step
-from diffdrive.integrate import Method
-from diffdrive.model import DiffDrive
 
-__all__ = ["METHOD_FLAGS", "chunk_count", "integrate_history"]
+__all__ = ["STEP", "kernel_ir", "run_tasks"]
 
 # Steps between fresh cos and sin of the heading; in between they turn with each step, and
 # the rounding that gathers (a few ulp per step) stays below 1e-13.
 _ANCHOR = 64
-# Fewer steps than this per chunk and the three passes cost more than they save.
-_MIN_CHUNK = 1 << 14
+# The kernel raises nothing and allocates nothing: no exception or reference-count path of
+# numba's runtime is ever taken (simulate_kernel makes them traps in the cached code).
+_kernel = numba.njit(cache=True, error_model="numpy", nogil=True)
 
 
 @numba.njit(cache=True, inline="always")
@@ -87,7 +90,7 @@ def _compensated_add(total, compensation, term):
     return new_total, (new_total - total) - corrected
 
 
-@numba.njit(cache=True)
+@_kernel
 def _chunk_turn(history, times, angles, geometry, n, first, stop):
     """The heading change (rad) over steps ``first:stop`` of robot n."""
     inverse_track = 1.0 / geometry[2]
@@ -98,16 +101,16 @@ def _chunk_turn(history, times, angles, geometry, n, first, stop):
     return total
 
 
-@numba.njit(cache=True)
-def _integrate_chunk(history, times, angles, geometry, midpoint, chord, n, first, stop, pose, out):
-    """Integrate steps ``first:stop`` of robot n from ``pose`` (x, y, heading) into ``out``.
+@_kernel
+def _integrate_chunk(history, times, angles, geometry, midpoint, chord, n, first, stop, x, y,
+                     heading, out):  # fmt: skip
+    """Integrate steps ``first:stop`` of robot n from the pose ``(x, y, heading)`` into ``out``.
 
     Writes ``out[n, first+1 : stop+1]`` and returns the final x and y. The steps go in blocks
     of ``_ANCHOR``: each block starts from a fresh cos and sin of the heading and turns them
     step by step, and sums its moves from zero; the blocks' sums add up with compensation.
     """
     inverse_track = 1.0 / geometry[2]
-    x, y, heading = pose[0], pose[1], pose[2]
     x_error, y_error, heading_error = 0.0, 0.0, 0.0
     for block in range(first, stop, _ANCHOR):
         cos, sin = math.cos(heading), math.sin(heading)
@@ -137,89 +140,83 @@ def _integrate_chunk(history, times, angles, geometry, midpoint, chord, n, first
     return x, y
 
 
-@numba.njit(cache=True, parallel=True)
-def _integrate(history, times, angles, start, geometry, midpoint, chord, chunks, out):
-    """Write poses ``(N, T+1, 3)`` into ``out``; see the module docstring for the passes."""
-    robots, steps = out.shape[0], out.shape[1] - 1
-    size = (steps + chunks - 1) // chunks
-    tasks = robots * chunks
-    turns = np.zeros(tasks)
-    if chunks > 1:
-        for task in numba.prange(tasks):
-            n, c = task // chunks, task % chunks
-            first, stop = c * size, min(steps, (c + 1) * size)
-            turns[task] = _chunk_turn(history, times, angles, geometry, n, first, stop)
-    ends = np.zeros((tasks, 2))
-    for task in numba.prange(tasks):
-        n, c = task // chunks, task % chunks
-        pose = np.zeros(3)
-        pose[2] = start[n, 2]
-        for j in range(n * chunks, task):
-            pose[2] += turns[j]
-        if c == 0:
-            pose[0], pose[1] = start[n, 0], start[n, 1]
-            out[n, 0, 0], out[n, 0, 1], out[n, 0, 2] = pose[0], pose[1], pose[2]
-        first, stop = c * size, min(steps, (c + 1) * size)
-        ends[task, 0], ends[task, 1] = _integrate_chunk(
-            history, times, angles, geometry, midpoint, chord, n, first, stop, pose, out
-        )
-    if chunks > 1:
-        for task in numba.prange(tasks):
-            n, c = task // chunks, task % chunks
-            if c > 0:
-                shift_x, shift_y = 0.0, 0.0
-                for j in range(n * chunks, task):
-                    shift_x += ends[j, 0]
-                    shift_y += ends[j, 1]
-                for k in range(c * size + 1, min(steps, (c + 1) * size) + 1):
-                    out[n, k, 0] += shift_x
-                    out[n, k, 1] += shift_y
+@_kernel
+def run_tasks(stage, history, times, angles, start, geometry, midpoint, chord, chunks, turns,
+              out, ends, first, stop):  # fmt: skip
+    """One pass over tasks ``first:stop`` (robot ``task // chunks``, chunk ``task % chunks``).
 
-
-# Per method, from ``diffdrive._step``: turn the move to the mid-step heading (a weight of
-# 1/2; euler's is 0)? scale it to the chord of the arc?
-METHOD_FLAGS: dict[Method, tuple[bool, bool]] = {
-    method: (weight == 0.5, chord) for method, (weight, chord) in _step.METHOD_FLAGS.items()
-}
-
-
-def chunk_count(robots: int, steps: int, dtype: np.dtype, threads: int) -> int:
-    """How many chunks to cut each robot's steps into so that every thread has work."""
-    if dtype != np.float64 or robots >= threads:
-        return 1
-    return max(1, min(-(-threads // robots), steps // _MIN_CHUNK))
-
-
-def integrate_history(
-    robot: DiffDrive,
-    history: np.ndarray,
-    times: np.ndarray,
-    angles: bool,
-    start: np.ndarray,
-    method: Method,
-    out: np.ndarray,
-) -> None:
-    """Integrate N robots' driving histories into ``out`` ``(N, T+1, 3)``.
-
-    ``history`` is ``(N or 1, T+1, 2)`` wheel angles (rad) when ``angles``, else
-    ``(N or 1, T, 2)`` wheel velocities (rad/s) held over each step; ``times`` is
-    ``(N or 1, T+1)`` (s) and ``start`` ``(N, 3)``. A first axis of 1 is shared by all robots.
+    Stage 0 writes each chunk's turn into ``turns``; stage 1 integrates each chunk from its
+    start heading (the robot's, plus the turns of the chunks before it) into ``out`` and its
+    final x and y into ``ends``; the first chunk of a robot starts at its start pose, the
+    others at x = y = 0; stage 2 shifts the positions of every chunk but a robot's first by
+    the ends of the chunks before it.
     """
-    robots, steps = out.shape[0], out.shape[1] - 1
-    chunks = chunk_count(robots, steps, out.dtype, numba.get_num_threads())
-    geometry = np.array(
-        [robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width, robot.axle_offset]
-    )
-    midpoint, chord = METHOD_FLAGS[method]
-    # C-contiguous arrays only, so that numba compiles one version per dtype, not per layout.
-    _integrate(
-        np.ascontiguousarray(history),
-        np.ascontiguousarray(times),
-        angles,
-        np.ascontiguousarray(start, dtype=np.float64),
-        geometry,
-        midpoint,
-        chord,
-        chunks,
-        out,
-    )
+    steps = out.shape[1] - 1
+    size = (steps + chunks - 1) // chunks
+    for task in range(first, stop):
+        n, c = task // chunks, task % chunks
+        k0, k1 = c * size, min(steps, (c + 1) * size)
+        if stage == 0:
+            turns[task] = _chunk_turn(history, times, angles, geometry, n, k0, k1)
+            continue
+        if stage == 2:
+            shift_x, shift_y = 0.0, 0.0
+            for j in range(n * chunks, task):
+                shift_x += ends[j, 0]
+                shift_y += ends[j, 1]
+            for k in range(k0 + 1, k1 + 1):
+                out[n, k, 0] += shift_x
+                out[n, k, 1] += shift_y
+            continue
+        heading = start[n, 2]
+        for j in range(n * chunks, task):
+            heading += turns[j]
+        x, y = 0.0, 0.0
+        if c == 0:
+            x, y = start[n, 0], start[n, 1]
+            out[n, 0, 0], out[n, 0, 1], out[n, 0, 2] = x, y, heading
+        ends[task, 0], ends[task, 1] = _integrate_chunk(
+            history, times, angles, geometry, midpoint, chord, n, k0, k1, x, y, heading, out
+        )
+
+
+def kernel_ir(values: str, times: str, poses: str) -> tuple[str, str]:
+    """``run_tasks`` for histories of dtype ``values``, times of ``times`` and poses of
+    ``poses`` (``"float32"`` or ``"float64"``) as a C function over raw arrays: its LLVM IR
+    and its symbol.
+
+    The C signature, every count an int64 and every flag an int64 0 or 1: ``(stage, history,
+    history_rows, history_length, times, times_rows, times_length, angles, start, geometry,
+    midpoint, chord, chunks, turns, poses, robots, samples, ends, first, stop)``; ``history``
+    is ``(history_rows, history_length, 2)``, ``times`` ``(times_rows, times_length)``,
+    ``start`` ``(robots, 3)`` and ``geometry`` ``(4,)`` float64, ``turns`` ``(robots * chunks,)``
+    and ``ends`` ``(robots * chunks, 2)`` float64, ``poses`` ``(robots, samples, 3)``.
+    """
+    i8, f8 = nb.int64, nb.CPointer(nb.float64)
+    value, time, pose = (nb.CPointer(numba.from_dtype(np.dtype(d))) for d in (values, times, poses))
+    signature = nb.void(i8, value, i8, i8, time, i8, i8, i8, f8, f8, i8, i8, i8, f8, pose, i8,
+                        i8, f8, i8, i8)  # fmt: skip
+
+    def entry(stage, history, history_rows, history_length, times, times_rows, times_length,
+              angles, start, geometry, midpoint, chord, chunks, turns, poses, robots, samples,
+              ends, first, stop):  # fmt: skip
+        tasks = robots * chunks
+        run_tasks(
+            stage,
+            numba.carray(history, (history_rows, history_length, 2)),
+            numba.carray(times, (times_rows, times_length)),
+            angles != 0,
+            numba.carray(start, (robots, 3)),
+            numba.carray(geometry, (4,)),
+            midpoint != 0,
+            chord != 0,
+            chunks,
+            numba.carray(turns, (tasks,)),
+            numba.carray(poses, (robots, samples, 3)),
+            numba.carray(ends, (tasks, 2)),
+            first,
+            stop,
+        )
+
+    compiled = numba.cfunc(signature, error_model="numpy")(entry)
+    return compiled.inspect_llvm(), compiled.native_name
