@@ -170,18 +170,19 @@ def test_every_backend_follows_the_scalar_step(case, method, backend):
                                    err_msg=f"{backend}, {dtype}")  # fmt: skip
 
 
+# How to make an array of each library other than NumPy, and its type.
+OTHER_LIBRARIES = [
+    (torch.asarray, torch.Tensor),
+    (xps.asarray, type(xps.asarray(0.0))),
+    (_jax_array, jax.Array),
+]
+
+
 def test_the_c_core_was_built_here():
     assert COMPILED, "the C extension is missing: Odometry runs on its pure-Python twin"
 
 
-@pytest.mark.parametrize(
-    ("convert", "kind"),
-    [
-        (torch.asarray, torch.Tensor),
-        (xps.asarray, type(xps.asarray(0.0))),
-        (_jax_array, jax.Array),
-    ],
-)
+@pytest.mark.parametrize(("convert", "kind"), OTHER_LIBRARIES)
 def test_results_stay_in_the_callers_library(convert, kind):
     wheels = convert(_weave(10, 0.1).astype(np.float32))
     poses = batch.rollout(ROBOT, wheels, 0.1)
@@ -193,14 +194,7 @@ def test_results_stay_in_the_callers_library(convert, kind):
         dd.simulation.integrate_increments(increments, dtype=np.float64)
 
 
-@pytest.mark.parametrize(
-    ("convert", "kind"),
-    [
-        (torch.asarray, torch.Tensor),
-        (xps.asarray, type(xps.asarray(0.0))),
-        (_jax_array, jax.Array),
-    ],
-)
+@pytest.mark.parametrize(("convert", "kind"), OTHER_LIBRARIES)
 def test_a_trajectory_of_another_library_derives_everything_in_it(convert, kind):
     """simulate's Trajectory of a batch of robots, each property against NumPy's."""
     wheels = np.stack([_weave(40, 0.05), _weave(40, 0.05)[::-1]])  # (2, 40, 2)
