@@ -14,8 +14,9 @@ runs (m), with rk2 odometry from each run's first ground-truth pose:
 Then a second table, scored on runs the calibration never saw: each experiment's runs left out
 one at a time, each scored by the calibration on the others (``cross_validate``), for least
 squares and minimax, each alone and with the extra parameters ``axle_offset`` and
-``heading_offset``, and for the per-step fit ``increments``. A fold whose remaining runs
-cannot identify the parameters is refused ("refused"), never scored with a guessed robot.
+``heading_offset``, and for the per-step fit ``increments``, a step and 20 steps at a time.
+A fold whose remaining runs cannot identify the parameters is refused ("refused"), never
+scored with a guessed robot.
 
 Prints both Markdown tables and draws one run: ground truth, nominal and calibrated odometry.
 
@@ -87,12 +88,13 @@ def results(experiments: dict[str, list]) -> dict[str, dict[str, float]]:
 
 
 OFFSETS = ("axle_offset", "heading_offset")
-HELD_OUT = {  # column: (method, extra parameters)
-    "least_squares": ("least_squares", ()),
-    "with offsets": ("least_squares", OFFSETS),
-    "minimax": ("minimax", ()),
-    "minimax with offsets": ("minimax", OFFSETS),
-    "increments": ("increments", ()),
+HELD_OUT = {  # column: (method, extra parameters, steps a window)
+    "least_squares": ("least_squares", (), 1),
+    "with offsets": ("least_squares", OFFSETS, 1),
+    "minimax": ("minimax", (), 1),
+    "minimax with offsets": ("minimax", OFFSETS, 1),
+    "increments": ("increments", (), 1),
+    "increments, window 20": ("increments", (), 20),
 }
 
 
@@ -104,9 +106,9 @@ def held_out(experiments: dict[str, list]) -> dict[str, dict[str, object]]:
         if len(runs) < 2:
             continue
         row: dict[str, object] = {"runs": len(runs)}
-        for column, (method, extra) in HELD_OUT.items():
+        for column, (method, extra, window) in HELD_OUT.items():
             cv = cross_validate(optiodom_robot(), runs, method, "loo", integration="rk2",
-                                extra=extra)  # fmt: skip
+                                extra=extra, window=window)  # fmt: skip
             row[f"{column}, in-sample"] = cv.in_sample.max_position
             row[f"{column}, held out"] = (
                 "refused" if cv.held_out is None or cv.refused else cv.held_out.max_position

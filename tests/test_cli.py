@@ -342,6 +342,28 @@ def test_calibrate_real_square_runs_with_umbmark(tmp_path, capsys):
     assert read_robot(output)["track_width"] == pytest.approx(0.201458, abs=5e-7)
 
 
+def test_calibrate_increments_a_window_at_a_time(tmp_path, capsys):
+    from data import data_folder
+    from diffdrive.io import read_robot
+
+    runs = sorted((data_folder("optiodom-diffdrive") / "circular" / "250620202345").glob("*run*"))
+    output = tmp_path / "robot.toml"
+    argv = ["calibrate", *runs, "--method", "increments", "--cv", "none", "-o", output]
+    code, _, _ = run([*argv, "--window", 20], capsys)
+    assert code == 0
+    windowed = read_robot(output)
+    # The same as the library's fit, which the README's table scores (12.3 mm in-sample).
+    nominal, read = dd.io.optiodom_robot(), [dd.io.read_run(path) for path in runs]
+    robot = dd.calibration.calibrate(nominal, read, "increments", window=20).robot
+    assert windowed["track_width"] == pytest.approx(robot.track_width, rel=1e-12)
+    code, _, err = run([*argv, "--window", 20, "--method", "minimax"], capsys)
+    assert code == 1
+    assert "window is for the increments method only; got 20 with minimax" in err
+    with pytest.raises(SystemExit, match="2"):
+        run([*argv, "--window", 0], capsys)
+    assert "argument --window: must be at least 1, got 0" in capsys.readouterr().err
+
+
 def test_calibrate_refuses_runs_that_cannot_fix_the_track(tmp_path, capsys):
     rows = "\n".join(f"{k * 0.05},{k * 0.5},{k * 0.5},{k * 0.021},0,0" for k in range(50))
     log = tmp_path / "straight.csv"

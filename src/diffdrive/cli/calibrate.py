@@ -14,6 +14,7 @@ from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
     Parents,
+    at_least,
     read_log_of,
     robot_from,
 )
@@ -75,6 +76,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         extra = tuple(name for name in args.extra if name != "none")
     result = calibrate(nominal, runs, args.method, integration=args.integration,
                        square_side=args.square_side, names=names, fixed=fixed, extra=extra,
+                       window=args.window,
                        progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
     robot = result.robot
     settings = {"left_wheel_radius": robot.left_wheel_radius,
@@ -102,7 +104,7 @@ def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
         return "held-out errors: none (one run: nothing to hold out; --cv none hides this)"
     scheme = "loo" if args.cv == "loo" else int(args.cv)
     cv = cross_validate(nominal, runs, args.method, scheme, integration=args.integration,
-                        names=names, fixed=fixed, extra=extra)  # fmt: skip
+                        names=names, fixed=fixed, extra=extra, window=args.window)  # fmt: skip
     label = "leave one run out" if scheme == "loo" else f"{scheme} folds"
     lines = [f"{'errors over the runs':28} {'in-sample':>10} {'held-out':>10}   ({label})"]
     for name, unit in (("max_position", "m"), ("final_position", "m"),
@@ -170,6 +172,9 @@ def add_to(command: Command, parents: Parents) -> None:
     cal.add_argument("--integration", choices=METHODS, default="exact",
                      help="the odometry's method (default exact)")  # fmt: skip
     cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
+    cal.add_argument("--window", type=at_least(1), default=1, metavar="STEPS",
+                     help="the increments method: fit this many steps at a time (default 1; "
+                     "20 suits 20 Hz motion capture)")  # fmt: skip
     cal.add_argument("--cv", default="loo", metavar="loo|K|none",
                      help="held-out errors by cross-validation over the runs: leave one run "
                      "out (default), K folds, or none")  # fmt: skip
