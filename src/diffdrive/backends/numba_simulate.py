@@ -160,13 +160,14 @@ def run_tasks(stage, history, times, angles, start, geometry, midpoint, chord, c
             turns[task] = _chunk_turn(history, times, angles, geometry, n, k0, k1)
             continue
         if stage == 2:
-            shift_x, shift_y = 0.0, 0.0
-            for j in range(n * chunks, task):
-                shift_x += ends[j, 0]
-                shift_y += ends[j, 1]
-            for k in range(k0 + 1, k1 + 1):
-                out[n, k, 0] += shift_x
-                out[n, k, 1] += shift_y
+            if c > 0:  # a robot's first chunk starts where the robot does
+                shift_x, shift_y = 0.0, 0.0
+                for j in range(n * chunks, task):
+                    shift_x += ends[j, 0]
+                    shift_y += ends[j, 1]
+                for k in range(k0 + 1, k1 + 1):
+                    out[n, k, 0] += shift_x
+                    out[n, k, 1] += shift_y
             continue
         heading = start[n, 2]
         for j in range(n * chunks, task):
