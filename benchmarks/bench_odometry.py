@@ -4,9 +4,11 @@ Issue 4's measure: one ``Odometry.update_positions`` call, median over 10^5 upda
 robotpy-wpimath's ``DifferentialDriveOdometry.update``, which takes a ``Rotation2d`` (the gyro
 heading) that has to be built for every call. Both are fed the same drive, precomputed as
 Python floats; each timing includes the ``for`` loop around the call, whose own cost is printed
-too. diffdrive is also timed with time stamps and with the covariance propagated (the C update
-always propagates it; here k is non-zero so the numbers mean something), and on the pure-Python
-core that an installation without a C compiler gets.
+too. The contenders run in rounds, each once a round, and the medians are over the rounds, so
+a slow spell of a shared machine falls on all of them. diffdrive is also timed with time stamps
+and with the covariance propagated (the C update always propagates it; here k is non-zero so
+the numbers mean something), and on the pure-Python core that an installation without a C
+compiler gets.
 
     pip install -e '.[bench]'
     python benchmarks/bench_odometry.py [--repeats 7] [--updates 100000]
@@ -25,14 +27,18 @@ import diffdrive as dd
 from diffdrive.examples import example_robot
 
 
-def per_call(loop, repeats):
-    """Median seconds per call of ``loop()``, which returns how many calls it made."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        calls = loop()
-        times.append((time.perf_counter() - start) / calls)
-    return statistics.median(times)
+def per_call(loops, repeats):
+    """Median seconds per call of each of ``loops`` (name: a loop that returns how many calls
+    it made), taken in rounds that run every loop once, after a round that is not timed: a
+    slow spell of the machine falls on all of them alike, not on one."""
+    times = {name: [] for name in loops}
+    for round in range(repeats + 1):
+        for name, loop in loops.items():
+            start = time.perf_counter()
+            calls = loop()
+            if round:
+                times[name].append((time.perf_counter() - start) / calls)
+    return {name: statistics.median(taken) for name, taken in times.items()}
 
 
 def main() -> None:
@@ -75,14 +81,12 @@ def main() -> None:
             update(a, b, t)
         return n
 
-    rows = {
-        "empty loop": per_call(empty, args.repeats),
-        "diffdrive update_positions": per_call(ours(), args.repeats),
-        "  with k_left, k_right": per_call(ours(k_left=1e-4, k_right=1e-4), args.repeats),
-        "  with k and t": per_call(ours_timed, args.repeats),
-        "  on the pure-Python core (no C compiler)": per_call(
-            ours(dd.odometry.PythonOdometry), args.repeats
-        ),
+    loops = {
+        "empty loop": empty,
+        "diffdrive update_positions": ours(),
+        "  with k_left, k_right": ours(k_left=1e-4, k_right=1e-4),
+        "  with k and t": ours_timed,
+        "  on the pure-Python core (no C compiler)": ours(dd.odometry.PythonOdometry),
     }
     try:
         from wpimath.geometry import Pose2d, Rotation2d
@@ -98,7 +102,8 @@ def main() -> None:
                 update(Rotation2d(heading), a, b)
             return n
 
-        rows["wpimath DifferentialDriveOdometry.update"] = per_call(theirs, args.repeats)
+        loops["wpimath DifferentialDriveOdometry.update"] = theirs
+    rows = per_call(loops, args.repeats)
     print(
         f"machine: {platform.machine()}, {platform.processor() or 'cpu'}; "
         f"python {platform.python_version()}"
