@@ -133,6 +133,9 @@ def test_the_threads_follow_the_limit(monkeypatch):
     np.testing.assert_array_equal(dd.simulate(ROBOT, wheels, dt=0.01, backend="numba").poses, one)
     monkeypatch.setenv("NUMBA_NUM_THREADS", "1")
     assert simulate_kernel.threads() == 1
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "two")
+    with pytest.raises(ValueError, match="NUMBA_NUM_THREADS must be a whole number from 1, got"):
+        simulate_kernel.threads()
     with pytest.raises(ValueError, match="at least one thread, got 0"):
         simulate_kernel.set_threads(0)
 

@@ -83,8 +83,10 @@ def threads() -> int:
     limit or ``NUMBA_NUM_THREADS`` (numba's own setting, which its kernel followed before)."""
     affinity = getattr(os, "sched_getaffinity", None)
     cpus = len(affinity(0)) if affinity else os.cpu_count() or 1
-    limit = _limit[0] or int(os.environ.get("NUMBA_NUM_THREADS") or cpus)
-    return max(1, min(cpus, limit))
+    setting = os.environ.get("NUMBA_NUM_THREADS") or str(cpus)
+    if not setting.isdigit() or int(setting) < 1:
+        raise ValueError(f"NUMBA_NUM_THREADS must be a whole number from 1, got {setting!r}")
+    return max(1, min(cpus, _limit[0] or int(setting)))
 
 
 def set_threads(count: int | None) -> None:
