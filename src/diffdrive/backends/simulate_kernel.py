@@ -193,11 +193,10 @@ def _load_or_compile(key: tuple[str, str, str]) -> Callable[..., None]:
 
     llvm.initialize_native_target()
     llvm.initialize_native_asmprinter()
-    machine = llvm.Target.from_default_triple().create_target_machine(
-        cpu=llvm.get_host_cpu_name(), features=llvm.get_host_cpu_features().flatten(),
-        opt=3, codemodel="jitdefault",
-    )  # fmt: skip
     cpu = {"cpu": llvm.get_host_cpu_name(), "features": llvm.get_host_cpu_features().flatten()}
+    machine = llvm.Target.from_default_triple().create_target_machine(
+        **cpu, opt=3, codemodel="jitdefault"
+    )
     name = f"simulate-{'-'.join(key)}-{_digest()}"
     for folder in _folders():
         found = _read(folder / f"{name}.o", folder / f"{name}.json", cpu)
