@@ -153,12 +153,30 @@ def test_the_command_line_takes_a_skid_steer_robot_file(tmp_path, capsys):
     assert (tmp_path / "p.png").stat().st_size > 10_000
     log = tmp_path / "gyro.csv"
     log.write_text("t,left_angle,right_angle,gyro_z\n0,0,0,0\n0.1,0.5,0.6,0.1\n0.2,1,1.3,0.1\n")
-    assert main(["odometry", str(log), "--robot", str(robot), "-o", str(tmp_path / "o.csv")]) == 1
-    assert "not a skid-steer robot file" in capsys.readouterr().err
+    # The gyro takes any robot model now (it was refused for a skid-steer robot file before).
+    assert main(["odometry", str(log), "--robot", str(robot), "-o", str(tmp_path / "o.csv")]) == 0
+    assert "fused heading" in capsys.readouterr().out
 
 
-def test_the_centre_of_curvature_of_a_skid_steer_robot_is_its_icr():
-    centres = dd.batch.instantaneous_center(ASYMMETRIC, WHEELS[:5])
-    np.testing.assert_array_equal(centres[:, 0], 0.03)
-    radii = [ASYMMETRIC.turning_radius(w) for w in WHEELS[:5]]
-    np.testing.assert_allclose(centres[:, 1], radii, rtol=1e-12)
+def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
+    """The gyro filter runs the model's equivalent drive as Odometry does: with the heading
+    from the wheels its poses are Odometry's, and its covariance is the equivalent drive's
+    filter's, moved to the body origin."""
+    from diffdrive.gyro import GyroOdometry
+    from diffdrive.odometry import offset_jacobian
+
+    start = dd.Pose(0.3, -0.2, 0.4)
+    offset = ASYMMETRIC.reference_offset
+    options = {"k_left": 1e-3, "k_right": 2e-3}
+    gyro = GyroOdometry(ASYMMETRIC, "wheels", start, **options)
+    drive = GyroOdometry(ASYMMETRIC.equivalent, "wheels", start.compose(dd.Pose(0, offset)),
+                         **options)  # fmt: skip
+    odometry = dd.Odometry(ASYMMETRIC, "exact", start)
+    for left, right in WHEELS[:40] * 0.05:
+        for estimator in (gyro, drive):
+            estimator.update(left, right, 0.0, 0.05)
+        odometry.update_increments(left, right)
+        np.testing.assert_allclose(gyro.pose.to_array(), odometry.pose.to_array(), atol=1e-12)
+        moved = offset_jacobian(drive.pose.theta, -offset)
+        np.testing.assert_allclose(gyro.covariance, moved @ drive.covariance @ moved.T,
+                                   rtol=1e-12, atol=1e-18)  # fmt: skip

@@ -12,6 +12,9 @@ the body frame:
    exact ``(1/2, chord)``, the same times ``sinc(turn / 2)``: the chord of the arc, seed 001's
    ``T_bb'``, exact for constant wheel velocities.
 
+``move_jacobians`` is the world move of a wheel step with its derivatives with respect to the
+forward travel and the turn: the Jacobians every estimator propagates its covariance with.
+
 ``sinc`` has one rule in every precision: below ``TAYLOR_LIMIT`` (1/16) its Taylor form to
 ``u^8`` (the first term left out, ``u^10 / 11!``, is under 1e-20 there: an ulp even in float64),
 above it ``sin(u) / u``. ``sinc_cos`` gives ``cos u`` the same way.
@@ -33,8 +36,10 @@ __all__ = [
     "TAYLOR_LIMIT",
     "Method",
     "body_move",
+    "move_jacobians",
     "sinc",
     "sinc_cos",
+    "sinc_derivative",
     "twist_move",
     "wheel_move",
 ]
@@ -70,6 +75,14 @@ def sinc_cos(u: float) -> tuple[float, float]:
     return sinc(u), cosine
 
 
+def sinc_derivative(u: float) -> float:
+    """d/du of ``sin(u) / u``, with its Taylor form near 0 where the closed form cancels."""
+    if abs(u) < 0.05:
+        u2 = u * u
+        return -u / 3.0 * (1.0 - u2 / 10.0 * (1.0 - u2 / 28.0 * (1.0 - u2 / 54.0)))
+    return (u * math.cos(u) - math.sin(u)) / (u * u)
+
+
 def wheel_move(
     r_left: float, r_right: float, track: float, offset: float, dl: float, dr: float
 ) -> tuple[float, float, float]:
@@ -98,3 +111,26 @@ def twist_move(
     turn = omega * dt
     dx, dy = body_move(vx, vy, turn, weight, chord)
     return dx * dt, dy * dt, turn
+
+
+def move_jacobians(
+    forward: float, offset: float, turn: float, weight: float, chord: bool, heading: float
+) -> tuple[float, float, tuple[float, float], tuple[float, float]]:
+    """The world move ``(dx, dy)`` of ``body_move(forward, offset * turn, turn, ...)`` from
+    the ``heading`` (rad), and its derivatives ``(d/dforward, d/dturn)``, each ``(x, y)``.
+
+    The heading's own derivative is ``(-dy, dx)``; the sideways travel of a reference point
+    ``offset`` m ahead of the axle follows the turn.
+    """
+    angle = heading + weight * turn
+    ca, sa = math.cos(angle), math.sin(angle)
+    sideways = offset * turn
+    gx, gy = ca * forward - sa * sideways, sa * forward + ca * sideways
+    scale, slope = 1.0, 0.0
+    if chord:
+        scale, slope = sinc(0.5 * turn), 0.5 * sinc_derivative(0.5 * turn)
+    by_turn = (
+        slope * gx + scale * (-sa * offset - gy * weight),
+        slope * gy + scale * (ca * offset + gx * weight),
+    )
+    return scale * gx, scale * gy, (scale * ca, scale * sa), by_turn

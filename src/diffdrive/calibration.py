@@ -22,7 +22,8 @@ right]`` in rad and ground-truth poses ``(T+1, 3)`` at the same instants. Method
   track width), the scaled Jacobian's condition number says so and ``calibrate`` raises
   ``CalibrationError`` instead of returning a number.
 A ``SkidSteer`` robot is calibrated the same way, its ICR spread (the effective track, about
-the same midpoint) in the place of the track width: the simpler model of a skid-steer robot.
+the same midpoint) in the place of the track width and its ``-icr_x`` in the place of the axle
+offset (any model, through its ``with_geometry``).
 
 - ``"increments"``: each step's motion instead of the whole path: the reference's distance
   and turn over every step (through the SE(2) logarithm of consecutive poses) against the
@@ -51,9 +52,8 @@ from diffdrive import batch
 from diffdrive._validate import whole
 from diffdrive.integrate import Method, check_method
 from diffdrive.io.run import Run
-from diffdrive.model import DiffDrive
+from diffdrive.model import Robot
 from diffdrive.simulation import integrate_increments
-from diffdrive.skid_steer import Robot, SkidSteer
 
 __all__ = [
     "CalibrationError",
@@ -91,7 +91,7 @@ class CalibrationResult:
     robot's (0 unless fitted); a fitted axle offset is the robot's own.
     """
 
-    robot: DiffDrive
+    robot: Robot
     method: str
     covariance: np.ndarray | None
     residuals: list[np.ndarray] = field(repr=False)
@@ -105,21 +105,11 @@ class CalibrationResult:
         return None if self.covariance is None else np.sqrt(np.diag(self.covariance))
 
 
-def _robot_with(nominal, parameters: np.ndarray, axle_offset: float | None = None):
-    """``nominal`` with new wheel radii and track (a skid-steer robot's ICR spread, about the
-    same midpoint and with the same ``icr_x``), and ``axle_offset`` if given."""
+def _robot_with(nominal: Robot, parameters: np.ndarray, axle_offset: float | None = None):
+    """``nominal`` with new wheel radii and track (its model's ``with_geometry``), and the
+    equivalent drive's ``axle_offset`` if given."""
     left, right, track = (float(p) for p in parameters)
-    if isinstance(nominal, SkidSteer):
-        middle = nominal.reference_offset
-        return SkidSteer(left_wheel_radius=left, right_wheel_radius=right,
-                         icr_left=middle + 0.5 * track, icr_right=middle - 0.5 * track,
-                         icr_x=nominal.icr_x, wheels_per_side=nominal.wheels_per_side)  # fmt: skip
-    return DiffDrive(
-        left_wheel_radius=left,
-        right_wheel_radius=right,
-        track_width=track,
-        axle_offset=nominal.axle_offset if axle_offset is None else axle_offset,
-    )
+    return nominal.with_geometry(left, right, track, axle_offset)
 
 
 def odometry_of(
@@ -184,21 +174,21 @@ def calibrate(
     """Calibrate ``nominal_robot``'s wheel radii and track width on ``runs``; see the module.
 
     ``integration`` is the odometry's method (default exact, as everywhere; the OptiOdom
-    reproduction names rk2, the authors' method); ``square_side`` (m) is UMBmark's square;
-    ``loss`` and ``loss_scale`` (m) are scipy's robust loss for least squares. ``names``
-    name the runs in messages (default: a ``Run``'s source, else ``run 0``, ``run 1``, ...;
-    a ``Run`` of ticks needs its own ticks per revolution); ``progress`` shows a
-    progress bar of the fit's evaluations on standard error. ``fixed`` names parameters held
-    at their nominal values (``"track_width"``, say, when the runs cannot identify it).
-    ``extra`` adds parameters to least squares and minimax: ``"axle_offset"`` (the tracked
-    point is not on the axle) and ``"heading_offset"`` (a constant heading between the
-    reference's body and the robot). On the OptiOdom runs held out one at a time, both lower
-    the errors (see the README); a per-run start-pose offset raised them and a time offset
-    changed nothing, so neither is offered. ``prior_sigma`` (relative, e.g. 0.02) pulls least
-    squares toward the nominal geometry: a Gaussian prior of that relative standard deviation
-    on each geometry parameter, as residuals ``loss_scale * (p / p_nominal - 1) /
-    prior_sigma``, so that a few runs cannot push the parameters far. ``window`` (the
-    ``increments`` method's) fits that many steps at a time; a run's last window may be shorter.
+    reproduction names rk2, the authors' method); ``square_side`` (m) is UMBmark's square; ``loss``
+    and ``loss_scale`` (m) are scipy's robust loss for least squares. ``names`` name the runs in
+    messages (default: a ``Run``'s source, else ``run 0``, ``run 1``, ...; a ``Run`` of ticks needs
+    its own ticks per revolution); ``progress`` shows a progress bar of the fit's evaluations on
+    standard error. ``fixed`` names parameters held at their nominal values (``"track_width"``, say,
+    when the runs cannot identify it). ``extra`` adds parameters to least squares and minimax:
+    ``"axle_offset"`` (the tracked point is not on the axle; a ``SkidSteer``'s ``-icr_x``) and
+    ``"heading_offset"`` (a constant heading between the reference's body and the robot). On the
+    OptiOdom runs held out one at a time, both lower the errors (see the README); a per-run
+    start-pose offset raised them and a time offset changed nothing, so neither is offered.
+    ``prior_sigma`` (relative, e.g. 0.02) pulls least squares toward the nominal geometry: a
+    Gaussian prior of that relative standard deviation on each geometry parameter, as residuals
+    ``loss_scale * (p / p_nominal - 1) / prior_sigma``, so that a few runs cannot push the
+    parameters far. ``window`` (the ``increments`` method's) fits that many steps at a time; a run's
+    last window may be shorter.
 
     Before fitting, the runs must excite every free parameter: they must drive (the wheel
     radii), turn (the track width) and turn both ways (a difference between the wheels apart
@@ -350,7 +340,7 @@ def _fit_least_squares(
             pieces.append(_quadratic_under(loss, scale, scale * (relative[free] - 1.0) / prior))
         return np.concatenate(pieces)
 
-    offset = nominal.axle_offset if isinstance(nominal, DiffDrive) else 0.0  # no extras: SkidSteer
+    offset = nominal.equivalent.axle_offset  # a SkidSteer's -icr_x
     initial = [offset if name == "axle_offset" else 0.0 for name in extra]
     try:
         return _solve(nominal, residuals, free, extra, initial, loss=loss, f_scale=scale)
@@ -492,8 +482,8 @@ def _check_extra(extra, method: str, nominal) -> tuple[str, ...]:
         raise ValueError(
             f"extra names {unknown[0]!r}; the extra parameters are {', '.join(EXTRAS)}"
         )
-    if extra and (method not in ("least_squares", "minimax") or isinstance(nominal, SkidSteer)):
-        raise ValueError("extra parameters are for least_squares and minimax on a DiffDrive")
+    if extra and method not in ("least_squares", "minimax"):
+        raise ValueError("extra parameters are for least_squares and minimax")
     return extra
 
 
@@ -557,12 +547,11 @@ def _window_sums(values: np.ndarray) -> np.ndarray:
     return np.add.reduceat(values, edges) if len(values) else values
 
 
-def _bounds(nominal) -> tuple[list[float], list[float]]:
-    """The parameters' range relative to the nominal ones: radii within 50 %; the track too,
-    but a skid-steer robot's ICR spread up to 3 times its nominal (1.5-2 times the wheels'
-    track is common)."""
-    top = 3.0 if isinstance(nominal, SkidSteer) else 1.5
-    return [0.5, 0.5, 0.5], [1.5, 1.5, top]
+def _bounds(nominal: Robot) -> tuple[list[float], list[float]]:
+    """The parameters' range relative to the nominal ones: radii within 50 %; the track as
+    its model allows (``TRACK_RANGE``: a skid-steer robot's ICR spread up to 3 times)."""
+    low, high = nominal.TRACK_RANGE
+    return [0.5, 0.5, low], [1.5, 1.5, high]
 
 
 def _parameters(robot: Robot) -> np.ndarray:

@@ -45,9 +45,10 @@ from typing import Literal
 
 import numpy as np
 
+from diffdrive._step import METHOD_FLAGS, move_jacobians, wheel_move
 from diffdrive._validate import finite, positive
-from diffdrive.model import DiffDrive
-from diffdrive.se2 import sinc
+from diffdrive.model import Robot
+from diffdrive.odometry import offset_jacobian
 from diffdrive.types import Pose, WheelVelocities
 
 __all__ = [
@@ -167,14 +168,16 @@ class Gyro:
 class GyroOdometry:
     """Dead reckoning with a gyro, one interval at a time (see the module).
 
-    ``robot`` gives the geometry; ``heading`` is ``"wheels"``, ``"gyro"`` or ``"fused"``;
-    ``bias`` (rad/s) is the gyro's, fixed for ``"gyro"`` and the prior mean for ``"fused"``;
-    ``k_left``, ``k_right`` (m) the wheel model; ``noise`` the gyro's.
+    ``robot`` gives the geometry (any model: the filter runs its equivalent drive, at its
+    reference point, and moves poses and covariances back to the body origin); ``heading`` is
+    ``"wheels"``, ``"gyro"`` or ``"fused"``; ``bias`` (rad/s) is the gyro's, fixed for
+    ``"gyro"`` and the prior mean for ``"fused"``; ``k_left``, ``k_right`` (m) the wheel
+    model; ``noise`` the gyro's.
     """
 
     def __init__(
         self,
-        robot: DiffDrive,
+        robot: Robot,
         heading: Heading = "fused",
         initial_pose: Pose | None = None,
         *,
@@ -186,8 +189,10 @@ class GyroOdometry:
         slip_inflation: float = 100.0,
         command_sigma: float = 1.0,
     ) -> None:
-        if not isinstance(robot, DiffDrive):
-            raise TypeError(f"robot must be a DiffDrive, got {type(robot).__name__}")
+        if not isinstance(robot, Robot):
+            raise TypeError(
+                f"robot must be a robot model (DiffDrive, SkidSteer), got {type(robot).__name__}"
+            )
         if heading not in HEADINGS:
             raise ValueError(f"heading must be one of {', '.join(HEADINGS)}, got {heading!r}")
         for name, value in (("k_left", k_left), ("k_right", k_right)):
@@ -200,6 +205,9 @@ class GyroOdometry:
         self.slip_inflation = positive("slip_inflation", slip_inflation)
         self.command_sigma = positive("command_sigma", command_sigma)
         pose = Pose() if initial_pose is None else Pose.coerce(initial_pose, "initial_pose")
+        self._offset = robot.reference_offset
+        pose = pose.compose(Pose(0.0, self._offset))  # to the equivalent drive's point
+        # The state is the equivalent drive's: its reference point's pose, then the bias.
         self.state = np.array([pose.x, pose.y, pose.theta, finite("bias", bias)])
         self.covariance4 = np.diag([0.0, 0.0, 0.0, self.noise.initial_bias_sigma**2])
         self.slip = False
@@ -208,7 +216,8 @@ class GyroOdometry:
 
     @property
     def pose(self) -> Pose:
-        return Pose(*self.state[:3].tolist())
+        """The body origin's pose."""
+        return Pose(*self.state[:3].tolist()).compose(Pose(0.0, -self._offset))
 
     @property
     def bias(self) -> float:
@@ -217,8 +226,11 @@ class GyroOdometry:
 
     @property
     def covariance(self) -> np.ndarray:
-        """The pose covariance, 3x3 over ``(x, y, theta)``."""
-        return self.covariance4[:3, :3].copy()
+        """The body origin's pose covariance, 3x3 over ``(x, y, theta)``."""
+        if not self._offset:
+            return self.covariance4[:3, :3].copy()
+        moved = offset_jacobian(self.state[2], -self._offset)
+        return moved @ self.covariance4[:3, :3] @ moved.T
 
     def update(
         self,
@@ -231,9 +243,7 @@ class GyroOdometry:
         """One interval of ``dt`` s: wheel-angle increments ``left``, ``right`` (rad), the
         angle the gyro turned (rad, bias included) and, if known, the ``commanded`` wheel
         velocities ``(left, right)`` (rad/s). A refused update changes nothing."""
-        r = self.robot
-        dl = finite("left", left) * r.left_wheel_radius
-        dr = finite("right", right) * r.right_wheel_radius
+        left, right = finite("left", left), finite("right", right)
         gyro_angle, dt = finite("gyro_angle", gyro_angle), positive("dt", dt)
         command_score = 0.0
         if commanded is not None:
@@ -242,7 +252,7 @@ class GyroOdometry:
             command_score = (measured[0] ** 2 + measured[1] ** 2) / self.command_sigma**2
         with np.errstate(over="ignore", invalid="ignore"):  # refused below, not warned about
             state, covariance, slip, score = _step(
-                self, dl, dr, gyro_angle, dt, command_score > COMMAND_THRESHOLD
+                self, left, right, gyro_angle, dt, command_score > COMMAND_THRESHOLD
             )
         if not (np.all(np.isfinite(state)) and np.all(np.isfinite(covariance))):
             raise ValueError("the update would overflow the state; refused, nothing changed")
@@ -250,43 +260,35 @@ class GyroOdometry:
         self.command_score = float(command_score)
 
 
-def _move(robot: DiffDrive, state: np.ndarray, forward: float, turn: float) -> np.ndarray:
-    """The state after ``forward`` m and ``turn`` rad along a constant-curvature arc."""
+def _jacobians(offset: float, state: np.ndarray, forward: float, turn: float, dt: float):
+    """The next state along the constant-curvature arc of ``forward`` m and ``turn`` rad (the
+    exact step), d(next state)/d(state) (4x4, the bias turning the heading by ``-dt`` per
+    rad/s) and d(next state)/d(forward, turn) (4x2)."""
     x, y, theta, bias = state
-    mid, chord = theta + 0.5 * turn, sinc(0.5 * turn)
-    side = robot.axle_offset * turn
-    c, s = math.cos(mid), math.sin(mid)
-    return np.array([x + chord * (c * forward - s * side), y + chord * (s * forward + c * side),
-                     theta + turn, bias])  # fmt: skip
+    dx, dy, by_forward, by_turn = move_jacobians(
+        forward, offset, turn, *METHOD_FLAGS["exact"], heading=theta
+    )
+    by_state = np.eye(4)
+    by_state[:2, 2] = -dy, dx
+    by_state[:3, 3] = -dt * by_turn[0], -dt * by_turn[1], -dt
+    by_input = np.array([[by_forward[0], by_turn[0]], [by_forward[1], by_turn[1]],
+                         [0.0, 1.0], [0.0, 0.0]])  # fmt: skip
+    return np.array([x + dx, y + dy, theta + turn, bias]), by_state, by_input
 
 
-def _jacobians(robot, state, forward, turn, dt):
-    """d(next state)/d(state) (4x4) and d(next state)/d(forward, turn) (4x2), numerically."""
-    base = _move(robot, state, forward, turn)
-    by_state = np.empty((4, 4))
-    for i in range(4):
-        h = 1e-7 * max(1.0, abs(state[i]))
-        bumped = state.copy()
-        bumped[i] += h
-        moved = _move(robot, bumped, forward, turn - (dt * h if i == 3 else 0.0))
-        by_state[:, i] = (moved - base) / h
-    by_input = np.empty((4, 2))
-    for j, (df, dtheta) in enumerate(((1e-7, 0.0), (0.0, 1e-7))):
-        by_input[:, j] = (_move(robot, state, forward + df, turn + dtheta) - base) / 1e-7
-    return base, by_state, by_input
-
-
-def _step(o: GyroOdometry, dl: float, dr: float, gyro_angle: float, dt: float, forced: bool):
-    """The next state and covariance, the slip flag and score of one interval."""
-    robot, noise, (k_l, k_r) = o.robot, o.noise, o.k
-    forward, wheel_turn = 0.5 * (dl + dr), (dr - dl) / robot.track_width
-    spread = k_l * abs(dl) + k_r * abs(dr)
-    forward_var, wheel_turn_var = spread / 4.0, spread / robot.track_width**2 + 1e-18
+def _step(o: GyroOdometry, left: float, right: float, gyro_angle: float, dt: float, forced: bool):
+    """The next state and covariance, the slip flag and score of one interval of wheel-angle
+    increments ``left``, ``right`` (rad)."""
+    drive, noise, (k_l, k_r) = o.robot.equivalent, o.noise, o.k
+    r_l, r_r, track = drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width
+    forward, _, wheel_turn = wheel_move(r_l, r_r, track, drive.axle_offset, left, right)
+    spread = k_l * abs(r_l * left) + k_r * abs(r_r * right)
+    forward_var, wheel_turn_var = spread / 4.0, spread / track**2 + 1e-18
     gyro_var = noise.angle_random_walk**2 * dt
     gyro_turn = gyro_angle - o.state[3] * dt
     turn = wheel_turn if o.heading == "wheels" else gyro_turn
     turn_var = wheel_turn_var if o.heading == "wheels" else gyro_var
-    moved, by_state, by_input = _jacobians(robot, o.state, forward, turn, dt)
+    moved, by_state, by_input = _jacobians(drive.axle_offset, o.state, forward, turn, dt)
     if o.heading == "wheels":
         by_state[:3, 3] = 0.0  # the bias plays no part in this heading
     bias_var = noise.rate_random_walk**2 * dt if o.heading == "fused" else 0.0
@@ -333,7 +335,7 @@ class GyroTrajectory:
 
 
 def gyro_odometry(
-    robot: DiffDrive,
+    robot: Robot,
     times: object,
     increments: object,
     gyro: Gyro,
@@ -373,7 +375,11 @@ def gyro_odometry(
     n = len(times)
     poses, covariances = np.empty((n, 3)), np.empty((n, 3, 3))
     biases, slips, scores = np.empty(n), np.zeros(n, dtype=bool), np.zeros(n)
-    poses[0], covariances[0], biases[0] = odometry.state[:3], odometry.covariance, odometry.bias
+    poses[0], covariances[0], biases[0] = (
+        odometry.pose.to_array(),
+        odometry.covariance,
+        odometry.bias,
+    )
     dts = np.diff(times)
     for k in range(1, n):
         try:
@@ -383,7 +389,7 @@ def gyro_odometry(
             raise ValueError(
                 f"interval {k - 1} ({times[k - 1]!r} to {times[k]!r} s): {exc}"
             ) from None
-        poses[k], covariances[k] = odometry.state[:3], odometry.covariance
+        poses[k], covariances[k] = odometry.pose.to_array(), odometry.covariance
         biases[k], slips[k], scores[k] = odometry.bias, odometry.slip, odometry.slip_score
     return GyroTrajectory(times, poses, covariances, biases, slips, scores, heading)
 

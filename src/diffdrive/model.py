@@ -11,19 +11,26 @@ velocities ``wl``, ``wr`` (rad/s):
 The Modern Robotics form (seeds 001, 004) builds the same maps from each wheel's frame:
 ``h_matrix`` (body twist to wheel velocities), ``constraint_matrix`` (no lateral slip) and
 ``f_matrix`` (wheel velocities back to the body twist, honouring both).
+
+Every robot model (``DiffDrive`` here, ``diffdrive.skid_steer.SkidSteer``) answers the questions
+of ``Robot``: its ``equivalent`` differential drive and the ``reference_offset`` of the point
+that drive moves, so that the step, the estimators and calibration run on any model without
+asking which one it is.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from diffdrive._step import wheel_move
 from diffdrive._validate import finite, positive
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
-__all__ = ["DiffDrive"]
+__all__ = ["DiffDrive", "Robot"]
 
 
 @dataclass(frozen=True, slots=True, init=False)
@@ -41,6 +48,9 @@ class DiffDrive:
     right_wheel_radius: float
     track_width: float
     axle_offset: float
+
+    # How far calibration may move the track from its nominal value, as factors.
+    TRACK_RANGE: ClassVar[tuple[float, float]] = (0.5, 1.5)
 
     def __init__(
         self,
@@ -76,6 +86,43 @@ class DiffDrive:
         """The mean of the two wheel radii, m (the radius itself when they are equal)."""
         return 0.5 * (self.left_wheel_radius + self.right_wheel_radius)
 
+    # -- the questions every robot model answers (``Robot``) ---------------------------------
+
+    @property
+    def equivalent(self) -> DiffDrive:
+        """Itself: a differential drive is its own equivalent drive."""
+        return self
+
+    @property
+    def reference_offset(self) -> float:
+        """0 m: the equivalent drive moves the body origin itself."""
+        return 0.0
+
+    def with_geometry(
+        self,
+        left_wheel_radius: float,
+        right_wheel_radius: float,
+        track_width: float,
+        axle_offset: float | None = None,
+    ) -> DiffDrive:
+        """This robot with other wheel radii and track (m), and ``axle_offset`` if given."""
+        return replace(
+            self,
+            left_wheel_radius=left_wheel_radius,
+            right_wheel_radius=right_wheel_radius,
+            track_width=track_width,
+            axle_offset=self.axle_offset if axle_offset is None else axle_offset,
+        )
+
+    def settings(self) -> dict[str, float]:
+        """The robot file's keys for this robot (``diffdrive.io.write_robot``)."""
+        return {
+            "left_wheel_radius": self.left_wheel_radius,
+            "right_wheel_radius": self.right_wheel_radius,
+            "track_width": self.track_width,
+            "axle_offset": self.axle_offset,
+        }
+
     # -- (v, omega) form: seeds 002 and 003 -------------------------------------------------
 
     def to_twist(self, wheels: WheelsLike) -> Twist:
@@ -84,10 +131,16 @@ class DiffDrive:
         ``wheels`` is a ``WheelVelocities`` or two numbers ``(left, right)``, rad/s.
         """
         wheels = WheelVelocities.coerce(wheels, "wheels")
-        left = self.left_wheel_radius * wheels.left
-        right = self.right_wheel_radius * wheels.right
-        omega = (right - left) / self.track_width
-        return Twist(0.5 * (right + left), self.axle_offset * omega, omega)
+        return Twist(
+            *wheel_move(
+                self.left_wheel_radius,
+                self.right_wheel_radius,
+                self.track_width,
+                self.axle_offset,
+                wheels.left,
+                wheels.right,
+            )
+        )
 
     def to_wheel_velocities(self, twist: TwistLike) -> WheelVelocities:
         """Wheel velocities that drive ``twist`` (inverse kinematics).
@@ -213,3 +266,39 @@ def path_radius(twist: Twist) -> float:
     if twist.omega != 0.0:
         return twist.vx / twist.omega
     return math.copysign(math.inf, twist.vx) if twist.vx != 0.0 else math.nan
+
+
+@runtime_checkable
+class Robot(Protocol):
+    """What every robot model answers; what the whole-path functions take.
+
+    A model moves its body as a differential drive, ``equivalent``, moves the point
+    ``(0, reference_offset)`` of the body (m); a new model that gives these needs no edits
+    anywhere else. ``track_width`` is the equivalent drive's (what calibration fits);
+    ``with_geometry`` is the same model with other radii, track and equivalent axle offset;
+    ``settings`` its robot-file keys.
+    """
+
+    TRACK_RANGE: ClassVar[tuple[float, float]]
+
+    @property
+    def left_wheel_radius(self) -> float: ...
+    @property
+    def right_wheel_radius(self) -> float: ...
+    @property
+    def track_width(self) -> float: ...
+    @property
+    def equivalent(self) -> DiffDrive: ...
+    @property
+    def reference_offset(self) -> float: ...
+    def with_geometry(
+        self,
+        left_wheel_radius: float,
+        right_wheel_radius: float,
+        track_width: float,
+        axle_offset: float | None = None,
+    ) -> Robot: ...
+    def settings(self) -> dict[str, float]: ...
+    def to_twist(self, wheels: WheelsLike) -> Twist: ...
+    def to_wheel_velocities(self, twist: TwistLike) -> WheelVelocities: ...
+    def turning_radius(self, wheels: WheelsLike) -> float: ...

@@ -35,15 +35,22 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from diffdrive._step import wheel_move
 from diffdrive._validate import finite, positive
 from diffdrive.backends import odometry_python
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
-from diffdrive.model import DiffDrive
-from diffdrive.skid_steer import SkidSteer
+from diffdrive.model import Robot
 from diffdrive.types import Pose, Twist, WheelVelocities
 
-__all__ = ["COMPILED", "UPDATE_KINDS", "Odometry", "PythonOdometry", "RefusedUpdateError"]
+__all__ = [
+    "COMPILED",
+    "UPDATE_KINDS",
+    "Odometry",
+    "PythonOdometry",
+    "RefusedUpdateError",
+    "offset_jacobian",
+]
 
 # The C core when it was built (pip builds it where a C compiler is found), else its
 # pure-Python twin; DIFFDRIVE_PURE_PYTHON=1 asks for the twin anyway.
@@ -88,7 +95,7 @@ class _OdometryMethods(_Base):
 
     def __init__(
         self,
-        robot: DiffDrive | SkidSteer,
+        robot: Robot,
         method: Method = "exact",
         initial_pose: Pose | None = None,
         ticks_per_revolution: float | None = None,
@@ -100,8 +107,10 @@ class _OdometryMethods(_Base):
         initial_covariance: object = None,
         velocity_window: float = 0.1,
     ) -> None:
-        if not isinstance(robot, DiffDrive | SkidSteer):
-            raise TypeError(f"robot must be a DiffDrive or SkidSteer, got {type(robot).__name__}")
+        if not isinstance(robot, Robot):
+            raise TypeError(
+                f"robot must be a robot model (DiffDrive, SkidSteer), got {type(robot).__name__}"
+            )
         check_method(method)
         counter_bits = check_counter_bits(counter_bits)
         rad_per_tick = 0.0
@@ -122,10 +131,10 @@ class _OdometryMethods(_Base):
         self.method: Method = method
         self.ticks_per_revolution = ticks_per_revolution
         self.counter_bits = counter_bits
-        # A skid-steer robot runs as its equivalent drive, whose reference point lies
-        # ``_offset`` m left of the body origin; poses and covariances are moved back.
-        geometry: DiffDrive = robot.equivalent if isinstance(robot, SkidSteer) else robot
-        self._offset = robot.reference_offset if isinstance(robot, SkidSteer) else 0.0
+        # The core runs the equivalent drive, whose reference point lies ``_offset`` m left of
+        # the body origin (a skid-steer robot's ICR midpoint); poses and covariances move back.
+        geometry = robot.equivalent
+        self._offset = robot.reference_offset
         super().__init__(
             geometry.left_wheel_radius,
             geometry.right_wheel_radius,
@@ -172,7 +181,7 @@ class _OdometryMethods(_Base):
         covariance = np.array(self._covariance()).reshape(3, 3)
         if not self._offset:
             return covariance
-        moved = _offset_jacobian(self._state()[2], -self._offset)
+        moved = offset_jacobian(self._state()[2], -self._offset)
         return moved @ covariance @ moved.T
 
     @property
@@ -211,7 +220,7 @@ class _OdometryMethods(_Base):
         if np.linalg.eigvalsh(matrix).min() < -1e-12 * max(1.0, np.abs(matrix).max()):
             raise ValueError("covariance must be positive semi-definite")
         if self._offset:  # to the equivalent drive's reference point
-            moved = _offset_jacobian(pose.theta, self._offset)
+            moved = offset_jacobian(pose.theta, self._offset)
             pose, matrix = pose.compose(Pose(0.0, self._offset)), moved @ matrix @ moved.T
         self._set_pose(pose.x, pose.y, pose.theta, tuple(matrix.ravel().tolist()))
 
@@ -247,7 +256,7 @@ class _OdometryMethods(_Base):
         if self._offset:
             from diffdrive import batch
 
-            moved = _offset_jacobian(poses[:, 2], -self._offset)
+            moved = offset_jacobian(poses[:, 2], -self._offset)
             poses = batch.compose(poses, np.array([0.0, -self._offset, 0.0]))
             if covariances is not None:
                 covariances = moved @ covariances @ np.swapaxes(moved, -1, -2)
@@ -264,13 +273,19 @@ class _OdometryMethods(_Base):
         by_pose, by_wheels = self._jacobians(left, right)
         pose_jacobian = np.array(by_pose).reshape(3, 3)
         wheel_jacobian = np.array(by_wheels).reshape(3, 2)
-        if isinstance(self.robot, SkidSteer):  # through the equivalent drive, and back
-            geometry, theta = self.robot.equivalent, self._state()[2]
-            turn = (geometry.right_wheel_radius * right - geometry.left_wheel_radius * left) / (
-                geometry.track_width
-            )
-            back = _offset_jacobian(theta + turn, -self._offset)
-            pose_jacobian = back @ pose_jacobian @ _offset_jacobian(theta, self._offset)
+        if self._offset:  # through the equivalent drive, and back
+            theta = self._state()[2]
+            drive = self.robot.equivalent
+            turn = wheel_move(
+                drive.left_wheel_radius,
+                drive.right_wheel_radius,
+                drive.track_width,
+                drive.axle_offset,
+                left,
+                right,
+            )[2]
+            back = offset_jacobian(theta + turn, -self._offset)
+            pose_jacobian = back @ pose_jacobian @ offset_jacobian(theta, self._offset)
             wheel_jacobian = back @ wheel_jacobian
         return pose_jacobian, wheel_jacobian
 
@@ -287,8 +302,9 @@ class PythonOdometry(_OdometryMethods, odometry_python.OdometryCore):
     results, slower (for tests, and where a C compiler never ran)."""
 
 
-def _offset_jacobian(theta: object, offset: float) -> np.ndarray:
-    """d(pose composed with (0, offset, 0))/d(pose) at headings ``theta``: ``(..., 3, 3)``."""
+def offset_jacobian(theta: object, offset: float) -> np.ndarray:
+    """d(pose composed with (0, offset, 0))/d(pose) at headings ``theta``: ``(..., 3, 3)``:
+    how a covariance moves between a model's body origin and its equivalent drive's point."""
     theta = np.asarray(theta, dtype=float)
     jacobian = np.broadcast_to(np.eye(3), (*theta.shape, 3, 3)).copy()
     jacobian[..., 0, 2] = -offset * np.cos(theta)

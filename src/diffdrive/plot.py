@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch
-from diffdrive.skid_steer import Robot
+from diffdrive.model import Robot
 
 __all__ = ["animate", "animation_writer", "plot_trajectory", "wheel_velocities_of"]
 

@@ -25,10 +25,10 @@ import numpy as np
 from diffdrive import batch
 from diffdrive._arrays import components, device, floating, namespace
 from diffdrive.batch.kinematics import WHEELS
+from diffdrive.batch.rollout import travel as prefix_travel
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
-from diffdrive.model import DiffDrive
-from diffdrive.skid_steer import SkidSteer
+from diffdrive.model import Robot
 from diffdrive.trajectory import Trajectory
 
 __all__ = ["integrate_increments", "simulate"]
@@ -126,13 +126,7 @@ def _integrate_blocks(block_increments, start: np.ndarray, method: Method, poses
 def _integrate_block(inc: np.ndarray, carry: np.ndarray, method: Method, out: np.ndarray):
     """Write the poses after each step of one block into ``out``; return the float64 carry."""
     delta = batch.delta(inc, 1.0, method).astype(np.float64, copy=False)
-    turn = np.cumsum(delta[..., 2], axis=-1)
-    heading = carry[..., None, 2] + (turn - delta[..., 2])  # at the start of each step
-    c, s = np.cos(heading), np.sin(heading)
-    dx, dy = delta[..., 0], delta[..., 1]
-    x, y = np.cumsum(c * dx - s * dy, axis=-1), np.cumsum(s * dx + c * dy, axis=-1)
-    # x and y take the carry's leading axes (a pose per robot); turn may not have them yet.
-    travel = np.stack([x, y, np.broadcast_to(turn, x.shape)], axis=-1)
+    travel = prefix_travel(delta, carry[..., 2])
     out[...] = carry[..., None, :] + travel
     # The carry continues from the float64 sums, not from ``out``, which may be float32.
     return carry + travel[..., -1, :]
@@ -201,7 +195,7 @@ def _sample_function(function: WheelFunction, times: np.ndarray, name: str) -> n
 
 
 def simulate(
-    robot: DiffDrive | SkidSteer,
+    robot: Robot,
     wheel_velocities: object = None,
     *,
     wheel_positions: object = None,
@@ -403,9 +397,8 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
     """
     from diffdrive.backends.simulate_kernel import integrate_history
 
-    offset = 0.0
-    if isinstance(robot, SkidSteer):  # its equivalent drive moves the ICRs' midpoint
-        robot, offset = robot.equivalent, robot.reference_offset
+    offset, robot = robot.reference_offset, robot.equivalent
+    if offset:  # the equivalent drive moves the point (0, offset) of the body
         start = batch.compose(start, np.array([0.0, offset, 0.0]))
     leading, samples = poses.shape[:-2], poses.shape[-2]
     robots = math.prod(leading)

@@ -26,12 +26,13 @@ it and move the poses back to the body origin, exactly (a rigid offset).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from diffdrive._validate import finite, positive
 from diffdrive.model import DiffDrive, path_radius, wheel_radii
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
-__all__ = ["Robot", "SkidSteer"]
+__all__ = ["SkidSteer"]
 
 
 @dataclass(frozen=True, slots=True, init=False)
@@ -49,6 +50,10 @@ class SkidSteer:
     icr_right: float
     icr_x: float
     wheels_per_side: int
+
+    # Calibration may widen the ICR spread to 3 times its nominal value (1.5 to 2 times the
+    # wheels' track is common).
+    TRACK_RANGE: ClassVar[tuple[float, float]] = (0.5, 3.0)
 
     def __init__(
         self,
@@ -116,6 +121,35 @@ class SkidSteer:
                          right_wheel_radius=self.right_wheel_radius, track_width=self.icr_spread,
                          axle_offset=-self.icr_x)  # fmt: skip
 
+    def with_geometry(
+        self,
+        left_wheel_radius: float,
+        right_wheel_radius: float,
+        track_width: float,
+        axle_offset: float | None = None,
+    ) -> SkidSteer:
+        """This robot with other wheel radii and ICR spread ``track_width`` (m) about the same
+        midpoint; ``axle_offset``, if given, is the equivalent drive's (``icr_x`` is minus it)."""
+        middle = self.reference_offset
+        return SkidSteer(
+            left_wheel_radius=left_wheel_radius,
+            right_wheel_radius=right_wheel_radius,
+            icr_left=middle + 0.5 * track_width,
+            icr_right=middle - 0.5 * track_width,
+            icr_x=self.icr_x if axle_offset is None else -axle_offset,
+            wheels_per_side=self.wheels_per_side,
+        )
+
+    def settings(self) -> dict[str, float]:
+        """The robot file's keys for this robot (``diffdrive.io.write_robot``)."""
+        return {
+            "left_wheel_radius": self.left_wheel_radius,
+            "right_wheel_radius": self.right_wheel_radius,
+            "icr_left": self.icr_left,
+            "icr_right": self.icr_right,
+            "icr_x": self.icr_x,
+        }
+
     def side_velocities(self, left: object, right: object) -> WheelVelocities:
         """The sides' wheel velocities (rad/s): the mean of ``wheels_per_side`` each."""
         sides = []
@@ -153,6 +187,3 @@ class SkidSteer:
     def from_reference(self, pose: object) -> Pose:
         """The body pose for the equivalent drive's pose ``pose``."""
         return Pose.coerce(pose, "pose").compose(Pose(0.0, -self.reference_offset, 0.0))
-
-
-Robot = DiffDrive | SkidSteer  # what the whole-path functions take: either kind of robot

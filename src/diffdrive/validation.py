@@ -26,7 +26,7 @@ from diffdrive.calibration import (
 )
 from diffdrive.evaluation import RunErrors, run_errors, worst
 from diffdrive.io.run import Run
-from diffdrive.skid_steer import Robot
+from diffdrive.model import Robot
 
 __all__ = ["CrossValidation", "Fold", "cross_validate"]
 

@@ -13,21 +13,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from diffdrive._step import METHOD_FLAGS, sinc, wheel_move
+from diffdrive._step import METHOD_FLAGS, move_jacobians, wheel_move
 
 __all__ = ["OdometryCore"]
 
 WINDOW_SAMPLES = 1024  # the velocity window keeps samples window / 1024 s apart at least
 _INT64 = (-(1 << 63), (1 << 63) - 1)
 Covariance = tuple[float, float, float, float, float, float, float, float, float]
-
-
-def _sinc_derivative(u: float) -> float:
-    """d/du of sin(u)/u, with its Taylor form near 0 where the closed form cancels."""
-    if abs(u) < 0.05:
-        u2 = u * u
-        return -u / 3.0 * (1.0 - u2 / 10.0 * (1.0 - u2 / 28.0 * (1.0 - u2 / 54.0)))
-    return (u * math.cos(u) - math.sin(u)) / (u * u)
 
 
 def _add(total: float, compensation: float, term: float) -> tuple[float, float]:
@@ -134,27 +126,16 @@ class OdometryCore:
     # -- the maths of one step --------------------------------------------------------------
 
     def _step(self, theta: float, dl: float, dr: float):
-        forward, sideways, turn = wheel_move(
-            self._r_left, self._r_right, self._track, self._axle, dl, dr
+        forward, _, turn = wheel_move(self._r_left, self._r_right, self._track, self._axle, dl, dr)
+        dx, dy, by_forward, by_turn = move_jacobians(
+            forward, self._axle, turn, self._weight, self._chord, theta
         )
-        weight = self._weight
-        angle = theta + weight * turn
-        ca, sa = math.cos(angle), math.sin(angle)
-        scale, scale_slope = 1.0, 0.0
-        if self._chord:
-            scale = sinc(0.5 * turn)
-            scale_slope = 0.5 * _sinc_derivative(0.5 * turn)
-        gx, gy = ca * forward - sa * sideways, sa * forward + ca * sideways
-        dx, dy = scale * gx, scale * gy
         jac_pose = [1.0, 0.0, -dy, 0.0, 1.0, dx, 0.0, 0.0, 1.0]
         jac_wheels = [0.0] * 6
         dturn = (-1.0 / self._track, 1.0 / self._track)
         for w, radius in enumerate((self._r_left, self._r_right)):
-            df, dside, da = 0.5, self._axle * dturn[w], weight * dturn[w]
-            dgx = ca * df - sa * dside - gy * da
-            dgy = sa * df + ca * dside + gx * da
-            jac_wheels[w] = radius * (scale_slope * dturn[w] * gx + scale * dgx)
-            jac_wheels[2 + w] = radius * (scale_slope * dturn[w] * gy + scale * dgy)
+            jac_wheels[w] = radius * (0.5 * by_forward[0] + dturn[w] * by_turn[0])
+            jac_wheels[2 + w] = radius * (0.5 * by_forward[1] + dturn[w] * by_turn[1])
             jac_wheels[4 + w] = radius * dturn[w]
         return dx, dy, turn, jac_pose, jac_wheels
 

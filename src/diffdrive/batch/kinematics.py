@@ -8,19 +8,22 @@ methods; leading axes broadcast and the floating dtype is kept.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, cast
 
-from diffdrive._arrays import components, finite_positive_dt, leading_shape, namespace
+from diffdrive._arrays import components, device, finite_positive_dt, leading_shape, namespace
+from diffdrive._step import wheel_move
 from diffdrive.batch.se2 import TWIST
-from diffdrive.model import DiffDrive
-from diffdrive.skid_steer import SkidSteer
+from diffdrive.model import Robot
 
 __all__ = [
     "advance_wheel_positions",
+    "geometry_of",
     "instantaneous_center",
     "to_twist",
     "to_wheel_velocities",
     "turning_radius",
+    "wheel_map",
     "wheel_velocities_from_positions",
 ]
 
@@ -31,40 +34,61 @@ def _wheels(xp: Any, value: object, name: str = "wheels") -> Any:
     return components(xp, value, name, WHEELS)
 
 
-def to_twist(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
-    """Body twists ``(..., 3)`` from wheel velocities ``(..., 2)`` (forward kinematics).
+def geometry_of(robot: Robot) -> tuple[float, float, float, float]:
+    """``(left_wheel_radius, right_wheel_radius, track_width, axle_offset)`` of the robot's
+    equivalent drive: the row ``wheel_map`` and the kernels take."""
+    drive = robot.equivalent
+    return (drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width, drive.axle_offset)
 
-    A ``SkidSteer`` goes through its equivalent drive, its twist moved to the body origin.
-    """
+
+def wheel_map(geometry: Any, wheels: Any, shift: float = 0.0) -> Any:
+    """``_step.wheel_move`` over arrays: body twists ``(..., 3)`` from wheel velocities
+    ``(..., 2)`` (or angle increments to twist increments), for a ``geometry`` array ``(..., 3)``
+    or ``(..., 4)`` ``[r_left, r_right, track, axle_offset]`` that broadcasts against
+    ``wheels[..., 0]``. ``shift`` (m) moves the twist from the equivalent drive's reference
+    point to a point that far right of it (a model's ``reference_offset``)."""
+    xp = namespace(wheels)
+    offset = geometry[..., 3] if geometry.shape[-1] == 4 else 0.0
+    # The scalar step's own function: its arithmetic holds for arrays as it is.
+    forward, sideways, turn = cast("Callable[..., tuple[Any, Any, Any]]", wheel_move)(
+        geometry[..., 0],
+        geometry[..., 1],
+        geometry[..., 2],
+        offset,
+        wheels[..., 0],
+        wheels[..., 1],
+    )
+    if shift:
+        forward = forward + shift * turn
+    return xp.stack([forward, xp.broadcast_to(sideways, turn.shape), turn], axis=-1)
+
+
+def to_twist(robot: Robot, wheels: object) -> Any:
+    """Body twists ``(..., 3)`` from wheel velocities ``(..., 2)`` (forward kinematics): the
+    robot's equivalent drive, its twist moved to the body origin."""
     xp = namespace(wheels)
     w = _wheels(xp, wheels)
-    drive: DiffDrive = robot.equivalent if isinstance(robot, SkidSteer) else robot
-    shift = robot.reference_offset if isinstance(robot, SkidSteer) else 0.0
-    left = drive.left_wheel_radius * w[..., 0]
-    right = drive.right_wheel_radius * w[..., 1]
-    omega = (right - left) / drive.track_width
-    forward = 0.5 * (right + left) + shift * omega if shift else 0.5 * (right + left)
-    return xp.stack([forward, drive.axle_offset * omega, omega], axis=-1)
+    geometry = xp.asarray(geometry_of(robot), dtype=w.dtype, device=device(w))
+    return wheel_map(geometry, w, robot.reference_offset)
 
 
-def to_wheel_velocities(robot: DiffDrive | SkidSteer, twists: object) -> Any:
+def to_wheel_velocities(robot: Robot, twists: object) -> Any:
     """Wheel velocities ``(..., 2)`` that drive ``twists`` ``(..., 3)``; ``vy`` is not used."""
     xp = namespace(twists)
     v = components(xp, twists, "twists", TWIST)
-    if isinstance(robot, SkidSteer):  # its equivalent drive, at its reference point
-        shift, robot = robot.reference_offset, robot.equivalent
-        v = xp.stack([v[..., 0] - shift * v[..., 2], v[..., 1], v[..., 2]], axis=-1)
-    half_turn = 0.5 * robot.track_width * v[..., 2]
+    drive, shift = robot.equivalent, robot.reference_offset
+    forward = v[..., 0] - shift * v[..., 2] if shift else v[..., 0]  # at the reference point
+    half_turn = 0.5 * drive.track_width * v[..., 2]
     return xp.stack(
         [
-            (v[..., 0] - half_turn) / robot.left_wheel_radius,
-            (v[..., 0] + half_turn) / robot.right_wheel_radius,
+            (forward - half_turn) / drive.left_wheel_radius,
+            (forward + half_turn) / drive.right_wheel_radius,
         ],
         axis=-1,
     )
 
 
-def turning_radius(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
+def turning_radius(robot: Robot, wheels: object) -> Any:
     """Signed radius ``(...)`` of the axle midpoint's path, m: ``v/omega``.
 
     ``+-inf`` driving straight, 0 spinning in place, NaN standing still.
@@ -78,12 +102,12 @@ def turning_radius(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
     return xp.where(turning, radius, straight)
 
 
-def instantaneous_center(robot: DiffDrive | SkidSteer, wheels: object) -> Any:
-    """Instantaneous centres of curvature ``(..., 2)`` in the body frame, m: on the axle line
-    (``x = -axle_offset``), or for a ``SkidSteer`` at ``x = icr_x``."""
+def instantaneous_center(robot: Robot, wheels: object) -> Any:
+    """Instantaneous centres of curvature ``(..., 2)`` in the body frame, m: on the equivalent
+    drive's axle line (``x = -axle_offset``; a ``SkidSteer``'s ``icr_x``)."""
     xp = namespace(wheels)
     radius = turning_radius(robot, wheels)
-    x = robot.icr_x if isinstance(robot, SkidSteer) else -robot.axle_offset
+    x = -robot.equivalent.axle_offset
     return xp.stack([xp.full_like(radius, x), radius], axis=-1)
 
 

@@ -23,21 +23,20 @@ from typing import Any
 
 from diffdrive._arrays import components, device, floating, namespace
 from diffdrive.batch.integrate import delta
-from diffdrive.batch.kinematics import WHEELS, to_twist
+from diffdrive.batch.kinematics import WHEELS, to_twist, wheel_map
 from diffdrive.batch.se2 import POSE, TWIST
 from diffdrive.integrate import Method, check_method
-from diffdrive.model import DiffDrive
-from diffdrive.skid_steer import SkidSteer
+from diffdrive.model import Robot
 
-__all__ = ["GEOMETRY", "accumulate", "rollout", "twists"]
+__all__ = ["GEOMETRY", "accumulate", "rollout", "travel", "twists"]
 
 GEOMETRY = "left_wheel_radius, right_wheel_radius, track_width, axle_offset"
 
 
-def twists(geometry: DiffDrive | SkidSteer | object, wheels: object) -> Any:
+def twists(geometry: Robot | object, wheels: object) -> Any:
     """Body twists ``(..., T, 3)`` from wheel velocities ``(..., T, 2)`` and a geometry (see
     the module); an array geometry's leading axes broadcast against the wheels' (not ``T``)."""
-    if isinstance(geometry, DiffDrive | SkidSteer):
+    if isinstance(geometry, Robot):
         return to_twist(geometry, wheels)
     xp = namespace(wheels, geometry)
     w = components(xp, wheels, "wheels", WHEELS)
@@ -45,11 +44,22 @@ def twists(geometry: DiffDrive | SkidSteer | object, wheels: object) -> Any:
     if g.ndim == 0 or g.shape[-1] not in (3, 4):
         raise ValueError(f"geometry must have shape (..., 3) or (..., 4) [{GEOMETRY}], "
                          f"got {tuple(g.shape)}")  # fmt: skip
-    g = g[..., None, :]  # a geometry per history, the same at every step
-    left, right = g[..., 0] * w[..., 0], g[..., 1] * w[..., 1]
-    omega = (right - left) / g[..., 2]
-    sideways = g[..., 3] * omega if g.shape[-1] == 4 else xp.zeros_like(omega)
-    return xp.stack([0.5 * (left + right), sideways, omega], axis=-1)
+    return wheel_map(g[..., None, :], w)  # a geometry per history, the same at every step
+
+
+def travel(moves: Any, heading: Any) -> Any:
+    """The prefix sum, written once: the world-frame travel ``(..., T, 3)`` from the start
+    after each of the body-frame moves ``(..., T, 3)`` (``delta``'s), starting at ``heading``
+    ``(...)`` rad. Each move turns by the turns before it; the positions are the sums."""
+    xp = namespace(moves, heading)
+    turn = xp.cumulative_sum(moves[..., 2], axis=-1)
+    start = heading[..., None] + (turn - moves[..., 2])  # the heading at each step's start
+    c, s = xp.cos(start), xp.sin(start)
+    dx, dy = moves[..., 0], moves[..., 1]
+    x = xp.cumulative_sum(c * dx - s * dy, axis=-1)
+    y = xp.cumulative_sum(s * dx + c * dy, axis=-1)
+    # x and y take the heading's leading axes (one per robot); turn may not have them yet.
+    return xp.stack([x, y, xp.broadcast_to(turn, x.shape)], axis=-1)
 
 
 def accumulate(increments: object, initial_pose: object = None, method: Method = "exact") -> Any:
@@ -64,21 +74,13 @@ def accumulate(increments: object, initial_pose: object = None, method: Method =
         start = xp.zeros(3, dtype=inc.dtype, device=device(inc))
     else:
         start = xp.astype(components(xp, initial_pose, "initial_pose", POSE), inc.dtype)
-    moves = delta(inc, 1.0, method)
-    turn = xp.cumulative_sum(moves[..., 2], axis=-1)
-    heading = start[..., None, 2] + (turn - moves[..., 2])  # at the start of each step
-    c, s = xp.cos(heading), xp.sin(heading)
-    dx, dy = moves[..., 0], moves[..., 1]
-    x = xp.cumulative_sum(c * dx - s * dy, axis=-1)
-    y = xp.cumulative_sum(s * dx + c * dy, axis=-1)
-    travel = xp.stack([x, y, xp.broadcast_to(turn, x.shape)], axis=-1)
-    after = start[..., None, :] + travel
+    after = start[..., None, :] + travel(delta(inc, 1.0, method), start[..., 2])
     first = xp.broadcast_to(start[..., None, :], (*after.shape[:-2], 1, 3))
     return xp.concat([first, after], axis=-2)
 
 
 def rollout(
-    geometry: DiffDrive | SkidSteer | object,
+    geometry: Robot | object,
     wheel_velocities: object,
     dt: object,
     initial_pose: object = None,

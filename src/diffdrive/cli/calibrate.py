@@ -25,9 +25,8 @@ from diffdrive.examples import (
 )
 from diffdrive.integrate import METHODS, Method
 from diffdrive.io import TableError, write_robot
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, Robot
 from diffdrive.simulation import simulate
-from diffdrive.skid_steer import Robot, SkidSteer
 
 
 def _mirrored_example(t: np.ndarray) -> np.ndarray:
@@ -78,13 +77,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                        square_side=args.square_side, names=names, fixed=fixed, extra=extra,
                        window=args.window,
                        progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
-    robot = result.robot
-    settings = {"left_wheel_radius": robot.left_wheel_radius,
-                "right_wheel_radius": robot.right_wheel_radius}  # fmt: skip
-    if isinstance(robot, SkidSteer):
-        settings.update(icr_left=robot.icr_left, icr_right=robot.icr_right, icr_x=robot.icr_x)
-    else:
-        settings.update(track_width=robot.track_width, axle_offset=robot.axle_offset)
+    settings = result.robot.settings()
     if ticks is not None:
         settings["ticks_per_revolution"] = ticks
     write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")
@@ -133,8 +126,8 @@ def calibration_report(nominal: Robot, result, runs, integration: Method) -> str
     before = worst([run_errors(odometry_of(nominal, i, t[0], integration), t) for i, t in runs])
     after = worst([run_errors(odometry_of(result.robot, i, t[0] + shift, integration), t)
                    for i, t in runs])  # fmt: skip
-    offsets = [getattr(robot, "axle_offset", 0.0) for robot in (nominal, result.robot)]
-    if offsets[0] != offsets[1]:  # fitted (a SkidSteer has icr_x instead)
+    offsets = [robot.equivalent.axle_offset for robot in (nominal, result.robot)]
+    if offsets[0] != offsets[1]:  # fitted (a SkidSteer's is -icr_x)
         lines.append(f"{'axle_offset':20} {offsets[0]:10.6f} {offsets[1]:11.6f}")
     if result.heading_offset:
         lines.append(

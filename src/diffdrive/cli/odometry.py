@@ -24,9 +24,8 @@ from diffdrive.cli.options import (
 )
 from diffdrive.cli.report import error_summary
 from diffdrive.io import Run, TableError, is_bag
-from diffdrive.model import DiffDrive
+from diffdrive.model import Robot
 from diffdrive.odometry import Odometry, RefusedUpdateError, UpdateKind
-from diffdrive.skid_steer import SkidSteer
 from diffdrive.types import Pose
 
 
@@ -37,9 +36,6 @@ def run_odometry(args: argparse.Namespace) -> int:
     increments, note = checked_increments(args, log, robot, ticks)
     gyro = _gyro(args, log)
     if gyro is not None:
-        if isinstance(robot, SkidSteer):
-            raise ValueError("the gyro heading takes a differential drive (track_width), not a "
-                             "skid-steer robot file (icr_left, icr_right)")  # fmt: skip
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
@@ -101,7 +97,7 @@ def _gyro(args, log: Run):
     return None
 
 
-def _gyro_odometry(args, robot: DiffDrive, log: Run, ticks, gyro, note: str) -> int:
+def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
     from diffdrive.gyro import gyro_odometry
 

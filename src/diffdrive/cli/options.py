@@ -32,11 +32,11 @@ from diffdrive.io import (
     read_robot,
     read_run,
     read_trajectory,
+    robot_from_settings,
     write_trajectory,
 )
-from diffdrive.model import DiffDrive
+from diffdrive.model import Robot
 from diffdrive.simulation import simulate
-from diffdrive.skid_steer import Robot, SkidSteer
 
 ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
 
@@ -123,7 +123,7 @@ def output_options(default: str) -> argparse.ArgumentParser:
     return options
 
 
-def robot_from(args: argparse.Namespace) -> tuple[DiffDrive | SkidSteer, float | None]:
+def robot_from(args: argparse.Namespace) -> tuple[Robot, float | None]:
     """The robot of the command's options, and its ticks per revolution if known."""
     settings: dict[str, Any] = dict(read_robot(args.robot)) if args.robot else {}
     for name in ROBOT_KEYS:
@@ -137,16 +137,7 @@ def robot_from(args: argparse.Namespace) -> tuple[DiffDrive | SkidSteer, float |
         raise ValueError(f"ticks_per_revolution must be finite and > 0, got {ticks!r}")
     if not settings:
         return example_robot(), ticks
-    where = f" (in {args.robot})" if args.robot else ""
-    try:
-        if any(key.startswith("icr_") for key in settings):  # a skid-steer robot
-            if {"track_width", "half_track", "axle_offset"} & settings.keys():
-                raise ValueError("a skid-steer robot has icr_left, icr_right and icr_x instead "
-                                 "of track_width, half_track and axle_offset")  # fmt: skip
-            return SkidSteer(**settings), ticks
-        return DiffDrive(**settings), ticks
-    except ValueError as exc:
-        raise ValueError(f"robot{where}: {exc}") from None
+    return robot_from_settings(settings, f" (in {args.robot})" if args.robot else ""), ticks
 
 
 OutputFormat = Literal["csv", "jsonl", "tum", "mcap", "ros2"]

@@ -16,9 +16,8 @@ from diffdrive.examples import (
 )
 from diffdrive.integrate import METHODS
 from diffdrive.io import atomic_output, write_trajectory
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, Robot
 from diffdrive.simulation import simulate
-from diffdrive.skid_steer import Robot
 from diffdrive.types import WheelVelocities
 
 # (label, left, right) wheel velocities in rad/s that show the characteristic motions.

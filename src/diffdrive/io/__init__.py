@@ -17,7 +17,7 @@ the line and column when known; every writer leaves the target as it was when it
 from diffdrive.io.atomic import atomic_output, atomic_write
 from diffdrive.io.logs import read_log
 from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
-from diffdrive.io.robots import ROBOT_KEYS, read_robot, write_robot
+from diffdrive.io.robots import ROBOT_KEYS, read_robot, robot_from_settings, write_robot
 from diffdrive.io.run import WHEEL_COLUMNS, Run, WheelKind, is_bag, narrower_counter, read_run
 from diffdrive.io.tables import TIME_UNITS, TableError, read_table
 from diffdrive.io.trajectories import FORMATS, read_trajectory, write_trajectory
@@ -42,6 +42,7 @@ __all__ = [
     "read_run",
     "read_table",
     "read_trajectory",
+    "robot_from_settings",
     "write_robot",
     "write_trajectory",
 ]

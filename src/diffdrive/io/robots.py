@@ -5,11 +5,14 @@ from __future__ import annotations
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 from diffdrive.io.atomic import atomic_write
 from diffdrive.io.tables import TableError
+from diffdrive.model import DiffDrive, Robot
+from diffdrive.skid_steer import SkidSteer
 
-__all__ = ["ROBOT_KEYS", "read_robot", "write_robot"]
+__all__ = ["ROBOT_KEYS", "read_robot", "robot_from_settings", "write_robot"]
 
 # What a robot file may set: the DiffDrive's arguments, and the encoders' resolution.
 ROBOT_KEYS = (
@@ -70,3 +73,20 @@ def write_robot(path: str | Path, settings: dict[str, float], comment: str = "")
     with atomic_write(path) as stream:
         stream.writelines(f"# {line}\n" for line in comment.splitlines())
         stream.writelines(f"{key} = {float(value)!r}\n" for key, value in settings.items())
+
+
+def robot_from_settings(settings: dict[str, Any], where: str = "") -> Robot:
+    """The robot model a robot file's settings describe (``ROBOT_KEYS`` less the ticks): a
+    ``SkidSteer`` by its ICRs, else a ``DiffDrive``. ``ValueError`` names ``where`` (e.g.
+    ``" (in robot.toml)"``) and what is wrong."""
+    try:
+        if any(key.startswith("icr_") for key in settings):
+            if {"track_width", "half_track", "axle_offset"} & settings.keys():
+                raise ValueError(
+                    "a skid-steer robot has icr_left, icr_right and icr_x instead of "
+                    "track_width, half_track and axle_offset"
+                )
+            return SkidSteer(**settings)
+        return DiffDrive(**settings)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"robot{where}: {exc}") from None
