@@ -278,7 +278,7 @@ def _link(llvm: Any, machine: Any, code: bytes, symbol: str) -> Callable[..., No
 def _store(name: str, code: bytes, record: dict) -> None:
     """Write a cache entry to the first folder that takes it (none: the code is not kept, and
     the next process compiles again)."""
-    from diffdrive.io.atomic import atomic_output, atomic_write
+    from diffdrive.atomic import atomic_output, atomic_write
 
     for folder in _folders():
         try:

@@ -1,24 +1,27 @@
 """Files in and out: every format diffdrive reads or writes, and the one ``Run`` type.
 
-- ``run``: ``Run``, a robot's wheels over time with ground truth where there is one, and
-  ``read_run`` for any file that holds one (a table, an OptiOdom file, a bag);
+- ``run``: ``Run``, a robot's wheels over time with ground truth where there is one;
+  ``read``: ``read_run`` for any file that holds one (a table, an OptiOdom file, a bag);
+  ``sniff``: which kind of file a path is;
 - ``tables``: text tables of numbers as loggers and spreadsheets write them (the one parser
   the others share), with their time units;
 - ``logs``: wheel-log tables; ``optiodom``: the OptiOdom run files (Sousa et al. 2022);
 - ``trajectories``: ``t, x, y, theta`` as CSV, JSON lines or TUM, or a bag's topic;
 - ``robots``: robot files (TOML);
 - ``ros``: ROS 1 bags, ROS 2 bags and MCAP files (the ``ros`` extra), loaded on first use;
-- ``atomic``: the atomic writes every writer goes through.
+- ``diffdrive.atomic`` (re-exported here): the atomic writes every writer goes through.
 
 Every reader refuses a bad file with ``TableError`` (a ``ValueError``) naming the file, and
 the line and column when known; every writer leaves the target as it was when it fails.
 """
 
-from diffdrive.io.atomic import atomic_output, atomic_write
+from diffdrive.atomic import atomic_output, atomic_write
 from diffdrive.io.logs import read_log
 from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
+from diffdrive.io.read import read_run
 from diffdrive.io.robots import ROBOT_KEYS, read_robot, robot_from_settings, write_robot
-from diffdrive.io.run import WHEEL_COLUMNS, Run, WheelKind, is_bag, narrower_counter, read_run
+from diffdrive.io.run import WHEEL_COLUMNS, Run, WheelKind, narrower_counter
+from diffdrive.io.sniff import is_bag
 from diffdrive.io.tables import TIME_UNITS, TableError, read_table
 from diffdrive.io.trajectories import FORMATS, read_trajectory, write_trajectory
 

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from diffdrive.io.atomic import atomic_write
+from diffdrive.atomic import atomic_write
 from diffdrive.io.tables import TableError
 from diffdrive.model import DiffDrive, Robot
 from diffdrive.skid_steer import SkidSteer

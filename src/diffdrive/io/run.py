@@ -2,8 +2,8 @@
 
 One type for every source: a wheel-log table (``diffdrive.io.logs``), an OptiOdom run file
 (``diffdrive.io.optiodom``), a bag's ``sensor_msgs/JointState`` topic (``diffdrive.io.ros``),
-or wheel-angle increments in memory (``Run.from_increments``). ``read_run`` reads any of the
-files. The wheels are one of
+or wheel-angle increments in memory (``Run.from_increments``). ``diffdrive.io.read.read_run``
+reads any of the files. The wheels are one of
 
 - ``"ticks"``: absolute counter readings (whole counts, read exactly);
 - ``"angle"``: accumulated wheel angles, rad;
@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -23,7 +22,7 @@ import numpy as np
 from diffdrive.encoders import count_changes
 from diffdrive.io.tables import TableError
 
-__all__ = ["WHEEL_COLUMNS", "Run", "WheelKind", "is_bag", "narrower_counter", "read_run"]
+__all__ = ["WHEEL_COLUMNS", "Run", "WheelKind", "narrower_counter"]
 
 WheelKind = Literal["ticks", "angle", "velocity"]
 WHEEL_COLUMNS: dict[WheelKind, tuple[str, str]] = {
@@ -149,56 +148,3 @@ def narrower_counter(run: Run, counter_bits: int | None) -> tuple[int, int] | No
     changes = np.abs(count_changes(run.wheels, counter_bits))
     rows = np.flatnonzero(np.any(changes > 2 ** (narrow - 1), axis=1))
     return (narrow, int(rows[0]) + 1) if rows.size else None
-
-
-def is_bag(path: str | Path) -> bool:
-    """Whether ``path`` is a ROS 1 bag, an MCAP file or a ROS 2 bag folder."""
-    path = Path(path)
-    return path.suffix in (".bag", ".mcap") or (path / "metadata.yaml").is_file()
-
-
-def read_run(
-    path: str | Path,
-    time_unit: str | None = None,
-    *,
-    joint_topic: str = "/joint_states",
-    left_joint: str | None = None,
-    right_joint: str | None = None,
-    reference_topic: str | None = None,
-) -> Run:
-    """The run in ``path``: a wheel-log table, an OptiOdom run file, or a bag.
-
-    ``time_unit`` is the unit of a table's ``t`` (``s``, ``ms``, ``us``, ``ns``; None:
-    seconds, refused when plainly not). A bag needs ``left_joint`` and ``right_joint``, the
-    names of the wheel joints on ``joint_topic``; a ``reference_topic`` of it becomes the
-    ground truth, sampled at the run's times along the reference's arcs (the run is cut to
-    the span the reference covers). ``TableError`` names the file, line and column of what
-    is wrong.
-    """
-    if not is_bag(path):
-        if reference_topic is not None:
-            raise TableError(f"{path}: a reference topic needs a bag; this is a log file")
-        from diffdrive.io.logs import read_log
-
-        return read_log(path, time_unit)
-    from diffdrive.io import ros
-    from diffdrive.io.trajectories import read_trajectory
-
-    if left_joint is None or right_joint is None:
-        raise TableError(
-            f"{path}: give the wheel joints by name: --left-joint NAME --right-joint NAME"
-        )
-    run = ros.read_joint_states(path, left_joint, right_joint, joint_topic)
-    if reference_topic is None:
-        return run
-    times, poses = read_trajectory(path, topic=reference_topic)
-    if np.isnan(poses[:, 2]).any():
-        raise TableError(f"{path}: {reference_topic} has no heading; a reference needs one")
-    inside = (run.times >= times[0]) & (run.times <= times[-1])
-    if np.count_nonzero(inside) < 2:
-        raise TableError(f"{path}: {reference_topic} does not span the joint states' times")
-    from diffdrive.evaluation import interpolate
-
-    truth = interpolate(times, poses, run.times[inside])
-    return replace(run.rows(inside), truth=truth,
-                   source=f"{run.source} against {reference_topic}")  # fmt: skip

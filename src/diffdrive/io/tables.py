@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from diffdrive.errors import TableError
+
 __all__ = [
     "TIME_UNITS",
     "Table",
@@ -45,10 +47,6 @@ _EPOCH_LIMIT = 1e11
 # or slower steps by 10 or more. Hand-written histories that hold each row this long need
 # --time-unit s.
 _LONGEST_STEP = 10.0
-
-
-class TableError(ValueError):
-    """A bad input file; the message names the file, and the line and column when known."""
 
 
 class Table(dict):

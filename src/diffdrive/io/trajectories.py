@@ -24,8 +24,8 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive.io.atomic import atomic_output, atomic_write
-from diffdrive.io.run import is_bag
+from diffdrive.atomic import atomic_output, atomic_write
+from diffdrive.io.sniff import is_bag
 from diffdrive.io.tables import (
     TableError,
     check_time_unit,

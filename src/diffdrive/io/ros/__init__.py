@@ -31,7 +31,7 @@ from diffdrive.io.ros.reader import (
     topics,
 )
 from diffdrive.io.ros.writer import BAG_FORMATS, write_odometry
-from diffdrive.io.run import is_bag
+from diffdrive.io.sniff import is_bag
 
 __all__ = [
     "BAG_FORMATS",

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TextIO
 
-from diffdrive.io.tables import TableError
+from diffdrive.errors import TableError
 
 __all__ = ["atomic_output", "atomic_write"]
 

@@ -1,0 +1,60 @@
+"""``read_run``: the run in any file that holds one (a wheel-log table, an OptiOdom run file,
+a bag), with a bag's reference topic as its ground truth."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive.evaluation import interpolate
+from diffdrive.io.logs import read_log
+from diffdrive.io.run import Run
+from diffdrive.io.sniff import is_bag
+from diffdrive.io.tables import TableError
+from diffdrive.io.trajectories import read_trajectory
+
+__all__ = ["read_run"]
+
+
+def read_run(
+    path: str | Path,
+    time_unit: str | None = None,
+    *,
+    joint_topic: str = "/joint_states",
+    left_joint: str | None = None,
+    right_joint: str | None = None,
+    reference_topic: str | None = None,
+) -> Run:
+    """The run in ``path``: a wheel-log table, an OptiOdom run file, or a bag.
+
+    ``time_unit`` is the unit of a table's ``t`` (``s``, ``ms``, ``us``, ``ns``; None:
+    seconds, refused when plainly not). A bag needs ``left_joint`` and ``right_joint``, the
+    names of the wheel joints on ``joint_topic``; a ``reference_topic`` of it becomes the
+    ground truth, sampled at the run's times along the reference's arcs (the run is cut to
+    the span the reference covers). ``TableError`` names the file, line and column of what
+    is wrong.
+    """
+    if not is_bag(path):
+        if reference_topic is not None:
+            raise TableError(f"{path}: a reference topic needs a bag; this is a log file")
+        return read_log(path, time_unit)
+    from diffdrive.io import ros
+
+    if left_joint is None or right_joint is None:
+        raise TableError(
+            f"{path}: give the wheel joints by name: --left-joint NAME --right-joint NAME"
+        )
+    run = ros.read_joint_states(path, left_joint, right_joint, joint_topic)
+    if reference_topic is None:
+        return run
+    times, poses = read_trajectory(path, topic=reference_topic)
+    if np.isnan(poses[:, 2]).any():
+        raise TableError(f"{path}: {reference_topic} has no heading; a reference needs one")
+    inside = (run.times >= times[0]) & (run.times <= times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{path}: {reference_topic} does not span the joint states' times")
+    truth = interpolate(times, poses, run.times[inside])
+    return replace(run.rows(inside), truth=truth,
+                   source=f"{run.source} against {reference_topic}")  # fmt: skip
