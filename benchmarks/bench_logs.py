@@ -22,7 +22,7 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive.cli import main as cli
-from diffdrive.examples import example_robot
+from diffdrive.demo import example_robot
 from timing import median_time  # benchmarks/timing.py
 
 TICKS = 4096

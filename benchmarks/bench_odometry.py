@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.examples import example_robot
+from diffdrive.demo import example_robot
 
 
 def per_call(loops, repeats):
@@ -86,7 +86,7 @@ def main() -> None:
         "diffdrive update_positions": ours(),
         "  with k_left, k_right": ours(k_left=1e-4, k_right=1e-4),
         "  with k and t": ours_timed,
-        "  on the pure-Python core (no C compiler)": ours(dd.odometry.PythonOdometry),
+        "  on the pure-Python core (no C compiler)": ours(dd.estimation.PythonOdometry),
     }
     try:
         from wpimath.geometry import Pose2d, Rotation2d

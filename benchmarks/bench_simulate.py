@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.examples import example_robot
+from diffdrive.demo import example_robot
 from timing import median_time  # benchmarks/timing.py
 
 C_SOURCE = r"""

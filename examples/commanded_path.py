@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.examples import example_robot
+from diffdrive.demo import example_robot
 
 DT = 0.02  # s
 ROBOT = example_robot()

@@ -23,8 +23,8 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive import batch
+from diffdrive.estimation.gyro import HEADINGS, Gyro, gyro_odometry, rotation_from_rpy
 from diffdrive.evaluation import align, ate, interpolate
-from diffdrive.gyro import HEADINGS, Gyro, gyro_odometry, rotation_from_rpy
 from diffdrive.io import ros
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"

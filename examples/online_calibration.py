@@ -23,8 +23,8 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive.calibration import calibrate
+from diffdrive.calibration.online import OnlineCalibrator
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
-from diffdrive.online_calibration import OnlineCalibrator
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = ("circular/231220200141", "circular/250620202345", "free/030120210006")

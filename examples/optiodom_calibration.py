@@ -33,10 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.calibration import calibrate, odometry_of
+from diffdrive.calibration import calibrate
+from diffdrive.calibration.cross_validation import cross_validate
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
-from diffdrive.validation import cross_validate
+from diffdrive.simulation import dead_reckon
 
 ROOT = Path(__file__).resolve().parents[1]
 AUTHORS = {
@@ -67,7 +68,7 @@ def load(folder: Path) -> tuple[dict[str, list], dict[str, dict[str, float]]]:
 
 
 def largest_error(robot, runs) -> float:
-    return worst([run_errors(odometry_of(robot, i, t[0], "rk2"), t) for i, t in runs]).max_position
+    return worst([run_errors(dead_reckon(robot, i, t[0], "rk2"), t) for i, t in runs]).max_position
 
 
 def results(experiments: dict[str, list]) -> dict[str, dict[str, float]]:
@@ -163,7 +164,7 @@ def draw(runs: list, output: Path) -> None:
     figure, ax = plt.subplots(figsize=(7, 6), layout="constrained")
     ax.plot(truth[:, 0], truth[:, 1], color="0.5", linewidth=3, label="ground truth (OptiTrack)")
     for robot, label in [(nominal, "nominal odometry"), (calibrated, "calibrated (minimax)")]:
-        poses = odometry_of(robot, increments, truth[0], "rk2")
+        poses = dead_reckon(robot, increments, truth[0], "rk2")
         error = run_errors(poses, truth).max_position
         ax.plot(poses[:, 0], poses[:, 1], label=f"{label}: max error {1000 * error:.0f} mm")
     ax.plot(*truth[0, :2], "k^", label="start")

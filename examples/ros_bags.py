@@ -22,9 +22,10 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.calibration import calibrate, odometry_of
+from diffdrive.calibration import calibrate
 from diffdrive.evaluation import align, ate, interpolate, run_errors
 from diffdrive.io import read_run, ros
+from diffdrive.simulation import dead_reckon
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
 NOMINAL_TB3 = dd.DiffDrive(wheel_radius=0.033, track_width=0.287)  # the Waffle's datasheet
@@ -39,7 +40,7 @@ def turtlebot3(bags: Path) -> dict:
     result = calibrate(NOMINAL_TB3, [log], "increments")
     found = {}
     for name, robot in (("nominal", NOMINAL_TB3), ("calibrated", result.robot)):
-        poses = odometry_of(robot, increments, log.truth[0])
+        poses = dead_reckon(robot, increments, log.truth[0])
         found[name] = (poses, run_errors(poses, log.truth))
     return {"log": log, "result": result, "runs": found}
 

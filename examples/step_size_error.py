@@ -25,7 +25,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import diffdrive as dd
-from diffdrive.examples import example_robot
+from diffdrive.demo import example_robot
 
 DURATION = 10.0  # s
 COMMAND_PERIOD = 0.1  # s, for the held history

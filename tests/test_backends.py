@@ -18,8 +18,8 @@ import pytest
 
 import diffdrive as dd
 from diffdrive import batch, integrate
+from diffdrive.estimation.odometry import COMPILED, PythonOdometry
 from diffdrive.montecarlo import monte_carlo
-from diffdrive.odometry import COMPILED, PythonOdometry
 
 jax = pytest.importorskip("jax", reason="jax is part of the test extra")
 torch = pytest.importorskip("torch", reason="torch is part of the test extra")

@@ -8,9 +8,10 @@ import pytest
 
 import diffdrive as dd
 from data import data_folder
-from diffdrive.calibration import CalibrationError, calibrate, odometry_of
+from diffdrive.calibration import CalibrationError, calibrate
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
+from diffdrive.simulation import dead_reckon
 
 NOMINAL = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 TRUE = dd.DiffDrive(left_wheel_radius=0.0497, right_wheel_radius=0.0502, track_width=0.306)
@@ -19,7 +20,7 @@ TRUE = dd.DiffDrive(left_wheel_radius=0.0497, right_wheel_radius=0.0502, track_w
 def synthetic_run(robot, wheels, dt=0.05):
     """Increments and the exact poses they drive ``robot`` through."""
     increments = np.asarray(wheels, dtype=float) * dt
-    truth = odometry_of(robot, increments, np.zeros(3), "exact")
+    truth = dead_reckon(robot, increments, np.zeros(3), "exact")
     return increments, truth
 
 
@@ -160,7 +161,7 @@ def test_a_window_of_steps_outweighs_jitter_in_when_the_wheels_are_read():
 
 
 def test_windows_keep_every_step_and_a_short_last_one():
-    from diffdrive.calibration import _windows
+    from diffdrive.calibration.offline import _windows
 
     increments = np.arange(90.0).reshape(45, 2)
     truth = np.arange(46.0)[:, None] * np.ones(3)
@@ -217,7 +218,7 @@ def test_a_window_of_twenty_cycles_fits_the_optiodom_circles(experiment, limit):
 
     def worst_error(window):
         robot = calibrate(optiodom_robot(), runs, "increments", window=window).robot
-        return worst([run_errors(odometry_of(robot, run.increments(), run.truth[0], "rk2"),
+        return worst([run_errors(dead_reckon(robot, run.increments(), run.truth[0], "rk2"),
                                  run.truth) for run in runs]).max_position  # fmt: skip
 
     assert worst_error(20) < limit < 0.3 < worst_error(1)
@@ -246,7 +247,7 @@ def test_minimax_beats_optiodom_on_every_experiment_with_the_papers_protocol():
         runs = runs_of(row["experiment"])
         # The paper's protocol and its odometry method, rk2.
         robot = calibrate(optiodom_robot(), runs, "minimax", integration="rk2").robot
-        errors = worst([run_errors(odometry_of(robot, run.increments(), run.truth[0], "rk2"),
+        errors = worst([run_errors(dead_reckon(robot, run.increments(), run.truth[0], "rk2"),
                                    run.truth) for run in runs])  # fmt: skip
         ours.append(errors.max_position)
         theirs.append(float(row["calib_max_pos_err_m"]))

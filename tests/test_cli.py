@@ -6,7 +6,7 @@ import sys
 import pytest
 
 from diffdrive.cli import kinematics_report, main
-from diffdrive.examples import example_robot
+from diffdrive.demo import example_robot
 
 
 def test_main_job_prints_the_example_robot_and_says_where_the_outputs_went(
@@ -86,7 +86,7 @@ def test_simulate_a_velocity_history_to_each_format(tmp_path, capsys, fmt):
     output = tmp_path / f"out.{fmt}"
     code, _, _ = run(["simulate", history, "-o", output, "--quiet"], capsys)
     assert code == 0
-    robot = dd.examples.example_robot()
+    robot = dd.demo.example_robot()
     expected = dd.simulate(robot, [[8, 10], [10, 8]], times=[0, 0.5, 1.0])
     lines = output.read_text().splitlines()
     if fmt == "csv":

@@ -163,7 +163,7 @@ def test_simulate_and_odometry_agree_on_a_velocity_log(tmp_path, capsys):
     simulated = read_trajectory(tmp_path / "simulate.csv")[1]
     odometry = read_trajectory(tmp_path / "odometry.csv")[1]
     np.testing.assert_allclose(simulated, odometry, atol=1e-12)
-    robot = dd.examples.example_robot()
+    robot = dd.demo.example_robot()
     expected = dd.simulate(robot, np.array([[10.0, 10.0], [5.0, 12.0]]), dt=0.5).poses
     np.testing.assert_allclose(simulated, expected, atol=1e-12)  # held until the next row
 
@@ -216,7 +216,7 @@ def test_spreadsheet_dialects(tmp_path, capsys, text, name):
     log.write_text(text, encoding="utf-8")
     code, _, err = run(["simulate", log, "-o", tmp_path / "o.csv"], capsys)
     assert code == 0, (name, err)
-    twist = dd.examples.example_robot().to_twist((1.0, 2.0))
+    twist = dd.demo.example_robot().to_twist((1.0, 2.0))
     np.testing.assert_allclose(final_pose(tmp_path / "o.csv"), dd.se2.exp(twist).to_array())
 
 
@@ -346,7 +346,8 @@ def test_update_arrays_equals_one_update_at_a_time_and_names_the_refused_row():
     bad_times = times.copy()
     bad_times[150] = bad_times[149]  # time stands still while the wheels move
     fresh = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12)
-    with pytest.raises(dd.odometry.RefusedUpdateError, match="row 150: update_ticks: time") as err:
+    refused = dd.estimation.RefusedUpdateError
+    with pytest.raises(refused, match="row 150: update_ticks: time") as err:
         fresh.update_arrays("ticks", counts[:, 0], counts[:, 1], bad_times)
     assert err.value.row == 150
     np.testing.assert_array_equal(fresh.pose.to_array(), expected[149][:3])

@@ -8,8 +8,9 @@ import pytest
 
 import diffdrive as dd
 from diffdrive import distributed
-from diffdrive.calibration import calibrate, odometry_of
+from diffdrive.calibration import calibrate
 from diffdrive.montecarlo import monte_carlo, plan
+from diffdrive.simulation import dead_reckon
 
 pytest.importorskip("distributed", reason="dask distributed is part of the test extra")
 pytestmark = pytest.mark.slow
@@ -55,7 +56,7 @@ def _run(seed: int):
     wheels = np.tile([0.08, 0.16], (400, 1)) * np.where(np.arange(400) < 200, 1, -1)[:, None]
     wheels = wheels + rng.normal(0, 0.01, wheels.shape)
     true = dd.DiffDrive(left_wheel_radius=0.0497, right_wheel_radius=0.0503, track_width=0.31)
-    return wheels, odometry_of(true, wheels, np.zeros(3))
+    return wheels, dead_reckon(true, wheels, np.zeros(3))
 
 
 def _calibrate(seeds):

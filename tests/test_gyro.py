@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive.gyro import Gyro, GyroNoise, GyroOdometry, gyro_odometry, rotation_from_rpy
+from diffdrive.estimation.gyro import (
+    Gyro,
+    GyroNoise,
+    GyroOdometry,
+    gyro_odometry,
+    rotation_from_rpy,
+)
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 DT = 0.02

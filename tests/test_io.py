@@ -8,8 +8,8 @@ import pytest
 import diffdrive as dd
 from data import data_folder
 from diffdrive.calibration import CalibrationError, calibrate
+from diffdrive.calibration.cross_validation import cross_validate
 from diffdrive.io import Run, TableError, read_run, write_trajectory
-from diffdrive.validation import cross_validate
 
 NOMINAL = dd.DiffDrive(wheel_radius=0.042, track_width=0.2)
 TRUE = dd.DiffDrive(left_wheel_radius=0.0418, right_wheel_radius=0.0423, track_width=0.205)
@@ -84,7 +84,7 @@ def test_a_run_without_ground_truth_is_refused_by_its_source(tmp_path):
 
 
 def test_a_ticks_run_without_its_resolution_is_refused():
-    run = dd.examples.example_log()
+    run = dd.demo.example_log()
     with pytest.raises(TableError, match="ticks need the counts per wheel revolution"):
         calibrate(NOMINAL, [replace(run, ticks_per_revolution=None)])
 

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from diffdrive.odometry import PythonOdometry
+from diffdrive.estimation.odometry import PythonOdometry
 
 ROBOT = dd.DiffDrive(left_wheel_radius=0.049, right_wheel_radius=0.051, track_width=0.31,
                      axle_offset=0.04)  # fmt: skip
@@ -85,7 +85,7 @@ def test_whole_logs_agree_row_by_row_with_the_same_refusal():
     results = []
     for kind in (dd.Odometry, PythonOdometry):
         odometry = kind(ROBOT, ticks_per_revolution=4096, counter_bits=16, max_wheel_speed=50.0)
-        with pytest.raises(dd.odometry.RefusedUpdateError) as refused:
+        with pytest.raises(dd.estimation.RefusedUpdateError) as refused:
             odometry.update_arrays("ticks", *ticks.T, times, covariance=True)
         results.append((refused.value.row, str(refused.value), odometry.pose.to_array()))
     assert results[0][:2] == results[1][:2]
@@ -100,7 +100,7 @@ def test_the_odometry_tests_pass_on_the_twin():
     report was cut off, and never again in dozens of runs: kept out until it can be read)."""
     tests = Path(__file__).resolve().parent
     environment = os.environ | {"DIFFDRIVE_PURE_PYTHON": "1"}
-    check = "import diffdrive.odometry as o; assert not o.COMPILED"
+    check = "import diffdrive.estimation.odometry as o; assert not o.COMPILED"
     subprocess.run([sys.executable, "-c", check], env=environment, check=True)
     modules = [str(tests / f"test_{name}.py") for name in ("odometry", "stateful", "edges")]
     done = subprocess.run(

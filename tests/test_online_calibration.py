@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive.calibration import calibrate, odometry_of
-from diffdrive.online_calibration import OnlineCalibrator
+from diffdrive.calibration import calibrate
+from diffdrive.calibration.online import OnlineCalibrator
+from diffdrive.simulation import dead_reckon
 
 NOMINAL = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 TRUE = dd.DiffDrive(left_wheel_radius=0.0497, right_wheel_radius=0.0502, track_width=0.306)
@@ -18,7 +19,7 @@ def intervals(seed=0, n=4000):
     rng = np.random.default_rng(seed)
     t = np.arange(n) * 0.05
     wheels = np.stack([8 + 4 * np.sin(0.4 * t), 8 - 4 * np.sin(0.3 * t + 1)], -1) * 0.05
-    truth = odometry_of(TRUE, wheels, np.zeros(3))
+    truth = dead_reckon(TRUE, wheels, np.zeros(3))
     relative = dd.batch.relative_to(truth[1:], truth[:-1])
     noisy = relative + rng.normal(0, 2e-4, relative.shape)
     return wheels, noisy, truth

@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from diffdrive.calibration import CalibrationError, calibrate, odometry_of
+from diffdrive.calibration import CalibrationError, calibrate
+from diffdrive.simulation import dead_reckon
 
 ASYMMETRIC = dd.SkidSteer(0.11, 0.45, -0.40, icr_x=0.03)
 WHEELS = np.random.default_rng(0).normal(8, 3, (300, 2))
@@ -100,7 +101,7 @@ def skid_runs(robot):
     t = np.arange(400) * 0.05
     histories = (np.stack([5 + 3 * np.sin(0.5 * t), 5 - 3 * np.sin(0.5 * t)], -1),
                  np.tile([3.0, 7.0], (300, 1)), np.tile([-4.0, 4.0], (100, 1)))  # fmt: skip
-    return [(h * 0.05, odometry_of(robot, h * 0.05, np.zeros(3))) for h in histories]
+    return [(h * 0.05, dead_reckon(robot, h * 0.05, np.zeros(3))) for h in histories]
 
 
 @pytest.mark.parametrize("method", ["least_squares", "increments"])
@@ -115,7 +116,7 @@ def test_calibration_recovers_a_skid_steer_robots_wide_icrs(method):
 
 
 def test_calibration_says_when_straight_runs_cannot_find_the_icr_spread():
-    straight = [(np.tile([0.3, 0.3], (200, 1)), odometry_of(ASYMMETRIC, np.tile([0.3, 0.3],
+    straight = [(np.tile([0.3, 0.3], (200, 1)), dead_reckon(ASYMMETRIC, np.tile([0.3, 0.3],
                                                                                (200, 1)),
                                                               np.zeros(3)))]  # fmt: skip
     with pytest.raises(CalibrationError, match="too little to identify the track_width"):
@@ -162,8 +163,8 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
     """The gyro filter runs the model's equivalent drive as Odometry does: with the heading
     from the wheels its poses are Odometry's, and its covariance is the equivalent drive's
     filter's, moved to the body origin."""
-    from diffdrive.gyro import GyroOdometry
-    from diffdrive.odometry import offset_jacobian
+    from diffdrive.estimation.gyro import GyroOdometry
+    from diffdrive.estimation.odometry import offset_jacobian
 
     start = dd.Pose(0.3, -0.2, 0.4)
     offset = ASYMMETRIC.reference_offset

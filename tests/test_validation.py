@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive.calibration import CalibrationError, odometry_of
-from diffdrive.validation import cross_validate
+from diffdrive.calibration import CalibrationError
+from diffdrive.calibration.cross_validation import cross_validate
+from diffdrive.simulation import dead_reckon
 
 NOMINAL = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 TRUE = dd.DiffDrive(left_wheel_radius=0.0497, right_wheel_radius=0.0502, track_width=0.306)
@@ -14,7 +15,7 @@ TRUE = dd.DiffDrive(left_wheel_radius=0.0497, right_wheel_radius=0.0502, track_w
 def run(wheels, seed):
     """A run of ``TRUE`` with motion-capture noise on its ground truth."""
     increments = np.asarray(wheels, dtype=float) * 0.05
-    truth = odometry_of(TRUE, increments, np.zeros(3))
+    truth = dead_reckon(TRUE, increments, np.zeros(3))
     truth[1:, :2] += np.random.default_rng(seed).normal(0, 0.002, truth[1:, :2].shape)
     return increments, truth
 

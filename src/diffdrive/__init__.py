@@ -1,20 +1,19 @@
 """diffdrive: kinematics, odometry and simulation for differential-drive mobile robots.
 
-Scalar value types and the robot model work on floats; ``diffdrive.batch`` holds the same
-operations over arrays; ``diffdrive.io`` every file format. Conventions: docs/conventions.md.
-The heavier parts (``calibration``, ``evaluation``, ``io``, ``plot``, ...) load on first use
-as attributes, so ``import diffdrive`` stays light.
+Scalar value types and the robot models work on floats; ``diffdrive.batch`` holds the same
+operations over arrays; ``estimation`` the estimators, ``control`` the commands, ``io`` every
+file format. Conventions: docs/conventions.md. The heavier parts (``calibration``,
+``evaluation``, ``io``, ``plot``, ...) load on first use as attributes, so ``import diffdrive``
+stays light.
 """
 
-import importlib
+import importlib as _importlib
 
-from diffdrive import batch, integrate, se2
+from diffdrive import batch, control, estimation, integrate, se2
 from diffdrive.angles import wrap_angle
-from diffdrive.commands import desaturate
-from diffdrive.limiter import Limiter, Limits
+from diffdrive.control import Limiter, Limits, OpenLoopOdometry, desaturate, drive_commands
+from diffdrive.estimation import Odometry
 from diffdrive.model import DiffDrive
-from diffdrive.odometry import Odometry
-from diffdrive.open_loop import OpenLoopOdometry, drive_commands
 from diffdrive.simulation import simulate
 from diffdrive.skid_steer import SkidSteer
 from diffdrive.trajectory import Trajectory
@@ -25,11 +24,10 @@ __version__ = "0.1.0"
 # Submodules loaded when first reached as attributes (dd.calibration, dd.plot, ...).
 _LAZY = (
     "calibration",
+    "demo",
     "distributed",
     "encoders",
     "evaluation",
-    "examples",
-    "gyro",
     "io",
     "learn",
     "montecarlo",
@@ -39,12 +37,13 @@ _LAZY = (
 
 def __getattr__(name: str):
     if name in _LAZY:
-        return importlib.import_module(f"diffdrive.{name}")
+        return _importlib.import_module(f"diffdrive.{name}")
     raise AttributeError(f"module 'diffdrive' has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted([*globals(), *_LAZY])
+    """The public names and the submodules that load on first use, each once."""
+    return sorted({*__all__, *_LAZY})
 
 
 __all__ = [
@@ -61,8 +60,10 @@ __all__ = [
     "WheelVelocities",
     "__version__",
     "batch",
+    "control",
     "desaturate",
     "drive_commands",
+    "estimation",
     "integrate",
     "se2",
     "simulate",

@@ -9,7 +9,7 @@ the robots. Memory is ``N x 3`` plus ``T x 12`` plus one block of ``chunk x bloc
 The errors are those of ``Odometry``'s covariance model, so that the two can be compared:
 
 - each step's wheel travel ``ds`` (m) gets Gaussian noise of variance ``k_left |ds_left|`` and
-  ``k_right |ds_right|`` (``k`` in m; see ``diffdrive.odometry``);
+  ``k_right |ds_right|`` (``k`` in m; see ``diffdrive.estimation.odometry``);
 - each robot's wheel radii and track width are the nominal ones times ``1 + e``, with ``e``
   Gaussian of the relative standard deviations ``geometry_sigma`` (a calibration's
   uncertainty), fixed over the run.

@@ -31,7 +31,7 @@ from diffdrive.integrate import Method, check_method
 from diffdrive.model import Robot
 from diffdrive.trajectory import Trajectory
 
-__all__ = ["integrate_increments", "simulate"]
+__all__ = ["dead_reckon", "integrate_increments", "simulate"]
 
 # Small enough that a block's temporaries are reused from the heap, not fresh pages each time.
 _BLOCK_ELEMENTS = 1 << 11
@@ -104,6 +104,14 @@ def integrate_increments(
     poses = np.empty((*leading, inc.shape[-2] + 1, 3), dtype=dtype or inc.dtype)
     _integrate_blocks(lambda k0, k1: inc[..., k0:k1, :], start, method, poses)
     return poses
+
+
+def dead_reckon(
+    robot: Robot, increments: object, start: object = None, method: Method = "exact"
+) -> np.ndarray:
+    """Dead-reckoned poses ``(..., T+1, 3)`` of ``robot`` from wheel-angle increments
+    ``(..., T, 2)`` rad and a ``start`` pose (default: the origin)."""
+    return integrate_increments(batch.to_twist(robot, increments), start, method)
 
 
 def _integrate_blocks(block_increments, start: np.ndarray, method: Method, poses: np.ndarray):

@@ -1,10 +1,10 @@
 """The pure-Python twin of the C core (``_odometry.c``), for where the extension is absent.
 
-``diffdrive.odometry`` uses the C ``OdometryCore`` when it was built, and this one otherwise
-(an installation without a C compiler, Pyodide); ``DIFFDRIVE_PURE_PYTHON=1`` picks this one
-anyway. It follows the C file function by function, in the same order of operations, with the
-same checks and messages: ``tests/test_odometry_python.py`` and the conformance table of
-``tests/test_backends.py`` hold the two equal. An update costs microseconds here instead of a
+``diffdrive.estimation.odometry`` uses the C ``OdometryCore`` when it was built, and this one
+otherwise (an installation without a C compiler, Pyodide); ``DIFFDRIVE_PURE_PYTHON=1`` picks
+this one anyway. It follows the C file function by function, in the same order of operations,
+with the same checks and messages: ``tests/test_odometry_python.py`` and the conformance table
+of ``tests/test_backends.py`` hold the two equal. An update costs microseconds here instead of a
 fraction of one.
 """
 

@@ -18,7 +18,7 @@ from diffdrive.cli.options import (
     robot_options,
 )
 from diffdrive.cli.report import example_outputs, kinematics_report, simulation_report
-from diffdrive.examples import example_robot
+from diffdrive.demo import example_robot
 from diffdrive.io import TIME_UNITS
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.calibration import EXTRAS, PARAMETERS, calibrate, odometry_of
+from diffdrive.calibration import EXTRAS, PARAMETERS, calibrate
 from diffdrive.calibration import METHODS as CALIBRATION_METHODS
 from diffdrive.cli.options import (
     LOG_COLUMNS,
@@ -18,15 +18,15 @@ from diffdrive.cli.options import (
     read_log_of,
     robot_from,
 )
-from diffdrive.evaluation import run_errors, worst
-from diffdrive.examples import (
+from diffdrive.demo import (
     EXAMPLE_DURATION,
     example_wheel_velocities,
 )
+from diffdrive.evaluation import run_errors, worst
 from diffdrive.integrate import METHODS, Method
 from diffdrive.io import TableError, write_robot
 from diffdrive.model import DiffDrive, Robot
-from diffdrive.simulation import simulate
+from diffdrive.simulation import dead_reckon, simulate
 
 
 def _mirrored_example(t: np.ndarray) -> np.ndarray:
@@ -91,7 +91,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
     """The in-sample and held-out errors side by side, and the parameters' spread."""
-    from diffdrive.validation import cross_validate
+    from diffdrive.calibration.cross_validation import cross_validate
 
     if len(runs) < 2:
         return "held-out errors: none (one run: nothing to hold out; --cv none hides this)"
@@ -123,8 +123,8 @@ def calibration_report(nominal: Robot, result, runs, integration: Method) -> str
             f"{spread:>10}"
         )
     shift = np.array([0.0, 0.0, result.heading_offset])
-    before = worst([run_errors(odometry_of(nominal, i, t[0], integration), t) for i, t in runs])
-    after = worst([run_errors(odometry_of(result.robot, i, t[0] + shift, integration), t)
+    before = worst([run_errors(dead_reckon(nominal, i, t[0], integration), t) for i, t in runs])
+    after = worst([run_errors(dead_reckon(result.robot, i, t[0] + shift, integration), t)
                    for i, t in runs])  # fmt: skip
     offsets = [robot.equivalent.axle_offset for robot in (nominal, result.robot)]
     if offsets[0] != offsets[1]:  # fitted (a SkidSteer's is -icr_x)

@@ -8,25 +8,25 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.calibration import odometry_of
 from diffdrive.cli.options import (
     TRAJECTORY_FILES,
     Command,
     Parents,
 )
-from diffdrive.evaluation import RPE_PAIRS, associate, ate, interpolate, rpe, run_errors
-from diffdrive.examples import (
+from diffdrive.demo import (
     example_log,
     example_robot,
 )
+from diffdrive.evaluation import RPE_PAIRS, associate, ate, interpolate, rpe, run_errors
 from diffdrive.io import TableError, read_trajectory
+from diffdrive.simulation import dead_reckon
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
     if args.input is None:
         log, robot = example_log(), example_robot()
         times, truth = log.times, log.truth
-        estimate = odometry_of(robot, log.increments(), truth[0], "exact")
+        estimate = dead_reckon(robot, log.increments(), truth[0], "exact")
     else:
         if args.truth is None:
             raise TableError("evaluate needs --truth with a ground-truth trajectory or bag")

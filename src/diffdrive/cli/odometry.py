@@ -23,9 +23,9 @@ from diffdrive.cli.options import (
     write_output,
 )
 from diffdrive.cli.report import error_summary
+from diffdrive.estimation.odometry import Odometry, RefusedUpdateError, UpdateKind
 from diffdrive.io import Run, TableError, is_bag
 from diffdrive.model import Robot
-from diffdrive.odometry import Odometry, RefusedUpdateError, UpdateKind
 from diffdrive.types import Pose
 
 
@@ -82,7 +82,7 @@ def run_odometry(args: argparse.Namespace) -> int:
 def _gyro(args, log: Run):
     """The gyro of the command: a bag's IMU topic (rotated by --imu-rpy), or the log's gyro_z
     column; None without one."""
-    from diffdrive.gyro import Gyro, rotation_from_rpy
+    from diffdrive.estimation.gyro import Gyro, rotation_from_rpy
 
     if args.gyro_topic is not None:
         if args.input is None or not is_bag(args.input):
@@ -99,7 +99,7 @@ def _gyro(args, log: Run):
 
 def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
-    from diffdrive.gyro import gyro_odometry
+    from diffdrive.estimation.gyro import gyro_odometry
 
     inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
     if np.count_nonzero(inside) < 2:

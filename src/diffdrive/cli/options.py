@@ -14,13 +14,13 @@ from typing import Any, Literal
 
 import numpy as np
 
-from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
-from diffdrive.examples import (
+from diffdrive.demo import (
     EXAMPLE_DURATION,
     example_log,
     example_robot,
     example_wheel_velocities,
 )
+from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
 from diffdrive.integrate import METHODS, Method
 from diffdrive.io import (
     FORMATS,

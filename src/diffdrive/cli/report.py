@@ -9,11 +9,11 @@ import numpy as np
 
 from diffdrive import se2
 from diffdrive.cli.options import example_trajectory
-from diffdrive.evaluation import run_errors
-from diffdrive.examples import (
+from diffdrive.demo import (
     EXAMPLE_DURATION,
     example_wheel_velocities,
 )
+from diffdrive.evaluation import run_errors
 from diffdrive.integrate import METHODS
 from diffdrive.io import atomic_output, write_trajectory
 from diffdrive.model import DiffDrive, Robot

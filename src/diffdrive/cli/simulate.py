@@ -19,7 +19,7 @@ from diffdrive.cli.options import (
     start_pose,
     write_output,
 )
-from diffdrive.examples import EXAMPLE_DURATION
+from diffdrive.demo import EXAMPLE_DURATION
 from diffdrive.simulation import integrate_increments, simulate
 
 

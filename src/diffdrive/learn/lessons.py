@@ -19,7 +19,7 @@ import numpy as np
 
 from diffdrive import integrate, se2
 from diffdrive._validate import whole
-from diffdrive.commands import Keep, desaturate
+from diffdrive.control.commands import Keep, desaturate
 from diffdrive.integrate import METHODS, Method
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import integrate_increments, simulate

@@ -53,14 +53,17 @@ from diffdrive._validate import whole
 from diffdrive.integrate import Method, check_method
 from diffdrive.io.run import Run
 from diffdrive.model import Robot
-from diffdrive.simulation import integrate_increments
+from diffdrive.simulation import dead_reckon, integrate_increments
 
 __all__ = [
+    "EXTRAS",
+    "METHODS",
+    "PARAMETERS",
     "CalibrationError",
+    "CalibrationMethod",
     "CalibrationResult",
     "calibrate",
     "checked_runs",
-    "odometry_of",
     "run_names",
 ]
 
@@ -110,13 +113,6 @@ def _robot_with(nominal: Robot, parameters: np.ndarray, axle_offset: float | Non
     equivalent drive's ``axle_offset`` if given."""
     left, right, track = (float(p) for p in parameters)
     return nominal.with_geometry(left, right, track, axle_offset)
-
-
-def odometry_of(
-    robot: Robot, increments: np.ndarray, start: np.ndarray, method: Method = "exact"
-) -> np.ndarray:
-    """Dead-reckoned poses ``(T+1, 3)`` from wheel-angle increments ``(T, 2)`` and a start."""
-    return integrate_increments(batch.to_twist(robot, increments), start, method)
 
 
 def run_names(runs: Sequence, names: Sequence[str] | None) -> list[str]:
@@ -271,7 +267,7 @@ def _umbmark(nominal: Robot, runs, names, side: float, integration: Method):
     residuals = []
     for name, (increments, truth) in zip(names, runs, strict=True):
         _check_square(name, truth, side)
-        poses = odometry_of(nominal, increments, truth[0], integration)
+        poses = dead_reckon(nominal, increments, truth[0], integration)
         # In the start frame: ground truth minus odometry, as Borenstein and Feng measure it.
         error = (
             batch.relative_to(truth[-1], truth[0])[:2] - batch.relative_to(poses[-1], truth[0])[:2]
@@ -333,7 +329,7 @@ def _fit_least_squares(
         pieces = []
         for increments, truth in runs:
             begin = truth[0] + np.array([0.0, 0.0, offset])
-            error = odometry_of(robot, increments, begin, integration)[1:] - truth[1:]
+            error = dead_reckon(robot, increments, begin, integration)[1:] - truth[1:]
             error[:, 2] = heading_weight * batch.wrap_angle(error[:, 2] - offset)
             pieces.append(error.ravel())
         if prior is not None:
@@ -562,7 +558,7 @@ def _position_errors(robot, runs, integration: Method, heading_offset: float = 0
     """Each run's position error (m) at each ground-truth pose."""
     shift = np.array([0.0, 0.0, heading_offset])
     return [
-        np.hypot(*(odometry_of(robot, increments, truth[0] + shift, integration)[:, :2]
+        np.hypot(*(dead_reckon(robot, increments, truth[0] + shift, integration)[:, :2]
                    - truth[:, :2]).T)
         for increments, truth in runs
     ]  # fmt: skip

@@ -47,8 +47,8 @@ import numpy as np
 
 from diffdrive._step import METHOD_FLAGS, move_jacobians, wheel_move
 from diffdrive._validate import finite, positive
+from diffdrive.estimation.odometry import offset_jacobian
 from diffdrive.model import Robot
-from diffdrive.odometry import offset_jacobian
 from diffdrive.types import Pose, WheelVelocities
 
 __all__ = [

@@ -15,18 +15,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive.calibration import (
+from diffdrive.calibration.offline import (
     PARAMETERS,
     CalibrationError,
     CalibrationMethod,
     calibrate,
     checked_runs,
-    odometry_of,
     run_names,
 )
 from diffdrive.evaluation import RunErrors, run_errors, worst
 from diffdrive.io.run import Run
 from diffdrive.model import Robot
+from diffdrive.simulation import dead_reckon
 
 __all__ = ["CrossValidation", "Fold", "cross_validate"]
 
@@ -103,7 +103,7 @@ def cross_validate(
         shift = np.array([0.0, 0.0, result.heading_offset])
         return tuple(
             run_errors(
-                odometry_of(result.robot, runs[k][0], runs[k][1][0] + shift, integration),
+                dead_reckon(result.robot, runs[k][0], runs[k][1][0] + shift, integration),
                 runs[k][1],
             )
             for k in indices

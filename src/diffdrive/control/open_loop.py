@@ -15,11 +15,11 @@ import numpy as np
 
 from diffdrive._validate import positive
 from diffdrive.batch.kinematics import to_wheel_velocities
-from diffdrive.commands import Keep, desaturate
+from diffdrive.control.commands import Keep, desaturate
+from diffdrive.control.limiter import Limiter
+from diffdrive.estimation.odometry import Odometry
 from diffdrive.integrate import Method
-from diffdrive.limiter import Limiter
 from diffdrive.model import DiffDrive
-from diffdrive.odometry import Odometry
 from diffdrive.simulation import simulate
 from diffdrive.trajectory import Trajectory
 from diffdrive.types import Pose, WheelVelocities

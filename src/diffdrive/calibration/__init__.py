@@ -1,0 +1,37 @@
+"""Calibration: the geometry that makes odometry match a reference.
+
+- ``offline``: ``calibrate`` on whole runs with ground truth (UMBmark, robust least squares,
+  minimax, increments), and its refusals (``CalibrationError``);
+- ``cross_validation``: ``cross_validate``, held-out scores of a calibration;
+- ``online``: ``OnlineCalibrator``, recursive least squares while the robot drives.
+"""
+
+from diffdrive.calibration.cross_validation import CrossValidation, Fold, cross_validate
+from diffdrive.calibration.offline import (
+    EXTRAS,
+    METHODS,
+    PARAMETERS,
+    CalibrationError,
+    CalibrationMethod,
+    CalibrationResult,
+    calibrate,
+    checked_runs,
+    run_names,
+)
+from diffdrive.calibration.online import OnlineCalibrator
+
+__all__ = [
+    "EXTRAS",
+    "METHODS",
+    "PARAMETERS",
+    "CalibrationError",
+    "CalibrationMethod",
+    "CalibrationResult",
+    "CrossValidation",
+    "Fold",
+    "OnlineCalibrator",
+    "calibrate",
+    "checked_runs",
+    "cross_validate",
+    "run_names",
+]
