@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from data import data_folder
+from data import DATA, data_folder, rows_or_missing
 from diffdrive.calibration import CalibrationError, calibrate
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
@@ -195,19 +195,26 @@ def test_a_window_is_the_increments_methods_only():
 
 # -- real data ---------------------------------------------------------------------------------
 
-FOLDER = data_folder("optiodom-diffdrive")
+FOLDER = DATA / "optiodom-diffdrive"
 
 
-def authors(method_prefix):
-    with (FOLDER / "reference_results_from_authors.csv").open() as table:
-        return [
-            row for row in csv.DictReader(table)
-            if row["method"].startswith(method_prefix) and (FOLDER / row["experiment"]).is_dir()
-        ]  # fmt: skip
+def authors(method_prefix, plain=False):
+    """The authors' rows of a method (``plain``: those without a note), as parameters."""
+
+    def rows():
+        with (FOLDER / "reference_results_from_authors.csv").open() as table:
+            return [
+                row for row in csv.DictReader(table)
+                if row["method"].startswith(method_prefix) and (FOLDER / row["experiment"]).is_dir()
+                and not (plain and row["note"])
+            ]  # fmt: skip
+
+    return rows_or_missing("optiodom-diffdrive", rows)
 
 
 def runs_of(experiment):
-    return [read_optiodom_run(p) for p in sorted((FOLDER / experiment).glob("*_run-*.csv"))]
+    folder = data_folder("optiodom-diffdrive") / experiment
+    return [read_optiodom_run(p) for p in sorted(folder.glob("*_run-*.csv"))]
 
 
 @pytest.mark.parametrize(("experiment", "limit"), [("circular/231220200141", 0.06),
@@ -224,10 +231,9 @@ def test_a_window_of_twenty_cycles_fits_the_optiodom_circles(experiment, limit):
     assert worst_error(20) < limit < 0.3 < worst_error(1)
 
 
-@pytest.mark.parametrize(
-    "row", [r for r in authors("UMBmark") if not r["note"]], ids=lambda r: r["experiment"]
-)
+@pytest.mark.parametrize("row", authors("UMBmark", plain=True), ids=lambda r: r["experiment"])
 def test_umbmark_reproduces_the_authors_parameters(row):
+    data_folder("optiodom-diffdrive")
     result = calibrate(
         optiodom_robot(), runs_of(row["experiment"]), "umbmark",
         square_side=float(row["path_param_m"]),
@@ -240,6 +246,7 @@ def test_umbmark_reproduces_the_authors_parameters(row):
 
 
 def test_minimax_beats_optiodom_on_every_experiment_with_the_papers_protocol():
+    data_folder("optiodom-diffdrive")
     ours, theirs = [], []
     for row in authors("OptiOdom"):
         if row["note"]:

@@ -8,19 +8,22 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from data import data_folder
+from data import DATA, data_folder, rows_or_missing
 from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
 
-FOLDER = data_folder("optiodom-diffdrive")
+FOLDER = DATA / "optiodom-diffdrive"
 # The runs the authors call outliers, for the rows "(without worse runs)" that leave them out.
 OUTLIERS = {"square/231220200029": 2, "free/030120210006": 3}
 
 
 def reference_rows():
-    with (FOLDER / "reference_results_from_authors.csv").open() as table:
-        rows = [row for row in csv.DictReader(table) if (FOLDER / row["experiment"]).is_dir()]
-    assert len(rows) >= 10, "the reference table lists fewer experiments than are present"
-    return rows
+    def rows():
+        with (FOLDER / "reference_results_from_authors.csv").open() as table:
+            found = [row for row in csv.DictReader(table) if (FOLDER / row["experiment"]).is_dir()]
+        assert len(found) >= 10, "the reference table lists fewer experiments than are present"
+        return found
+
+    return rows_or_missing("optiodom-diffdrive", rows)
 
 
 def run_errors(run, robot):
@@ -38,6 +41,7 @@ def run_errors(run, robot):
 
 @pytest.mark.parametrize("row", reference_rows(), ids=lambda r: f"{r['experiment']}{r['note']}")
 def test_dead_reckoning_reproduces_the_authors_initial_errors(row):
+    data_folder("optiodom-diffdrive")
     robot = optiodom_robot(
         float(row["init_L_m"] or 0.2),
         float(row["init_Dr_m"] or 0.084),
