@@ -46,16 +46,23 @@ def joint_state_bag(path: Path, messages: int) -> None:
     t = store.types
     angles = np.cumsum(np.random.default_rng(1).uniform(0, 0.05, (messages, 2)), axis=0)
     with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
-        connection = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState",
-                                           typestore=store)  # fmt: skip
+        connection = writer.add_connection(
+            "/joint_states", "sensor_msgs/msg/JointState", typestore=store
+        )
         for k in range(messages):
             nanoseconds = 10**9 + k * 10_000_000
             message = t["sensor_msgs/msg/JointState"](
-                header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](
-                    sec=nanoseconds // 10**9, nanosec=nanoseconds % 10**9), frame_id=""),
+                header=t["std_msgs/msg/Header"](
+                    stamp=t["builtin_interfaces/msg/Time"](
+                        sec=nanoseconds // 10**9, nanosec=nanoseconds % 10**9
+                    ),
+                    frame_id="",
+                ),
                 name=["wheel_right_joint", "wheel_left_joint"],
-                position=angles[k, ::-1].copy(), velocity=np.array([]), effort=np.array([]),
-            )  # fmt: skip
+                position=angles[k, ::-1].copy(),
+                velocity=np.array([]),
+                effort=np.array([]),
+            )
             writer.write(connection, nanoseconds, store.serialize_cdr(message, message.__msgtype__))
 
 
@@ -97,10 +104,22 @@ def bag_phases(folder: Path, messages: int, repeats: int) -> dict[str, float]:
     def decode():
         dd.io.ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
 
-    argv = ["odometry", str(bag), *joints, "--wheel-radius", "0.05", "--track-width", "0.3",
-            "-o", str(out), "-q"]  # fmt: skip
-    return {"decode": median_time(decode, repeats),
-            "decode + odometry + write": median_time(lambda: cli(argv), repeats)}  # fmt: skip
+    argv = [
+        "odometry",
+        str(bag),
+        *joints,
+        "--wheel-radius",
+        "0.05",
+        "--track-width",
+        "0.3",
+        "-o",
+        str(out),
+        "-q",
+    ]
+    return {
+        "decode": median_time(decode, repeats),
+        "decode + odometry + write": median_time(lambda: cli(argv), repeats),
+    }
 
 
 def main() -> None:
@@ -109,8 +128,10 @@ def main() -> None:
     parser.add_argument("--messages", type=int, default=200_000)
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
-    print(f"machine: {platform.machine()}, {platform.processor() or 'cpu'}; "
-          f"python {platform.python_version()}; medians of {args.repeats} runs")  # fmt: skip
+    print(
+        f"machine: {platform.machine()}, {platform.processor() or 'cpu'}; "
+        f"python {platform.python_version()}; medians of {args.repeats} runs"
+    )
     with tempfile.TemporaryDirectory() as folder:
         csv = csv_phases(Path(folder), args.rows, args.repeats)
         loop = csv["odometry (C loop)"]

@@ -42,15 +42,18 @@ def monte_carlo_rates(robots: int, steps: int, repeats: int) -> dict[str, float]
     monte_carlo(ROBOT, wheels[:10], DT, 10, **OPTIONS)  # compile (or load) the kernel first
     seconds = {
         "one process, 1 thread": median_time(
-            lambda: monte_carlo(ROBOT, wheels, DT, robots, **OPTIONS), repeats),
+            lambda: monte_carlo(ROBOT, wheels, DT, robots, **OPTIONS), repeats
+        ),
         "one process, 2 threads": median_time(
-            lambda: monte_carlo(ROBOT, wheels, DT, robots, threads=2, **OPTIONS), repeats),
-    }  # fmt: skip
+            lambda: monte_carlo(ROBOT, wheels, DT, robots, threads=2, **OPTIONS), repeats
+        ),
+    }
     with (
-        LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                     dashboard_address=None) as cluster,
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
         Client(cluster) as client,
-    ):  # fmt: skip
+    ):
         distributed.monte_carlo(ROBOT, wheels[:10], DT, 10, client=client, **OPTIONS)  # warm up
         seconds["Dask, 2 worker processes"] = median_time(
             lambda: distributed.monte_carlo(ROBOT, wheels, DT, robots, client=client, **OPTIONS),
@@ -91,21 +94,29 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args(argv)
     machine = platform.processor() or platform.machine()
-    print(f"{machine}, {os.cpu_count()} cores, Python {platform.python_version()}, NumPy "
-          f"{np.__version__}; medians of {args.repeats}")  # fmt: skip
+    print(
+        f"{machine}, {os.cpu_count()} cores, Python {platform.python_version()}, NumPy "
+        f"{np.__version__}; medians of {args.repeats}"
+    )
     total = args.robots * args.steps
     seconds = monte_carlo_rates(args.robots, args.steps, args.repeats)
     base = seconds["one process, 1 thread"]
-    print(f"Monte Carlo, reduce-only, {args.robots} robots x {args.steps} steps = {total:.3g} "
-          "robot-steps:")  # fmt: skip
+    print(
+        f"Monte Carlo, reduce-only, {args.robots} robots x {args.steps} steps = {total:.3g} "
+        "robot-steps:"
+    )
     for label, value in seconds.items():
-        print(f"  {label}: {value:.1f} s, {total / value / 1e6:.1f} M robot-steps/s, "
-              f"{base / value:.2f}x one thread")  # fmt: skip
+        print(
+            f"  {label}: {value:.1f} s, {total / value / 1e6:.1f} M robot-steps/s, "
+            f"{base / value:.2f}x one thread"
+        )
     rollout = rollout_rates(args.repeats)
     print("rollout of 10^6 robot-steps (10^3 x 10^3, float32), CPU:")
     for label, value in rollout.items():
-        print(f"  {label}: {value * 1e3:.1f} ms, {1e6 / value / 1e6:.1f} M robot-steps/s, "
-              f"{rollout['NumPy'] / value:.2f}x NumPy")  # fmt: skip
+        print(
+            f"  {label}: {value * 1e3:.1f} ms, {1e6 / value / 1e6:.1f} M robot-steps/s, "
+            f"{rollout['NumPy'] / value:.2f}x NumPy"
+        )
 
 
 if __name__ == "__main__":

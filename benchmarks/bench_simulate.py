@@ -218,8 +218,9 @@ def fresh_seconds(code: str, cache: str) -> tuple[float, str]:
     """What a fresh process running ``code`` prints, with the kernel's cache and numba's own
     in ``cache``: an empty one compiles everything, as on a fresh install."""
     env = {**os.environ, "DIFFDRIVE_CACHE_DIR": cache, "NUMBA_CACHE_DIR": cache}
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                         check=True).stdout.split()  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    ).stdout.split()
     return float(out[0]), " ".join(out[1:])
 
 
@@ -232,16 +233,21 @@ def startup(repeats: int) -> None:
         runs = [fresh_seconds(_FIRST_CALL, cache) for _ in range(repeats)]
         loads = [seconds for seconds, _ in runs]
         numba_imports = [
-            fresh_seconds("import time; t = time.perf_counter(); import numba; "
-                          "print(time.perf_counter() - t)", cache)[0]
+            fresh_seconds(
+                "import time; t = time.perf_counter(); import numba; "
+                "print(time.perf_counter() - t)",
+                cache,
+            )[0]
             for _ in range(repeats)
-        ]  # fmt: skip
+        ]
     load, numba_import = statistics.median(loads), statistics.median(numba_imports)
     print(f"start-up, fresh processes, median of {repeats}:")
     print(f"  first kernel call, cache on disk    {load:7.3f} s  (numba imported: {runs[0][1]})")
     print(f"  first kernel call, empty cache      {compiled:7.3f} s  (one run: it fills the cache)")
-    print(f"  import numba alone                  {numba_import:7.3f} s  "
-          f"({numba_import / load:.1f}x the cached first call)")  # fmt: skip
+    print(
+        f"  import numba alone                  {numba_import:7.3f} s  "
+        f"({numba_import / load:.1f}x the cached first call)"
+    )
 
 
 def bench_case(label, robot, wheels, dt, c_loop, loops, repeats) -> None:

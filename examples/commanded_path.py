@@ -37,11 +37,16 @@ def commands() -> np.ndarray:
 
 def limiter() -> dd.Limiter:
     return dd.Limiter.for_twist(
-        dd.Limits(max_velocity=0.7, max_reverse_velocity=0.3, max_acceleration=0.8,
-                  max_deceleration=1.5, max_jerk=6.0),
+        dd.Limits(
+            max_velocity=0.7,
+            max_reverse_velocity=0.3,
+            max_acceleration=0.8,
+            max_deceleration=1.5,
+            max_jerk=6.0,
+        ),
         dd.Limits(max_velocity=2.5, max_acceleration=4.0, max_jerk=30.0),
         timeout=0.5,
-    )  # fmt: skip
+    )
 
 
 def paths() -> tuple[dd.Trajectory, dd.Trajectory]:

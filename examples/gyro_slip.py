@@ -52,8 +52,9 @@ def synthetic(seed: int = 0) -> dict:
     bias = 0.01 + 0.02 * gyro_times / gyro_times[-1]
     noisy = np.interp(gyro_times, truth.times, rates) + bias
     gyro = Gyro(gyro_times, noisy + rng.normal(0, 0.02, len(gyro_times)))
-    runs = {h: gyro_odometry(ROBOT, t, measured, gyro, h, k_left=2e-6, k_right=2e-6)
-            for h in HEADINGS}  # fmt: skip
+    runs = {
+        h: gyro_odometry(ROBOT, t, measured, gyro, h, k_left=2e-6, k_right=2e-6) for h in HEADINGS
+    }
     return {"runs": runs, "truth": truth, "slip": slip}
 
 
@@ -74,8 +75,9 @@ def husky(bags: Path) -> dict:
     truth = np.column_stack([gps.positions[fixes], np.zeros(np.count_nonzero(fixes))])
     found = {"truth": truth}
     for heading in HEADINGS:
-        run = gyro_odometry(HUSKY, times, increments, gyro, heading, poses[0], k_left=1e-3,
-                            k_right=1e-3)  # fmt: skip
+        run = gyro_odometry(
+            HUSKY, times, increments, gyro, heading, poses[0], k_left=1e-3, k_right=1e-3
+        )
         estimate = interpolate(times, run.poses, gps.times[fixes])
         estimate[:, 2] = 0.0  # positions only
         found[heading] = (align(estimate, truth), ate(estimate, truth, aligned=True))
@@ -119,11 +121,15 @@ def main(argv: list[str] | None = None) -> None:
     for heading, run in runs["runs"].items():
         error = np.hypot(*(run.poses[:, :2] - truth.poses[:, :2]).T).max()
         flags = run.slip[1:]
-        print(f"  {heading:6} {error:6.2f} m; slip flagged on {flags[slip].mean():.0%} of the "
-              f"slipping intervals, {flags[~slip].mean():.2%} of the others")  # fmt: skip
+        print(
+            f"  {heading:6} {error:6.2f} m; slip flagged on {flags[slip].mean():.0%} of the "
+            f"slipping intervals, {flags[~slip].mean():.2%} of the others"
+        )
     found = husky(args.bags)
-    print("Husky against GPS, SE(2)-aligned ATE: " + ", ".join(
-        f"{heading} {found[heading][1]:.2f} m" for heading in HEADINGS))  # fmt: skip
+    print(
+        "Husky against GPS, SE(2)-aligned ATE: "
+        + ", ".join(f"{heading} {found[heading][1]:.2f} m" for heading in HEADINGS)
+    )
     args.output.parent.mkdir(parents=True, exist_ok=True)
     draw(runs, found, args.output)
     print(f"figure: {args.output}")

@@ -55,11 +55,14 @@ def batch_answers(runs: list, online: OnlineCalibrator) -> dict[str, np.ndarray]
     increments = np.concatenate([i for i, _ in runs])
     relative = np.concatenate([batch.relative_to(t[1:], t[:-1]) for _, t in runs])
     found = {"same model, all at once": online.batch_solution(increments, relative)}
-    for label, method in (("per-step fit", "increments"), ("whole-path least squares",
-                                                           "least_squares")):  # fmt: skip
+    for label, method in (
+        ("per-step fit", "increments"),
+        ("whole-path least squares", "least_squares"),
+    ):
         robot = calibrate(optiodom_robot(), runs, method, integration="rk2").robot
-        found[label] = np.array([robot.left_wheel_radius, robot.right_wheel_radius,
-                                 robot.track_width])  # fmt: skip
+        found[label] = np.array(
+            [robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width]
+        )
     return found
 
 
@@ -83,9 +86,11 @@ def report(name: str, runs: list, window: int) -> tuple[np.ndarray, dict[str, np
     online, history = stream(runs, window)
     answers = batch_answers(runs, online)
     final = online.parameters
-    print(f"{name}, window {window}: {len(history)} cycles, {online.accepted} measurements, "
-          f"{online.rejected} gated out; radii {1000 * final[0]:.3f}, {1000 * final[1]:.3f} mm, "
-          f"track {1000 * final[2]:.2f} mm")  # fmt: skip
+    print(
+        f"{name}, window {window}: {len(history)} cycles, {online.accepted} measurements, "
+        f"{online.rejected} gated out; radii {1000 * final[0]:.3f}, {1000 * final[1]:.3f} mm, "
+        f"track {1000 * final[2]:.2f} mm"
+    )
     for label, values in answers.items():
         difference = 100 * (final / values - 1)
         print(f"  against {label}: " + ", ".join(f"{d:+.2f} %" for d in difference))
@@ -94,10 +99,12 @@ def report(name: str, runs: list, window: int) -> tuple[np.ndarray, dict[str, np
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path,
-                        default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive")  # fmt: skip
-    parser.add_argument("--output", type=Path,
-                        default=ROOT / "docs" / "figures" / "online_calibration.png")  # fmt: skip
+    parser.add_argument(
+        "--data", type=Path, default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive"
+    )
+    parser.add_argument(
+        "--output", type=Path, default=ROOT / "docs" / "figures" / "online_calibration.png"
+    )
     args = parser.parse_args(argv)
     drawn = None
     for window in (20, 1):

@@ -108,8 +108,9 @@ def held_out(experiments: dict[str, list]) -> dict[str, dict[str, object]]:
             continue
         row: dict[str, object] = {"runs": len(runs)}
         for column, (method, extra, window) in HELD_OUT.items():
-            cv = cross_validate(optiodom_robot(), runs, method, "loo", integration="rk2",
-                                extra=extra, window=window)  # fmt: skip
+            cv = cross_validate(
+                optiodom_robot(), runs, method, "loo", integration="rk2", extra=extra, window=window
+            )
             row[f"{column}, in-sample"] = cv.in_sample.max_position
             row[f"{column}, held out"] = (
                 "refused" if cv.held_out is None or cv.refused else cv.held_out.max_position
@@ -121,8 +122,10 @@ def held_out(experiments: dict[str, list]) -> dict[str, dict[str, object]]:
 def held_out_markdown(rows: dict[str, dict[str, object]], authors) -> str:
     """The held-out table, mm; the authors' in-sample OptiOdom figure first."""
     columns = [c for c in rows[next(iter(rows))] if c != "runs"]
-    lines = ["| experiment | runs | OptiOdom (theirs, in-sample) | " + " | ".join(columns) + " |",
-             "|---" * (len(columns) + 3) + "|"]  # fmt: skip
+    lines = [
+        "| experiment | runs | OptiOdom (theirs, in-sample) | " + " | ".join(columns) + " |",
+        "|---" * (len(columns) + 3) + "|",
+    ]
     for experiment, row in rows.items():
         cells = [f"{1000 * authors[experiment]['OptiOdom']:.1f}"]
         cells += [row[c] if isinstance(row[c], str) else f"{1000 * row[c]:.1f}" for c in columns]
@@ -131,8 +134,14 @@ def held_out_markdown(rows: dict[str, dict[str, object]], authors) -> str:
 
 
 def markdown(ours: dict[str, dict[str, float]], authors: dict[str, dict[str, float]]) -> str:
-    columns = ["nominal", *AUTHORS.values(), "least_squares", "minimax",
-               "least_squares, unseen", "minimax, unseen"]  # fmt: skip
+    columns = [
+        "nominal",
+        *AUTHORS.values(),
+        "least_squares",
+        "minimax",
+        "least_squares, unseen",
+        "minimax, unseen",
+    ]
     lines = [
         "| experiment | " + " | ".join(columns) + " |",
         "|---" * (len(columns) + 1) + "|",

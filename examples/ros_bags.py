@@ -34,8 +34,12 @@ HUSKY_ODOMETRY = "/husky_velocity_controller/odom"
 
 def turtlebot3(bags: Path) -> dict:
     """Calibration against /odom, and the dead reckoning it gives."""
-    log = read_run(bags / "turtlebot3_fuse.bag", left_joint="wheel_left_joint",
-                   right_joint="wheel_right_joint", reference_topic="/odom")  # fmt: skip
+    log = read_run(
+        bags / "turtlebot3_fuse.bag",
+        left_joint="wheel_left_joint",
+        right_joint="wheel_right_joint",
+        reference_topic="/odom",
+    )
     increments = log.increments()
     result = calibrate(NOMINAL_TB3, [log], "increments")
     found = {}
@@ -56,10 +60,13 @@ def husky(bags: Path) -> dict:
     truth = np.column_stack([gps.positions[inside], np.zeros(np.count_nonzero(inside))])
     travelled = float(np.sum(np.hypot(*np.diff(odometry.poses[:, :2], axis=0).T)))
     return {
-        "truth": truth, "estimate": estimate, "aligned": align(estimate, truth),
-        "ate": ate(estimate, truth), "ate_aligned": ate(estimate, truth, aligned=True),
+        "truth": truth,
+        "estimate": estimate,
+        "aligned": align(estimate, truth),
+        "ate": ate(estimate, truth),
+        "ate_aligned": ate(estimate, truth, aligned=True),
         "travelled": travelled,
-    }  # fmt: skip
+    }
 
 
 def draw(tb3: dict, gps: dict, output: Path) -> None:
@@ -93,8 +100,10 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     tb3, gps = turtlebot3(args.bags), husky(args.bags)
     robot = tb3["result"].robot
-    print(f"TurtleBot3: calibrated radii {robot.left_wheel_radius:.5f}, "
-          f"{robot.right_wheel_radius:.5f} m, track {robot.track_width:.4f} m")  # fmt: skip
+    print(
+        f"TurtleBot3: calibrated radii {robot.left_wheel_radius:.5f}, "
+        f"{robot.right_wheel_radius:.5f} m, track {robot.track_width:.4f} m"
+    )
     for name, (_, errors) in tb3["runs"].items():
         print(
             f"  {name:10} against /odom: max {errors.max_position:.3f} m, final "

@@ -42,8 +42,9 @@ def _weave(steps: int, dt: float) -> np.ndarray:
 
 
 ROBOT = dd.DiffDrive(0.05, 0.3)
-OFFSET = dd.DiffDrive(left_wheel_radius=0.049, right_wheel_radius=0.051, track_width=0.31,
-                      axle_offset=0.07)  # fmt: skip
+OFFSET = dd.DiffDrive(
+    left_wheel_radius=0.049, right_wheel_radius=0.051, track_width=0.31, axle_offset=0.07
+)
 CASES = [
     Case("weave", ROBOT, _weave(200, 0.02), 0.02),
     Case("weave, axle offset", OFFSET, _weave(200, 0.02), 0.02),
@@ -70,8 +71,9 @@ def loop(case: Case, method: str) -> np.ndarray:
 def _simulate(backend):
     def run(case, method, dtype):
         wheels = case.wheels.astype(dtype)
-        return dd.simulate(case.robot, wheels, dt=case.dt, initial_pose=case.start,
-                           method=method, backend=backend).poses  # fmt: skip
+        return dd.simulate(
+            case.robot, wheels, dt=case.dt, initial_pose=case.start, method=method, backend=backend
+        ).poses
 
     return run
 
@@ -99,15 +101,28 @@ def _odometry(kind):
 
 
 def _monte_carlo(case, method, dtype):
-    result = monte_carlo(case.robot, case.wheels, case.dt, 1, initial_pose=case.start,
-                         method=method, backend="numba", seed=0)  # fmt: skip
+    result = monte_carlo(
+        case.robot,
+        case.wheels,
+        case.dt,
+        1,
+        initial_pose=case.start,
+        method=method,
+        backend="numba",
+        seed=0,
+    )
     return result.mean  # one robot and no noise: its path
 
 
 def _rollout(convert, rollout=batch.rollout):
     def run(case, method, dtype):
-        poses = rollout(case.robot, convert(case.wheels.astype(dtype)), case.dt,
-                        convert(np.array(case.start, dtype=dtype)), method)  # fmt: skip
+        poses = rollout(
+            case.robot,
+            convert(case.wheels.astype(dtype)),
+            case.dt,
+            convert(np.array(case.start, dtype=dtype)),
+            method,
+        )
         return np.asarray(poses)
 
     return run
@@ -166,8 +181,9 @@ def test_every_backend_follows_the_scalar_step(case, method, backend):
     for dtype in dtypes:
         got = run(case, method, dtype)
         assert got.shape == want.shape, (backend, dtype)
-        np.testing.assert_allclose(got, want, rtol=0, atol=_tolerance(case, dtype, backend),
-                                   err_msg=f"{backend}, {dtype}")  # fmt: skip
+        np.testing.assert_allclose(
+            got, want, rtol=0, atol=_tolerance(case, dtype, backend), err_msg=f"{backend}, {dtype}"
+        )
 
 
 # How to make an array of each library other than NumPy, and its type.
@@ -201,19 +217,32 @@ def test_a_trajectory_of_another_library_derives_everything_in_it(convert, kind)
     start = np.array([[0.0, 0.0, 0.0], [1.0, -1.0, 2.0]])
     times = np.concatenate([[0.0], np.cumsum(np.linspace(0.03, 0.07, 40))])
     want = dd.simulate(OFFSET, wheels, times=times, initial_pose=start, method="rk2")
-    got = dd.simulate(OFFSET, convert(wheels), times=convert(times), initial_pose=convert(start),
-                      method="rk2")  # fmt: skip
-    for name in ("times", "poses", "durations", "twists", "wheel_positions", "final_pose",
-                 "wrapped_headings", "distance"):  # fmt: skip
+    got = dd.simulate(
+        OFFSET, convert(wheels), times=convert(times), initial_pose=convert(start), method="rk2"
+    )
+    for name in (
+        "times",
+        "poses",
+        "durations",
+        "twists",
+        "wheel_positions",
+        "final_pose",
+        "wrapped_headings",
+        "distance",
+    ):
         value = getattr(got, name)
         assert isinstance(value, kind), name
-        np.testing.assert_allclose(np.asarray(value), getattr(want, name), atol=1e-12,
-                                   err_msg=name)  # fmt: skip
+        np.testing.assert_allclose(np.asarray(value), getattr(want, name), atol=1e-12, err_msg=name)
     at = np.array([0.0, 0.31, 1.0, times[-1]])
     np.testing.assert_allclose(np.asarray(got.sample(convert(at))), want.sample(at), atol=1e-12)
     np.testing.assert_allclose(np.asarray(got.to_array()), want.to_array(), atol=1e-12)
-    angles = dd.simulate(OFFSET, wheel_positions=convert(want.wheel_positions), method="rk2",
-                         times=convert(times), initial_pose=convert(start))  # fmt: skip
+    angles = dd.simulate(
+        OFFSET,
+        wheel_positions=convert(want.wheel_positions),
+        method="rk2",
+        times=convert(times),
+        initial_pose=convert(start),
+    )
     np.testing.assert_allclose(np.asarray(angles.poses), want.poses, atol=1e-12)
     assert "final_pose=<(2, 3) array>" in repr(got)
 

@@ -49,9 +49,13 @@ def test_the_uncertainty_covers_the_truth_on_noisy_runs():
         noisy[1:, :2] += rng.normal(0, 0.002, truth[1:, :2].shape)
         runs.append((increments, noisy))
     result = calibrate(NOMINAL, runs, integration="exact")
-    error = np.array([result.robot.left_wheel_radius - 0.0497,
-                      result.robot.right_wheel_radius - 0.0502,
-                      result.robot.track_width - 0.306])  # fmt: skip
+    error = np.array(
+        [
+            result.robot.left_wheel_radius - 0.0497,
+            result.robot.right_wheel_radius - 0.0502,
+            result.robot.track_width - 0.306,
+        ]
+    )
     assert np.all(np.abs(error) < 5 * result.standard_errors), (error, result.standard_errors)
 
 
@@ -178,9 +182,12 @@ def test_a_window_follows_a_turn_that_changes_within_it():
     so the exact runs give back the robot that drove them (summing the wheels over a window
     as one constant twist missed its track by 0.4 %)."""
     t = np.arange(800) * 0.05
-    runs = [synthetic_run(TRUE, np.stack([8 + s * 5 * np.sin(0.8 * t),
-                                          8 - s * 5 * np.sin(0.8 * t)], -1))
-            for s in (1, -1)]  # fmt: skip
+    runs = [
+        synthetic_run(
+            TRUE, np.stack([8 + s * 5 * np.sin(0.8 * t), 8 - s * 5 * np.sin(0.8 * t)], -1)
+        )
+        for s in (1, -1)
+    ]
     robot = calibrate(NOMINAL, runs, "increments", window=20).robot
     assert robot.track_width == pytest.approx(TRUE.track_width, rel=1e-9)
     assert robot.left_wheel_radius == pytest.approx(TRUE.left_wheel_radius, rel=1e-9)
@@ -204,10 +211,12 @@ def authors(method_prefix, plain=False):
     def rows():
         with (FOLDER / "reference_results_from_authors.csv").open() as table:
             return [
-                row for row in csv.DictReader(table)
-                if row["method"].startswith(method_prefix) and (FOLDER / row["experiment"]).is_dir()
+                row
+                for row in csv.DictReader(table)
+                if row["method"].startswith(method_prefix)
+                and (FOLDER / row["experiment"]).is_dir()
                 and not (plain and row["note"])
-            ]  # fmt: skip
+            ]
 
     return rows_or_missing("optiodom-diffdrive", rows)
 
@@ -217,16 +226,21 @@ def runs_of(experiment):
     return [read_optiodom_run(p) for p in sorted(folder.glob("*_run-*.csv"))]
 
 
-@pytest.mark.parametrize(("experiment", "limit"), [("circular/231220200141", 0.06),
-                                                   ("circular/250620202345", 0.02)])  # fmt: skip
+@pytest.mark.parametrize(
+    ("experiment", "limit"), [("circular/231220200141", 0.06), ("circular/250620202345", 0.02)]
+)
 def test_a_window_of_twenty_cycles_fits_the_optiodom_circles(experiment, limit):
     """Per 50 ms cycle the fit leaves 346 and 577 mm; 20 cycles at a time 53 and 12 mm."""
     runs = runs_of(experiment)
 
     def worst_error(window):
         robot = calibrate(optiodom_robot(), runs, "increments", window=window).robot
-        return worst([run_errors(dead_reckon(robot, run.increments(), run.truth[0], "rk2"),
-                                 run.truth) for run in runs]).max_position  # fmt: skip
+        return worst(
+            [
+                run_errors(dead_reckon(robot, run.increments(), run.truth[0], "rk2"), run.truth)
+                for run in runs
+            ]
+        ).max_position
 
     assert worst_error(20) < limit < 0.3 < worst_error(1)
 
@@ -235,9 +249,11 @@ def test_a_window_of_twenty_cycles_fits_the_optiodom_circles(experiment, limit):
 def test_umbmark_reproduces_the_authors_parameters(row):
     data_folder("optiodom-diffdrive")
     result = calibrate(
-        optiodom_robot(), runs_of(row["experiment"]), "umbmark",
+        optiodom_robot(),
+        runs_of(row["experiment"]),
+        "umbmark",
         square_side=float(row["path_param_m"]),
-    )  # fmt: skip
+    )
     robot = result.robot
     # The spreadsheet keeps 6 significant digits.
     assert robot.track_width == pytest.approx(float(row["calib_L_m"]), abs=5e-7)
@@ -254,8 +270,12 @@ def test_minimax_beats_optiodom_on_every_experiment_with_the_papers_protocol():
         runs = runs_of(row["experiment"])
         # The paper's protocol and its odometry method, rk2.
         robot = calibrate(optiodom_robot(), runs, "minimax", integration="rk2").robot
-        errors = worst([run_errors(dead_reckon(robot, run.increments(), run.truth[0], "rk2"),
-                                   run.truth) for run in runs])  # fmt: skip
+        errors = worst(
+            [
+                run_errors(dead_reckon(robot, run.increments(), run.truth[0], "rk2"), run.truth)
+                for run in runs
+            ]
+        )
         ours.append(errors.max_position)
         theirs.append(float(row["calib_max_pos_err_m"]))
         assert ours[-1] <= theirs[-1], row["experiment"]
@@ -269,8 +289,10 @@ def test_a_prior_pulls_the_fit_toward_the_nominal_geometry():
     wheels = np.stack([8 + 3 * np.sin(0.8 * t), 8 - 3 * np.sin(0.8 * t)], -1)
     increments, truth = synthetic_run(TRUE, wheels)
     truth[1:, :2] += np.random.default_rng(1).normal(0, 0.03, truth[1:, :2].shape)
-    track = {sigma: calibrate(NOMINAL, [(increments, truth)], prior_sigma=sigma).robot.track_width
-             for sigma in (None, 0.01, 1e-4)}  # fmt: skip
+    track = {
+        sigma: calibrate(NOMINAL, [(increments, truth)], prior_sigma=sigma).robot.track_width
+        for sigma in (None, 0.01, 1e-4)
+    }
     assert abs(track[None] - 0.3) > 0.004  # the data alone move it 1.9 %
     assert abs(track[1e-4] - 0.3) < 0.3 * abs(track[None] - 0.3)
     assert abs(track[1e-4] - 0.3) <= abs(track[0.01] - 0.3) <= abs(track[None] - 0.3)

@@ -39,8 +39,11 @@ def test_unknown_option_is_a_usage_error():
 def test_runs_as_a_subprocess(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "diffdrive"],
-        capture_output=True, text=True, check=True, cwd=tmp_path,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tmp_path,
+    )
     assert "Modern Robotics" in result.stdout
     assert result.stderr == ""
 
@@ -125,10 +128,20 @@ def test_odometry_of_a_tick_log_with_ground_truth(tmp_path, capsys):
     )
     output = tmp_path / "odo.csv"
     code, out, _ = run(
-        ["odometry", log, "--ticks-per-revolution", 1000, "--wheel-radius", 0.05,
-         "--track-width", 0.3, "-o", output],
+        [
+            "odometry",
+            log,
+            "--ticks-per-revolution",
+            1000,
+            "--wheel-radius",
+            0.05,
+            "--track-width",
+            0.3,
+            "-o",
+            output,
+        ],
         capsys,
-    )  # fmt: skip
+    )
     assert code == 0
     got = np.loadtxt(output, delimiter=",", skiprows=1)
     np.testing.assert_allclose(got[:, 1], [0, 0.05 * np.pi, 0.1 * np.pi])
@@ -161,7 +174,7 @@ HEAD = "t,left_velocity,right_velocity\n"
         (HEAD + "0,1,1\n0,1,1\n", r"drive\.csv:3: column 't': 0 does not increase"),
         ("", r"drive\.csv: the file is empty"),
     ],
-)  # fmt: skip
+)
 def test_a_bad_file_is_one_line_naming_file_line_and_column(tmp_path, capsys, text, message):
     history = tmp_path / "drive.csv"
     history.write_text(text)
@@ -224,8 +237,10 @@ def test_each_subcommand_runs_as_a_subprocess(tmp_path, argv):
 def test_a_runtime_error_exits_1_without_a_traceback(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "diffdrive", "simulate", "missing.csv"],
-        capture_output=True, text=True, cwd=tmp_path,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert result.returncode == 1
     assert "Traceback" not in result.stderr
     assert result.stderr.strip() == (
@@ -295,8 +310,10 @@ def test_odometry_runs_as_a_subprocess_and_is_quiet_when_piped(tmp_path):
     (tmp_path / "log.csv").write_text("t,left_angle,right_angle\n" + rows + "\n")
     result = subprocess.run(
         [sys.executable, "-m", "diffdrive", "odometry", "log.csv", "-o", "odo.jsonl"],
-        capture_output=True, text=True, cwd=tmp_path,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     assert result.stderr == ""
     assert len((tmp_path / "odo.jsonl").read_text().splitlines()) == 20_000
@@ -399,9 +416,11 @@ def test_evaluate_needs_times_that_pair(tmp_path, capsys):
 def test_calibrate_and_evaluate_run_as_subprocesses(tmp_path):
     for argv in (["calibrate", "-q"], ["evaluate"]):
         result = subprocess.run(
-            [sys.executable, "-m", "diffdrive", *argv], capture_output=True, text=True,
+            [sys.executable, "-m", "diffdrive", *argv],
+            capture_output=True,
+            text=True,
             cwd=tmp_path,
-        )  # fmt: skip
+        )
         assert result.returncode == 0, result.stderr
     assert (tmp_path / "robot.toml").exists()
     assert "ate_aligned_m" in result.stdout

@@ -61,8 +61,10 @@ def test_a_12_bit_log_read_as_16_bits_is_refused_and_read_right_as_12(tmp_path, 
     assert code == 0
     plain = tmp_path / "plain.csv"
     encoder_log(plain, offset=4000)
-    run(["odometry", plain, *ROBOT, "--ticks-per-revolution", TICKS, "-o", tmp_path / "p.csv"],
-        capsys)  # fmt: skip
+    run(
+        ["odometry", plain, *ROBOT, "--ticks-per-revolution", TICKS, "-o", tmp_path / "p.csv"],
+        capsys,
+    )
     np.testing.assert_allclose(final_pose(out), final_pose(tmp_path / "p.csv"), atol=1e-12)
     assert "largest wheel speed in the log: 6" in printed
 
@@ -86,16 +88,19 @@ def test_a_wheel_speed_no_robot_drives_is_refused(tmp_path, capsys):
     code, _, err = run(["simulate", log, *ROBOT, "-o", tmp_path / "s.csv"], capsys)
     assert code == 1
     assert "500 m/s at its rim" in err
-    code, out, _ = run(["odometry", log, *ROBOT, "--max-wheel-speed", "1e5", "-o",
-                        tmp_path / "o.csv"], capsys)  # fmt: skip
+    code, out, _ = run(
+        ["odometry", log, *ROBOT, "--max-wheel-speed", "1e5", "-o", tmp_path / "o.csv"], capsys
+    )
     assert code == 0
     assert "largest wheel speed in the log: 9990 rad/s (500 m/s at the rim), left wheel" in out
 
 
 def test_64_bit_counters_are_read_exactly(tmp_path, capsys):
     log = tmp_path / "log.csv"
-    rows = [f"{k * 0.01!r},{2**60 + 10 * k},{2**64 - 5 + 10 * k - (2**64 if k > 0 else 0)}"
-            for k in range(5)]  # fmt: skip
+    rows = [
+        f"{k * 0.01!r},{2**60 + 10 * k},{2**64 - 5 + 10 * k - (2**64 if k > 0 else 0)}"
+        for k in range(5)
+    ]
     log.write_text("t,left_ticks,right_ticks\n" + "\n".join(rows) + "\n")
     out = tmp_path / "o.csv"
     argv = ["odometry", log, *ROBOT, "--ticks-per-revolution", TICKS, "--counter-bits", "64"]
@@ -110,12 +115,38 @@ def test_twist_and_covariance_columns(tmp_path, capsys):
     log = tmp_path / "log.csv"
     encoder_log(log, rows=50)
     out = tmp_path / "o.csv"
-    argv = ["odometry", log, *ROBOT, "--ticks-per-revolution", TICKS, "--k-left", "1e-4",
-            "--k-right", "1e-4", "--twist", "--covariance", "-o", out]  # fmt: skip
+    argv = [
+        "odometry",
+        log,
+        *ROBOT,
+        "--ticks-per-revolution",
+        TICKS,
+        "--k-left",
+        "1e-4",
+        "--k-right",
+        "1e-4",
+        "--twist",
+        "--covariance",
+        "-o",
+        out,
+    ]
     assert run(argv, capsys)[0] == 0
     header = out.read_text().splitlines()[0].split(",")
-    assert header == ["t", "x", "y", "theta", "vx", "vy", "omega", "cov_xx", "cov_xy",
-                      "cov_xtheta", "cov_yy", "cov_ytheta", "cov_thetatheta"]  # fmt: skip
+    assert header == [
+        "t",
+        "x",
+        "y",
+        "theta",
+        "vx",
+        "vy",
+        "omega",
+        "cov_xx",
+        "cov_xy",
+        "cov_xtheta",
+        "cov_yy",
+        "cov_ytheta",
+        "cov_thetatheta",
+    ]
     table = np.genfromtxt(out, delimiter=",", names=True)
     assert math.isnan(table["vx"][0])
     assert table["vx"][-1] == pytest.approx(0.05 * 5.5, rel=0.02)
@@ -134,8 +165,10 @@ def test_a_log_in_other_time_units(tmp_path, capsys, unit, scale):
     epoch = tmp_path / "epoch.csv"  # stamps since 1970, as ROS writes them
     encoder_log(epoch, time_scale=scale)
     text = epoch.read_text().splitlines()
-    rows = [f"{float(line.split(',')[0]) + 1.7e9 * scale!r},{line.split(',', 1)[1]}"
-            for line in text[1:]]  # fmt: skip
+    rows = [
+        f"{float(line.split(',')[0]) + 1.7e9 * scale!r},{line.split(',', 1)[1]}"
+        for line in text[1:]
+    ]
     epoch.write_text(text[0] + "\n" + "\n".join(rows) + "\n")
     base = ["odometry", *ROBOT, "--ticks-per-revolution", TICKS]
     for path in (other, epoch):
@@ -168,8 +201,9 @@ def test_simulate_and_odometry_agree_on_a_velocity_log(tmp_path, capsys):
     np.testing.assert_allclose(simulated, expected, atol=1e-12)  # held until the next row
 
 
-def test_odometry_and_evaluate_give_the_built_in_example_the_same_error(tmp_path, capsys,
-                                                                        monkeypatch):  # fmt: skip
+def test_odometry_and_evaluate_give_the_built_in_example_the_same_error(
+    tmp_path, capsys, monkeypatch
+):
     monkeypatch.chdir(tmp_path)
     _, out, _ = run(["odometry"], capsys)
     said = float(out.split("position error max ")[1].split(" m")[0])
@@ -195,8 +229,9 @@ def test_what_simulate_writes_evaluate_and_plot_read(tmp_path, capsys, suffix):
 
 def test_odometry_reads_the_optiodom_run_files_calibrate_reads(tmp_path, capsys):
     run_file = data_folder("optiodom-diffdrive") / "square/230620202042/230620202042_run-01.csv"
-    code, out, err = run(["odometry", run_file, "--method", "rk2", "-o", tmp_path / "o.csv"],
-                         capsys)  # fmt: skip
+    code, out, err = run(
+        ["odometry", run_file, "--method", "rk2", "-o", tmp_path / "o.csv"], capsys
+    )
     assert code == 0, err
     # The authors' nominal robot is the example robot: their figure, 0.0130 m (runs_index.csv)
     assert "position error max 0.0130 m" in out
@@ -283,10 +318,17 @@ def test_a_step_too_small_to_hold_in_memory_is_refused(capsys):
 
 
 @given(
-    st.lists(st.tuples(st.floats(0.001, 5.0), st.integers(-(2**62), 2**62),
-                       st.floats(-1e6, 1e6, allow_subnormal=False)), min_size=1, max_size=30),
+    st.lists(
+        st.tuples(
+            st.floats(0.001, 5.0),
+            st.integers(-(2**62), 2**62),
+            st.floats(-1e6, 1e6, allow_subnormal=False),
+        ),
+        min_size=1,
+        max_size=30,
+    ),
     st.sampled_from(["", "\n", "\n\n"]),
-)  # fmt: skip
+)
 @settings(max_examples=60)
 def test_numpys_csv_parser_reads_what_the_cell_by_cell_reader_reads(rows, ending):
     import tempfile
@@ -323,8 +365,7 @@ def test_written_floats_read_back_exactly_with_or_without_orjson(tmp_path, monke
     for name in ("a.csv", "b.csv"):
         back = np.genfromtxt(tmp_path / name, delimiter=",", names=True)
         np.testing.assert_array_equal(back["t"], times)
-        np.testing.assert_array_equal(np.column_stack([back["x"], back["y"], back["theta"]]),
-                                      poses)  # fmt: skip
+        np.testing.assert_array_equal(np.column_stack([back["x"], back["y"], back["theta"]]), poses)
         assert np.isnan(back["extra"][0])
 
 
@@ -333,10 +374,8 @@ def test_update_arrays_equals_one_update_at_a_time_and_names_the_refused_row():
     rng = np.random.default_rng(4)
     counts = np.cumsum(rng.integers(-20, 60, (300, 2)), axis=0) % 4096
     times = np.cumsum(rng.uniform(0.005, 0.02, 300))
-    one = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4,
-                      k_right=1e-4)  # fmt: skip
-    many = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4,
-                       k_right=1e-4)  # fmt: skip
+    one = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4, k_right=1e-4)
+    many = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4, k_right=1e-4)
     expected = []
     for (left, right), t in zip(counts.tolist(), times.tolist(), strict=True):
         one.update_ticks(left, right, t)

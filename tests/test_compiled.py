@@ -64,9 +64,12 @@ def test_kernel_equals_the_numpy_path(params, method, history, robots, steps, dt
         numpy_path, compiled = both(robot, wheel_positions=angles, dt=dt, **common)
     else:
         numpy_path, compiled = both(
-            robot, lambda t: np.stack([np.sin(t), np.cos(3 * t)], -1), dt=dt,
-            duration=steps * dt, **common,
-        )  # fmt: skip
+            robot,
+            lambda t: np.stack([np.sin(t), np.cos(3 * t)], -1),
+            dt=dt,
+            duration=steps * dt,
+            **common,
+        )
     assert_same_trajectory(numpy_path, compiled)
 
 
@@ -77,8 +80,9 @@ def test_chunked_passes_equal_one_pass(chunks, method):
     wheels = np.random.default_rng(4).uniform(-30.0, 30.0, (2, 1001, 2))
     times = np.linspace(0.0, 10.0, 1002)[None]
     start = np.array([[1.0, -2.0, 3.0], [0.0, 0.5, -1.0]])
-    robot = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.06, track_width=0.3,
-                         axle_offset=0.1)  # fmt: skip
+    robot = dd.DiffDrive(
+        left_wheel_radius=0.05, right_wheel_radius=0.06, track_width=0.3, axle_offset=0.1
+    )
     one, split = np.empty((2, 1002, 3)), np.empty((2, 1002, 3))
     simulate_kernel.integrate_history(robot, wheels, times, False, start, method, one, chunks=1)
     simulate_kernel.integrate_history(robot, wheels, times, False, start, method, split, chunks)

@@ -26,16 +26,22 @@ def client():
     from distributed import Client, LocalCluster
 
     with (
-        LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                     dashboard_address=None) as cluster,
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
         Client(cluster) as connected,
-    ):  # fmt: skip
+    ):
         yield connected
 
 
 def test_monte_carlo_on_two_workers_equals_one_process(client):
-    options = {"k_left": 1e-4, "k_right": 2e-4, "geometry_sigma": (0.005, 0.005, 0.01),
-               "seed": 7, "chunk": 500}  # fmt: skip
+    options = {
+        "k_left": 1e-4,
+        "k_right": 2e-4,
+        "geometry_sigma": (0.005, 0.005, 0.01),
+        "seed": 7,
+        "chunk": 500,
+    }
     local = monte_carlo(ROBOT, WHEELS, DT, 3000, **options)
     spread = distributed.monte_carlo(ROBOT, WHEELS, DT, 3000, client=client, tasks=4, **options)
     np.testing.assert_array_equal(spread.final, local.final)  # the same numbers drawn

@@ -35,8 +35,18 @@ def test_the_largest_64_bit_readings_are_read_exactly(tmp_path, capsys, first):
     readings = [(first + 2 * k) % 2**64 for k in range(5)]  # 2 counts a row, through 2^63/2^64
     rows = [f"{0.01 * k!r},{v},{v}" for k, v in enumerate(readings)]
     log.write_text("t,left_ticks,right_ticks\n" + "\n".join(rows) + "\n")
-    argv = ["odometry", log, "--wheel-radius", "0.05", "--track-width", "0.3",
-            "--ticks-per-revolution", "4096", "--counter-bits", "64"]  # fmt: skip
+    argv = [
+        "odometry",
+        log,
+        "--wheel-radius",
+        "0.05",
+        "--track-width",
+        "0.3",
+        "--ticks-per-revolution",
+        "4096",
+        "--counter-bits",
+        "64",
+    ]
     code, _, err = run([*argv, "-o", tmp_path / "o.csv"], capsys)
     assert code == 0, err
     x = 8 * 2 * math.pi / 4096 * 0.05
@@ -50,9 +60,9 @@ def test_batch_wrap_angle_is_the_scalar_one(angle):
 
 @pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64])
 def test_batch_wrap_angle_stays_within_its_bounds_in_every_dtype(dtype):
-    angles = np.concatenate([
-        np.linspace(-50, 50, 2001), np.pi * np.arange(-9, 10), [1e4, -1e4, np.pi, -np.pi]
-    ]).astype(dtype)  # fmt: skip
+    angles = np.concatenate(
+        [np.linspace(-50, 50, 2001), np.pi * np.arange(-9, 10), [1e4, -1e4, np.pi, -np.pi]]
+    ).astype(dtype)
     wrapped = dd.batch.wrap_angle(angles)
     assert wrapped.dtype == dtype
     assert np.all(wrapped.astype(np.float64) <= math.pi)
@@ -62,9 +72,12 @@ def test_batch_wrap_angle_stays_within_its_bounds_in_every_dtype(dtype):
     assert np.all(np.abs(dd.batch.log(np.array([[0.0, 0.0, 17 * np.pi]]))[..., 2]) <= math.pi)
 
 
-@given(st.sampled_from([np.float16, np.float32, np.float64]),
-       st.lists(st.floats(-1e4, 1e4, width=16), min_size=2, max_size=2),
-       st.floats(1e-3, 100.0), st.sampled_from(["curvature", "omega", "v"]))  # fmt: skip
+@given(
+    st.sampled_from([np.float16, np.float32, np.float64]),
+    st.lists(st.floats(-1e4, 1e4, width=16), min_size=2, max_size=2),
+    st.floats(1e-3, 100.0),
+    st.sampled_from(["curvature", "omega", "v"]),
+)
 @settings(max_examples=150)
 def test_desaturate_keeps_its_limit_in_every_dtype(dtype, wheels, limit, keep):
     out = dd.desaturate(np.array(wheels, dtype=dtype), limit, keep, ROBOT)
@@ -121,8 +134,9 @@ def test_the_compiled_kernel_gets_native_float32_or_float64_whatever_comes_in():
     assert c.poses.dtype == np.float32
     half = dd.simulate(ROBOT, np.zeros((2**17, 2), dtype=np.float16), dt=0.01)
     assert half.poses.dtype == np.float16  # auto keeps float16 on the NumPy path
-    angles = dd.simulate(ROBOT, wheel_positions=np.ones((2**17, 2), dtype=np.float16), dt=0.01,
-                         backend="numba")  # fmt: skip
+    angles = dd.simulate(
+        ROBOT, wheel_positions=np.ones((2**17, 2), dtype=np.float16), dt=0.01, backend="numba"
+    )
     assert np.all(angles.poses == 0.0)
 
 
@@ -134,8 +148,7 @@ def test_a_huge_field_is_a_named_error_not_a_traceback(tmp_path, capsys, command
         f"{header}\n0,0,0{',0' if header.count(',') == 3 else ''}\n1,{'9' * 200_000},1\n"
     )
     argv = [command, path] + (["--truth", path] if command == "evaluate" else [])
-    code, _, err = run([*argv, "-o", tmp_path / "out.x"] if command != "evaluate" else argv,
-                       capsys)  # fmt: skip
+    code, _, err = run([*argv, "-o", tmp_path / "out.x"] if command != "evaluate" else argv, capsys)
     assert code == 1
     assert "log.csv:3:" in err
     assert "Traceback" not in err
@@ -153,8 +166,9 @@ def test_bad_ticks_per_revolution_from_the_command_line(tmp_path, capsys, ticks)
     from data import data_folder
 
     run_file = data_folder("optiodom-diffdrive") / "square/230620202042/230620202042_run-01.csv"
-    code, _, err = run(["calibrate", run_file, "--ticks-per-revolution", ticks,
-                        "-o", tmp_path / "r.toml"], capsys)  # fmt: skip
+    code, _, err = run(
+        ["calibrate", run_file, "--ticks-per-revolution", ticks, "-o", tmp_path / "r.toml"], capsys
+    )
     assert code == 1
     assert "ticks_per_revolution must be finite and > 0" in err
     assert not (tmp_path / "r.toml").exists()
@@ -216,8 +230,9 @@ def test_evaluation_checks_its_inputs():
 
 
 def test_a_trajectory_of_one_pose_samples_that_pose():
-    trajectory = dd.Trajectory(ROBOT, np.array([2.0]), np.array([[1.0, 2.0, 0.5]]),
-                               np.zeros((0, 2)), "exact")  # fmt: skip
+    trajectory = dd.Trajectory(
+        ROBOT, np.array([2.0]), np.array([[1.0, 2.0, 0.5]]), np.zeros((0, 2)), "exact"
+    )
     np.testing.assert_array_equal(trajectory.sample([2.0]), [[1.0, 2.0, 0.5]])
     with pytest.raises(ValueError, match="must lie within"):
         trajectory.sample([2.5])
@@ -226,18 +241,31 @@ def test_a_trajectory_of_one_pose_samples_that_pose():
 @pytest.mark.parametrize(
     ("call", "error", "message"),
     [
-        (lambda: dd.Odometry(ROBOT, counter_bits=8.0), TypeError,
-         "counter_bits must be a whole number of bits or None, got 8.0"),
+        (
+            lambda: dd.Odometry(ROBOT, counter_bits=8.0),
+            TypeError,
+            "counter_bits must be a whole number of bits or None, got 8.0",
+        ),
         (lambda: dd.wrap_angle(math.inf), ValueError, "angle must be finite to wrap, got inf"),
         (lambda: dd.se2.sinc(math.inf), ValueError, "sinc needs a finite u, got inf"),
         (lambda: dd.desaturate((1.0, 2.0), "1"), TypeError, "max_wheel_velocity must be a real"),
         (lambda: dd.Limits(max_velocity="2"), TypeError, "max_velocity must be a number"),
-        (lambda: dd.drive_commands(ROBOT, np.zeros((2, 2)), "0.1", dd.Limiter.for_twist(
-            dd.Limits(), dd.Limits())), TypeError, "dt must be a real number"),
-        (lambda: dd.OpenLoopOdometry(ROBOT, dd.Limiter.for_twist(dd.Limits(), dd.Limits()))
-         .update((0.1, 0.0), "0.1"), TypeError, "dt must be a number"),
+        (
+            lambda: dd.drive_commands(
+                ROBOT, np.zeros((2, 2)), "0.1", dd.Limiter.for_twist(dd.Limits(), dd.Limits())
+            ),
+            TypeError,
+            "dt must be a real number",
+        ),
+        (
+            lambda: dd.OpenLoopOdometry(
+                ROBOT, dd.Limiter.for_twist(dd.Limits(), dd.Limits())
+            ).update((0.1, 0.0), "0.1"),
+            TypeError,
+            "dt must be a number",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_numbers_name_their_parameter(call, error, message):
     with pytest.raises(error, match=message):
         call()
@@ -245,8 +273,9 @@ def test_bad_numbers_name_their_parameter(call, error, message):
 
 def test_sigterm_during_a_write_leaves_no_temporary_file(tmp_path):
     command = [sys.executable, "-m", "diffdrive", "simulate", "--dt", "1e-5", "-o", "big.csv"]
-    with subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.DEVNULL) as process:  # fmt: skip
+    with subprocess.Popen(
+        command, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    ) as process:
         deadline = time.monotonic() + 60
         while not list(tmp_path.glob(".big.*")) and time.monotonic() < deadline:
             assert process.poll() is None, "finished before it could be interrupted"

@@ -136,11 +136,13 @@ def test_ate_equals_evo(evo_files, aligned):
 
 
 @pytest.mark.parametrize(("delta", "unit", "pairs", "from_truth", "metres", "degrees"), EVO_RPE)
-def test_rpe_equals_evo_in_both_pair_modes(evo_files, delta, unit, pairs, from_truth, metres,
-                                           degrees):  # fmt: skip
+def test_rpe_equals_evo_in_both_pair_modes(
+    evo_files, delta, unit, pairs, from_truth, metres, degrees
+):
     estimate, truth = paired(evo_files)
-    translation, rotation = rpe(estimate, truth, delta, unit, pairs=pairs,
-                                pairs_from_truth=from_truth)  # fmt: skip
+    translation, rotation = rpe(
+        estimate, truth, delta, unit, pairs=pairs, pairs_from_truth=from_truth
+    )
     assert translation == pytest.approx(metres, rel=1e-9)
     assert rotation == pytest.approx(degrees, rel=1e-9)
 
@@ -150,8 +152,18 @@ def test_the_cli_pairs_by_time_like_evo(evo_files, capsys):
 
     from diffdrive.cli import main
 
-    argv = [str(evo_files / "estimate.tum"), "--truth", str(evo_files / "truth.tum"),
-            "--t-offset", "-0.003", "--rpe", "1", "--rpe-pairs", "all", "--json"]  # fmt: skip
+    argv = [
+        str(evo_files / "estimate.tum"),
+        "--truth",
+        str(evo_files / "truth.tum"),
+        "--t-offset",
+        "-0.003",
+        "--rpe",
+        "1",
+        "--rpe-pairs",
+        "all",
+        "--json",
+    ]
     assert main(["evaluate", *argv]) == 0
     metrics = json.loads(capsys.readouterr().out)
     assert metrics["poses_compared"] == 241
@@ -166,5 +178,6 @@ def test_interpolation_follows_the_arc():
     fine = dd.simulate(robot, np.tile([6.0, 9.0], (100, 1)), dt=0.01)
     coarse = fine.poses[::10]
     at = fine.times[3:95]
-    np.testing.assert_allclose(interpolate(fine.times[::10], coarse, at), fine.poses[3:95],
-                               atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(
+        interpolate(fine.times[::10], coarse, at), fine.poses[3:95], atol=1e-12
+    )

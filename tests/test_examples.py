@@ -119,8 +119,9 @@ def test_online_calibration_example_settles_near_batch_least_squares(tmp_path, c
     from data import data_folder
 
     script = load("online_calibration")
-    script.main(["--data", str(data_folder("optiodom-diffdrive")), "--output",
-                 str(tmp_path / "online.png")])  # fmt: skip
+    script.main(
+        ["--data", str(data_folder("optiodom-diffdrive")), "--output", str(tmp_path / "online.png")]
+    )
     printed = capsys.readouterr().out.split("window 1:")[0]  # the default window's reports
     readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
     lines = [row for row in printed.splitlines() if "whole-path least squares" in row]

@@ -51,10 +51,11 @@ def errors(result, truth):
 def test_fused_beats_the_wheels_and_the_gyro_alone():
     t, measured, gyro, truth, _ = slipping_run()
     found = {
-        heading: errors(gyro_odometry(ROBOT, t, measured, gyro, heading, k_left=2e-6,
-                                      k_right=2e-6), truth).max()
+        heading: errors(
+            gyro_odometry(ROBOT, t, measured, gyro, heading, k_left=2e-6, k_right=2e-6), truth
+        ).max()
         for heading in ("wheels", "gyro", "fused")
-    }  # fmt: skip
+    }
     # measured: wheels 13.2 m (slip turns them), gyro 2.36 m (its bias drifts), fused 0.44 m
     assert found["fused"] < 0.6
     assert found["gyro"] > 2 * found["fused"]
@@ -120,30 +121,43 @@ def test_imu_mounting_rotates_the_rates_into_the_body():
     np.testing.assert_allclose(mounted.rates, 0.3)
     yaw = Gyro.from_yaw(times, np.array([3.0, 3.1, -3.1, -3.0, -2.9]))  # through the wrap
     np.testing.assert_allclose(yaw.rates[:-1], [1.0, (2 * math.pi - 6.2) / 0.1, 1.0, 1.0])
-    np.testing.assert_allclose(Gyro(times, np.full(5, 2.0)).angles(np.array([0.05, 0.4])),
-                               [0.1, 0.8])  # fmt: skip
+    np.testing.assert_allclose(
+        Gyro(times, np.full(5, 2.0)).angles(np.array([0.05, 0.4])), [0.1, 0.8]
+    )
 
 
 @pytest.mark.parametrize(
     ("make", "message"),
     [
-        (lambda: Gyro.from_imu([0, 1], np.zeros((2, 3)), np.diag([1.0, 1.0, -1.0])),
-         "mounting is not a rotation"),
-        (lambda: Gyro.from_imu([0, 1], np.zeros((2, 3)), 2 * np.eye(3)),
-         "mounting is not a rotation"),
+        (
+            lambda: Gyro.from_imu([0, 1], np.zeros((2, 3)), np.diag([1.0, 1.0, -1.0])),
+            "mounting is not a rotation",
+        ),
+        (
+            lambda: Gyro.from_imu([0, 1], np.zeros((2, 3)), 2 * np.eye(3)),
+            "mounting is not a rotation",
+        ),
         (lambda: Gyro([0.0, 1.0, 1.0], [0.0, 0.0, 0.0]), "gyro times must increase"),
-        (lambda: Gyro([0.0, 0.1, 5.0], [0.0, 0.0, 0.0], max_gap=1.0),
-         "the gyro stream stops for 4.9 s after t = 0.1 s"),
+        (
+            lambda: Gyro([0.0, 0.1, 5.0], [0.0, 0.0, 0.0], max_gap=1.0),
+            "the gyro stream stops for 4.9 s after t = 0.1 s",
+        ),
         (lambda: Gyro([0.0, 1.0], [0.0, math.nan]), "must be finite"),
-        (lambda: Gyro([0.0, 1.0], [0.0, 0.0]).angles(np.array([0.5, 1.5])),
-         r"the wheel log spans \[0.5, 1.5\] s, the gyro only \[0, 1\] s"),
+        (
+            lambda: Gyro([0.0, 1.0], [0.0, 0.0]).angles(np.array([0.5, 1.5])),
+            r"the wheel log spans \[0.5, 1.5\] s, the gyro only \[0, 1\] s",
+        ),
         (lambda: GyroOdometry(ROBOT, slip_threshold=-1.0), "slip_threshold must be > 0"),
         (lambda: GyroOdometry(ROBOT, heading="compass"), "heading must be one of"),
         (lambda: GyroNoise(angle_random_walk=-1.0), "angle_random_walk must be >= 0"),
-        (lambda: gyro_odometry(ROBOT, [0.0, 1.0], np.ones((1, 2)), Gyro([0.0, 1.0], [0.0, 0.0]),
-                               "gyro"), "heading 'gyro' needs the gyro bias"),
+        (
+            lambda: gyro_odometry(
+                ROBOT, [0.0, 1.0], np.ones((1, 2)), Gyro([0.0, 1.0], [0.0, 0.0]), "gyro"
+            ),
+            "heading 'gyro' needs the gyro bias",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_gyro_input_is_refused(make, message):
     with pytest.raises(ValueError, match=message):
         make()
@@ -167,12 +181,26 @@ def test_the_command_line_takes_a_gyro_column_and_writes_slip_columns(tmp_path, 
     angles = np.vstack([[0.0, 0.0], np.cumsum(measured, axis=0)])
     rates = np.interp(t, gyro.times, gyro.rates)
     log = tmp_path / "log.csv"
-    rows = "\n".join(f"{a!r},{b!r},{c!r},{d!r}" for a, (b, c), d in
-                     zip(t.tolist(), angles.tolist(), rates.tolist(), strict=True))  # fmt: skip
+    rows = "\n".join(
+        f"{a!r},{b!r},{c!r},{d!r}"
+        for a, (b, c), d in zip(t.tolist(), angles.tolist(), rates.tolist(), strict=True)
+    )
     log.write_text("t,left_angle,right_angle,gyro_z\n" + rows + "\n")
     out = tmp_path / "o.csv"
-    argv = ["odometry", str(log), "--wheel-radius", "0.05", "--track-width", "0.3",
-            "--k-left", "2e-6", "--k-right", "2e-6", "-o", str(out)]  # fmt: skip
+    argv = [
+        "odometry",
+        str(log),
+        "--wheel-radius",
+        "0.05",
+        "--track-width",
+        "0.3",
+        "--k-left",
+        "2e-6",
+        "--k-right",
+        "2e-6",
+        "-o",
+        str(out),
+    ]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "slip: " in printed
@@ -183,8 +211,9 @@ def test_the_command_line_takes_a_gyro_column_and_writes_slip_columns(tmp_path, 
     plain.write_text("t,left_angle,right_angle\n0,0,0\n1,1,1\n")
     assert main(["odometry", str(plain), "--heading", "fused", "-o", str(out)]) == 1
     assert "--heading fused needs a gyro" in capsys.readouterr().err
-    code = main(["odometry", str(log), "--heading", "gyro", "--gyro-bias", "0.01", "-o",
-                 str(out), "-q"])  # fmt: skip
+    code = main(
+        ["odometry", str(log), "--heading", "gyro", "--gyro-bias", "0.01", "-o", str(out), "-q"]
+    )
     assert code == 0
 
 
@@ -198,8 +227,9 @@ def test_commanded_wheel_velocities_flag_a_wheel_that_spins_up_beyond_its_comman
     spin[100:120] = True
     measured[spin] *= 1.5  # both wheels spin 50 % faster than commanded, straight ahead
     gyro = Gyro(t, np.zeros(301))
-    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", bias=0.0, commanded=wheels,
-                           command_sigma=0.5)  # fmt: skip
+    result = gyro_odometry(
+        ROBOT, t, measured, gyro, "fused", bias=0.0, commanded=wheels, command_sigma=0.5
+    )
     flagged = result.slip[1:]
     assert flagged[spin].all()
     assert not flagged[~spin].any()
@@ -217,11 +247,28 @@ def test_the_command_line_reads_command_columns(tmp_path, capsys):
     measured = np.tile([6.0, 6.0], (300, 1)) * DT
     measured[100:120] *= 1.5
     angles = np.vstack([[0.0, 0.0], np.cumsum(measured, axis=0)])
-    rows = "\n".join(f"{a!r},{b!r},{c!r},0.0,6.0,6.0" for a, (b, c) in
-                     zip(t.tolist(), angles.tolist(), strict=True))  # fmt: skip
+    rows = "\n".join(
+        f"{a!r},{b!r},{c!r},0.0,6.0,6.0"
+        for a, (b, c) in zip(t.tolist(), angles.tolist(), strict=True)
+    )
     log = tmp_path / "log.csv"
     log.write_text("t,left_angle,right_angle,gyro_z,left_command,right_command\n" + rows + "\n")
     out = tmp_path / "o.csv"
-    assert main(["odometry", str(log), "--wheel-radius", "0.05", "--track-width", "0.3",
-                 "--gyro-bias", "0", "-o", str(out)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "odometry",
+                str(log),
+                "--wheel-radius",
+                "0.05",
+                "--track-width",
+                "0.3",
+                "--gyro-bias",
+                "0",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert "slip: 20 of 300 intervals flagged" in capsys.readouterr().out

@@ -17,8 +17,12 @@ TRUE = dd.DiffDrive(left_wheel_radius=0.0418, right_wheel_radius=0.0423, track_w
 
 def simulated(wheels: np.ndarray, dt: float = 0.05) -> Run:
     trajectory = dd.simulate(TRUE, wheels, dt=dt)
-    return Run.from_increments(np.diff(trajectory.wheel_positions, axis=0), trajectory.poses,
-                               trajectory.times, source="simulated")  # fmt: skip
+    return Run.from_increments(
+        np.diff(trajectory.wheel_positions, axis=0),
+        trajectory.poses,
+        trajectory.times,
+        source="simulated",
+    )
 
 
 def turning() -> list[Run]:
@@ -96,11 +100,16 @@ def test_the_same_run_from_a_table_and_an_optiodom_file_reads_alike(tmp_path):
     optiodom = read_run(sorted(folder.glob("*_run-*.csv"))[0])
     table = tmp_path / "same.csv"
     rows = zip(optiodom.times, *optiodom.wheels.T, *optiodom.truth.T, strict=True)
-    table.write_text("t,left_ticks,right_ticks,x,y,theta\n"
-                     + "".join(",".join(map(repr, map(float, row[:1])))
-                               + f",{int(row[1])},{int(row[2])},"
-                               + ",".join(map(repr, map(float, row[3:]))) + "\n"
-                               for row in rows))  # fmt: skip
+    table.write_text(
+        "t,left_ticks,right_ticks,x,y,theta\n"
+        + "".join(
+            ",".join(map(repr, map(float, row[:1])))
+            + f",{int(row[1])},{int(row[2])},"
+            + ",".join(map(repr, map(float, row[3:])))
+            + "\n"
+            for row in rows
+        )
+    )
     again = read_run(table)
     assert (optiodom.kind, again.kind) == ("ticks", "ticks")
     np.testing.assert_array_equal(again.wheels, optiodom.wheels)
@@ -112,8 +121,9 @@ def test_the_same_run_from_a_table_and_an_optiodom_file_reads_alike(tmp_path):
 def test_a_bag_gives_a_run_with_its_reference_as_truth():
     pytest.importorskip("rosbags")
     bag = data_folder("ros-bags") / "turtlebot3_fuse.bag"
-    run = read_run(bag, left_joint="wheel_left_joint", right_joint="wheel_right_joint",
-                   reference_topic="/odom")  # fmt: skip
+    run = read_run(
+        bag, left_joint="wheel_left_joint", right_joint="wheel_right_joint", reference_topic="/odom"
+    )
     assert isinstance(run, Run)
     assert run.kind == "angle"
     assert run.truth is not None

@@ -15,8 +15,9 @@ WHEELS = np.stack([8 + 3 * np.sin(T), 8 - 3 * np.sin(0.7 * T)], axis=-1)
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 def test_the_spread_matches_odometry_covariance(backend):
-    result = monte_carlo(ROBOT, WHEELS, DT, 20_000, k_left=1e-4, k_right=2e-4, seed=1,
-                         backend=backend)  # fmt: skip
+    result = monte_carlo(
+        ROBOT, WHEELS, DT, 20_000, k_left=1e-4, k_right=2e-4, seed=1, backend=backend
+    )
     odometry = dd.Odometry(ROBOT, k_left=1e-4, k_right=2e-4)
     poses, covariances = odometry.update_arrays("increments", *(WHEELS * DT).T, covariance=True)
     # 20,000 robots: a variance is known to about sqrt(2/N) = 1 %; the model is linearised.
@@ -72,8 +73,9 @@ def test_merged_moments_equal_those_of_all_the_data():
 
     def moments(part):
         deviation = part - part.mean(axis=0)
-        return Moments(len(part), part.mean(axis=0), np.einsum("nti,ntj->tij", deviation,
-                                                                deviation))  # fmt: skip
+        return Moments(
+            len(part), part.mean(axis=0), np.einsum("nti,ntj->tij", deviation, deviation)
+        )
 
     merged = Moments.combine([moments(part) for part in data])
     every = moments(data.reshape(300, 4, 3))
@@ -100,5 +102,6 @@ def test_bad_input_is_refused_with_its_name(changes, message):
     arguments = {"wheel_velocities": WHEELS, "dt": DT, "robots": 10} | changes
     robots = arguments.pop("robots")
     with pytest.raises(ValueError, match=message):
-        monte_carlo(ROBOT, arguments.pop("wheel_velocities"), arguments.pop("dt"), robots,
-                    **arguments)  # fmt: skip
+        monte_carlo(
+            ROBOT, arguments.pop("wheel_velocities"), arguments.pop("dt"), robots, **arguments
+        )

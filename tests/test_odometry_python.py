@@ -15,8 +15,9 @@ from hypothesis import strategies as st
 import diffdrive as dd
 from diffdrive.estimation.odometry import PythonOdometry
 
-ROBOT = dd.DiffDrive(left_wheel_radius=0.049, right_wheel_radius=0.051, track_width=0.31,
-                     axle_offset=0.04)  # fmt: skip
+ROBOT = dd.DiffDrive(
+    left_wheel_radius=0.049, right_wheel_radius=0.051, track_width=0.31, axle_offset=0.04
+)
 
 angles = st.floats(-3.0, 3.0, allow_nan=False)
 steps = st.floats(0.0, 0.2, allow_nan=False)
@@ -53,8 +54,13 @@ def observed(odometry):
         velocities = odometry.wheel_velocities.to_array()
     except ValueError:
         velocities = None
-    return (odometry.pose.to_array(), odometry.covariance, odometry.distance, odometry.time,
-            velocities)  # fmt: skip
+    return (
+        odometry.pose.to_array(),
+        odometry.covariance,
+        odometry.distance,
+        odometry.time,
+        velocities,
+    )
 
 
 @settings(max_examples=150)
@@ -64,8 +70,14 @@ def observed(odometry):
     st.lists(updates, max_size=30),
 )
 def test_the_twin_follows_the_c_core_update_by_update(method, bits, sequence):
-    options = {"ticks_per_revolution": 4096, "counter_bits": bits, "k_left": 1e-4,
-               "k_right": 2e-4, "max_wheel_speed": 300.0, "velocity_window": 0.3}  # fmt: skip
+    options = {
+        "ticks_per_revolution": 4096,
+        "counter_bits": bits,
+        "k_left": 1e-4,
+        "k_right": 2e-4,
+        "max_wheel_speed": 300.0,
+        "velocity_window": 0.3,
+    }
     compiled, twin = dd.Odometry(ROBOT, method, **options), PythonOdometry(ROBOT, method, **options)
     clocks = [[0.0], [0.0]]
     for update in sequence:
@@ -104,9 +116,21 @@ def test_the_odometry_tests_pass_on_the_twin():
     subprocess.run([sys.executable, "-c", check], env=environment, check=True)
     modules = [str(tests / f"test_{name}.py") for name in ("odometry", "stateful", "edges")]
     done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *modules,
-         "-k", "not bounded_memory and not long_streaming_run and not reading_subcommand_crash"],
-        env=environment, capture_output=True, text=True, cwd=tests.parent,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            *modules,
+            "-k",
+            "not bounded_memory and not long_streaming_run and not reading_subcommand_crash",
+        ],
+        env=environment,
+        capture_output=True,
+        text=True,
+        cwd=tests.parent,
+    )
     report = done.stdout
     assert done.returncode == 0, report[report.find("= FAILURES =") :][:6000] or report[-3000:]

@@ -34,21 +34,25 @@ def test_it_converges_to_the_robot_that_made_the_data():
     sigma = np.sqrt(np.diag(online.covariance))
     assert np.all(np.abs(online.parameters - [0.0497, 0.0502, 0.306]) < 5 * sigma)
     batch = calibrate(NOMINAL, [(wheels, truth)], "increments").robot  # the batch fit, no noise
-    np.testing.assert_allclose(online.parameters,
-                               [batch.left_wheel_radius, batch.right_wheel_radius,
-                                batch.track_width], rtol=2e-3)  # fmt: skip
+    np.testing.assert_allclose(
+        online.parameters,
+        [batch.left_wheel_radius, batch.right_wheel_radius, batch.track_width],
+        rtol=2e-3,
+    )
 
 
 @pytest.mark.parametrize("window", [1, 7, 20])
 def test_recursive_equals_batch_weighted_least_squares_on_the_same_data(window):
     wheels, relative, _ = intervals(1, 503)  # not a multiple of 7 or 20: a window left over
-    online = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, gate=1e12,
-                              window=window)  # fmt: skip
+    online = OnlineCalibrator(
+        NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, gate=1e12, window=window
+    )
     for k in range(len(wheels)):
         online.update(*wheels[k], relative[k])
     assert online.accepted == len(wheels) // window
-    np.testing.assert_allclose(online.parameters, online.batch_solution(wheels, relative),
-                               rtol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        online.parameters, online.batch_solution(wheels, relative), rtol=1e-9
+    )
 
 
 def test_a_window_composes_the_relative_poses_and_sums_the_wheels():

@@ -53,10 +53,15 @@ def test_dead_reckoning_reproduces_the_authors_initial_errors(row):
         number = int(outlier.group(1)) if outlier else OUTLIERS[row["experiment"]]
         runs = [run for run in runs if not run.stem.endswith(f"run-{number:02d}")]
     worst = np.max([run_errors(read_optiodom_run(run), robot) for run in runs], axis=0)
-    expected = [float(row[f"init_{name}"]) for name in (
-        "max_pos_err_m", "max_heading_err_deg", "max_final_pos_err_m",
-        "max_final_heading_err_deg",
-    )]  # fmt: skip
+    expected = [
+        float(row[f"init_{name}"])
+        for name in (
+            "max_pos_err_m",
+            "max_heading_err_deg",
+            "max_final_pos_err_m",
+            "max_final_heading_err_deg",
+        )
+    ]
     # The spreadsheet keeps 6 significant digits: 1e-5 m and 1e-3 degrees cover its rounding.
     np.testing.assert_allclose(worst[[0, 2]], [expected[0], expected[2]], rtol=0, atol=1e-5)
     np.testing.assert_allclose(worst[[1, 3]], [expected[1], expected[3]], rtol=0, atol=1e-3)

@@ -88,10 +88,21 @@ def test_the_wheel_carries_the_type_information_and_the_page(tmp_path):
 
     root = Path(__file__).resolve().parents[1]
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", str(root), "--no-deps", "--no-build-isolation",
-         "-q", "-w", str(tmp_path)],
-        check=True, capture_output=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            str(root),
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(tmp_path),
+        ],
+        check=True,
+        capture_output=True,
+    )
     (wheel,) = tmp_path.glob("diffdrive-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     wanted = ("diffdrive/py.typed", "diffdrive/backends/_odometry.pyi", "diffdrive/learn/page.py")

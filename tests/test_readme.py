@@ -40,8 +40,10 @@ def test_the_command_line_walkthrough_makes_the_pictures_shown(tmp_path):
         assert words[0] == ".venv/bin/diffdrive", command
         result = subprocess.run(
             [sys.executable, "-m", "diffdrive", *words[1:]],
-            capture_output=True, text=True, cwd=tmp_path,
-        )  # fmt: skip
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+        )
         assert result.returncode == 0, (command, result.stderr)
     figure = "docs/figures/trajectory.png"
     assert figure in README.read_text()

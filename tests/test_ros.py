@@ -60,15 +60,19 @@ def test_joints_are_looked_up_by_name_not_by_index():
 @pytest.mark.parametrize(
     ("call", "message"),
     [
-        (lambda: ros.read_joint_states(TB3, "left", "wheel_right_joint"),
-         "no joint 'left' \\(its joints: wheel_right_joint, wheel_left_joint\\)"),
-        (lambda: ros.read_odometry(TB3, "/nope"),
-         "no topic '/nope' \\(the bag has: /cmd_vel, /imu, /joint_states, /odom, /scan\\)"),
+        (
+            lambda: ros.read_joint_states(TB3, "left", "wheel_right_joint"),
+            "no joint 'left' \\(its joints: wheel_right_joint, wheel_left_joint\\)",
+        ),
+        (
+            lambda: ros.read_odometry(TB3, "/nope"),
+            "no topic '/nope' \\(the bag has: /cmd_vel, /imu, /joint_states, /odom, /scan\\)",
+        ),
         (lambda: ros.read_odometry(TB3, "/imu"), "/imu holds sensor_msgs/msg/Imu, not nav_msgs"),
         (lambda: ros.read_tf(TB3, "odom", "base_footprint"), "no /tf or /tf_static topic"),
         (lambda: ros.read_odometry(BAGS / "missing.bag", "/odom"), "missing.bag: no such bag"),
     ],
-)  # fmt: skip
+)
 def test_what_a_bag_cannot_give_is_named(call, message):
     with pytest.raises(ros.BagError, match=message):
         call()
@@ -96,9 +100,11 @@ def test_messages_out_of_order_are_sorted_and_repeated_stamps_dropped(tmp_path):
                 header=t["std_msgs/msg/Header"](
                     stamp=t["builtin_interfaces/msg/Time"](sec=stamp, nanosec=0), frame_id=""
                 ),
-                name=["r", "l"], position=np.array([10.0 * stamp, float(k)]),
-                velocity=np.array([]), effort=np.array([]),
-            )  # fmt: skip
+                name=["r", "l"],
+                position=np.array([10.0 * stamp, float(k)]),
+                velocity=np.array([]),
+                effort=np.array([]),
+            )
             writer.write(connection, k, store.serialize_cdr(message, message.__msgtype__))
     log = ros.read_joint_states(path, "l", "r", "/js")
     assert log.times.tolist() == [1.0, 2.0, 3.0, 4.0]
@@ -202,8 +208,21 @@ def test_an_existing_bag_folder_is_not_replaced(tmp_path):
 
 def test_turtlebot3_calibration_from_joint_states_against_odom(tmp_path, capsys):
     robot_file = tmp_path / "tb3.toml"
-    argv = ["calibrate", TB3, *JOINTS, "--reference-topic", "/odom", "--method", "increments",
-            "--wheel-radius", "0.033", "--track-width", "0.287", "-o", robot_file]  # fmt: skip
+    argv = [
+        "calibrate",
+        TB3,
+        *JOINTS,
+        "--reference-topic",
+        "/odom",
+        "--method",
+        "increments",
+        "--wheel-radius",
+        "0.033",
+        "--track-width",
+        "0.287",
+        "-o",
+        robot_file,
+    ]
     code, out, err = run(argv, capsys)
     assert code == 0, err
     settings = dd.io.read_robot(robot_file)
@@ -212,14 +231,37 @@ def test_turtlebot3_calibration_from_joint_states_against_odom(tmp_path, capsys)
     assert settings["right_wheel_radius"] == pytest.approx(0.0325, abs=2e-4)
     assert settings["track_width"] == pytest.approx(0.2955, abs=2e-3)
     odometry = tmp_path / "tb3.mcap"
-    argv = ["odometry", TB3, *JOINTS, "--robot", robot_file, "--k-left", "1e-5", "--k-right",
-            "1e-5", "-o", odometry]  # fmt: skip
+    argv = [
+        "odometry",
+        TB3,
+        *JOINTS,
+        "--robot",
+        robot_file,
+        "--k-left",
+        "1e-5",
+        "--k-right",
+        "1e-5",
+        "-o",
+        odometry,
+    ]
     assert run(argv, capsys)[0] == 0
     back = ros.read_odometry(odometry, "/odom")
     assert len(back.times) == 2741
     assert back.covariances[-1, 0, 0] > back.covariances[10, 0, 0] > 0  # propagated, growing
-    code, out, _ = run(["evaluate", odometry, "--topic", "/odom", "--truth", TB3,
-                        "--truth-topic", "/odom", "--json"], capsys)  # fmt: skip
+    code, out, _ = run(
+        [
+            "evaluate",
+            odometry,
+            "--topic",
+            "/odom",
+            "--truth",
+            TB3,
+            "--truth-topic",
+            "/odom",
+            "--json",
+        ],
+        capsys,
+    )
     assert code == 0
     metrics = json.loads(out)
     assert metrics["poses_compared"] == 2741
@@ -246,8 +288,18 @@ def test_the_cli_takes_a_bag_wherever_it_takes_a_log(tmp_path, capsys):
 
 
 def test_evaluate_wheel_odometry_against_gps_from_the_command_line(capsys):
-    argv = ["evaluate", HUSKY, "--topic", "/husky_velocity_controller/odom", "--truth", HUSKY,
-            "--truth-topic", "/fix", "--interpolate", "--json"]  # fmt: skip
+    argv = [
+        "evaluate",
+        HUSKY,
+        "--topic",
+        "/husky_velocity_controller/odom",
+        "--truth",
+        HUSKY,
+        "--truth-topic",
+        "/fix",
+        "--interpolate",
+        "--json",
+    ]
     code, out, err = run(argv, capsys)
     assert code == 0, err
     metrics = json.loads(out)
@@ -288,18 +340,20 @@ def test_a_tf_chain_and_velocity_joint_states(tmp_path):
             child_frame_id=child,
             transform=t["geometry_msgs/msg/Transform"](
                 translation=t["geometry_msgs/msg/Vector3"](x=x, y=0.0, z=0.0),
-                rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2),
-                                                           w=math.cos(yaw / 2)),
+                rotation=t["geometry_msgs/msg/Quaternion"](
+                    x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+                ),
             ),
-        )  # fmt: skip
+        )
 
     path = tmp_path / "chain"
     with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
         tf = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
         static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
         joints = writer.add_connection("/js", "sensor_msgs/msg/JointState", typestore=store)
-        message = t["tf2_msgs/msg/TFMessage"](transforms=[transform(0, "base_link", "laser",
-                                                                    0.2, 0.0)])  # fmt: skip
+        message = t["tf2_msgs/msg/TFMessage"](
+            transforms=[transform(0, "base_link", "laser", 0.2, 0.0)]
+        )
         writer.write(static, 0, store.serialize_cdr(message, message.__msgtype__))
         for k in range(1, 4):
             message = t["tf2_msgs/msg/TFMessage"](
@@ -308,14 +362,19 @@ def test_a_tf_chain_and_velocity_joint_states(tmp_path):
             writer.write(tf, k, store.serialize_cdr(message, message.__msgtype__))
             message = t["sensor_msgs/msg/JointState"](
                 header=t["std_msgs/msg/Header"](stamp=stamp(k), frame_id=""),
-                name=["l", "r"], position=np.array([]), velocity=np.array([1.0 * k, 2.0 * k]),
+                name=["l", "r"],
+                position=np.array([]),
+                velocity=np.array([1.0 * k, 2.0 * k]),
                 effort=np.array([]),
-            )  # fmt: skip
+            )
             writer.write(joints, k, store.serialize_cdr(message, message.__msgtype__))
     times, poses = ros.read_tf(path, "odom", "laser")
     assert times.tolist() == [1.0, 2.0, 3.0]
-    np.testing.assert_allclose(poses, [[1.0, 0.2, math.pi / 2], [2.0, 0.2, math.pi / 2],
-                                       [3.0, 0.2, math.pi / 2]], atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(
+        poses,
+        [[1.0, 0.2, math.pi / 2], [2.0, 0.2, math.pi / 2], [3.0, 0.2, math.pi / 2]],
+        atol=1e-12,
+    )
     with pytest.raises(ros.BagError, match="no transform chain odom -> map"):
         ros.read_tf(path, "odom", "map")
     log = ros.read_joint_states(path, "l", "r", "/js")

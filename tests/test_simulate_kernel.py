@@ -14,8 +14,9 @@ from diffdrive.backends import simulate_kernel
 pytest.importorskip("numba", reason="numba is part of the test extra")
 llvm = pytest.importorskip("llvmlite.binding", reason="llvmlite comes with numba")
 
-ROBOT = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.051, track_width=0.3,
-                     axle_offset=0.02)  # fmt: skip
+ROBOT = dd.DiffDrive(
+    left_wheel_radius=0.05, right_wheel_radius=0.051, track_width=0.3, axle_offset=0.02
+)
 # A fresh process: simulate on the kernel, say whether numba was imported, and how far the
 # poses are from the NumPy path's.
 FRESH = """
@@ -34,8 +35,9 @@ def fresh(cache, **env) -> tuple[bool, float]:
     import os
 
     environment = {**os.environ, "DIFFDRIVE_CACHE_DIR": str(cache), **env}
-    done = subprocess.run([sys.executable, "-c", FRESH], capture_output=True, text=True,
-                          env=environment, check=True)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, "-c", FRESH], capture_output=True, text=True, env=environment, check=True
+    )
     imported, difference = done.stdout.split()
     return imported == "True", float(difference)
 
@@ -85,24 +87,27 @@ def test_an_unwritable_cache_still_gives_the_kernel(tmp_path, monkeypatch):
     monkeypatch.setattr(simulate_kernel, "_loaded", {})
     wheels = np.random.default_rng(2).uniform(-20, 20, (200, 2))
     kernel = dd.simulate(ROBOT, wheels, dt=0.01, backend="numba").poses
-    np.testing.assert_allclose(kernel, dd.simulate(ROBOT, wheels, dt=0.01, backend="numpy").poses,
-                               rtol=0, atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(
+        kernel, dd.simulate(ROBOT, wheels, dt=0.01, backend="numpy").poses, rtol=0, atol=1e-12
+    )
     assert not (blocker / "cache").exists()
 
 
 def test_runtime_helpers_become_traps_and_intrinsics_stay():
-    ir = "\n".join([
-        "@PyExc_RuntimeError = external local_unnamed_addr global ptr",
-        "declare void @numba_gil_ensure(ptr) local_unnamed_addr",
-        "declare noalias ptr @helper(ptr noundef, i64, ...) #0",
-        "declare double @llvm.cos.f64(double) #1",
-        "define double @f(double %x) {",
-        "  %c = call double @llvm.cos.f64(double %x)",
-        "  ret double %c",
-        "}",
-        "attributes #0 = { nounwind }",
-        "attributes #1 = { nounwind readnone }",
-    ])  # fmt: skip
+    ir = "\n".join(
+        [
+            "@PyExc_RuntimeError = external local_unnamed_addr global ptr",
+            "declare void @numba_gil_ensure(ptr) local_unnamed_addr",
+            "declare noalias ptr @helper(ptr noundef, i64, ...) #0",
+            "declare double @llvm.cos.f64(double) #1",
+            "define double @f(double %x) {",
+            "  %c = call double @llvm.cos.f64(double %x)",
+            "  ret double %c",
+            "}",
+            "attributes #0 = { nounwind }",
+            "attributes #1 = { nounwind readnone }",
+        ]
+    )
     module = llvm.parse_assembly(simulate_kernel.trap_runtime_helpers(ir))
     module.verify()
     declared = sorted(f.name for f in module.functions if f.is_declaration)
@@ -150,8 +155,9 @@ def test_without_the_cache_numbas_functions_run_the_same_tasks(monkeypatch, reas
         monkeypatch.setattr(simulate_kernel, "_compile", lambda *args: None)
     wheels = np.random.default_rng(3).uniform(-20, 20, (2, 300, 2))
     kernel = dd.simulate(ROBOT, wheels, dt=0.01, backend="numba").poses
-    np.testing.assert_allclose(kernel, dd.simulate(ROBOT, wheels, dt=0.01, backend="numpy").poses,
-                               rtol=0, atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(
+        kernel, dd.simulate(ROBOT, wheels, dt=0.01, backend="numpy").poses, rtol=0, atol=1e-12
+    )
     from diffdrive.backends.numba_simulate import run_tasks
 
     assert list(simulate_kernel._loaded.values()) == [run_tasks]

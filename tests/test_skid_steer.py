@@ -23,8 +23,9 @@ def test_the_ideal_case_is_the_differential_drive_exactly():
         assert skid.to_twist(wheels) == drive.to_twist(wheels)
         twist = drive.to_twist(wheels)
         assert skid.to_wheel_velocities(twist) == drive.to_wheel_velocities(twist)
-    np.testing.assert_array_equal(dd.simulate(skid, WHEELS, dt=0.01).poses,
-                                  dd.simulate(drive, WHEELS, dt=0.01).poses)  # fmt: skip
+    np.testing.assert_array_equal(
+        dd.simulate(skid, WHEELS, dt=0.01).poses, dd.simulate(drive, WHEELS, dt=0.01).poses
+    )
     a, b = dd.Odometry(skid), dd.Odometry(drive)
     for left, right in (WHEELS * 0.01).tolist():
         a.update_increments(left, right)
@@ -50,17 +51,20 @@ def test_the_icr_formulas_by_hand():
 @settings(max_examples=60)
 def test_batch_kinematics_equal_the_scalar_icr_formulas(wheels):
     twist = ASYMMETRIC.to_twist(wheels)
-    np.testing.assert_allclose(dd.batch.to_twist(ASYMMETRIC, np.array(wheels)),
-                               twist.to_array(), atol=1e-12)  # fmt: skip
-    np.testing.assert_allclose(dd.batch.to_wheel_velocities(ASYMMETRIC, twist.to_array()),
-                               wheels, atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        dd.batch.to_twist(ASYMMETRIC, np.array(wheels)), twist.to_array(), atol=1e-12
+    )
+    np.testing.assert_allclose(
+        dd.batch.to_wheel_velocities(ASYMMETRIC, twist.to_array()), wheels, atol=1e-9
+    )
 
 
 @pytest.mark.parametrize("backend", ["numpy", "numba"])
 def test_simulate_follows_the_body_origin_of_an_asymmetric_robot(backend):
     pytest.importorskip("numba") if backend == "numba" else None
-    trajectory = dd.simulate(ASYMMETRIC, WHEELS, dt=0.01, initial_pose=[1.0, 2.0, 0.5],
-                             backend=backend)  # fmt: skip
+    trajectory = dd.simulate(
+        ASYMMETRIC, WHEELS, dt=0.01, initial_pose=[1.0, 2.0, 0.5], backend=backend
+    )
     pose = dd.Pose(1.0, 2.0, 0.5)
     for wheels in WHEELS:
         pose = dd.integrate.step(pose, ASYMMETRIC.to_twist(wheels), 0.01)
@@ -88,8 +92,12 @@ def test_odometry_of_an_asymmetric_robot_equals_simulate_with_its_covariance_and
         return probe.pose.to_array()
 
     base, h = odometry.pose.to_array(), 1e-6
-    numeric = np.column_stack([(after(base + h * e, 0.1, 0.3) - after(base - h * e, 0.1, 0.3))
-                               / (2 * h) for e in np.eye(3)])  # fmt: skip
+    numeric = np.column_stack(
+        [
+            (after(base + h * e, 0.1, 0.3) - after(base - h * e, 0.1, 0.3)) / (2 * h)
+            for e in np.eye(3)
+        ]
+    )
     np.testing.assert_allclose(pose_jacobian, numeric, atol=1e-8)
     by_left = (after(base, 0.1 + h, 0.3) - after(base, 0.1 - h, 0.3)) / (2 * h)
     by_right = (after(base, 0.1, 0.3 + h) - after(base, 0.1, 0.3 - h)) / (2 * h)
@@ -99,8 +107,11 @@ def test_odometry_of_an_asymmetric_robot_equals_simulate_with_its_covariance_and
 
 def skid_runs(robot):
     t = np.arange(400) * 0.05
-    histories = (np.stack([5 + 3 * np.sin(0.5 * t), 5 - 3 * np.sin(0.5 * t)], -1),
-                 np.tile([3.0, 7.0], (300, 1)), np.tile([-4.0, 4.0], (100, 1)))  # fmt: skip
+    histories = (
+        np.stack([5 + 3 * np.sin(0.5 * t), 5 - 3 * np.sin(0.5 * t)], -1),
+        np.tile([3.0, 7.0], (300, 1)),
+        np.tile([-4.0, 4.0], (100, 1)),
+    )
     return [(h * 0.05, dead_reckon(robot, h * 0.05, np.zeros(3))) for h in histories]
 
 
@@ -116,9 +127,12 @@ def test_calibration_recovers_a_skid_steer_robots_wide_icrs(method):
 
 
 def test_calibration_says_when_straight_runs_cannot_find_the_icr_spread():
-    straight = [(np.tile([0.3, 0.3], (200, 1)), dead_reckon(ASYMMETRIC, np.tile([0.3, 0.3],
-                                                                               (200, 1)),
-                                                              np.zeros(3)))]  # fmt: skip
+    straight = [
+        (
+            np.tile([0.3, 0.3], (200, 1)),
+            dead_reckon(ASYMMETRIC, np.tile([0.3, 0.3], (200, 1)), np.zeros(3)),
+        )
+    ]
     with pytest.raises(CalibrationError, match="too little to identify the track_width"):
         calibrate(dd.SkidSteer(0.11, 0.3, -0.25), straight)
 
@@ -131,10 +145,12 @@ def test_calibration_says_when_straight_runs_cannot_find_the_icr_spread():
         (lambda: dd.SkidSteer(-0.1, 0.2, -0.2), "wheel_radius must be > 0"),
         (lambda: dd.SkidSteer(0.1, 0.2, -0.2, wheels_per_side=0), "wheels_per_side must be"),
         (lambda: dd.SkidSteer(0.1, 0.2, -0.2, icr_x=math.inf), "icr_x must be finite"),
-        (lambda: dd.SkidSteer(0.1, 0.2, -0.2, wheels_per_side=2).side_velocities(1.0, [1, 2]),
-         "left: 2 wheel velocities a side, got 1"),
+        (
+            lambda: dd.SkidSteer(0.1, 0.2, -0.2, wheels_per_side=2).side_velocities(1.0, [1, 2]),
+            "left: 2 wheel velocities a side, got 1",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_skid_steer_geometry_is_refused(make, message):
     with pytest.raises(ValueError, match=message):
         make()
@@ -170,8 +186,9 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
     offset = ASYMMETRIC.reference_offset
     options = {"k_left": 1e-3, "k_right": 2e-3}
     gyro = GyroOdometry(ASYMMETRIC, "wheels", start, **options)
-    drive = GyroOdometry(ASYMMETRIC.equivalent, "wheels", start.compose(dd.Pose(0, offset)),
-                         **options)  # fmt: skip
+    drive = GyroOdometry(
+        ASYMMETRIC.equivalent, "wheels", start.compose(dd.Pose(0, offset)), **options
+    )
     odometry = dd.Odometry(ASYMMETRIC, "exact", start)
     for left, right in WHEELS[:40] * 0.05:
         for estimator in (gyro, drive):
@@ -179,5 +196,6 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
         odometry.update_increments(left, right)
         np.testing.assert_allclose(gyro.pose.to_array(), odometry.pose.to_array(), atol=1e-12)
         moved = offset_jacobian(drive.pose.theta, -offset)
-        np.testing.assert_allclose(gyro.covariance, moved @ drive.covariance @ moved.T,
-                                   rtol=1e-12, atol=1e-18)  # fmt: skip
+        np.testing.assert_allclose(
+            gyro.covariance, moved @ drive.covariance @ moved.T, rtol=1e-12, atol=1e-18
+        )

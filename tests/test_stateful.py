@@ -15,12 +15,29 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 import diffdrive as dd
 
-ROBOT = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.051, track_width=0.3,
-                     axle_offset=0.02)  # fmt: skip
-EDGE = [0.0, 1e-300, -1e-300, 1e-9, 1.0, -1.0, 1e6, -1e6, 1e160, -1e160, 1e300, 1e308, -1e308,
-        math.inf, math.nan]  # fmt: skip
-numbers = st.one_of(st.sampled_from(EDGE), st.floats(-1e3, 1e3), st.integers(-5, 5),
-                    st.just(10**400))  # fmt: skip
+ROBOT = dd.DiffDrive(
+    left_wheel_radius=0.05, right_wheel_radius=0.051, track_width=0.3, axle_offset=0.02
+)
+EDGE = [
+    0.0,
+    1e-300,
+    -1e-300,
+    1e-9,
+    1.0,
+    -1.0,
+    1e6,
+    -1e6,
+    1e160,
+    -1e160,
+    1e300,
+    1e308,
+    -1e308,
+    math.inf,
+    math.nan,
+]
+numbers = st.one_of(
+    st.sampled_from(EDGE), st.floats(-1e3, 1e3), st.integers(-5, 5), st.just(10**400)
+)
 times = st.one_of(st.floats(-1.0, 1e3), st.sampled_from([1e308, 1e-300, math.inf, math.nan]))
 steps = st.one_of(st.floats(1e-6, 10.0), st.sampled_from([1e-300, 1e308, 0.0, -0.1, math.nan]))
 REFUSED = (ValueError, TypeError)
@@ -48,8 +65,13 @@ def same(a, b):
 class OdometryMachine(RuleBasedStateMachine):
     def __init__(self):
         super().__init__()
-        options = {"ticks_per_revolution": 4096, "counter_bits": 16, "max_wheel_speed": 1e4,
-                   "k_left": 1e-4, "k_right": 1e-4}  # fmt: skip
+        options = {
+            "ticks_per_revolution": 4096,
+            "counter_bits": 16,
+            "max_wheel_speed": 1e4,
+            "k_left": 1e-4,
+            "k_right": 1e-4,
+        }
         self.odometry, self.twin = dd.Odometry(ROBOT, **options), dd.Odometry(ROBOT, **options)
 
     def apply(self, name, *args):
@@ -69,8 +91,11 @@ class OdometryMachine(RuleBasedStateMachine):
     def velocities(self, left, right, dt):
         self.apply("update_velocities", left, right, dt)
 
-    @rule(left=st.integers(-(2**16), 2**17), right=st.integers(-(2**16), 2**17),
-          t=st.one_of(st.none(), times))  # fmt: skip
+    @rule(
+        left=st.integers(-(2**16), 2**17),
+        right=st.integers(-(2**16), 2**17),
+        t=st.one_of(st.none(), times),
+    )
     def ticks(self, left, right, t):
         self.apply("update_ticks", left, right, t)
 
@@ -82,8 +107,10 @@ class OdometryMachine(RuleBasedStateMachine):
 
 
 class LimiterMachine(RuleBasedStateMachine):
-    LIMITS = (dd.Limits(max_velocity=2.0, max_acceleration=4.0, max_jerk=33.0),
-              dd.Limits(max_reverse_velocity=2.0, max_jerk=33.0))  # fmt: skip
+    LIMITS = (
+        dd.Limits(max_velocity=2.0, max_acceleration=4.0, max_jerk=33.0),
+        dd.Limits(max_reverse_velocity=2.0, max_jerk=33.0),
+    )
 
     def __init__(self):
         super().__init__()

@@ -101,18 +101,30 @@ def test_what_is_not_a_value_is_refused_by_name(value, error, message):
 @pytest.mark.parametrize(
     ("make", "error", "message"),
     [
-        (lambda: dd.DiffDrive(wheel_radius=10**400, track_width=0.3), ValueError,
-         "wheel_radius must be finite, got an integer too large for a float"),
+        (
+            lambda: dd.DiffDrive(wheel_radius=10**400, track_width=0.3),
+            ValueError,
+            "wheel_radius must be finite, got an integer too large for a float",
+        ),
         (lambda: Pose(10**400, 0, 0), ValueError, "Pose.x must be finite, got an integer"),
         (lambda: dd.se2.exp(Twist(1.0, 0.0, 0.0), 10**400), ValueError, "dt must be finite"),
-        (lambda: dd.Odometry(dd.DiffDrive(0.05, 0.3)).jacobians(0, 10**400), ValueError,
-         "right must be finite, got an integer too large"),
-        (lambda: dd.DiffDrive(wheel_radius=0.05, track_width="1_0"), TypeError,
-         "track_width must be a real number, not text: got '1_0'"),
-        (lambda: dd.Odometry(dd.DiffDrive(0.05, 0.3), ticks_per_revolution="4096"), TypeError,
-         "ticks_per_revolution must be a real number, not text"),
+        (
+            lambda: dd.Odometry(dd.DiffDrive(0.05, 0.3)).jacobians(0, 10**400),
+            ValueError,
+            "right must be finite, got an integer too large",
+        ),
+        (
+            lambda: dd.DiffDrive(wheel_radius=0.05, track_width="1_0"),
+            TypeError,
+            "track_width must be a real number, not text: got '1_0'",
+        ),
+        (
+            lambda: dd.Odometry(dd.DiffDrive(0.05, 0.3), ticks_per_revolution="4096"),
+            TypeError,
+            "ticks_per_revolution must be a real number, not text",
+        ),
     ],
-)  # fmt: skip
+)
 def test_huge_integers_and_numeric_text_are_refused_by_name(make, error, message):
     with pytest.raises(error, match=message):
         make()

@@ -22,8 +22,10 @@ def run(wheels, seed):
 
 def weaves(count):
     t = np.arange(300) * 0.05
-    return [run(np.stack([8 + 3 * np.sin(0.5 * t + k), 8 - 3 * np.sin(0.5 * t + k)], -1), k)
-            for k in range(count)]  # fmt: skip
+    return [
+        run(np.stack([8 + 3 * np.sin(0.5 * t + k), 8 - 3 * np.sin(0.5 * t + k)], -1), k)
+        for k in range(count)
+    ]
 
 
 def test_leave_one_run_out_scores_every_run_with_a_fit_that_never_saw_it():
@@ -67,14 +69,25 @@ def test_the_calibrate_report_gives_in_sample_and_held_out_side_by_side(tmp_path
     paths = []
     for k, (increments, truth) in enumerate(weaves(3)):
         angles = np.vstack([[0.0, 0.0], np.cumsum(increments, axis=0)])
-        rows = [f"{0.05 * i!r},{a!r},{b!r},{x!r},{y!r},{h!r}"
-                for i, ((a, b), (x, y, h)) in enumerate(zip(angles.tolist(), truth.tolist(),
-                                                            strict=True))]  # fmt: skip
+        rows = [
+            f"{0.05 * i!r},{a!r},{b!r},{x!r},{y!r},{h!r}"
+            for i, ((a, b), (x, y, h)) in enumerate(
+                zip(angles.tolist(), truth.tolist(), strict=True)
+            )
+        ]
         path = tmp_path / f"run{k}.csv"
         path.write_text("t,left_angle,right_angle,x,y,theta\n" + "\n".join(rows) + "\n")
         paths.append(str(path))
-    argv = ["calibrate", *paths, "--wheel-radius", "0.05", "--track-width", "0.3", "-o",
-            str(tmp_path / "r.toml")]  # fmt: skip
+    argv = [
+        "calibrate",
+        *paths,
+        "--wheel-radius",
+        "0.05",
+        "--track-width",
+        "0.3",
+        "-o",
+        str(tmp_path / "r.toml"),
+    ]
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "in-sample   held-out   (leave one run out)" in out
@@ -93,8 +106,9 @@ def test_held_out_optiodom_squares_beat_the_authors_in_sample_figure_with_the_of
     folder = data_folder("optiodom-diffdrive") / "square" / "230620202042"
     runs = [read_optiodom_run(path) for path in sorted(folder.glob("*_run-*.csv"))]
     offsets = ("axle_offset", "heading_offset")
-    with_offsets = cross_validate(optiodom_robot(), runs, "least_squares", "loo",
-                                  integration="rk2", extra=offsets)  # fmt: skip
+    with_offsets = cross_validate(
+        optiodom_robot(), runs, "least_squares", "loo", integration="rk2", extra=offsets
+    )
     alone = cross_validate(optiodom_robot(), runs, "least_squares", "loo", integration="rk2")
     assert round(1000 * with_offsets.held_out.max_position, 1) == 12.8
     assert round(1000 * alone.held_out.max_position, 1) == 19.8

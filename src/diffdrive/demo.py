@@ -60,8 +60,10 @@ def example_log():
 
     log = example_encoder_log()
     return Run(
-        log["t"], "ticks",
+        log["t"],
+        "ticks",
         np.column_stack([log["left_ticks"], log["right_ticks"]]).astype(np.int64),
-        np.column_stack([log["x"], log["y"], log["theta"]]), "the built-in encoder log",
+        np.column_stack([log["x"], log["y"], log["theta"]]),
+        "the built-in encoder log",
         ticks_per_revolution=EXAMPLE_TICKS_PER_REVOLUTION,
-    )  # fmt: skip
+    )

@@ -67,10 +67,11 @@ def _client(client: Any) -> Iterator[Any]:
 
     workers = os.cpu_count() or 1
     with (
-        LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                     dashboard_address=None) as cluster,
+        LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
         Client(cluster) as local,
-    ):  # fmt: skip
+    ):
         yield local
 
 
@@ -97,8 +98,10 @@ def monte_carlo(
         count = min(setup.chunks, tasks or _threads(active))
         bounds = np.linspace(0, setup.chunks, count + 1).round().astype(int)
         shared = active.scatter(setup, broadcast=True)
-        futures = [active.submit(_task, shared, int(a), int(b), pure=False)
-                   for a, b in itertools.pairwise(bounds)]  # fmt: skip
+        futures = [
+            active.submit(_task, shared, int(a), int(b), pure=False)
+            for a, b in itertools.pairwise(bounds)
+        ]
         results = active.gather(futures)
     finals, parts = zip(*results, strict=True)
     return MonteCarlo(np.concatenate(finals), Moments.combine(parts))

@@ -57,8 +57,9 @@ class RunErrors:
     final_heading: float
 
     def to_array(self) -> np.ndarray:
-        return np.array([self.max_position, self.max_heading, self.final_position,
-                         self.final_heading])  # fmt: skip
+        return np.array(
+            [self.max_position, self.max_heading, self.final_position, self.final_heading]
+        )
 
 
 def _check(estimate: object, truth: object) -> tuple[np.ndarray, np.ndarray]:

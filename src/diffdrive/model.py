@@ -66,9 +66,10 @@ class DiffDrive:
         if (track_width is None) == (half_track is None):
             raise ValueError(
                 "give either track_width (the full wheel-to-wheel distance) or half_track "
-                "(half of it), not both" if half_track is not None else
-                "track_width (the full wheel-to-wheel distance) or half_track is required"
-            )  # fmt: skip
+                "(half of it), not both"
+                if half_track is not None
+                else "track_width (the full wheel-to-wheel distance) or half_track is required"
+            )
         if half_track is not None:
             track_width = 2.0 * positive("half_track", half_track)
         object.__setattr__(self, "left_wheel_radius", left)

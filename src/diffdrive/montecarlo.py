@@ -118,9 +118,21 @@ class Plan:
         return math.ceil(self.robots / self.chunk)
 
 
-def plan(robot, wheel_velocities, dt, robots, *, k_left=0.0, k_right=0.0,
-           geometry_sigma=(0.0, 0.0, 0.0), initial_pose=None, method="exact", seed=None,
-           chunk=CHUNK, backend="auto") -> Plan:  # fmt: skip
+def plan(
+    robot,
+    wheel_velocities,
+    dt,
+    robots,
+    *,
+    k_left=0.0,
+    k_right=0.0,
+    geometry_sigma=(0.0, 0.0, 0.0),
+    initial_pose=None,
+    method="exact",
+    seed=None,
+    chunk=CHUNK,
+    backend="auto",
+) -> Plan:
     """The experiment of ``monte_carlo``'s arguments, checked."""
     if not isinstance(robot, DiffDrive):
         raise TypeError(f"robot must be a DiffDrive, got {type(robot).__name__}")
@@ -136,8 +148,10 @@ def plan(robot, wheel_velocities, dt, robots, *, k_left=0.0, k_right=0.0,
     k = np.array([finite("k_left", k_left), finite("k_right", k_right)])
     sigma = np.asarray(geometry_sigma, dtype=float)
     if sigma.shape != (3,) or not np.all(np.isfinite(sigma)) or np.any(sigma < 0) or np.any(k < 0):
-        raise ValueError("k_left, k_right and geometry_sigma (3 relative deviations: left "
-                         "radius, right radius, track) must be finite and >= 0")  # fmt: skip
+        raise ValueError(
+            "k_left, k_right and geometry_sigma (3 relative deviations: left "
+            "radius, right radius, track) must be finite and >= 0"
+        )
     start = np.zeros(3) if initial_pose is None else initial_pose
     start = components(np, start, "initial_pose", POSE).astype(np.float64)
     if start.shape != (3,) or not np.all(np.isfinite(start)):
@@ -146,8 +160,9 @@ def plan(robot, wheel_velocities, dt, robots, *, k_left=0.0, k_right=0.0,
         seed = np.random.SeedSequence().entropy
     seed = whole("seed", seed)
     robots, chunk = whole("robots", robots, smallest=1), whole("chunk", chunk, smallest=1)
-    return Plan(robot, wheels * step, start, k, sigma, method, seed, robots, chunk,
-                _backend(backend))  # fmt: skip
+    return Plan(
+        robot, wheels * step, start, k, sigma, method, seed, robots, chunk, _backend(backend)
+    )
 
 
 def _backend(backend: str) -> Literal["numpy", "numba"]:
@@ -168,11 +183,24 @@ def _run_chunk(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
     if setup.backend == "numba":
         from diffdrive.backends.numba_montecarlo import run_chunk
 
-        geometry = np.array([robot.left_wheel_radius, robot.right_wheel_radius,
-                             robot.track_width, robot.axle_offset])  # fmt: skip
-        final, mean, m2 = run_chunk(setup.travel, setup.start, setup.k, setup.geometry_sigma,
-                                    geometry, setup.method, np.random.default_rng(sequence),
-                                    count)  # fmt: skip
+        geometry = np.array(
+            [
+                robot.left_wheel_radius,
+                robot.right_wheel_radius,
+                robot.track_width,
+                robot.axle_offset,
+            ]
+        )
+        final, mean, m2 = run_chunk(
+            setup.travel,
+            setup.start,
+            setup.k,
+            setup.geometry_sigma,
+            geometry,
+            setup.method,
+            np.random.default_rng(sequence),
+            count,
+        )
         return final, Moments(count, mean, m2)
     rng = np.random.default_rng(sequence)
     nominal = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
@@ -228,8 +256,19 @@ def monte_carlo(
     """``robots`` noisy copies of ``robot`` driving ``wheel_velocities`` ``(T, 2)`` (rad/s),
     each held for ``dt`` s, from ``initial_pose``; see the module for the errors, the seeding
     and the backends. Returns the final poses and the per-step mean and covariance."""
-    setup = plan(robot, wheel_velocities, dt, robots, k_left=k_left, k_right=k_right,
-                 geometry_sigma=geometry_sigma, initial_pose=initial_pose, method=method,
-                 seed=seed, chunk=chunk, backend=backend)  # fmt: skip
+    setup = plan(
+        robot,
+        wheel_velocities,
+        dt,
+        robots,
+        k_left=k_left,
+        k_right=k_right,
+        geometry_sigma=geometry_sigma,
+        initial_pose=initial_pose,
+        method=method,
+        seed=seed,
+        chunk=chunk,
+        backend=backend,
+    )
     final, moments = run_chunks(setup, range(setup.chunks), threads)
     return MonteCarlo(final, moments)

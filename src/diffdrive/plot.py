@@ -183,9 +183,17 @@ def animate(
     half = robot.track_width / 2
     # The box, a break (NaN: no line back to the centre), then the heading from the centre.
     outline = np.array(
-        [[-half, -half], [half, -half], [half, half], [-half, half], [-half, -half],
-         [np.nan, np.nan], [0, 0], [1.4 * half, 0]]
-    )  # fmt: skip
+        [
+            [-half, -half],
+            [half, -half],
+            [half, half],
+            [-half, half],
+            [-half, -half],
+            [np.nan, np.nan],
+            [0, 0],
+            [1.4 * half, 0],
+        ]
+    )
     indices = np.linspace(0, len(poses) - 1, min(frames, len(poses))).round().astype(int)
 
     def draw(k: int):
@@ -204,8 +212,12 @@ def animate(
 
         bar = tqdm(total=len(indices), desc="animate", unit="frame", file=sys.stderr)
     try:
-        movie.save(output, writer=writer, fps=fps,
-                   progress_callback=None if bar is None else lambda *_: bar.update())  # fmt: skip
+        movie.save(
+            output,
+            writer=writer,
+            fps=fps,
+            progress_callback=None if bar is None else lambda *_: bar.update(),
+        )
     finally:
         if bar is not None:
             bar.close()

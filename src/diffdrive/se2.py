@@ -55,8 +55,9 @@ def exp(twist: Twist, dt: float = 1.0) -> Pose:
     """
     twist = Twist.coerce(twist, "twist")
     dt = finite("dt", dt)
-    return Pose(*_step.twist_move(twist.vx, twist.vy, twist.omega, dt,
-                                  *_step.METHOD_FLAGS["exact"]))  # fmt: skip
+    return Pose(
+        *_step.twist_move(twist.vx, twist.vy, twist.omega, dt, *_step.METHOD_FLAGS["exact"])
+    )
 
 
 def log(pose: Pose) -> Twist:

@@ -174,8 +174,10 @@ def _step_times(steps: int | None, dt: object, times: object, like: Any = None) 
     if bool(xp.any(not_increasing)):
         index = _first_bad(not_increasing)
         after = (*index[:-1], index[-1] + 1)
-        raise ValueError(f"times must increase strictly; times{after} = {float(t[after])} "
-                         f"follows {float(t[index])}")  # fmt: skip
+        raise ValueError(
+            f"times must increase strictly; times{after} = {float(t[after])} "
+            f"follows {float(t[index])}"
+        )
     if steps is not None and t.shape[-1] != steps + 1:
         raise ValueError(
             f"times must have T+1 = {steps + 1} entries on its last axis for T = {steps} "

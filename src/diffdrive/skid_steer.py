@@ -72,9 +72,11 @@ class SkidSteer:
         left, right = finite("icr_left", icr_left), finite("icr_right", icr_right)
         if not left > right:
             raise ValueError(f"icr_left must lie left of icr_right, got {left} and {right}")
-        if isinstance(wheels_per_side, bool) or not isinstance(wheels_per_side, int) or (
-            wheels_per_side < 1
-        ):  # fmt: skip
+        if (
+            isinstance(wheels_per_side, bool)
+            or not isinstance(wheels_per_side, int)
+            or (wheels_per_side < 1)
+        ):
             raise ValueError(
                 f"wheels_per_side must be a whole number >= 1, got {wheels_per_side!r}"
             )
@@ -117,9 +119,12 @@ class SkidSteer:
     def equivalent(self) -> DiffDrive:
         """The differential drive that moves the point ``(0, reference_offset)`` as this robot
         moves it."""
-        return DiffDrive(left_wheel_radius=self.left_wheel_radius,
-                         right_wheel_radius=self.right_wheel_radius, track_width=self.icr_spread,
-                         axle_offset=-self.icr_x)  # fmt: skip
+        return DiffDrive(
+            left_wheel_radius=self.left_wheel_radius,
+            right_wheel_radius=self.right_wheel_radius,
+            track_width=self.icr_spread,
+            axle_offset=-self.icr_x,
+        )
 
     def with_geometry(
         self,
@@ -154,11 +159,13 @@ class SkidSteer:
         """The sides' wheel velocities (rad/s): the mean of ``wheels_per_side`` each."""
         sides = []
         for name, wheels in (("left", left), ("right", right)):
-            values = [finite(name, v) for v in (wheels if isinstance(wheels, list | tuple)
-                                                else [wheels])]  # fmt: skip
+            values = [
+                finite(name, v) for v in (wheels if isinstance(wheels, list | tuple) else [wheels])
+            ]
             if len(values) != self.wheels_per_side:
-                raise ValueError(f"{name}: {self.wheels_per_side} wheel velocities a side, got "
-                                 f"{len(values)}")  # fmt: skip
+                raise ValueError(
+                    f"{name}: {self.wheels_per_side} wheel velocities a side, got {len(values)}"
+                )
             sides.append(sum(values) / len(values))
         return WheelVelocities(*sides)
 

@@ -90,8 +90,9 @@ class Trajectory:
         """
         xp, twists = self._xp, self.twists
         lengths = xp.hypot(twists[..., 0], twists[..., 1]) * self.durations
-        return xp.concat([xp.zeros_like(lengths[..., :1]), xp.cumulative_sum(lengths, axis=-1)],
-                         axis=-1)  # fmt: skip
+        return xp.concat(
+            [xp.zeros_like(lengths[..., :1]), xp.cumulative_sum(lengths, axis=-1)], axis=-1
+        )
 
     def sample(self, at: object) -> np.ndarray:
         """Poses ``(..., M, 3)`` at the times ``at`` ``(M,)``, s, along each step's arc.
@@ -115,8 +116,7 @@ class Trajectory:
                 f"got {float(t[first])}"
             )
         if self.steps == 0:  # one pose, at one time: every sample is that pose
-            return xp.take(self.poses, xp.zeros(t.shape, dtype=xp.int64, device=device(t)),
-                           axis=-2)  # fmt: skip
+            return xp.take(self.poses, xp.zeros(t.shape, dtype=xp.int64, device=device(t)), axis=-2)
         # A sample at times[-1] finds step T, the last pose, with no time left to move.
         step = xp.searchsorted(times, t, side="right") - 1
         wheels = xp.take(self.wheel_velocities, xp.clip(step, max=self.steps - 1), axis=-2)

@@ -49,8 +49,9 @@ class _Vector:
                 if array.shape == (len(fields(cls)),):  # type: ignore[arg-type]
                     return cls(*array.astype(np.float64).tolist())
                 size = len(fields(cls))  # type: ignore[arg-type]
-                raise ValueError(f"{what} must have {size} numbers [{names}], got shape "
-                                 f"{array.shape}")  # fmt: skip
+                raise ValueError(
+                    f"{what} must have {size} numbers [{names}], got shape {array.shape}"
+                )
         raise TypeError(
             f"{what} must be a {cls.__name__} or a sequence of numbers [{names}], got {value!r}"
         )

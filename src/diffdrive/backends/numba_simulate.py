@@ -102,8 +102,9 @@ def _chunk_turn(history, times, angles, geometry, n, first, stop):
 
 
 @_kernel
-def _integrate_chunk(history, times, angles, geometry, midpoint, chord, n, first, stop, x, y,
-                     heading, out):  # fmt: skip
+def _integrate_chunk(
+    history, times, angles, geometry, midpoint, chord, n, first, stop, x, y, heading, out
+):
     """Integrate steps ``first:stop`` of robot n from the pose ``(x, y, heading)`` into ``out``.
 
     Writes ``out[n, first+1 : stop+1]`` and returns the final x and y. The steps go in blocks
@@ -141,8 +142,22 @@ def _integrate_chunk(history, times, angles, geometry, midpoint, chord, n, first
 
 
 @_kernel
-def run_tasks(stage, history, times, angles, start, geometry, midpoint, chord, chunks, turns,
-              out, ends, first, stop):  # fmt: skip
+def run_tasks(
+    stage,
+    history,
+    times,
+    angles,
+    start,
+    geometry,
+    midpoint,
+    chord,
+    chunks,
+    turns,
+    out,
+    ends,
+    first,
+    stop,
+):
     """One pass over tasks ``first:stop`` (robot ``task // chunks``, chunk ``task % chunks``).
 
     Stage 0 writes each chunk's turn into ``turns``; stage 1 integrates each chunk from its
@@ -195,12 +210,32 @@ def kernel_ir(values: str, times: str, poses: str) -> tuple[str, str]:
     """
     i8, f8 = nb.int64, nb.CPointer(nb.float64)
     value, time, pose = (nb.CPointer(numba.from_dtype(np.dtype(d))) for d in (values, times, poses))
-    signature = nb.void(i8, value, i8, i8, time, i8, i8, i8, f8, f8, i8, i8, i8, f8, pose, i8,
-                        i8, f8, i8, i8)  # fmt: skip
+    signature = nb.void(
+        i8, value, i8, i8, time, i8, i8, i8, f8, f8, i8, i8, i8, f8, pose, i8, i8, f8, i8, i8
+    )
 
-    def entry(stage, history, history_rows, history_length, times, times_rows, times_length,
-              angles, start, geometry, midpoint, chord, chunks, turns, poses, robots, samples,
-              ends, first, stop):  # fmt: skip
+    def entry(
+        stage,
+        history,
+        history_rows,
+        history_length,
+        times,
+        times_rows,
+        times_length,
+        angles,
+        start,
+        geometry,
+        midpoint,
+        chord,
+        chunks,
+        turns,
+        poses,
+        robots,
+        samples,
+        ends,
+        first,
+        stop,
+    ):
         tasks = robots * chunks
         run_tasks(
             stage,

@@ -34,13 +34,20 @@ def _add(total: float, compensation: float, term: float) -> tuple[float, float]:
 
 def _propagate(cov: list[float], jp: list[float], jw: list[float], q: tuple[float, float]):
     """``J cov J^T + W diag(q) W^T``, J 3x3 and W 3x2, row-major lists."""
-    jc = [jp[3 * i] * cov[j] + jp[3 * i + 1] * cov[3 + j] + jp[3 * i + 2] * cov[6 + j]
-          for i in range(3) for j in range(3)]  # fmt: skip
+    jc = [
+        jp[3 * i] * cov[j] + jp[3 * i + 1] * cov[3 + j] + jp[3 * i + 2] * cov[6 + j]
+        for i in range(3)
+        for j in range(3)
+    ]
     return [
-        jc[3 * i] * jp[3 * j] + jc[3 * i + 1] * jp[3 * j + 1] + jc[3 * i + 2] * jp[3 * j + 2]
-        + jw[2 * i] * q[0] * jw[2 * j] + jw[2 * i + 1] * q[1] * jw[2 * j + 1]
-        for i in range(3) for j in range(3)
-    ]  # fmt: skip
+        jc[3 * i] * jp[3 * j]
+        + jc[3 * i + 1] * jp[3 * j + 1]
+        + jc[3 * i + 2] * jp[3 * j + 2]
+        + jw[2 * i] * q[0] * jw[2 * j]
+        + jw[2 * i + 1] * q[1] * jw[2 * j + 1]
+        for i in range(3)
+        for j in range(3)
+    ]
 
 
 def _number(name: str, field: str, value: object) -> float:
@@ -82,8 +89,10 @@ def _tick_reading(value: object, field: str, bits: int) -> int:
             raise ValueError(
                 f"{name}: {field} = {value!r} does not fit a {bits}-bit counter ({span})"
             )
-        raise ValueError(f"{name}: {field} = {value!r} does not fit a 64-bit integer; give "
-                         "counter_bits for a counter that rolls over")  # fmt: skip
+        raise ValueError(
+            f"{name}: {field} = {value!r} does not fit a 64-bit integer; give "
+            "counter_bits for a counter that rolls over"
+        )
     return reading
 
 
@@ -143,16 +152,20 @@ class OdometryCore:
 
     def _check(self, name: str, dl: float, dr: float, has_t: bool, t: float, dt: float) -> None:
         if not (math.isfinite(dl) and math.isfinite(dr)):
-            raise ValueError(f"{name}: the wheel increments must be finite, got left {dl!r}, "
-                             f"right {dr!r}")  # fmt: skip
+            raise ValueError(
+                f"{name}: the wheel increments must be finite, got left {dl!r}, right {dr!r}"
+            )
         if has_t and not math.isfinite(t):
-            raise ValueError(f"{name}: the clock would pass the largest finite time: {t!r} s "
-                             f"after {self._time!r} s")  # fmt: skip
+            raise ValueError(
+                f"{name}: the clock would pass the largest finite time: {t!r} s "
+                f"after {self._time!r} s"
+            )
         if has_t and dt < 0.0:
             raise ValueError(f"{name}: time went backwards: t = {t!r} s after {self._time!r} s")
         if has_t and dt == 0.0 and (dl != 0.0 or dr != 0.0):
-            raise ValueError(f"{name}: time stands still at t = {t!r} s while the wheels "
-                             "moved: no velocity")  # fmt: skip
+            raise ValueError(
+                f"{name}: time stands still at t = {t!r} s while the wheels moved: no velocity"
+            )
         if dt > 0.0 and max(abs(dl), abs(dr)) > self._max_wheel_speed * dt:
             worst = dl if abs(dl) > abs(dr) else dr
             raise ValueError(
@@ -164,21 +177,27 @@ class OdometryCore:
     def _next(self, name: str, dl: float, dr: float):
         theta = self._pose[2] + self._comp[2]
         dx, dy, turn, jac_pose, jac_wheels = self._step(theta, dl, dr)
-        q = (self._k_left * abs(self._r_left * dl) / (self._r_left * self._r_left),
-             self._k_right * abs(self._r_right * dr) / (self._r_right * self._r_right))  # fmt: skip
+        q = (
+            self._k_left * abs(self._r_left * dl) / (self._r_left * self._r_left),
+            self._k_right * abs(self._r_right * dr) / (self._r_right * self._r_right),
+        )
         cov = _propagate(self._cov, jac_pose, jac_wheels, q)
         left, right = self._r_left * dl, self._r_right * dr
         travel = math.hypot(0.5 * (left + right), self._axle * (right - left) / self._track)
-        moved = [_add(s, c, term) for s, c, term in
-                 zip(self._pose, self._comp, (dx, dy, turn, travel), strict=True)]  # fmt: skip
+        moved = [
+            _add(s, c, term)
+            for s, c, term in zip(self._pose, self._comp, (dx, dy, turn, travel), strict=True)
+        ]
         arcs = (self._arcs[0] + left, self._arcs[1] + right)
         finite = all(math.isfinite(s + c) for s, c in moved) and all(map(math.isfinite, arcs))
         what = "pose, distance or wheel travel"
         if finite and not all(map(math.isfinite, cov)):
             finite, what = False, "covariance"
         if not finite:
-            raise ValueError(f"{name}: increments of {dl!r} and {dr!r} rad would make the "
-                             f"{what} overflow (not finite); refused, nothing changed")  # fmt: skip
+            raise ValueError(
+                f"{name}: increments of {dl!r} and {dr!r} rad would make the "
+                f"{what} overflow (not finite); refused, nothing changed"
+            )
         return moved, cov, arcs
 
     def _push_sample(self, t: float) -> None:
@@ -263,8 +282,9 @@ class OdometryCore:
         """update_ticks(left, right, t=None): absolute encoder counter readings."""
         name = "update_ticks"
         if self._rad_per_tick == 0.0:
-            raise ValueError("update_ticks needs ticks_per_revolution, which this Odometry was "
-                             "made without")  # fmt: skip
+            raise ValueError(
+                "update_ticks needs ticks_per_revolution, which this Odometry was made without"
+            )
         a = _tick_reading(left, "left", self._counter_bits)
         b = _tick_reading(right, "right", self._counter_bits)
         has_t, time = self._time_of(name, t)
@@ -320,18 +340,35 @@ class OdometryCore:
         self, left: float, right: float
     ) -> tuple[Covariance, tuple[float, float, float, float, float, float]]:
         _, _, _, p, w = self._step(self._pose[2] + self._comp[2], left, right)
-        return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]), (w[0], w[1], w[2], w[3],
-                                                                       w[4], w[5])  # fmt: skip
+        return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]), (
+            w[0],
+            w[1],
+            w[2],
+            w[3],
+            w[4],
+            w[5],
+        )
 
-    def _run(self, kind: int, lefts: list[Any], rights: list[Any], thirds: list[Any], poses: Any,
-             covariances: Any) -> tuple[int, str] | None:  # fmt: skip
+    def _run(
+        self,
+        kind: int,
+        lefts: list[Any],
+        rights: list[Any],
+        thirds: list[Any],
+        poses: Any,
+        covariances: Any,
+    ) -> tuple[int, str] | None:
         """Updates of ``kind`` (0 ticks, 1 positions, 2 increments, 3 velocities) row by row,
         each pose into ``poses`` (n, 3) and covariance into ``covariances`` (n, 3, 3) unless
         None; ``(k, message)`` for the first refused, after which the state is row k-1's."""
         if not 0 <= kind <= 3:
             raise ValueError("_run: kind must be 0 to 3")
-        update = (self.update_ticks, self.update_positions, self.update_increments,
-                  self.update_velocities)[kind]  # fmt: skip
+        update = (
+            self.update_ticks,
+            self.update_positions,
+            self.update_increments,
+            self.update_velocities,
+        )[kind]
         for k, (left, right, third) in enumerate(zip(lefts, rights, thirds, strict=True)):
             try:
                 update(left, right, third)

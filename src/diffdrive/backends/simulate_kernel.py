@@ -62,15 +62,35 @@ _MIN_CHUNK = 1 << 14
 _SOURCES = ("numba_simulate.py", "../_step.py", "simulate_kernel.py")
 _USES_CACHE = sys.platform.startswith("linux")
 _INT64, _POINTER = ctypes.c_int64, ctypes.c_void_p
-_C_SIGNATURE = (_INT64, _POINTER, _INT64, _INT64, _POINTER, _INT64, _INT64, _INT64, _POINTER,
-                _POINTER, _INT64, _INT64, _INT64, _POINTER, _POINTER, _INT64, _INT64, _POINTER,
-                _INT64, _INT64)  # fmt: skip
+_C_SIGNATURE = (
+    _INT64,
+    _POINTER,
+    _INT64,
+    _INT64,
+    _POINTER,
+    _INT64,
+    _INT64,
+    _INT64,
+    _POINTER,
+    _POINTER,
+    _INT64,
+    _INT64,
+    _INT64,
+    _POINTER,
+    _POINTER,
+    _INT64,
+    _INT64,
+    _POINTER,
+    _INT64,
+    _INT64,
+)
 _DECLARATION = re.compile(
     r"^declare (?P<head>.*?)@(?P<name>[-\w.$]+|\"[^\"]+\")\((?P<arguments>.*)\)(?P<tail>[^()]*)$",
     re.MULTILINE,
 )
-_EXTERNAL_GLOBAL = re.compile(r"^(?P<name>@\S+) = external (?P<kind>.*?global) (?P<type>.+)$",
-                              re.MULTILINE)  # fmt: skip
+_EXTERNAL_GLOBAL = re.compile(
+    r"^(?P<name>@\S+) = external (?P<kind>.*?global) (?P<type>.+)$", re.MULTILINE
+)
 
 _limit: list[int | None] = [None]  # set_threads'
 _loaded: dict[tuple[str, str, str], Callable[..., None]] = {}
@@ -138,8 +158,22 @@ def integrate_history(
     midpoint, chord = METHOD_FLAGS[method]
 
     def run(stage: int, first: int, stop: int) -> None:
-        kernel(stage, history, times, angles, start, geometry, midpoint, chord, chunks, turns,
-               out, ends, first, stop)  # fmt: skip
+        kernel(
+            stage,
+            history,
+            times,
+            angles,
+            start,
+            geometry,
+            midpoint,
+            chord,
+            chunks,
+            turns,
+            out,
+            ends,
+            first,
+            stop,
+        )
 
     for stage in (0, 1, 2) if chunks > 1 else (1,):  # each pass waits for the one before
         _share_out(min(workers, tasks), tasks, functools.partial(run, stage))
@@ -232,8 +266,9 @@ def _compile(llvm: Any, machine: Any, key: tuple[str, str, str]) -> tuple[bytes,
     ir, symbol = kernel_ir(*key)
     module = llvm.parse_assembly(trap_runtime_helpers(ir))
     module.verify()
-    unresolved = [f.name for f in module.functions
-                  if f.is_declaration and not f.name.startswith("llvm.")]  # fmt: skip
+    unresolved = [
+        f.name for f in module.functions if f.is_declaration and not f.name.startswith("llvm.")
+    ]
     unresolved += [g.name for g in module.global_variables if g.is_declaration]
     if unresolved:  # a form of declaration the rewrite does not know
         return None
@@ -247,8 +282,10 @@ def trap_runtime_helpers(ir: str) -> str:
     def trap(match: re.Match) -> str:
         if match["name"].startswith("llvm."):
             return match[0]
-        return (f"define internal {match['head']}@{match['name']}({match['arguments']})"
-                f"{match['tail']} {{\n  call void @llvm.trap()\n  unreachable\n}}")  # fmt: skip
+        return (
+            f"define internal {match['head']}@{match['name']}({match['arguments']})"
+            f"{match['tail']} {{\n  call void @llvm.trap()\n  unreachable\n}}"
+        )
 
     ir = _DECLARATION.sub(trap, ir)
     ir = _EXTERNAL_GLOBAL.sub(r"\g<name> = internal \g<kind> \g<type> zeroinitializer", ir)
@@ -263,14 +300,45 @@ def _link(llvm: Any, machine: Any, code: bytes, symbol: str) -> Callable[..., No
     _engines.append(engine)
     function = ctypes.CFUNCTYPE(None, *_C_SIGNATURE)(engine.get_function_address(symbol))
 
-    def kernel(stage, history, times, angles, start, geometry, midpoint, chord, chunks, turns,
-               out, ends, first, stop) -> None:  # fmt: skip
+    def kernel(
+        stage,
+        history,
+        times,
+        angles,
+        start,
+        geometry,
+        midpoint,
+        chord,
+        chunks,
+        turns,
+        out,
+        ends,
+        first,
+        stop,
+    ) -> None:
         # ctypes releases the GIL for the call.
-        function(stage, history.ctypes.data, history.shape[0], history.shape[1],
-                 times.ctypes.data, times.shape[0], times.shape[1], int(angles),
-                 start.ctypes.data, geometry.ctypes.data, int(midpoint), int(chord), chunks,
-                 turns.ctypes.data, out.ctypes.data, out.shape[0], out.shape[1],
-                 ends.ctypes.data, first, stop)  # fmt: skip
+        function(
+            stage,
+            history.ctypes.data,
+            history.shape[0],
+            history.shape[1],
+            times.ctypes.data,
+            times.shape[0],
+            times.shape[1],
+            int(angles),
+            start.ctypes.data,
+            geometry.ctypes.data,
+            int(midpoint),
+            int(chord),
+            chunks,
+            turns.ctypes.data,
+            out.ctypes.data,
+            out.shape[0],
+            out.shape[1],
+            ends.ctypes.data,
+            first,
+            stop,
+        )
 
     return kernel
 

@@ -42,8 +42,9 @@ def twists(geometry: Robot | object, wheels: object) -> Any:
     w = components(xp, wheels, "wheels", WHEELS)
     g = floating(xp, geometry, "geometry")
     if g.ndim == 0 or g.shape[-1] not in (3, 4):
-        raise ValueError(f"geometry must have shape (..., 3) or (..., 4) [{GEOMETRY}], "
-                         f"got {tuple(g.shape)}")  # fmt: skip
+        raise ValueError(
+            f"geometry must have shape (..., 3) or (..., 4) [{GEOMETRY}], got {tuple(g.shape)}"
+        )
     return wheel_map(g[..., None, :], w)  # a geometry per history, the same at every step
 
 

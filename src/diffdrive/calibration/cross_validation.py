@@ -115,8 +115,13 @@ def cross_validate(
     for held in _folds(scheme, len(runs)):
         train = [k for k in range(len(runs)) if k not in held]
         try:
-            fit = calibrate(nominal_robot, [runs[k] for k in train], method,
-                            names=[names[k] for k in train], **options)  # fmt: skip
+            fit = calibrate(
+                nominal_robot,
+                [runs[k] for k in train],
+                method,
+                names=[names[k] for k in train],
+                **options,
+            )
         except CalibrationError as refusal:
             folds.append(Fold(held, None, (), str(refusal)))
             continue

@@ -212,17 +212,26 @@ def calibrate(
         return CalibrationResult(robot, method, covariance, residuals, condition)
     if method in ("least_squares", "minimax"):
         parameters, covariance, condition, found = _fit_least_squares(
-            nominal_robot, checked, integration, loss, loss_scale, heading_weight, free, progress,
-            extra, _checked_prior(prior_sigma),
-        )  # fmt: skip
+            nominal_robot,
+            checked,
+            integration,
+            loss,
+            loss_scale,
+            heading_weight,
+            free,
+            progress,
+            extra,
+            _checked_prior(prior_sigma),
+        )
         offset = found.get("heading_offset", 0.0)
         axle = found.get("axle_offset")
         if method == "minimax":
             parameters = _minimax(nominal_robot, checked, integration, parameters, axle, offset)
         robot = _robot_with(nominal_robot, parameters, axle)
         residuals = _position_errors(robot, checked, integration, offset)
-        return CalibrationResult(robot, method, covariance, residuals, condition,
-                                 heading_offset=offset)  # fmt: skip
+        return CalibrationResult(
+            robot, method, covariance, residuals, condition, heading_offset=offset
+        )
     raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
 
 
@@ -362,8 +371,14 @@ def _solve(nominal, residuals, free: np.ndarray, extra=(), initial=(), **options
         relative[free] = x[:count]
         return residuals(relative, x[count:])
 
-    fit = least_squares(reduced, np.array([1.0] * count + list(initial)), x_scale=1e-3,
-                        bounds=(lower, upper), method="trf", **options)  # fmt: skip
+    fit = least_squares(
+        reduced,
+        np.array([1.0] * count + list(initial)),
+        x_scale=1e-3,
+        bounds=(lower, upper),
+        method="trf",
+        **options,
+    )
     condition = _check_condition(fit.jac, free, extra)
     dof = max(1, fit.fun.size - len(fit.x))
     variance = float(np.sum(fit.fun**2) / dof)
@@ -372,8 +387,12 @@ def _solve(nominal, residuals, free: np.ndarray, extra=(), initial=(), **options
     covariance[np.ix_(free, free)] = full[:count, :count] * np.outer(start[free], start[free])
     relative = np.ones(3)
     relative[free] = fit.x[:count]
-    return start * relative, covariance, condition, dict(zip(extra, fit.x[count:].tolist(),
-                                                             strict=True))  # fmt: skip
+    return (
+        start * relative,
+        covariance,
+        condition,
+        dict(zip(extra, fit.x[count:].tolist(), strict=True)),
+    )
 
 
 def _fit_increments(nominal: Robot, runs, free: np.ndarray, window: int):
@@ -388,8 +407,7 @@ def _fit_increments(nominal: Robot, runs, free: np.ndarray, window: int):
         twists = batch.to_twist(_robot_with(nominal, start * relative), wheels)
         # Each window's steps composed, so that a turn that changes within it is followed.
         moved = batch.log(integrate_increments(twists)[:, -1])
-        return np.concatenate([motion[:, 0] - moved[:, 0],
-                               weight * (motion[:, 2] - moved[:, 2])])  # fmt: skip
+        return np.concatenate([motion[:, 0] - moved[:, 0], weight * (motion[:, 2] - moved[:, 2])])
 
     return _solve(nominal, residuals, free)[:3]
 
@@ -463,9 +481,11 @@ def _checked_prior(prior_sigma) -> float | None:
     """``prior_sigma`` as a float > 0, or None."""
     if prior_sigma is None:
         return None
-    if isinstance(prior_sigma, str | bool) or not float(prior_sigma) > 0 or not math.isfinite(
-        float(prior_sigma)
-    ):  # fmt: skip
+    if (
+        isinstance(prior_sigma, str | bool)
+        or not float(prior_sigma) > 0
+        or not math.isfinite(float(prior_sigma))
+    ):
         raise ValueError(f"prior_sigma must be a finite number > 0, got {prior_sigma!r}")
     return float(prior_sigma)
 
@@ -506,8 +526,9 @@ def _check_excitation(nominal, runs, free: np.ndarray) -> None:
     increments = np.concatenate([increments for increments, _ in runs])
     motion = batch.to_twist(nominal, increments)  # per step: distance and turn
     distance = float(np.sum(np.abs(motion[:, 0])))
-    turns = np.concatenate([_significant(_window_sums(batch.to_twist(nominal, inc)[:, 2]))
-                            for inc, _ in runs])  # fmt: skip
+    turns = np.concatenate(
+        [_significant(_window_sums(batch.to_twist(nominal, inc)[:, 2])) for inc, _ in runs]
+    )
     left, right = float(np.sum(np.clip(turns, 0, None))), float(np.sum(np.clip(-turns, 0, None)))
     radii = bool(free[0] or free[1])
     if radii and distance < _LEAST_DISTANCE:
@@ -558,10 +579,11 @@ def _position_errors(robot, runs, integration: Method, heading_offset: float = 0
     """Each run's position error (m) at each ground-truth pose."""
     shift = np.array([0.0, 0.0, heading_offset])
     return [
-        np.hypot(*(dead_reckon(robot, increments, truth[0] + shift, integration)[:, :2]
-                   - truth[:, :2]).T)
+        np.hypot(
+            *(dead_reckon(robot, increments, truth[0] + shift, integration)[:, :2] - truth[:, :2]).T
+        )
         for increments, truth in runs
-    ]  # fmt: skip
+    ]
 
 
 def _minimax(nominal, runs, integration: Method, parameters: np.ndarray, axle=None, offset=0.0):
@@ -577,6 +599,11 @@ def _minimax(nominal, runs, integration: Method, parameters: np.ndarray, axle=No
     # Within 2 % of the least-squares answer: the largest error alone can be flat along a
     # parameter (the track width, on runs that turn only in place), and it must not drift.
     simplex = 1.0 + 2e-3 * np.vstack([np.zeros(3), np.eye(3)])
-    fit = minimize(largest, np.ones(3), method="Nelder-Mead", bounds=[(0.98, 1.02)] * 3,
-                   options={"xatol": 1e-7, "fatol": 1e-7, "initial_simplex": simplex})  # fmt: skip
+    fit = minimize(
+        largest,
+        np.ones(3),
+        method="Nelder-Mead",
+        bounds=[(0.98, 1.02)] * 3,
+        options={"xatol": 1e-7, "fatol": 1e-7, "initial_simplex": simplex},
+    )
     return parameters * fit.x

@@ -58,8 +58,10 @@ class OnlineCalibrator:
         if not isinstance(nominal, DiffDrive):
             raise TypeError(f"nominal must be a DiffDrive, got {type(nominal).__name__}")
         self.nominal = nominal
-        self.noise = (positive("sigma_distance", sigma_distance) ** 2,
-                      positive("sigma_turn", sigma_turn) ** 2)  # fmt: skip
+        self.noise = (
+            positive("sigma_distance", sigma_distance) ** 2,
+            positive("sigma_turn", sigma_turn) ** 2,
+        )
         self.gate = positive("gate", gate)
         prior = positive("prior_sigma", prior_sigma)
         radii = np.array([nominal.left_wheel_radius, nominal.right_wheel_radius])
@@ -113,17 +115,25 @@ class OnlineCalibrator:
     @property
     def robot(self) -> DiffDrive:
         left, right, track = self.parameters
-        return DiffDrive(left_wheel_radius=left, right_wheel_radius=right, track_width=track,
-                         axle_offset=self.nominal.axle_offset)  # fmt: skip
+        return DiffDrive(
+            left_wheel_radius=left,
+            right_wheel_radius=right,
+            track_width=track,
+            axle_offset=self.nominal.axle_offset,
+        )
 
     @property
     def covariance(self) -> np.ndarray:
         """3x3 over ``[left_wheel_radius, right_wheel_radius, track_width]``, m^2."""
         (r_l, r_r), (c_l, c_r) = self.estimates
         radius_sum, rate_sum = r_l + r_r, c_l + c_r
-        jacobian = np.array([[1, 0, 0, 0], [0, 1, 0, 0],
-                             [1 / rate_sum, 1 / rate_sum, -radius_sum / rate_sum**2,
-                              -radius_sum / rate_sum**2]])  # fmt: skip
+        jacobian = np.array(
+            [
+                [1, 0, 0, 0],
+                [0, 1, 0, 0],
+                [1 / rate_sum, 1 / rate_sum, -radius_sum / rate_sum**2, -radius_sum / rate_sum**2],
+            ]
+        )
         joint = np.zeros((4, 4))
         joint[:2, :2], joint[2:, 2:] = self.covariances
         return jacobian @ joint @ jacobian.T
@@ -143,8 +153,9 @@ class OnlineCalibrator:
         fresh = OnlineCalibrator(self.nominal)  # the prior, as this one started
         designs = (0.5 * summed, summed * np.array([-1.0, 1.0]))
         solved = []
-        for k, (design, values) in enumerate(zip(designs, (motion[:, 0], motion[:, 2]),
-                                                 strict=True)):  # fmt: skip
+        for k, (design, values) in enumerate(
+            zip(designs, (motion[:, 0], motion[:, 2]), strict=True)
+        ):
             information = np.linalg.inv(fresh.covariances[k])
             normal = information + design.T @ design / self.noise[k]
             right = information @ fresh.estimates[k] + design.T @ values / self.noise[k]

@@ -34,17 +34,24 @@ def build_parser() -> argparse.ArgumentParser:
 
     def command(name: str, help: str, parents: list, run, epilog: str) -> argparse.ArgumentParser:
         sub = commands.add_parser(
-            name, help=help, description=help, epilog=epilog, parents=parents,
+            name,
+            help=help,
+            description=help,
+            epilog=epilog,
+            parents=parents,
             formatter_class=formatter,
-        )  # fmt: skip
+        )
         sub.set_defaults(run=run)
         return sub
 
     times = argparse.ArgumentParser(add_help=False)
     times.add_argument("--time-unit", choices=TIME_UNITS, help="unit of the t column (default s)")
-    times.add_argument("--topic", metavar="TOPIC",
-                       help="for a bag: the trajectory's topic (nav_msgs/Odometry, "
-                       "sensor_msgs/NavSatFix) or tf:PARENT:CHILD")  # fmt: skip
+    times.add_argument(
+        "--topic",
+        metavar="TOPIC",
+        help="for a bag: the trajectory's topic (nav_msgs/Odometry, "
+        "sensor_msgs/NavSatFix) or tf:PARENT:CHILD",
+    )
     times.add_argument("--truth-topic", metavar="TOPIC", help="for a bag: the truth's topic")
     pictures = argparse.ArgumentParser(add_help=False, parents=[times])
     pictures.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")

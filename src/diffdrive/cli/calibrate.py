@@ -73,10 +73,18 @@ def run_calibrate(args: argparse.Namespace) -> int:
         extra = EXTRAS if args.method in ("least_squares", "minimax") else ()
     else:
         extra = tuple(name for name in args.extra if name != "none")
-    result = calibrate(nominal, runs, args.method, integration=args.integration,
-                       square_side=args.square_side, names=names, fixed=fixed, extra=extra,
-                       window=args.window,
-                       progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
+    result = calibrate(
+        nominal,
+        runs,
+        args.method,
+        integration=args.integration,
+        square_side=args.square_side,
+        names=names,
+        fixed=fixed,
+        extra=extra,
+        window=args.window,
+        progress=not args.quiet and sys.stderr.isatty(),
+    )
     settings = result.robot.settings()
     if ticks is not None:
         settings["ticks_per_revolution"] = ticks
@@ -96,19 +104,34 @@ def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
     if len(runs) < 2:
         return "held-out errors: none (one run: nothing to hold out; --cv none hides this)"
     scheme = "loo" if args.cv == "loo" else int(args.cv)
-    cv = cross_validate(nominal, runs, args.method, scheme, integration=args.integration,
-                        names=names, fixed=fixed, extra=extra, window=args.window)  # fmt: skip
+    cv = cross_validate(
+        nominal,
+        runs,
+        args.method,
+        scheme,
+        integration=args.integration,
+        names=names,
+        fixed=fixed,
+        extra=extra,
+        window=args.window,
+    )
     label = "leave one run out" if scheme == "loo" else f"{scheme} folds"
     lines = [f"{'errors over the runs':28} {'in-sample':>10} {'held-out':>10}   ({label})"]
-    for name, unit in (("max_position", "m"), ("final_position", "m"),
-                       ("max_heading", "deg"), ("final_heading", "deg")):  # fmt: skip
+    for name, unit in (
+        ("max_position", "m"),
+        ("final_position", "m"),
+        ("max_heading", "deg"),
+        ("final_heading", "deg"),
+    ):
         held = "n/a" if cv.held_out is None else f"{getattr(cv.held_out, name):10.4f}"
         lines.append(f"{name + ', ' + unit:28} {getattr(cv.in_sample, name):10.4f} {held:>10}")
     if len(cv.fitted) > 1:
         spread = ", ".join(f"{p} +-{s:.2g}" for p, s in zip(PARAMETERS, cv.spread, strict=True))
         lines.append(f"parameters across the folds: {spread}")
-    lines.extend(f"fold holding out {', '.join(names[k] for k in fold.held_out)} refused: "
-                 f"{fold.refusal}" for fold in cv.refused)  # fmt: skip
+    lines.extend(
+        f"fold holding out {', '.join(names[k] for k in fold.held_out)} refused: {fold.refusal}"
+        for fold in cv.refused
+    )
     return "\n".join(lines)
 
 
@@ -124,8 +147,9 @@ def calibration_report(nominal: Robot, result, runs, integration: Method) -> str
         )
     shift = np.array([0.0, 0.0, result.heading_offset])
     before = worst([run_errors(dead_reckon(nominal, i, t[0], integration), t) for i, t in runs])
-    after = worst([run_errors(dead_reckon(result.robot, i, t[0] + shift, integration), t)
-                   for i, t in runs])  # fmt: skip
+    after = worst(
+        [run_errors(dead_reckon(result.robot, i, t[0] + shift, integration), t) for i, t in runs]
+    )
     offsets = [robot.equivalent.axle_offset for robot in (nominal, result.robot)]
     if offsets[0] != offsets[1]:  # fitted (a SkidSteer's is -icr_x)
         lines.append(f"{'axle_offset':20} {offsets[0]:10.6f} {offsets[1]:11.6f}")
@@ -157,20 +181,38 @@ turn unless told).
 
 def add_to(command: Command, parents: Parents) -> None:
     """The options of ``diffdrive calibrate``."""
-    cal = command("calibrate", "fit wheel radii and track width to ground truth",
-                  [parents.robot, parents.logs], run_calibrate, EPILOGS["calibrate"])  # fmt: skip
+    cal = command(
+        "calibrate",
+        "fit wheel radii and track width to ground truth",
+        [parents.robot, parents.logs],
+        run_calibrate,
+        EPILOGS["calibrate"],
+    )
     cal.add_argument("runs", nargs="*", type=Path, help="runs with ground truth; none: built-in")
     cal.add_argument("-o", "--output", type=Path, default=Path("robot.toml"))
     cal.add_argument("--method", choices=CALIBRATION_METHODS, default="least_squares")
-    cal.add_argument("--integration", choices=METHODS, default="exact",
-                     help="the odometry's method (default exact)")  # fmt: skip
+    cal.add_argument(
+        "--integration",
+        choices=METHODS,
+        default="exact",
+        help="the odometry's method (default exact)",
+    )
     cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
-    cal.add_argument("--window", type=at_least(1), default=1, metavar="STEPS",
-                     help="the increments method: fit this many steps at a time (default 1; "
-                     "20 suits 20 Hz motion capture)")  # fmt: skip
-    cal.add_argument("--cv", default="loo", metavar="loo|K|none",
-                     help="held-out errors by cross-validation over the runs: leave one run "
-                     "out (default), K folds, or none")  # fmt: skip
+    cal.add_argument(
+        "--window",
+        type=at_least(1),
+        default=1,
+        metavar="STEPS",
+        help="the increments method: fit this many steps at a time (default 1; "
+        "20 suits 20 Hz motion capture)",
+    )
+    cal.add_argument(
+        "--cv",
+        default="loo",
+        metavar="loo|K|none",
+        help="held-out errors by cross-validation over the runs: leave one run "
+        "out (default), K folds, or none",
+    )
     cal.add_argument(
         "--fix",
         nargs="+",

@@ -41,8 +41,11 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print(json.dumps(metrics))
     else:
         for key, value in metrics.items():
-            shown = "n/a" if value is None else (f"{value:.6f}" if isinstance(value, float)
-                                                 else str(value))  # fmt: skip
+            shown = (
+                "n/a"
+                if value is None
+                else (f"{value:.6f}" if isinstance(value, float) else str(value))
+            )
             print(f"{key:34} {shown:>12}")
     return 0
 

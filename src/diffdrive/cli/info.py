@@ -30,6 +30,11 @@ EPILOGS = {
 
 def add_to(command: Command, parents: Parents) -> None:
     """The options of ``diffdrive info``."""
-    info = command("info", "what a ROS bag or MCAP file holds, and what diffdrive can use",
-                   [], run_info, EPILOGS["info"])  # fmt: skip
+    info = command(
+        "info",
+        "what a ROS bag or MCAP file holds, and what diffdrive can use",
+        [],
+        run_info,
+        EPILOGS["info"],
+    )
     info.add_argument("input", type=Path, help="a ROS 1 bag, ROS 2 bag folder or MCAP file")

@@ -19,9 +19,11 @@ def run_fk(args: argparse.Namespace) -> int:
     wheels = WheelVelocities(args.left, args.right)
     twist = robot.to_twist(wheels)
     values = {
-        "vx": twist.vx, "vy": twist.vy, "omega": twist.omega,
+        "vx": twist.vx,
+        "vy": twist.vy,
+        "omega": twist.omega,
         "turning_radius": robot.turning_radius(wheels),
-    }  # fmt: skip
+    }
     units = {"vx": "m/s", "vy": "m/s", "omega": "rad/s", "turning_radius": "m"}
     print_values(values, args.json, units)
     return 0

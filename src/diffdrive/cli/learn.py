@@ -38,8 +38,13 @@ needs the extra: pip install 'diffdrive[learn]'""",
 
 def add_to(command: Command, parents: Parents) -> None:
     """The options of ``diffdrive learn``."""
-    learn = command("learn", "an interactive page for learning the kinematics, in the browser",
-                    [], run_learn, EPILOGS["learn"])  # fmt: skip
+    learn = command(
+        "learn",
+        "an interactive page for learning the kinematics, in the browser",
+        [],
+        run_learn,
+        EPILOGS["learn"],
+    )
     learn.add_argument("--port", type=between(1, 65535), help="port (default: a free one)")
     learn.add_argument("--no-browser", action="store_true", help="serve without opening it")
     learn.add_argument("--export", type=Path, metavar="HTML", help="write a static snapshot")

@@ -40,21 +40,30 @@ def run_odometry(args: argparse.Namespace) -> int:
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
     odometry = Odometry(
-        robot, args.method, Pose(*start_pose(log)), ticks if log.kind == "ticks" else None,
-        args.counter_bits, max_wheel_speed=args.max_wheel_speed, k_left=args.k_left or 0.0,
+        robot,
+        args.method,
+        Pose(*start_pose(log)),
+        ticks if log.kind == "ticks" else None,
+        args.counter_bits,
+        max_wheel_speed=args.max_wheel_speed,
+        k_left=args.k_left or 0.0,
         k_right=args.k_right or 0.0,
-    )  # fmt: skip
+    )
     times, wheels = log.times, log.wheels
     to_bag = output_format(args) in ("mcap", "ros2")
-    kinds: dict[str, UpdateKind] = {"ticks": "ticks", "angle": "positions",
-                                    "velocity": "velocities"}  # fmt: skip
+    kinds: dict[str, UpdateKind] = {
+        "ticks": "ticks",
+        "angle": "positions",
+        "velocity": "velocities",
+    }
     kind = kinds[log.kind]
     first = 1 if kind == "velocities" else 0  # a velocity is held until the next row
     third = np.diff(times) if kind == "velocities" else times
     left, right = (wheels[:-1, 0], wheels[:-1, 1]) if first else (wheels[:, 0], wheels[:, 1])
     try:
-        poses, covariances = odometry.update_arrays(kind, left, right, third,
-                                                    args.covariance or to_bag)  # fmt: skip
+        poses, covariances = odometry.update_arrays(
+            kind, left, right, third, args.covariance or to_bag
+        )
     except RefusedUpdateError as refused:
         raise TableError(f"{log.where(refused.row + first)}: {refused.reason}") from None
     if first:
@@ -107,13 +116,26 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     if not inside.all():  # a bag's IMU may start a little after the wheels: keep the overlap
         log = log.rows(inside)
         note += f"\nthe log is cut to [{log.times[0]:g}, {log.times[-1]:g}] s, where the gyro is"
-    options = {"k_left": 1e-4 if args.k_left is None else args.k_left,
-               "k_right": 1e-4 if args.k_right is None else args.k_right}  # fmt: skip
-    result = gyro_odometry(robot, log.times, log.increments(ticks, args.counter_bits), gyro,
-                           args.heading or "fused", start_pose(log), bias=args.gyro_bias,
-                           commanded=_commands(args, robot, log), **options)  # fmt: skip
-    columns = {"slip": result.slip.astype(float), "slip_score": result.slip_score,
-               "gyro_bias": result.bias}  # fmt: skip
+    options = {
+        "k_left": 1e-4 if args.k_left is None else args.k_left,
+        "k_right": 1e-4 if args.k_right is None else args.k_right,
+    }
+    result = gyro_odometry(
+        robot,
+        log.times,
+        log.increments(ticks, args.counter_bits),
+        gyro,
+        args.heading or "fused",
+        start_pose(log),
+        bias=args.gyro_bias,
+        commanded=_commands(args, robot, log),
+        **options,
+    )
+    columns = {
+        "slip": result.slip.astype(float),
+        "slip_score": result.slip_score,
+        "gyro_bias": result.bias,
+    }
     if args.covariance:
         flat = result.covariances.reshape(-1, 9)
         columns.update({name: flat[:, index] for name, index in COVARIANCE_COLUMNS.items()})
@@ -122,8 +144,10 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     if not args.quiet:
         print(note)
         flagged = f"{int(result.slip.sum())} of {len(result.slip) - 1} intervals flagged"
-        print(f"slip: {flagged}; gyro bias {result.bias[0]:.5f} rad/s at the start, "
-              f"{result.bias[-1]:.5f} at the end")  # fmt: skip
+        print(
+            f"slip: {flagged}; gyro bias {result.bias[0]:.5f} rad/s at the start, "
+            f"{result.bias[-1]:.5f} at the end"
+        )
         if log.truth is not None:
             print(error_summary(result.poses, log.truth))
     return 0
@@ -159,19 +183,26 @@ printed with its line: thousands of rad/s mean a wrong --counter-bits or ticks p
 def add_to(command: Command, parents: Parents) -> None:
     """The options of ``diffdrive odometry``."""
     odo = command(
-        "odometry", "dead reckoning over an encoder log",
-        [parents.robot, parents.logs, output_options("odometry.csv")], run_odometry,
+        "odometry",
+        "dead reckoning over an encoder log",
+        [parents.robot, parents.logs, output_options("odometry.csv")],
+        run_odometry,
         EPILOGS["odometry"],
-    )  # fmt: skip
+    )
     odo.add_argument("input", nargs="?", type=Path, help="encoder log; none: built-in")
     odo.add_argument(
-        "--max-wheel-speed", type=float, metavar="RAD_S",
+        "--max-wheel-speed",
+        type=float,
+        metavar="RAD_S",
         help="refuse a row whose wheel turns faster (rad/s); default: a rim speed of "
         f"{RIM_SPEED_LIMIT:g} m/s",
-    )  # fmt: skip
-    odo.add_argument("--k-left", type=float, metavar="M",
-                     help="left wheel-error constant of the covariance model, m (default 0; "
-                     "1e-4 with a gyro)")  # fmt: skip
+    )
+    odo.add_argument(
+        "--k-left",
+        type=float,
+        metavar="M",
+        help="left wheel-error constant of the covariance model, m (default 0; 1e-4 with a gyro)",
+    )
     odo.add_argument(
         "--k-right",
         type=float,
@@ -188,18 +219,24 @@ def add_to(command: Command, parents: Parents) -> None:
         metavar=("ROLL", "PITCH", "YAW"),
         help="the IMU's mounting in the body, degrees (default 0 0 0: z up)",
     )
-    gyro.add_argument("--heading", choices=("wheels", "gyro", "fused"),
-                      help="heading from the wheels, the gyro, or both (default: fused with a "
-                      "gyro); writes slip, slip_score and gyro_bias columns")  # fmt: skip
+    gyro.add_argument(
+        "--heading",
+        choices=("wheels", "gyro", "fused"),
+        help="heading from the wheels, the gyro, or both (default: fused with a "
+        "gyro); writes slip, slip_score and gyro_bias columns",
+    )
     gyro.add_argument(
         "--gyro-bias",
         type=float,
         metavar="RAD_S",
         help="the gyro's bias (default: its mean while the wheels stand still)",
     )
-    gyro.add_argument("--command-topic", metavar="TOPIC",
-                      help="geometry_msgs/Twist commands of the bag, to flag wheels that spin "
-                      "beyond them (or left_command, right_command columns)")  # fmt: skip
+    gyro.add_argument(
+        "--command-topic",
+        metavar="TOPIC",
+        help="geometry_msgs/Twist commands of the bag, to flag wheels that spin "
+        "beyond them (or left_command, right_command columns)",
+    )
     odo.add_argument(
         "--twist",
         action="store_true",

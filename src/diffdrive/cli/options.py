@@ -84,14 +84,17 @@ def log_options() -> argparse.ArgumentParser:
     options = argparse.ArgumentParser(add_help=False)
     group = options.add_argument_group("log")
     group.add_argument(
-        "--time-unit", choices=TIME_UNITS,
+        "--time-unit",
+        choices=TIME_UNITS,
         help="unit of the t column (default s; plainly other units are refused)",
-    )  # fmt: skip
+    )
     group.add_argument(
-        "--counter-bits", type=between(MIN_COUNTER_BITS, MAX_COUNTER_BITS), metavar="B",
+        "--counter-bits",
+        type=between(MIN_COUNTER_BITS, MAX_COUNTER_BITS),
+        metavar="B",
         help=f"width of the encoder counters ({MIN_COUNTER_BITS}-{MAX_COUNTER_BITS}), for "
         "roll-over; default: counters that never roll over",
-    )  # fmt: skip
+    )
     bags = options.add_argument_group("a ROS bag or MCAP file as the log (diffdrive[ros])")
     bags.add_argument(
         "--joint-topic",
@@ -112,12 +115,16 @@ def log_options() -> argparse.ArgumentParser:
 def output_options(default: str) -> argparse.ArgumentParser:
     options = argparse.ArgumentParser(add_help=False)
     options.add_argument("-o", "--output", type=Path, default=Path(default), help="file to write")
-    options.add_argument("--format", choices=OUTPUT_FORMATS,
-                         help="default: from the file's suffix; mcap (a file) and ros2 (a bag "
-                         "folder) write nav_msgs/Odometry and /tf")  # fmt: skip
+    options.add_argument(
+        "--format",
+        choices=OUTPUT_FORMATS,
+        help="default: from the file's suffix; mcap (a file) and ros2 (a bag "
+        "folder) write nav_msgs/Odometry and /tf",
+    )
     options.add_argument("--frame", default="odom", help="bag output: the parent frame (odom)")
-    options.add_argument("--child-frame", default="base_link",
-                         help="bag output: the robot's frame (base_link)")  # fmt: skip
+    options.add_argument(
+        "--child-frame", default="base_link", help="bag output: the robot's frame (base_link)"
+    )
     options.add_argument("--method", choices=METHODS, default="exact", help="default: exact")
     options.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     return options
@@ -159,9 +166,18 @@ def write_output(
     if format == "mcap" or format == "ros2":
         from diffdrive.io.ros import write_odometry
 
-        written = [write_odometry(args.output, times, poses, covariances, twists,
-                                  format=format, frame=args.frame,
-                                  child_frame=args.child_frame)]  # fmt: skip
+        written = [
+            write_odometry(
+                args.output,
+                times,
+                poses,
+                covariances,
+                twists,
+                format=format,
+                frame=args.frame,
+                child_frame=args.child_frame,
+            )
+        ]
     else:
         written = write_trajectory(args.output, times, poses, format, columns)
     if not args.quiet:
@@ -175,9 +191,13 @@ def read_log_of(args: argparse.Namespace, path: Path | None = None) -> Run:
     if path is None:
         return example_log()
     return read_run(
-        path, args.time_unit, joint_topic=args.joint_topic, left_joint=args.left_joint,
-        right_joint=args.right_joint, reference_topic=args.reference_topic,
-    )  # fmt: skip
+        path,
+        args.time_unit,
+        joint_topic=args.joint_topic,
+        left_joint=args.left_joint,
+        right_joint=args.right_joint,
+        reference_topic=args.reference_topic,
+    )
 
 
 def start_pose(log: Run) -> np.ndarray:
@@ -219,8 +239,13 @@ def checked_increments(args, log: Run, robot: Robot, ticks) -> tuple[np.ndarray,
 
 # The covariance's distinct entries, by their index in the row-major 3x3 matrix.
 COVARIANCE_COLUMNS = {
-    "cov_xx": 0, "cov_xy": 1, "cov_xtheta": 2, "cov_yy": 4, "cov_ytheta": 5, "cov_thetatheta": 8,
-}  # fmt: skip
+    "cov_xx": 0,
+    "cov_xy": 1,
+    "cov_xtheta": 2,
+    "cov_yy": 4,
+    "cov_ytheta": 5,
+    "cov_thetatheta": 8,
+}
 
 
 def example_trajectory(robot: Robot, dt: float = 0.01, method: Method = "exact"):

@@ -41,8 +41,16 @@ def run_animate(args: argparse.Namespace) -> int:
         raise TableError(f"{args.input}: animate draws one robot; the file has {len(poses)}")
     writer, output = animation_writer(args.output)
     with atomic_output(output) as temporary:
-        animate(robot, times, poses, temporary, writer, frames=args.frames, fps=args.fps,
-                progress=not args.quiet and sys.stderr.isatty())  # fmt: skip
+        animate(
+            robot,
+            times,
+            poses,
+            temporary,
+            writer,
+            frames=args.frames,
+            fps=args.fps,
+            progress=not args.quiet and sys.stderr.isatty(),
+        )
     if not args.quiet:
         print(f"animated {what} to {output} ({writer})")
     return 0

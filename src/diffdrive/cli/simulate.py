@@ -28,8 +28,12 @@ def run_simulate(args: argparse.Namespace) -> int:
     if args.input is None:
         _check_step_count(args.dt)
         trajectory = example_trajectory(robot, args.dt, args.method)
-        write_output(args, trajectory.times, trajectory.poses,
-               f"simulated the built-in {EXAMPLE_DURATION:g} s driving history")  # fmt: skip
+        write_output(
+            args,
+            trajectory.times,
+            trajectory.poses,
+            f"simulated the built-in {EXAMPLE_DURATION:g} s driving history",
+        )
         return 0
     log = read_log_of(args)
     increments, note = checked_increments(args, log, robot, ticks)
@@ -76,9 +80,11 @@ EPILOGS = {
 def add_to(command: Command, parents: Parents) -> None:
     """The options of ``diffdrive simulate``."""
     sim = command(
-        "simulate", "integrate a driving history into a trajectory",
-        [parents.robot, parents.logs, output_options("trajectory.csv")], run_simulate,
+        "simulate",
+        "integrate a driving history into a trajectory",
+        [parents.robot, parents.logs, output_options("trajectory.csv")],
+        run_simulate,
         EPILOGS["simulate"],
-    )  # fmt: skip
+    )
     sim.add_argument("input", nargs="?", type=Path, help="driving history or log; none: built-in")
     sim.add_argument("--dt", type=float, default=0.01, help="step for the built-in history, s")

@@ -242,10 +242,18 @@ class Limiter:
             size = np.abs(gap[moving])
             toward = np.where(gap > 0.0, rising, falling)[moving] / size
             away = np.where(gap > 0.0, falling, rising)[moving] / size
-            fraction = _jerk_limited(
-                1.0, rate, toward.min(), away.min(), toward.min(), (jerk[moving] / size).min(),
-                dt,
-            ) * dt  # fmt: skip
+            fraction = (
+                _jerk_limited(
+                    1.0,
+                    rate,
+                    toward.min(),
+                    away.min(),
+                    toward.min(),
+                    (jerk[moving] / size).min(),
+                    dt,
+                )
+                * dt
+            )
             return goal if abs(1.0 - fraction) <= 1e-12 else v + fraction * gap
         jerk = np.where(has_jerk, jerk, 1.0)  # channels without a jerk limit: unused
         a_new = _jerk_limited(gap, a, bound, falling, rising, jerk, dt)

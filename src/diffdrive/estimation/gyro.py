@@ -90,11 +90,13 @@ def rotation_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])  # fmt: skip
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,8 +112,10 @@ class Gyro:
         times = np.asarray(self.times, dtype=float)
         rates = np.asarray(self.rates, dtype=float)
         if times.ndim != 1 or rates.shape != times.shape or len(times) < 2:
-            raise ValueError(f"gyro times and rates must be (M,) with M >= 2, got {times.shape} "
-                             f"and {rates.shape}")  # fmt: skip
+            raise ValueError(
+                f"gyro times and rates must be (M,) with M >= 2, got {times.shape} "
+                f"and {rates.shape}"
+            )
         if not (np.all(np.isfinite(times)) and np.all(np.isfinite(rates))):
             raise ValueError("gyro times and rates must be finite")
         steps = np.diff(times)
@@ -120,8 +124,10 @@ class Gyro:
             raise ValueError(f"gyro times must increase: {times[k]:g} after {times[k - 1]:g}")
         if np.any(steps > self.max_gap):
             k = int(np.argmax(steps > self.max_gap))
-            raise ValueError(f"the gyro stream stops for {steps[k]:.3g} s after t = "
-                             f"{times[k]:g} s (max_gap {self.max_gap:g} s)")  # fmt: skip
+            raise ValueError(
+                f"the gyro stream stops for {steps[k]:.3g} s after t = "
+                f"{times[k]:g} s (max_gap {self.max_gap:g} s)"
+            )
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "rates", rates)
 
@@ -132,8 +138,9 @@ class Gyro:
         rotation = np.eye(3) if mounting is None else np.asarray(mounting, dtype=float)
         if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
             raise ValueError(f"mounting must be a finite 3x3 rotation, got shape {rotation.shape}")
-        if not (np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6)
-                and np.linalg.det(rotation) > 0):  # fmt: skip
+        if not (
+            np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) and np.linalg.det(rotation) > 0
+        ):
             raise ValueError("mounting is not a rotation (orthonormal, determinant +1)")
         rates = np.asarray(angular_velocity, dtype=float)
         if rates.ndim != 2 or rates.shape[1] != 3:
@@ -157,8 +164,9 @@ class Gyro:
                 f"[{self.times[0]:g}, {self.times[-1]:g}] s"
             )
         steps = np.diff(self.times)
-        cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (self.rates[1:] + self.rates[:-1])
-                                                      * steps)])  # fmt: skip
+        cumulative = np.concatenate(
+            [[0.0], np.cumsum(0.5 * (self.rates[1:] + self.rates[:-1]) * steps)]
+        )
         k = np.clip(np.searchsorted(self.times, at, side="right") - 1, 0, len(steps) - 1)
         into = at - self.times[k]
         slope = (self.rates[k + 1] - self.rates[k]) / steps[k]
@@ -271,8 +279,9 @@ def _jacobians(offset: float, state: np.ndarray, forward: float, turn: float, dt
     by_state = np.eye(4)
     by_state[:2, 2] = -dy, dx
     by_state[:3, 3] = -dt * by_turn[0], -dt * by_turn[1], -dt
-    by_input = np.array([[by_forward[0], by_turn[0]], [by_forward[1], by_turn[1]],
-                         [0.0, 1.0], [0.0, 0.0]])  # fmt: skip
+    by_input = np.array(
+        [[by_forward[0], by_turn[0]], [by_forward[1], by_turn[1]], [0.0, 1.0], [0.0, 0.0]]
+    )
     return np.array([x + dx, y + dy, theta + turn, bias]), by_state, by_input
 
 
@@ -354,8 +363,9 @@ def gyro_odometry(
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     if increments.shape != (len(times) - 1, 2) or len(times) < 2:
-        raise ValueError(f"increments must be (N-1, 2) for {len(times)} times, got "
-                         f"{increments.shape}")  # fmt: skip
+        raise ValueError(
+            f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"
+        )
     turned = np.diff(gyro.angles(times))
     if commanded is not None:
         commanded = np.asarray(commanded, dtype=float)
@@ -383,8 +393,13 @@ def gyro_odometry(
     dts = np.diff(times)
     for k in range(1, n):
         try:
-            odometry.update(increments[k - 1, 0], increments[k - 1, 1], turned[k - 1], dts[k - 1],
-                            None if commanded is None else commanded[k - 1])  # fmt: skip
+            odometry.update(
+                increments[k - 1, 0],
+                increments[k - 1, 1],
+                turned[k - 1],
+                dts[k - 1],
+                None if commanded is None else commanded[k - 1],
+            )
         except ValueError as exc:
             raise ValueError(
                 f"interval {k - 1} ({times[k - 1]!r} to {times[k]!r} s): {exc}"

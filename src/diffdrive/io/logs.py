@@ -41,8 +41,13 @@ def read_log(path: str | Path, time_unit: str | None = None) -> Run:
         )
     columns = WHEEL_COLUMNS[kind]
     integers = columns if kind == "ticks" else ()
-    table = read_table(path, ["t", *columns], (*_TRUTH, "gyro_z", *_COMMANDS),
-                       integers=integers, time_unit=time_unit)  # fmt: skip
+    table = read_table(
+        path,
+        ["t", *columns],
+        (*_TRUTH, "gyro_z", *_COMMANDS),
+        integers=integers,
+        time_unit=time_unit,
+    )
     commands = None
     if all(name in table for name in _COMMANDS):
         commands = np.column_stack([table[name] for name in _COMMANDS])
@@ -54,9 +59,15 @@ def read_log(path: str | Path, time_unit: str | None = None) -> Run:
         # so, and modulo 2^64 the negative readings of the other are the same counts.
         left, right = left.astype(np.uint64), right.astype(np.uint64)
     return Run(
-        table["t"], kind, np.column_stack([left, right]), _truth(table, path), str(path),
-        table.lines, gyro_rates=table.get("gyro_z"), commands=commands,
-    )  # fmt: skip
+        table["t"],
+        kind,
+        np.column_stack([left, right]),
+        _truth(table, path),
+        str(path),
+        table.lines,
+        gyro_rates=table.get("gyro_z"),
+        commands=commands,
+    )
 
 
 def _truth(table: Table, path: Path) -> np.ndarray | None:

@@ -63,5 +63,12 @@ def read_optiodom_run(path: str | Path, time_unit: str | None = None) -> Run:
     counters = np.cumsum(table[:, [5, 4]].astype(np.int64), axis=0)
     columns = {"t": table[:, 0]}
     times_in_seconds(columns, "t", time_unit, path)
-    return Run(columns["t"], "ticks", counters, table[:, 1:4], str(path), np.array(lines),
-               ticks_per_revolution=OPTIODOM_TICKS_PER_REVOLUTION)  # fmt: skip
+    return Run(
+        columns["t"],
+        "ticks",
+        counters,
+        table[:, 1:4],
+        str(path),
+        np.array(lines),
+        ticks_per_revolution=OPTIODOM_TICKS_PER_REVOLUTION,
+    )

@@ -56,5 +56,4 @@ def read_run(
     if np.count_nonzero(inside) < 2:
         raise TableError(f"{path}: {reference_topic} does not span the joint states' times")
     truth = interpolate(times, poses, run.times[inside])
-    return replace(run.rows(inside), truth=truth,
-                   source=f"{run.source} against {reference_topic}")  # fmt: skip
+    return replace(run.rows(inside), truth=truth, source=f"{run.source} against {reference_topic}")

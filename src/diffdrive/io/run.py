@@ -92,9 +92,15 @@ class Run:
         def cut(values):
             return None if values is None else values[keep]
 
-        return replace(self, times=self.times[keep], wheels=self.wheels[keep],
-                       truth=cut(self.truth), lines=cut(self.lines),
-                       gyro_rates=cut(self.gyro_rates), commands=cut(self.commands))  # fmt: skip
+        return replace(
+            self,
+            times=self.times[keep],
+            wheels=self.wheels[keep],
+            truth=cut(self.truth),
+            lines=cut(self.lines),
+            gyro_rates=cut(self.gyro_rates),
+            commands=cut(self.commands),
+        )
 
     def increments(
         self, ticks_per_revolution: float | None = None, counter_bits: int | None = None

@@ -285,8 +285,9 @@ def _read_plain_csv(path: Path, index: dict[str, int], integers, increasing):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # an empty body, say: let the other reader say so
-            rows = np.loadtxt(io.StringIO(body), delimiter=",", usecols=list(index.values()),
-                              dtype=dtype, ndmin=1)  # fmt: skip
+            rows = np.loadtxt(
+                io.StringIO(body), delimiter=",", usecols=list(index.values()), dtype=dtype, ndmin=1
+            )
     except (ValueError, OverflowError, Warning):
         return None
     lines = body.count("\n") + (0 if body.endswith("\n") or not body else 1)

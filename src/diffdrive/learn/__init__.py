@@ -43,8 +43,18 @@ def _page_copy() -> Iterator[Path]:
 
 def serve_command(page: Path, port: int | None = None, browser: bool = True) -> list[str]:
     """The command line that serves ``page`` on 127.0.0.1 (marimo picks a free port if none)."""
-    command = [sys.executable, "-m", "marimo", "run", str(page), "--host", "127.0.0.1",
-               "--no-token", "--no-sandbox", "--no-check"]  # fmt: skip
+    command = [
+        sys.executable,
+        "-m",
+        "marimo",
+        "run",
+        str(page),
+        "--host",
+        "127.0.0.1",
+        "--no-token",
+        "--no-sandbox",
+        "--no-check",
+    ]
     if port is not None:
         command += ["--port", str(port)]
     if not browser:

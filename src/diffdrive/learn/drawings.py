@@ -44,16 +44,23 @@ def _robot(ax, robot: DiffDrive) -> None:
     )
     for side, y in (("left", half), ("right", -half)):
         ax.add_patch(Rectangle((-back - r, y - 0.08 * half), 2 * r, 0.16 * half, fc="0.2"))
-        ax.annotate(side, (-back, y), xytext=(-back, y + math.copysign(0.22 * half, y)),
-                    ha="center", va="center", fontsize=8)  # fmt: skip
+        ax.annotate(
+            side,
+            (-back, y),
+            xytext=(-back, y + math.copysign(0.22 * half, y)),
+            ha="center",
+            va="center",
+            fontsize=8,
+        )
     ax.plot([-back], [0.0], "k+", ms=8)  # axle midpoint
     ax.plot([0.0], [0.0], "ko", ms=4)  # reference point
 
 
 def _arrow(ax, x: float, y: float, dx: float, dy: float, colour: str, label: str | None = None):
     if dx or dy:
-        ax.annotate("", (x + dx, y + dy), (x, y), arrowprops={"arrowstyle": "->", "color": colour,
-                                                            "lw": 2})  # fmt: skip
+        ax.annotate(
+            "", (x + dx, y + dy), (x, y), arrowprops={"arrowstyle": "->", "color": colour, "lw": 2}
+        )
     if label:
         ax.plot([], [], color=colour, lw=2, label=label)
 
@@ -117,11 +124,21 @@ def inverse_picture(lesson: InverseLesson) -> Figure:
     wheels, paths = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     asked, got, limit = lesson.wheels.to_array(), lesson.delivered_wheels.to_array(), lesson.limit
     reach = 1.3 * max(limit, float(np.max(np.abs(asked))))
-    wheels.add_patch(Rectangle((-limit, -limit), 2 * limit, 2 * limit,
-                               fill=False, ec="0.3", ls="--", label="wheel limit"))  # fmt: skip
+    wheels.add_patch(
+        Rectangle(
+            (-limit, -limit),
+            2 * limit,
+            2 * limit,
+            fill=False,
+            ec="0.3",
+            ls="--",
+            label="wheel limit",
+        )
+    )
     if np.any(asked):
-        wheels.plot([0, 1.5 * asked[0]], [0, 1.5 * asked[1]], ":", color="0.5",
-                    label="same curvature")  # fmt: skip
+        wheels.plot(
+            [0, 1.5 * asked[0]], [0, 1.5 * asked[1]], ":", color="0.5", label="same curvature"
+        )
     wheels.plot(*asked, "o", color=ASKED, label="asked")
     wheels.plot(*got, "s", color=DELIVERED, mfc="none", ms=10, label="delivered")
     wheels.set_aspect("equal")
@@ -131,8 +148,10 @@ def inverse_picture(lesson: InverseLesson) -> Figure:
     wheels.set_ylabel("right wheel (rad/s)")
     wheels.grid(True, alpha=0.3)
     wheels.legend(loc="lower right", fontsize=8)
-    for twist, colour, name in ((lesson.twist, ASKED, "asked"),
-                                (lesson.delivered, DELIVERED, "delivered")):  # fmt: skip
+    for twist, colour, name in (
+        (lesson.twist, ASKED, "asked"),
+        (lesson.delivered, DELIVERED, "delivered"),
+    ):
         path = _drive(twist, 2.0)
         paths.plot(path[:, 0], path[:, 1], color=colour, label=f"{name}, 2 s")
     _plane(paths)
@@ -172,8 +191,9 @@ def integration_picture(lesson: IntegrationLesson) -> Figure:
     steps, curves = lesson.convergence()
     tiny = np.finfo(float).eps  # rounding: the floor of a log axis
     for method, curve in curves.items():
-        errors.loglog(steps, np.maximum(curve, tiny), "o-", ms=3, color=METHOD_COLOURS[method],
-                      label=method)  # fmt: skip
+        errors.loglog(
+            steps, np.maximum(curve, tiny), "o-", ms=3, color=METHOD_COLOURS[method], label=method
+        )
     errors.axvline(lesson.step, color="0.3", ls="--", label="this h")
     errors.set_xlabel("step h (s)")
     errors.set_ylabel("end-position error (m)")
@@ -195,8 +215,7 @@ def check_picture(lesson: CheckLesson) -> Figure:
     euler = np.array([p.to_array() for p in lesson.poses])
     ax.plot(euler[:, 0], euler[:, 1], "o-", color=METHOD_COLOURS["euler"], label="Euler steps")
     for k, pose in enumerate(lesson.poses):
-        ax.annotate(str(k), (pose.x, pose.y), textcoords="offset points", xytext=(4, 4),
-                    fontsize=8)  # fmt: skip
+        ax.annotate(str(k), (pose.x, pose.y), textcoords="offset points", xytext=(4, 4), fontsize=8)
     end = lesson.exact
     ax.plot([end.x], [end.y], "*", ms=12, color=METHOD_COLOURS["exact"], label="exact pose")
     _plane(ax)

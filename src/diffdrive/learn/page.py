@@ -38,45 +38,69 @@ def _(mo):
 
 @app.cell
 def _(mo):
-    radius = mo.ui.slider(0.01, 0.2, step=0.005, value=0.05, show_value=True,
-                          label=r"wheel radius $r$ (m)")  # fmt: skip
-    track = mo.ui.slider(0.1, 1.0, step=0.01, value=0.3, show_value=True,
-                         label=r"track $2L$, wheel to wheel (m)")  # fmt: skip
-    left = mo.ui.slider(-20.0, 20.0, step=0.5, value=4.0, show_value=True,
-                        label=r"left wheel $\dot\varphi_L$ (rad/s)")  # fmt: skip
-    right = mo.ui.slider(-20.0, 20.0, step=0.5, value=10.0, show_value=True,
-                         label=r"right wheel $\dot\varphi_R$ (rad/s)")  # fmt: skip
-    mo.vstack([
-        mo.md("## 1. Geometry and forward kinematics: wheel speeds to $(v, \\omega)$"),
-        mo.hstack([radius, track], justify="start", gap=2),
-        mo.hstack([left, right], justify="start", gap=2),
-    ])  # fmt: skip
+    radius = mo.ui.slider(
+        0.01, 0.2, step=0.005, value=0.05, show_value=True, label=r"wheel radius $r$ (m)"
+    )
+    track = mo.ui.slider(
+        0.1, 1.0, step=0.01, value=0.3, show_value=True, label=r"track $2L$, wheel to wheel (m)"
+    )
+    left = mo.ui.slider(
+        -20.0,
+        20.0,
+        step=0.5,
+        value=4.0,
+        show_value=True,
+        label=r"left wheel $\dot\varphi_L$ (rad/s)",
+    )
+    right = mo.ui.slider(
+        -20.0,
+        20.0,
+        step=0.5,
+        value=10.0,
+        show_value=True,
+        label=r"right wheel $\dot\varphi_R$ (rad/s)",
+    )
+    mo.vstack(
+        [
+            mo.md("## 1. Geometry and forward kinematics: wheel speeds to $(v, \\omega)$"),
+            mo.hstack([radius, track], justify="start", gap=2),
+            mo.hstack([left, right], justify="start", gap=2),
+        ]
+    )
     return left, radius, right, track
 
 
 @app.cell
 def _(drawings, left, lessons, mo, radius, right, track):
     forward = lessons.forward(radius.value, track.value, left.value, right.value)
-    mo.hstack([mo.md(forward.markdown()), drawings.forward_picture(forward)], widths=[1, 1],
-              align="start")  # fmt: skip
+    mo.hstack(
+        [mo.md(forward.markdown()), drawings.forward_picture(forward)], widths=[1, 1], align="start"
+    )
     return (forward,)
 
 
 @app.cell
 def _(mo):
-    speed = mo.ui.slider(-1.5, 1.5, step=0.05, value=1.0, show_value=True,
-                         label=r"desired $v$ (m/s)")  # fmt: skip
-    turn = mo.ui.slider(-6.0, 6.0, step=0.1, value=2.0, show_value=True,
-                        label=r"desired $\omega$ (rad/s)")  # fmt: skip
-    limit = mo.ui.slider(1.0, 40.0, step=0.5, value=15.0, show_value=True,
-                         label="wheel limit (rad/s)")  # fmt: skip
+    speed = mo.ui.slider(
+        -1.5, 1.5, step=0.05, value=1.0, show_value=True, label=r"desired $v$ (m/s)"
+    )
+    turn = mo.ui.slider(
+        -6.0, 6.0, step=0.1, value=2.0, show_value=True, label=r"desired $\omega$ (rad/s)"
+    )
+    limit = mo.ui.slider(
+        1.0, 40.0, step=0.5, value=15.0, show_value=True, label="wheel limit (rad/s)"
+    )
     keep = mo.ui.dropdown(["curvature", "omega", "v"], value="curvature", label="keep")
-    mo.vstack([
-        mo.md("## 2. Inverse kinematics: $(v, \\omega)$ to wheel speeds, within a wheel limit"
-              "\n\nThe robot of section 1 ($r$ and $2L$ from there)."),
-        mo.hstack([speed, turn], justify="start", gap=2),
-        mo.hstack([limit, keep], justify="start", gap=2),
-    ])  # fmt: skip
+    mo.vstack(
+        [
+            mo.md(
+                "## 2. Inverse kinematics: $(v, \\omega)$ to wheel speeds, within a wheel limit"
+                "\n\nThe robot of section 1 ($r$ and $2L$ from there)."
+            ),
+            mo.hstack([speed, turn], justify="start", gap=2),
+            mo.hstack([limit, keep], justify="start", gap=2),
+        ]
+    )
     return keep, limit, speed, turn
 
 
@@ -91,13 +115,23 @@ def _(drawings, keep, lessons, limit, mo, radius, speed, track, turn):
 
 @app.cell
 def _(mo):
-    offset = mo.ui.slider(-0.3, 0.3, step=0.01, value=0.1, show_value=True,
-                          label="reference point $D$ ahead of the axle (m)")  # fmt: skip
-    mo.vstack([
-        mo.md("## 3. The Modern Robotics form: wheel frames, $H$ and its pseudo-inverse\n\n"
-              "The wheels of section 1. $V_b = (\\omega, v_x, v_y)$ in the textbook's order."),
-        offset,
-    ])  # fmt: skip
+    offset = mo.ui.slider(
+        -0.3,
+        0.3,
+        step=0.01,
+        value=0.1,
+        show_value=True,
+        label="reference point $D$ ahead of the axle (m)",
+    )
+    mo.vstack(
+        [
+            mo.md(
+                "## 3. The Modern Robotics form: wheel frames, $H$ and its pseudo-inverse\n\n"
+                "The wheels of section 1. $V_b = (\\omega, v_x, v_y)$ in the textbook's order."
+            ),
+            offset,
+        ]
+    )
     return (offset,)
 
 
@@ -106,23 +140,33 @@ def _(drawings, left, lessons, mo, offset, radius, right, track):
     modern = lessons.modern_robotics(
         radius.value, track.value, offset.value, left.value, right.value
     )
-    mo.hstack([mo.md(modern.markdown()), drawings.modern_robotics_picture(modern)],
-              widths=[1, 1], align="start")  # fmt: skip
+    mo.hstack(
+        [mo.md(modern.markdown()), drawings.modern_robotics_picture(modern)],
+        widths=[1, 1],
+        align="start",
+    )
     return (modern,)
 
 
 @app.cell
 def _(mo):
-    duration = mo.ui.slider(1.0, 20.0, step=0.5, value=6.0, show_value=True,
-                            label="duration (s)")  # fmt: skip
-    step = mo.ui.slider(steps=[0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0], value=0.5,
-                        show_value=True, label="step $h$ (s)")  # fmt: skip
-    mo.vstack([
-        mo.md("## 4. Integration: Euler, rk2 and exact against the exact arc\n\n"
-              "The wheel speeds of section 1, held for the whole duration: the robot drives "
-              "one arc, and each method steps along it."),
-        mo.hstack([duration, step], justify="start", gap=2),
-    ])  # fmt: skip
+    duration = mo.ui.slider(1.0, 20.0, step=0.5, value=6.0, show_value=True, label="duration (s)")
+    step = mo.ui.slider(
+        steps=[0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0],
+        value=0.5,
+        show_value=True,
+        label="step $h$ (s)",
+    )
+    mo.vstack(
+        [
+            mo.md(
+                "## 4. Integration: Euler, rk2 and exact against the exact arc\n\n"
+                "The wheel speeds of section 1, held for the whole duration: the robot drives "
+                "one arc, and each method steps along it."
+            ),
+            mo.hstack([duration, step], justify="start", gap=2),
+        ]
+    )
     return duration, step
 
 
@@ -181,12 +225,16 @@ def _(mo):
         )
         .form(submit_button_label="Check my answer", bordered=False)
     )
-    mo.vstack([
-        mo.md("## 5. Check my answer\n\nType the numbers of your problem and press the "
-              "button. The wheel speeds are held constant over the $k$ steps. The table is "
-              "seed 000's and 002's recurrence, step by step."),
-        check_form,
-    ])  # fmt: skip
+    mo.vstack(
+        [
+            mo.md(
+                "## 5. Check my answer\n\nType the numbers of your problem and press the "
+                "button. The wheel speeds are held constant over the $k$ steps. The table is "
+                "seed 000's and 002's recurrence, step by step."
+            ),
+            check_form,
+        ]
+    )
     return check_defaults, check_form
 
 
@@ -195,15 +243,22 @@ def _(check_defaults, check_form, drawings, lessons, mo):
     given = check_form.value or check_defaults  # the example until the first check
     try:
         check = lessons.check_answer(
-            given["radius"], given["track"], given["meaning"], given["left"], given["right"],
-            given["step"], given["steps"], (given["x"], given["y"], given["theta"]),
-        )  # fmt: skip
+            given["radius"],
+            given["track"],
+            given["meaning"],
+            given["left"],
+            given["right"],
+            given["step"],
+            given["steps"],
+            (given["x"], given["y"], given["theta"]),
+        )
     except (TypeError, ValueError) as error:
         check = None
         shown = mo.callout(mo.md(f"**Cannot compute this:** {error}"), kind="danger")
     else:
-        shown = mo.hstack([mo.md(check.markdown()), drawings.check_picture(check)],
-                          widths=[3, 2], align="start")  # fmt: skip
+        shown = mo.hstack(
+            [mo.md(check.markdown()), drawings.check_picture(check)], widths=[3, 2], align="start"
+        )
     shown
     return (check,)
 

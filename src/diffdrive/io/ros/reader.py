@@ -226,15 +226,29 @@ def read_odometry(path: str | Path, topic: str) -> OdometryTopic:
         p, t = m.pose.pose, m.twist.twist
         full = np.asarray(m.pose.covariance, dtype=float).reshape(6, 6)
         planar = full[np.ix_([0, 1, 5], [0, 1, 5])].ravel()
-        return (p.position.x, p.position.y, _yaw(p.orientation), t.linear.x, t.linear.y,
-                t.angular.z, *planar)  # fmt: skip
+        return (
+            p.position.x,
+            p.position.y,
+            _yaw(p.orientation),
+            t.linear.x,
+            t.linear.y,
+            t.angular.z,
+            *planar,
+        )
 
     ordered, rows, last = _collect(Path(path), topic, ("nav_msgs/msg/Odometry",), row)
     poses = rows[:, :3].copy()
     poses[:, 2] = np.unwrap(poses[:, 2])
-    return OdometryTopic(ordered.times, poses, rows[:, 3:6], rows[:, 6:].reshape(-1, 3, 3),
-                         last.header.frame_id, last.child_frame_id, ordered.source,
-                         ordered.dropped)  # fmt: skip
+    return OdometryTopic(
+        ordered.times,
+        poses,
+        rows[:, 3:6],
+        rows[:, 6:].reshape(-1, 3, 3),
+        last.header.frame_id,
+        last.child_frame_id,
+        ordered.source,
+        ordered.dropped,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -259,8 +273,15 @@ def read_imu(path: str | Path, topic: str) -> Imu:
         return (w.x, w.y, w.z, q.x, q.y, q.z, q.w, a.x, a.y, a.z)
 
     ordered, rows, last = _collect(Path(path), topic, ("sensor_msgs/msg/Imu",), row)
-    return Imu(ordered.times, rows[:, :3], rows[:, 3:7], rows[:, 7:], last.header.frame_id,
-               ordered.source, ordered.dropped)  # fmt: skip
+    return Imu(
+        ordered.times,
+        rows[:, :3],
+        rows[:, 3:7],
+        rows[:, 7:],
+        last.header.frame_id,
+        ordered.source,
+        ordered.dropped,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -392,7 +413,17 @@ def read_navsatfix(path: str | Path, topic: str) -> NavSatFix:
 
     ordered, rows, _ = _collect(Path(path), topic, ("sensor_msgs/msg/NavSatFix",), row)
     latitude, longitude, altitude, variance = rows.T
-    east, north, _ = pymap3d.geodetic2enu(latitude, longitude, altitude, latitude[0],
-                                          longitude[0], altitude[0])  # fmt: skip
-    return NavSatFix(ordered.times, latitude, longitude, altitude, np.asarray(east),
-                     np.asarray(north), variance, ordered.source, ordered.dropped)  # fmt: skip
+    east, north, _ = pymap3d.geodetic2enu(
+        latitude, longitude, altitude, latitude[0], longitude[0], altitude[0]
+    )
+    return NavSatFix(
+        ordered.times,
+        latitude,
+        longitude,
+        altitude,
+        np.asarray(east),
+        np.asarray(north),
+        variance,
+        ordered.source,
+        ordered.dropped,
+    )

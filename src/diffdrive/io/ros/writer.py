@@ -69,15 +69,17 @@ def write_odometry(
             for k in range(len(times)):
                 stamp = _stamp(store, times[k])
                 nanoseconds = stamp.sec * 1_000_000_000 + stamp.nanosec
-                message = _odometry(store, stamp, frame, child_frame, poses[k], covariances[k],
-                                    twists[k])  # fmt: skip
+                message = _odometry(
+                    store, stamp, frame, child_frame, poses[k], covariances[k], twists[k]
+                )
                 writer.write(
                     odometry, nanoseconds, store.serialize_cdr(message, message.__msgtype__)
                 )
                 if tf:
                     message = _transform(store, stamp, frame, child_frame, poses[k])
-                    writer.write(transforms, nanoseconds,
-                                 store.serialize_cdr(message, message.__msgtype__))  # fmt: skip
+                    writer.write(
+                        transforms, nanoseconds, store.serialize_cdr(message, message.__msgtype__)
+                    )
         if format == "mcap":
             os.replace(next(bag.glob("*.mcap")), path)
         else:
@@ -96,8 +98,11 @@ def _checked(
         raise ValueError(
             f"times (N,) and poses (N, 3) must match, got {times.shape}, {poses.shape}"
         )
-    covariances = (np.zeros((len(times), 3, 3)) if covariances is None
-                   else np.asarray(covariances, dtype=float))  # fmt: skip
+    covariances = (
+        np.zeros((len(times), 3, 3))
+        if covariances is None
+        else np.asarray(covariances, dtype=float)
+    )
     twists = np.zeros((len(times), 3)) if twists is None else np.asarray(twists, dtype=float)
     if covariances.shape != (len(times), 3, 3) or twists.shape != (len(times), 3):
         raise ValueError(
@@ -140,8 +145,9 @@ def _odometry(store, stamp, frame, child_frame, pose, covariance, twist):
         header=t["std_msgs/msg/Header"](stamp=stamp, frame_id=frame),
         child_frame_id=child_frame,
         pose=t["geometry_msgs/msg/PoseWithCovariance"](
-            pose=t["geometry_msgs/msg/Pose"](position=position,
-                                             orientation=_quaternion(store, float(pose[2]))),
+            pose=t["geometry_msgs/msg/Pose"](
+                position=position, orientation=_quaternion(store, float(pose[2]))
+            ),
             covariance=full.ravel(),
         ),
         twist=t["geometry_msgs/msg/TwistWithCovariance"](
@@ -151,7 +157,7 @@ def _odometry(store, stamp, frame, child_frame, pose, covariance, twist):
             ),
             covariance=np.zeros(36),
         ),
-    )  # fmt: skip
+    )
 
 
 def _transform(store, stamp, frame, child_frame, pose):
