@@ -1,27 +1,35 @@
 # Set-up and the two jobs of the README. Only python3 (>= 3.10) is needed; the virtual
-# environment is made and filled on first use.
+# environment is made on first use and filled with what each job needs: the demo the package
+# and its plot extra, the tests the developer tools (the dependency group "test") as well.
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
+SOURCES := pyproject.toml setup.py src/diffdrive/backends/_odometry.c
 
 .PHONY: demo test bench clean
 
-$(BIN)/diffdrive: pyproject.toml setup.py src/diffdrive/backends/_odometry.c
+$(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet --upgrade pip  # 25.1 or later reads dependency groups
+
+$(VENV)/.demo: $(SOURCES) | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[plot]'
 	touch $@
 
-demo: $(BIN)/diffdrive            ## the main job on the built-in example
+$(VENV)/.test: $(SOURCES) | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[plot]' --group test
+	touch $@
+
+demo: $(VENV)/.demo               ## the main job on the built-in example
 	$(BIN)/diffdrive
 
-test: $(BIN)/diffdrive            ## linter, type check, then the whole test suite
+test: $(VENV)/.test               ## linter, type check, then the whole test suite
 	$(BIN)/ruff check
 	$(BIN)/ruff format --check
 	$(BIN)/mypy
 	$(BIN)/python -m pytest
 
-bench: $(BIN)/diffdrive           ## benchmarks/, with numba and the peer libraries
+bench: $(VENV)/.test              ## benchmarks/, with numba and the peer libraries
 	$(BIN)/python -m pip install --quiet -e '.[bench]'
 	$(BIN)/python benchmarks/bench_simulate.py
 	$(BIN)/python benchmarks/bench_odometry.py

@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 from diffdrive import DiffDrive, Pose, simulate
 from diffdrive.learn import drawings, lessons, missing_extra
 
-pytest.importorskip("marimo", reason="the learn extra (marimo) is part of the test extra")
+pytest.importorskip("marimo", reason="marimo (the learn extra) is in the test group")
 
 
 def shown(markdown: str, test_id: str) -> float:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._progress import progress_bar
 from diffdrive.model import Robot
 
 __all__ = ["animate", "animation_writer", "plot_trajectory", "wheel_velocities_of"]
@@ -204,13 +205,7 @@ def animate(
         return trail, body, label
 
     movie = animation.FuncAnimation(figure, draw, frames=indices, blit=False)
-    bar = None
-    if progress:
-        import sys
-
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(indices), desc="animate", unit="frame", file=sys.stderr)
+    bar = progress_bar(progress, total=len(indices), desc="animate", unit="frame")
     try:
         movie.save(
             output,

@@ -613,15 +613,12 @@ static PyObject *jacobians(Core *c, PyObject *args) {
 }
 
 static int core_init(Core *c, PyObject *args, PyObject *kwargs) {
-    double x, y, theta;
-    if (!PyArg_ParseTuple(args, "ddddiddidddddd", &c->r_left, &c->r_right, &c->track,
-                          &c->offset, &c->method, &c->rad_per_tick, &c->max_wheel_speed,
-                          &c->counter_bits, &c->k_left, &c->k_right, &c->window, &x, &y,
-                          &theta))
+    /* At the origin: Odometry's reset puts the core at its start. */
+    if (!PyArg_ParseTuple(args, "ddddiddiddd", &c->r_left, &c->r_right, &c->track, &c->offset,
+                          &c->method, &c->rad_per_tick, &c->max_wheel_speed, &c->counter_bits,
+                          &c->k_left, &c->k_right, &c->window))
         return -1;
-    c->x = x;
-    c->y = y;
-    c->theta = theta;
+    c->x = c->y = c->theta = 0.0;
     c->distance = 0.0;
     c->x_comp = c->y_comp = c->theta_comp = c->distance_comp = 0.0;
     memset(c->cov, 0, sizeof c->cov);

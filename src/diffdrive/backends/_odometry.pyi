@@ -21,10 +21,7 @@ class OdometryCore:
         k_left: float,
         k_right: float,
         velocity_window: float,
-        x: float,
-        y: float,
-        theta: float,
-    ) -> None: ...
+    ) -> None: ...  # at the origin: Odometry's reset puts it at its start
     def update_ticks(self, left: Any, right: Any, t: float | None = None) -> Any:
         """Absolute encoder counter readings."""
     def update_increments(self, left: float, right: float, t: float | None = None) -> Any:

@@ -112,9 +112,6 @@ class OdometryCore:
         k_left: float,
         k_right: float,
         velocity_window: float,
-        x: float,
-        y: float,
-        theta: float,
     ) -> None:
         self._r_left, self._r_right = left_wheel_radius, right_wheel_radius
         self._track, self._axle = track_width, axle_offset
@@ -123,7 +120,7 @@ class OdometryCore:
         self._rad_per_tick = rad_per_tick
         self._max_wheel_speed, self._counter_bits = max_wheel_speed, counter_bits
         self._k_left, self._k_right, self._window = k_left, k_right, velocity_window
-        self._pose = [x, y, theta, 0.0]  # x, y, theta, distance: sums ...
+        self._pose = [0.0, 0.0, 0.0, 0.0]  # x, y, theta, distance: sums ...
         self._comp = [0.0, 0.0, 0.0, 0.0]  # ... and their compensations
         self._cov = [0.0] * 9
         self._time = math.nan

@@ -49,6 +49,7 @@ from typing import Literal
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._progress import progress_bar
 from diffdrive._validate import whole
 from diffdrive.integrate import Method, check_method
 from diffdrive.io.run import Run
@@ -327,7 +328,7 @@ def _fit_least_squares(
     """scipy's robust least squares over every ground-truth pose of every run (and the prior's
     residuals): ``(parameters, covariance, condition, {extra parameter: value})``."""
     start = _parameters(nominal)
-    bar = _progress_bar(progress, f"fitting {len(runs)} runs")
+    bar = progress_bar(progress, desc=f"fitting {len(runs)} runs", unit=" evaluations")
 
     def residuals(relative: np.ndarray, extras: np.ndarray) -> np.ndarray:
         if bar is not None:
@@ -421,17 +422,6 @@ def _windows(increments: np.ndarray, truth: np.ndarray, window: int):
     blocks[: len(increments)] = increments
     ends = np.minimum(np.arange(count + 1) * window, len(increments))
     return blocks.reshape(count, window, 2), truth[ends]
-
-
-def _progress_bar(shown: bool, label: str):
-    """A tqdm counter of the fit's evaluations on standard error, or None."""
-    if not shown:
-        return None
-    import sys
-
-    from tqdm import tqdm
-
-    return tqdm(desc=label, unit=" evaluations", file=sys.stderr)
 
 
 def _check_condition(jacobian: np.ndarray, free: np.ndarray, extra=()) -> float:

@@ -147,9 +147,6 @@ class _OdometryMethods(_Base):
             float(k_left),
             float(k_right),
             positive("velocity_window", velocity_window),
-            0.0,
-            0.0,
-            0.0,
         )
         self.reset(Pose() if initial_pose is None else initial_pose, initial_covariance)
 

@@ -117,10 +117,6 @@ def _checked(
     return times, poses, covariances, np.nan_to_num(twists)
 
 
-def _cdr(store, message) -> bytes:
-    return store.serialize_cdr(message, message.__msgtype__)
-
-
 def _stamp(store, seconds: float):
     Time = store.types["builtin_interfaces/msg/Time"]
     whole = math.floor(seconds)
