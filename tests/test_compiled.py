@@ -90,7 +90,18 @@ def test_chunked_passes_equal_one_pass(chunks, method):
 
 
 def test_every_method_has_its_flags():
-    assert tuple(simulate_kernel.METHOD_FLAGS) == integrate.METHODS
+    """One decoding of a method into its flags serves every backend (the kernel's own table
+    is gone); the C core takes the method by its index in the same order."""
+    from diffdrive import _step
+
+    assert tuple(_step.METHOD_FLAGS) == integrate.METHODS
+    assert [_step.method_flags(method) for method in integrate.METHODS] == [
+        (0.0, False),
+        (0.5, False),
+        (0.5, True),
+    ]
+    with pytest.raises(ValueError, match="method must be one of euler, rk2, exact"):
+        _step.method_flags("midpoint")
 
 
 def test_chunks_use_the_threads_only_where_they_pay():

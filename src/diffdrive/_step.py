@@ -29,13 +29,16 @@ core mirrors them (``backends/_odometry.c``).
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 __all__ = [
+    "METHODS",
     "METHOD_FLAGS",
     "TAYLOR_LIMIT",
     "Method",
     "body_move",
+    "check_method",
+    "method_flags",
     "move_jacobians",
     "sinc",
     "sinc_cos",
@@ -52,7 +55,22 @@ METHOD_FLAGS: dict[Method, tuple[float, bool]] = {
     "rk2": (0.5, False),
     "exact": (0.5, True),
 }
+METHODS: tuple[Method, ...] = tuple(METHOD_FLAGS)
 TAYLOR_LIMIT = 1.0 / 16.0
+
+
+def check_method(method: object) -> Method:
+    """``method`` itself if it names an integration method; ``ValueError`` listing them if not."""
+    for known in METHODS:
+        if method == known:
+            return known
+    raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+
+
+def method_flags(method: object) -> tuple[float, bool]:
+    """``(weight, chord)`` of the method named ``method``, checked: the one place a method's
+    name becomes its flags (the C core mirrors the table, indexed as ``METHODS``)."""
+    return METHOD_FLAGS[check_method(method)]
 
 
 def sinc(u: float) -> float:
@@ -83,10 +101,17 @@ def sinc_derivative(u: float) -> float:
     return (u * math.cos(u) - math.sin(u)) / (u * u)
 
 
+# wheel_move's arithmetic holds for arrays as it is: the batch layer and ``desaturate`` call it
+# with arrays of any array-API library (``Values``), the scalar paths with floats.
+Values = Any
+
+
 def wheel_move(
-    r_left: float, r_right: float, track: float, offset: float, dl: float, dr: float
-) -> tuple[float, float, float]:
-    """``(forward, sideways, turn)``: m, m, rad, from wheel-angle increments ``dl``, ``dr``."""
+    r_left: Values, r_right: Values, track: Values, offset: Values, dl: Values, dr: Values
+) -> tuple[Values, Values, Values]:
+    """``(forward, sideways, turn)``: m, m, rad, from wheel-angle increments ``dl``, ``dr``
+    (rad; or, as forward kinematics, wheel velocities to ``(vx, vy, omega)``), floats or
+    arrays that broadcast."""
     left, right = r_left * dl, r_right * dr
     turn = (right - left) / track
     return 0.5 * (left + right), offset * turn, turn

@@ -12,26 +12,16 @@ displacement, which is what lets batch integration be a prefix sum (``diffdrive.
 
 from __future__ import annotations
 
-from diffdrive._step import METHOD_FLAGS, Method, twist_move
+from diffdrive._step import METHODS, Method, check_method, method_flags, twist_move
 from diffdrive._validate import finite
 from diffdrive.types import Pose, Twist
-
-METHODS: tuple[Method, ...] = tuple(METHOD_FLAGS)
 
 __all__ = ["METHODS", "Method", "check_method", "delta", "step"]
 
 
-def check_method(method: str) -> Method:
-    """``method`` itself if it names an integration method; ``ValueError`` listing them if not."""
-    for known in METHODS:
-        if method == known:
-            return known
-    raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-
-
 def delta(twist: Twist, dt: float, method: Method = "exact") -> Pose:
     """The body-frame pose change over one step of ``dt`` s with ``twist`` held constant."""
-    weight, chord = METHOD_FLAGS[check_method(method)]
+    weight, chord = method_flags(method)
     twist = Twist.coerce(twist, "twist")
     return Pose(*twist_move(twist.vx, twist.vy, twist.omega, finite("dt", dt), weight, chord))
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from diffdrive._arrays import components
 from diffdrive._validate import finite, whole
-from diffdrive.batch.kinematics import WHEELS
+from diffdrive.batch.kinematics import WHEELS, geometry_of
 from diffdrive.batch.rollout import accumulate, twists
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
@@ -183,14 +183,7 @@ def _run_chunk(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
     if setup.backend == "numba":
         from diffdrive.backends.numba_montecarlo import run_chunk
 
-        geometry = np.array(
-            [
-                robot.left_wheel_radius,
-                robot.right_wheel_radius,
-                robot.track_width,
-                robot.axle_offset,
-            ]
-        )
+        geometry = np.array(geometry_of(robot))
         final, mean, m2 = run_chunk(
             setup.travel,
             setup.start,
@@ -203,9 +196,9 @@ def _run_chunk(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
         )
         return final, Moments(count, mean, m2)
     rng = np.random.default_rng(sequence)
-    nominal = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
-    drawn = nominal * (1.0 + setup.geometry_sigma * rng.standard_normal((count, 3)))
-    geometry = np.column_stack([drawn, np.full(count, robot.axle_offset)])  # (count, 4)
+    nominal = np.array(geometry_of(robot))
+    drawn = nominal[:3] * (1.0 + setup.geometry_sigma * rng.standard_normal((count, 3)))
+    geometry = np.column_stack([drawn, np.full(count, nominal[3])])  # (count, 4)
     radii = geometry[:, None, :2]
     steps = len(setup.travel)
     block = max(1, _BLOCK_ELEMENTS // count)

@@ -56,7 +56,7 @@ def exp(twist: Twist, dt: float = 1.0) -> Pose:
     twist = Twist.coerce(twist, "twist")
     dt = finite("dt", dt)
     return Pose(
-        *_step.twist_move(twist.vx, twist.vy, twist.omega, dt, *_step.METHOD_FLAGS["exact"])
+        *_step.twist_move(twist.vx, twist.vy, twist.omega, dt, *_step.method_flags("exact"))
     )
 
 

@@ -17,7 +17,7 @@ import math
 import numba
 import numpy as np
 
-from diffdrive._step import METHOD_FLAGS
+from diffdrive._step import method_flags
 from diffdrive.backends.numba_simulate import STEP
 from diffdrive.integrate import Method
 
@@ -84,7 +84,7 @@ def run_chunk(
     """``count`` robots of one chunk: final poses ``(count, 3)``, per-step mean ``(T+1, 3)``
     and sums of squared deviations ``(T+1, 3, 3)``. ``geometry`` is ``[r_left, r_right, track,
     axle_offset]``; ``rng`` draws the chunk's numbers (numba follows NumPy's Generator)."""
-    weight, chord = METHOD_FLAGS[method]
+    weight, chord = method_flags(method)
     final = np.empty((count, 3))
     mean = np.zeros((len(travel) + 1, 3))
     m2 = np.zeros((len(travel) + 1, 3, 3))

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from diffdrive._step import METHOD_FLAGS, move_jacobians, wheel_move
+from diffdrive._step import METHODS, method_flags, move_jacobians, wheel_move
 
 __all__ = ["OdometryCore"]
 
@@ -115,8 +115,8 @@ class OdometryCore:
     ) -> None:
         self._r_left, self._r_right = left_wheel_radius, right_wheel_radius
         self._track, self._axle = track_width, axle_offset
-        # The method's flags, by its index in diffdrive.integrate.METHODS (as the C core takes it).
-        self._weight, self._chord = list(METHOD_FLAGS.values())[method]
+        # The method comes as its index in METHODS, as the C core takes it.
+        self._weight, self._chord = method_flags(METHODS[method])
         self._rad_per_tick = rad_per_tick
         self._max_wheel_speed, self._counter_bits = max_wheel_speed, counter_bits
         self._k_left, self._k_right, self._window = k_left, k_right, velocity_window

@@ -38,11 +38,11 @@ from typing import Any
 import numpy as np
 
 from diffdrive import _step
+from diffdrive.batch.kinematics import geometry_of
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive
 
 __all__ = [
-    "METHOD_FLAGS",
     "cached",
     "chunk_count",
     "integrate_history",
@@ -51,11 +51,6 @@ __all__ = [
     "threads",
 ]
 
-# Per method, from ``diffdrive._step``: turn the move to the mid-step heading (a weight of
-# 1/2; euler's is 0)? scale it to the chord of the arc?
-METHOD_FLAGS: dict[Method, tuple[bool, bool]] = {
-    method: (weight == 0.5, chord) for method, (weight, chord) in _step.METHOD_FLAGS.items()
-}
 # Fewer steps than this per chunk and the three passes cost more than they save.
 _MIN_CHUNK = 1 << 14
 # What the machine code comes from: the kernel, its step, and how the cache is written.
@@ -150,12 +145,11 @@ def integrate_history(
     # C-contiguous arrays only: the kernel indexes them as such.
     history, times = np.ascontiguousarray(history), np.ascontiguousarray(times)
     start = np.ascontiguousarray(start, dtype=np.float64)
-    geometry = np.array(
-        [robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width, robot.axle_offset]
-    )
+    geometry = np.array(geometry_of(robot))
     turns, ends = np.zeros(tasks), np.zeros((tasks, 2))
     kernel = _kernel(history.dtype, times.dtype, out.dtype)
-    midpoint, chord = METHOD_FLAGS[method]
+    weight, chord = _step.method_flags(method)
+    midpoint = weight != 0.0  # the kernel turns the move by half the step's turn, or not
 
     def run(stage: int, first: int, stop: int) -> None:
         kernel(

@@ -8,8 +8,7 @@ methods; leading axes broadcast and the floating dtype is kept.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any, cast
+from typing import Any
 
 from diffdrive._arrays import components, device, finite_positive_dt, leading_shape, namespace
 from diffdrive._step import wheel_move
@@ -49,8 +48,7 @@ def wheel_map(geometry: Any, wheels: Any, shift: float = 0.0) -> Any:
     point to a point that far right of it (a model's ``reference_offset``)."""
     xp = namespace(wheels)
     offset = geometry[..., 3] if geometry.shape[-1] == 4 else 0.0
-    # The scalar step's own function: its arithmetic holds for arrays as it is.
-    forward, sideways, turn = cast("Callable[..., tuple[Any, Any, Any]]", wheel_move)(
+    forward, sideways, turn = wheel_move(
         geometry[..., 0],
         geometry[..., 1],
         geometry[..., 2],

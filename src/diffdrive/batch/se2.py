@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from diffdrive._arrays import components, floating, leading_shape, namespace
-from diffdrive._step import METHOD_FLAGS, TAYLOR_LIMIT, Method
+from diffdrive._step import TAYLOR_LIMIT, Method, method_flags
 from diffdrive.angles import TAU
 
 __all__ = [
@@ -84,7 +84,7 @@ def exp(twists: object, dt: object = 1.0) -> Any:
 def moves(twists: object, dt: object, method: Method) -> Any:
     """Body-frame pose changes ``(..., 3)`` of ``twists`` held for ``dt`` s by ``method``'s
     step (``diffdrive._step``'s flags): ``batch.delta``, and ``exp`` for the exact one."""
-    weight, chord = METHOD_FLAGS[method]
+    weight, chord = method_flags(method)
     xp = namespace(twists, dt)
     v = components(xp, twists, "twists", TWIST)
     step = floating(xp, dt, "dt", like=v)

@@ -8,8 +8,8 @@
 
 from diffdrive.calibration.cross_validation import CrossValidation, Fold, cross_validate
 from diffdrive.calibration.offline import (
+    CALIBRATION_METHODS,
     EXTRAS,
-    METHODS,
     PARAMETERS,
     CalibrationError,
     CalibrationMethod,
@@ -21,8 +21,8 @@ from diffdrive.calibration.offline import (
 from diffdrive.calibration.online import OnlineCalibrator
 
 __all__ = [
+    "CALIBRATION_METHODS",
     "EXTRAS",
-    "METHODS",
     "PARAMETERS",
     "CalibrationError",
     "CalibrationMethod",

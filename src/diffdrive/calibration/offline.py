@@ -57,8 +57,8 @@ from diffdrive.model import Robot
 from diffdrive.simulation import dead_reckon, integrate_increments
 
 __all__ = [
+    "CALIBRATION_METHODS",
     "EXTRAS",
-    "METHODS",
     "PARAMETERS",
     "CalibrationError",
     "CalibrationMethod",
@@ -69,7 +69,12 @@ __all__ = [
 ]
 
 CalibrationMethod = Literal["umbmark", "least_squares", "minimax", "increments"]
-METHODS: tuple[CalibrationMethod, ...] = ("umbmark", "least_squares", "minimax", "increments")
+CALIBRATION_METHODS: tuple[CalibrationMethod, ...] = (
+    "umbmark",
+    "least_squares",
+    "minimax",
+    "increments",
+)
 PARAMETERS = ("left_wheel_radius", "right_wheel_radius", "track_width")
 # Optional extra parameters of least squares and minimax: where the reference point lies ahead
 # of the axle (m), and a constant heading between the reference's body and the robot (rad).
@@ -233,7 +238,7 @@ def calibrate(
         return CalibrationResult(
             robot, method, covariance, residuals, condition, heading_offset=offset
         )
-    raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    raise ValueError(f"method must be one of {', '.join(CALIBRATION_METHODS)}, got {method!r}")
 
 
 def _check_square(name: str, truth: np.ndarray, side: float) -> None:

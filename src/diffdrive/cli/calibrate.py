@@ -8,8 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.calibration import EXTRAS, PARAMETERS, calibrate
-from diffdrive.calibration import METHODS as CALIBRATION_METHODS
+from diffdrive.calibration import CALIBRATION_METHODS, EXTRAS, PARAMETERS, calibrate
 from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,

@@ -14,9 +14,10 @@ from typing import Any, Literal
 import numpy as np
 
 from diffdrive._arrays import components
+from diffdrive._step import wheel_move
 from diffdrive._validate import positive
 from diffdrive.batch.kinematics import WHEELS
-from diffdrive.model import DiffDrive
+from diffdrive.model import Robot
 from diffdrive.types import WheelVelocities
 
 __all__ = ["KEEP", "Keep", "desaturate"]
@@ -29,7 +30,7 @@ def desaturate(
     wheels: WheelVelocities | object,
     max_wheel_velocity: float,
     keep: Keep = "curvature",
-    robot: DiffDrive | None = None,
+    robot: Robot | None = None,
 ) -> Any:
     """Wheel velocities within ``+-max_wheel_velocity`` rad/s, keeping ``keep``.
 
@@ -57,7 +58,7 @@ def _within(limit: float, dtype: np.dtype) -> np.ndarray:
     return np.nextafter(cap, dtype.type(0)) if float(cap) > limit else cap
 
 
-def _desaturate(w: np.ndarray, limit: float, keep: Keep, robot: DiffDrive | None) -> np.ndarray:
+def _desaturate(w: np.ndarray, limit: float, keep: Keep, robot: Robot | None) -> np.ndarray:
     cap = _within(limit, w.dtype)
     if keep == "curvature":
         largest = np.max(np.abs(w), axis=-1, keepdims=True)
@@ -66,12 +67,13 @@ def _desaturate(w: np.ndarray, limit: float, keep: Keep, robot: DiffDrive | None
         # The clip only trims the rounding that could leave the larger wheel an ulp over.
         return np.clip(w * scale, -cap, cap)
     assert robot is not None
+    drive = robot.equivalent  # v and omega are those of the drive's reference point
+    r_left, r_right = drive.left_wheel_radius, drive.right_wheel_radius
+    twist_v, _, omega = wheel_move(r_left, r_right, drive.track_width, 0.0, w[..., 0], w[..., 1])
     # Wheel rim speeds: left = v - b*omega, right = v + b*omega (b = half the track); each
     # must stay within its wheel's radius times the limit.
-    b = 0.5 * robot.track_width
-    reach_left, reach_right = limit * robot.left_wheel_radius, limit * robot.right_wheel_radius
-    twist_v = 0.5 * (robot.left_wheel_radius * w[..., 0] + robot.right_wheel_radius * w[..., 1])
-    omega = (robot.right_wheel_radius * w[..., 1] - robot.left_wheel_radius * w[..., 0]) / (2 * b)
+    b = 0.5 * drive.track_width
+    reach_left, reach_right = limit * r_left, limit * r_right
     if keep == "omega":
         turn_reach = (reach_left + reach_right) / (2 * b)
         omega = np.clip(omega, -turn_reach, turn_reach)
@@ -84,8 +86,8 @@ def _desaturate(w: np.ndarray, limit: float, keep: Keep, robot: DiffDrive | None
         low = np.maximum((twist_v - reach_left) / b, (-reach_right - twist_v) / b)
         high = np.minimum((twist_v + reach_left) / b, (reach_right - twist_v) / b)
         omega = np.clip(omega, low, high)
-    left = (twist_v - b * omega) / robot.left_wheel_radius
-    right = (twist_v + b * omega) / robot.right_wheel_radius
+    left = (twist_v - b * omega) / r_left
+    right = (twist_v + b * omega) / r_right
     # Rounding may put a wheel an ulp over the limit; the limit is a promise.
     limited = np.clip(np.stack([left, right], axis=-1), -cap, cap).astype(w.dtype, copy=False)
     within = np.all(np.abs(w) <= cap, axis=-1, keepdims=True)

@@ -45,7 +45,7 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive._step import METHOD_FLAGS, move_jacobians, wheel_move
+from diffdrive._step import method_flags, move_jacobians, wheel_move
 from diffdrive._validate import finite, positive
 from diffdrive.estimation.odometry import offset_jacobian
 from diffdrive.model import Robot
@@ -274,7 +274,7 @@ def _jacobians(offset: float, state: np.ndarray, forward: float, turn: float, dt
     rad/s) and d(next state)/d(forward, turn) (4x2)."""
     x, y, theta, bias = state
     dx, dy, by_forward, by_turn = move_jacobians(
-        forward, offset, turn, *METHOD_FLAGS["exact"], heading=theta
+        forward, offset, turn, *method_flags("exact"), heading=theta
     )
     by_state = np.eye(4)
     by_state[:2, 2] = -dy, dx
