@@ -3,7 +3,8 @@
 Every method, axle offsets, turns on both sides of the sinc threshold, straight runs and spins,
 float32 and float64, and a long run, each held to a plain loop of the scalar step
 (``integrate.step``, seed 000's recurrence for euler): ``simulate`` (NumPy prefix sums and the
-numba kernel), ``Odometry`` (the C update), the Monte Carlo kernel with no noise, and
+numba kernel), ``Odometry`` (the C update and its pure-Python twin), the gyro filter with the
+heading from the wheels and from a perfect gyro, the Monte Carlo kernel with no noise, and
 ``batch.rollout`` and ``simulate`` in NumPy, array-api-strict, JAX and PyTorch. Then JAX's
 gradient of a final-pose loss with respect to the geometry, against finite differences.
 """
@@ -18,7 +19,7 @@ import pytest
 
 import diffdrive as dd
 from diffdrive import batch, integrate
-from diffdrive.estimation.odometry import COMPILED, PythonOdometry
+from diffdrive.estimation import COMPILED, GyroOdometry, PythonOdometry
 from diffdrive.montecarlo import monte_carlo
 
 jax = pytest.importorskip("jax", reason="jax is part of the test extra")
@@ -100,6 +101,22 @@ def _odometry(kind):
     return run
 
 
+def _gyro(heading):
+    """The gyro filter, its heading from the wheels, or from a gyro that turns exactly as the
+    wheels do (the turn from the robot's own forward kinematics, no bias)."""
+
+    def run(case, method, dtype):
+        filter = GyroOdometry(case.robot, heading, dd.Pose(*case.start), method=method)
+        poses = [case.start]
+        for left, right in case.wheels * case.dt:
+            turn = case.robot.to_twist((left, right)).omega
+            filter.update(left, right, turn, 1.0)
+            poses.append(filter.pose.to_array())
+        return np.array(poses)
+
+    return run
+
+
 def _monte_carlo(case, method, dtype):
     result = monte_carlo(
         case.robot,
@@ -137,6 +154,8 @@ BACKENDS = {
     "simulate numba": (_simulate("numba"), ("float32", "float64")),
     "odometry (C)": (_odometry(dd.Odometry), ("float64",)),
     "odometry (pure Python)": (_odometry(PythonOdometry), ("float64",)),
+    "gyro filter, wheel heading": (_gyro("wheels"), ("float64",)),
+    "gyro filter, gyro heading": (_gyro("gyro"), ("float64",)),
     "monte carlo (numba)": (_monte_carlo, ("float64",)),
     "rollout numpy": (_rollout(np.asarray), ("float32", "float64")),
     "rollout array-api-strict": (_rollout(xps.asarray), ("float32", "float64")),

@@ -45,7 +45,7 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive._step import method_flags, move_jacobians, wheel_move
+from diffdrive._step import Method, check_method, method_flags, move_jacobians, wheel_move
 from diffdrive._validate import finite, positive
 from diffdrive.estimation.odometry import offset_jacobian
 from diffdrive.model import Robot
@@ -180,7 +180,7 @@ class GyroOdometry:
     reference point, and moves poses and covariances back to the body origin); ``heading`` is
     ``"wheels"``, ``"gyro"`` or ``"fused"``; ``bias`` (rad/s) is the gyro's, fixed for
     ``"gyro"`` and the prior mean for ``"fused"``; ``k_left``, ``k_right`` (m) the wheel
-    model; ``noise`` the gyro's.
+    model; ``noise`` the gyro's; ``method`` the step's (``"exact"``, ``"rk2"``, ``"euler"``).
     """
 
     def __init__(
@@ -196,6 +196,7 @@ class GyroOdometry:
         slip_threshold: float = SLIP_THRESHOLD,
         slip_inflation: float = 100.0,
         command_sigma: float = 1.0,
+        method: Method = "exact",
     ) -> None:
         if not isinstance(robot, Robot):
             raise TypeError(
@@ -206,7 +207,7 @@ class GyroOdometry:
         for name, value in (("k_left", k_left), ("k_right", k_right)):
             if not finite(name, value) >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {value!r}")
-        self.robot, self.heading = robot, heading
+        self.robot, self.heading, self.method = robot, heading, check_method(method)
         self.noise = GyroNoise() if noise is None else noise
         self.k = (float(k_left), float(k_right))
         self.slip_threshold = positive("slip_threshold", slip_threshold)
@@ -268,13 +269,15 @@ class GyroOdometry:
         self.command_score = float(command_score)
 
 
-def _jacobians(offset: float, state: np.ndarray, forward: float, turn: float, dt: float):
-    """The next state along the constant-curvature arc of ``forward`` m and ``turn`` rad (the
-    exact step), d(next state)/d(state) (4x4, the bias turning the heading by ``-dt`` per
-    rad/s) and d(next state)/d(forward, turn) (4x2)."""
+def _jacobians(
+    offset: float, state: np.ndarray, forward: float, turn: float, dt: float, method: Method
+):
+    """The next state after ``forward`` m and ``turn`` rad by the ``method``'s step (exact: the
+    constant-curvature arc), d(next state)/d(state) (4x4, the bias turning the heading by
+    ``-dt`` per rad/s) and d(next state)/d(forward, turn) (4x2)."""
     x, y, theta, bias = state
     dx, dy, by_forward, by_turn = move_jacobians(
-        forward, offset, turn, *method_flags("exact"), heading=theta
+        forward, offset, turn, *method_flags(method), heading=theta
     )
     by_state = np.eye(4)
     by_state[:2, 2] = -dy, dx
@@ -297,7 +300,7 @@ def _step(o: GyroOdometry, left: float, right: float, gyro_angle: float, dt: flo
     gyro_turn = gyro_angle - o.state[3] * dt
     turn = wheel_turn if o.heading == "wheels" else gyro_turn
     turn_var = wheel_turn_var if o.heading == "wheels" else gyro_var
-    moved, by_state, by_input = _jacobians(drive.axle_offset, o.state, forward, turn, dt)
+    moved, by_state, by_input = _jacobians(drive.axle_offset, o.state, forward, turn, dt, o.method)
     if o.heading == "wheels":
         by_state[:3, 3] = 0.0  # the bias plays no part in this heading
     bias_var = noise.rate_random_walk**2 * dt if o.heading == "fused" else 0.0
