@@ -422,3 +422,34 @@ def test_an_update_whose_result_is_not_finite_is_refused(calls, message):
     assert odometry.time == twin.time
     np.testing.assert_array_equal(odometry.covariance, twin.covariance)
     assert np.all(np.isfinite(odometry.covariance))
+
+
+def test_a_whole_run_gives_the_same_path_streamed_and_in_batch():
+    """odometry_of_run (the streaming core) and simulate_run (prefix sums) on one Run, of
+    velocities held from row to row and of accumulated angles."""
+    from diffdrive.estimation import odometry_of_run
+    from diffdrive.io import Run
+    from diffdrive.simulation import simulate_run
+
+    robot = dd.DiffDrive(0.05, 0.3, axle_offset=0.02)
+    t = np.linspace(0.0, 4.0, 81)
+    wheels = np.stack([6 + 3 * np.sin(t), 6 - 2 * np.cos(1.3 * t)], axis=-1)
+    truth = np.tile([0.4, -0.1, 0.3], (len(t), 1))
+    velocity = Run(t, "velocity", wheels, truth, "velocity log")
+    angles = Run.from_increments(wheels[:-1] * np.diff(t)[:, None], truth, t, "angle log")
+    for run in (velocity, angles):
+        increments, note = run.checked_increments(robot)
+        assert "largest wheel speed" in note
+        streamed, covariances = odometry_of_run(robot, run, covariance=True)
+        assert covariances.shape == (len(t), 3, 3)
+        np.testing.assert_allclose(streamed[0], truth[0])
+        np.testing.assert_allclose(streamed, simulate_run(robot, run, increments), atol=1e-12)
+
+
+def test_a_run_faster_than_any_robot_is_refused_by_its_line():
+    from diffdrive.io import Run, TableError
+
+    run = Run(np.arange(3.0), "angle", np.array([[0, 0], [1, 1], [5000, 5000.0]]), None, "fast")
+    with pytest.raises(TableError, match="fast, row 3: the left wheel would turn at 4999"):
+        run.checked_increments(dd.DiffDrive(0.05, 0.3))
+    run.checked_increments(dd.DiffDrive(0.05, 0.3), max_wheel_speed=1e4)  # the user's limit

@@ -18,7 +18,7 @@ import importlib.util
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -31,7 +31,10 @@ from diffdrive.integrate import Method, check_method
 from diffdrive.model import Robot
 from diffdrive.trajectory import Trajectory
 
-__all__ = ["dead_reckon", "integrate_increments", "simulate"]
+if TYPE_CHECKING:
+    from diffdrive.io.run import Run
+
+__all__ = ["dead_reckon", "integrate_increments", "simulate", "simulate_run"]
 
 # Small enough that a block's temporaries are reused from the heap, not fresh pages each time.
 _BLOCK_ELEMENTS = 1 << 11
@@ -112,6 +115,19 @@ def dead_reckon(
     """Dead-reckoned poses ``(..., T+1, 3)`` of ``robot`` from wheel-angle increments
     ``(..., T, 2)`` rad and a ``start`` pose (default: the origin)."""
     return integrate_increments(batch.to_twist(robot, increments), start, method)
+
+
+def simulate_run(robot: Robot, run: Run, increments: np.ndarray, method: Method = "exact"):
+    """The poses ``(T+1, 3)`` a ``run``'s wheels drive from its first ground-truth pose (else
+    the origin): wheel velocities held from each row to the next through ``simulate`` (its
+    kernel for long logs), readings (ticks, angles) by ``dead_reckon`` of their
+    ``increments`` ``(T, 2)`` rad (``run.increments()``)."""
+    if run.kind == "velocity":
+        trajectory = simulate(
+            robot, run.wheels[:-1], times=run.times, initial_pose=run.start_pose(), method=method
+        )
+        return trajectory.poses
+    return dead_reckon(robot, increments, run.start_pose(), method)
 
 
 def _integrate_blocks(block_increments, start: np.ndarray, method: Method, poses: np.ndarray):

@@ -11,66 +11,43 @@ from diffdrive import batch
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
     LOG_COLUMNS,
-    RIM_SPEED_LIMIT,
     Command,
     Parents,
-    checked_increments,
     output_format,
     output_options,
     read_log_of,
     robot_from,
-    start_pose,
     write_output,
 )
 from diffdrive.cli.report import error_summary
-from diffdrive.estimation.odometry import Odometry, RefusedUpdateError, UpdateKind
-from diffdrive.io import Run, TableError, is_bag
+from diffdrive.estimation.odometry import odometry_of_run
+from diffdrive.io import RIM_SPEED_LIMIT, Run, TableError, is_bag
 from diffdrive.model import Robot
-from diffdrive.types import Pose
 
 
 def run_odometry(args: argparse.Namespace) -> int:
     robot, ticks = robot_from(args)
     log = read_log_of(args)
     ticks = ticks or log.ticks_per_revolution
-    increments, note = checked_increments(args, log, robot, ticks)
+    increments, note = log.checked_increments(robot, ticks, args.counter_bits, args.max_wheel_speed)
     gyro = _gyro(args, log)
     if gyro is not None:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
-    odometry = Odometry(
+    to_bag = output_format(args) in ("mcap", "ros2")
+    poses, covariances = odometry_of_run(
         robot,
+        log,
         args.method,
-        Pose(*start_pose(log)),
-        ticks if log.kind == "ticks" else None,
-        args.counter_bits,
+        ticks_per_revolution=ticks,
+        counter_bits=args.counter_bits,
         max_wheel_speed=args.max_wheel_speed,
         k_left=args.k_left or 0.0,
         k_right=args.k_right or 0.0,
+        covariance=args.covariance or to_bag,
     )
-    times, wheels = log.times, log.wheels
-    to_bag = output_format(args) in ("mcap", "ros2")
-    kinds: dict[str, UpdateKind] = {
-        "ticks": "ticks",
-        "angle": "positions",
-        "velocity": "velocities",
-    }
-    kind = kinds[log.kind]
-    first = 1 if kind == "velocities" else 0  # a velocity is held until the next row
-    third = np.diff(times) if kind == "velocities" else times
-    left, right = (wheels[:-1, 0], wheels[:-1, 1]) if first else (wheels[:, 0], wheels[:, 1])
-    try:
-        poses, covariances = odometry.update_arrays(
-            kind, left, right, third, args.covariance or to_bag
-        )
-    except RefusedUpdateError as refused:
-        raise TableError(f"{log.where(refused.row + first)}: {refused.reason}") from None
-    if first:
-        start = start_pose(log)[None, :]
-        poses = np.vstack([start, poses])
-        if covariances is not None:
-            covariances = np.vstack([np.zeros((1, 3, 3)), covariances])
+    times = log.times
     columns: dict[str, np.ndarray] = {}
     twists = batch.to_twist(robot, increments)
     twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
@@ -126,7 +103,7 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
         log.increments(ticks, args.counter_bits),
         gyro,
         args.heading or "fused",
-        start_pose(log),
+        log.start_pose(),
         bias=args.gyro_bias,
         commanded=_commands(args, robot, log),
         **options,

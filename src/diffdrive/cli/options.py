@@ -12,23 +12,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-import numpy as np
-
 from diffdrive.demo import (
     EXAMPLE_DURATION,
     example_log,
     example_robot,
     example_wheel_velocities,
 )
-from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS, count_changes
+from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS
 from diffdrive.integrate import METHODS, Method
 from diffdrive.io import (
     FORMATS,
     ROBOT_KEYS,
     TIME_UNITS,
     Run,
-    TableError,
-    narrower_counter,
     read_robot,
     read_run,
     read_trajectory,
@@ -54,11 +50,6 @@ OptiOdom run file (no header: t, x, y, theta, ticks_right, ticks_left) is read t
 
 TRAJECTORY_FILES = """trajectory files: CSV (t, x, y, theta), JSON lines or TUM
 (t x y z qx qy qz qw), told apart by their content; a robot column holds several robots."""
-
-
-# Past this speed at the rim (m/s) a wheel-speed jump is no motion of a wheeled robot but a
-# misread log, unless the user sets the limit (--max-wheel-speed).
-RIM_SPEED_LIMIT = 50.0
 
 
 def robot_options() -> argparse.ArgumentParser:
@@ -198,43 +189,6 @@ def read_log_of(args: argparse.Namespace, path: Path | None = None) -> Run:
         right_joint=args.right_joint,
         reference_topic=args.reference_topic,
     )
-
-
-def start_pose(log: Run) -> np.ndarray:
-    """Where a log's run starts: its first ground-truth pose, else the origin."""
-    return np.zeros(3) if log.truth is None else log.truth[0]
-
-
-def checked_increments(args, log: Run, robot: Robot, ticks) -> tuple[np.ndarray, str]:
-    """The log's wheel increments ``(T, 2)`` rad, and a line on its largest wheel speed;
-    refuses a counter width that does not fit, and a speed no robot drives at (without
-    --max-wheel-speed, a rim speed of RIM_SPEED_LIMIT m/s)."""
-    increments = log.increments(ticks, args.counter_bits)
-    speed, side, row = log.largest_wheel_speed(increments)
-    radius = robot.left_wheel_radius if side == "left" else robot.right_wheel_radius
-    line = (
-        f"largest wheel speed in the log: {speed:.4g} rad/s ({speed * radius:.3g} m/s at the "
-        f"rim), {side} wheel, {log.where(row)}"
-    )
-    limit = getattr(args, "max_wheel_speed", None)
-    narrower = narrower_counter(log, args.counter_bits) if limit is None else None
-    if narrower is not None:
-        bits, row = narrower
-        change = int(np.abs(count_changes(log.wheels[row - 1 : row + 1], args.counter_bits)).max())
-        read_as = f"{args.counter_bits}-bit" if args.counter_bits else "never rolling over"
-        raise TableError(
-            f"{log.where(row)}: the counters jump by {change} counts, yet every reading fits "
-            f"{bits} bits: a {bits}-bit counter rolling over, read as {read_as}? Give "
-            f"--counter-bits {bits}; or --max-wheel-speed to take the jump as read"
-        )
-    if limit is None and speed * radius > RIM_SPEED_LIMIT:
-        hint = " a wrong --counter-bits or --ticks-per-revolution?" if log.kind == "ticks" else ""
-        raise TableError(
-            f"{log.where(row)}: the {side} wheel would turn at {speed:.4g} rad/s "
-            f"({speed * radius:.3g} m/s at its rim), faster than any wheeled robot drives;"
-            f"{hint} Give --max-wheel-speed to set the limit yourself"
-        )
-    return increments, line
 
 
 # The covariance's distinct entries, by their index in the row-major 3x3 matrix.

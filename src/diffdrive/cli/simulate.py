@@ -6,21 +6,18 @@ import argparse
 import math
 from pathlib import Path
 
-from diffdrive import batch
 from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
     Parents,
-    checked_increments,
     example_trajectory,
     output_options,
     read_log_of,
     robot_from,
-    start_pose,
     write_output,
 )
 from diffdrive.demo import EXAMPLE_DURATION
-from diffdrive.simulation import integrate_increments, simulate
+from diffdrive.simulation import simulate_run
 
 
 def run_simulate(args: argparse.Namespace) -> int:
@@ -36,19 +33,8 @@ def run_simulate(args: argparse.Namespace) -> int:
         )
         return 0
     log = read_log_of(args)
-    increments, note = checked_increments(args, log, robot, ticks)
-    if log.kind == "velocity":
-        trajectory = simulate(
-            robot,
-            log.wheels[:-1],
-            times=log.times,
-            initial_pose=start_pose(log),
-            method=args.method,
-        )
-        poses = trajectory.poses
-    else:
-        twists = batch.to_twist(robot, increments)
-        poses = integrate_increments(twists, start_pose(log), args.method)
+    increments, note = log.checked_increments(robot, ticks, args.counter_bits)
+    poses = simulate_run(robot, log, increments, args.method)
     write_output(args, log.times, poses, f"simulated {args.input}")
     if not args.quiet:
         print(note)

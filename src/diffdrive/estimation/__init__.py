@@ -24,6 +24,7 @@ from diffdrive.estimation.odometry import (
     Odometry,
     PythonOdometry,
     RefusedUpdateError,
+    odometry_of_run,
     offset_jacobian,
 )
 
@@ -39,6 +40,7 @@ __all__ = [
     "PythonOdometry",
     "RefusedUpdateError",
     "gyro_odometry",
+    "odometry_of_run",
     "offset_jacobian",
     "rotation_from_rpy",
 ]

@@ -43,12 +43,16 @@ from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import Robot
 from diffdrive.types import Pose, Twist, WheelVelocities
 
+if TYPE_CHECKING:
+    from diffdrive.io.run import Run
+
 __all__ = [
     "COMPILED",
     "UPDATE_KINDS",
     "Odometry",
     "PythonOdometry",
     "RefusedUpdateError",
+    "odometry_of_run",
     "offset_jacobian",
 ]
 
@@ -73,6 +77,14 @@ class RefusedUpdateError(ValueError):
         super().__init__(f"row {row}: {message}")
         self.row = row
         self.reason = message
+
+
+# The update that takes each kind of a Run's wheel readings.
+UPDATE_OF_RUN: dict[str, UpdateKind] = {
+    "ticks": "ticks",
+    "angle": "positions",
+    "velocity": "velocities",
+}
 
 
 if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
@@ -288,6 +300,54 @@ class _OdometryMethods(_Base):
 
     def __repr__(self) -> str:
         return f"Odometry({self.robot!r}, method={self.method!r}, pose={self.pose!r})"
+
+
+def odometry_of_run(
+    robot: Robot,
+    run: Run,
+    method: Method = "exact",
+    *,
+    ticks_per_revolution: float | None = None,
+    counter_bits: int | None = None,
+    max_wheel_speed: float | None = None,
+    k_left: float = 0.0,
+    k_right: float = 0.0,
+    covariance: bool = False,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """``Odometry`` over a whole ``Run``, from its first ground-truth pose (else the origin):
+    the pose after each row ``(T+1, 3)`` and, if ``covariance``, the covariances ``(T+1, 3, 3)``.
+
+    Ticks use ``ticks_per_revolution`` (else the run's own) and ``counter_bits``; velocities
+    are held from each row to the next (the first row is the start). A refused row raises
+    ``TableError`` naming its file and line.
+    """
+    from diffdrive.errors import TableError
+
+    kind = UPDATE_OF_RUN[run.kind]
+    ticks = ticks_per_revolution or run.ticks_per_revolution
+    odometry = Odometry(
+        robot,
+        method,
+        Pose(*run.start_pose()),
+        ticks if kind == "ticks" else None,
+        counter_bits,
+        max_wheel_speed=max_wheel_speed,
+        k_left=k_left,
+        k_right=k_right,
+    )
+    times, wheels = run.times, run.wheels
+    first = 1 if kind == "velocities" else 0  # a velocity is held until the next row
+    third = np.diff(times) if first else times
+    rows = wheels[:-1] if first else wheels
+    try:
+        poses, covariances = odometry.update_arrays(kind, rows[:, 0], rows[:, 1], third, covariance)
+    except RefusedUpdateError as refused:
+        raise TableError(f"{run.where(refused.row + first)}: {refused.reason}") from None
+    if first:
+        poses = np.vstack([run.start_pose()[None, :], poses])
+        if covariances is not None:
+            covariances = np.vstack([np.zeros((1, 3, 3)), covariances])
+    return poses, covariances
 
 
 class Odometry(_OdometryMethods, _Core):

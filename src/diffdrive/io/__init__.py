@@ -20,7 +20,7 @@ from diffdrive.io.logs import read_log
 from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
 from diffdrive.io.read import read_run
 from diffdrive.io.robots import ROBOT_KEYS, read_robot, robot_from_settings, write_robot
-from diffdrive.io.run import WHEEL_COLUMNS, Run, WheelKind, narrower_counter
+from diffdrive.io.run import RIM_SPEED_LIMIT, WHEEL_COLUMNS, Run, WheelKind, narrower_counter
 from diffdrive.io.sniff import is_bag
 from diffdrive.io.tables import TIME_UNITS, TableError, read_table
 from diffdrive.io.trajectories import FORMATS, read_trajectory, write_trajectory
@@ -28,6 +28,7 @@ from diffdrive.io.trajectories import FORMATS, read_trajectory, write_trajectory
 __all__ = [
     "FORMATS",
     "OPTIODOM_TICKS_PER_REVOLUTION",
+    "RIM_SPEED_LIMIT",
     "ROBOT_KEYS",
     "TIME_UNITS",
     "WHEEL_COLUMNS",

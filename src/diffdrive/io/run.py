@@ -20,9 +20,14 @@ from typing import Literal
 import numpy as np
 
 from diffdrive.encoders import count_changes
-from diffdrive.io.tables import TableError
+from diffdrive.errors import TableError
+from diffdrive.model import Robot
 
-__all__ = ["WHEEL_COLUMNS", "Run", "WheelKind", "narrower_counter"]
+__all__ = ["RIM_SPEED_LIMIT", "WHEEL_COLUMNS", "Run", "WheelKind", "narrower_counter"]
+
+# Past this speed at the rim (m/s) a wheel-speed jump is no motion of a wheeled robot but a
+# misread log, unless the user sets the limit (max_wheel_speed, --max-wheel-speed).
+RIM_SPEED_LIMIT = 50.0
 
 WheelKind = Literal["ticks", "angle", "velocity"]
 WHEEL_COLUMNS: dict[WheelKind, tuple[str, str]] = {
@@ -126,6 +131,55 @@ class Run:
         if not math.isfinite(radians):
             raise TableError(f"ticks per revolution {ticks!r} gives no finite angle per count")
         return count_changes(self.wheels, counter_bits) * radians
+
+    def start_pose(self) -> np.ndarray:
+        """Where the run starts, ``(3,)``: its first ground-truth pose, else the origin."""
+        return np.zeros(3) if self.truth is None else self.truth[0]
+
+    def checked_increments(
+        self,
+        robot: Robot,
+        ticks_per_revolution: float | None = None,
+        counter_bits: int | None = None,
+        max_wheel_speed: float | None = None,
+    ) -> tuple[np.ndarray, str]:
+        """``increments()`` ``(T, 2)`` rad, refused when they cannot be the robot's, and a line
+        on the largest wheel speed.
+
+        Without ``max_wheel_speed`` (rad/s), ticks that fit a narrower counter than
+        ``counter_bits`` and jump by more than half its range are refused (a roll-over read
+        with the wrong width), and so is a wheel faster than ``RIM_SPEED_LIMIT`` m/s at its
+        rim; ``TableError`` names the row's file and line.
+        """
+        increments = self.increments(ticks_per_revolution, counter_bits)
+        speed, side, row = self.largest_wheel_speed(increments)
+        drive = robot.equivalent
+        radius = drive.left_wheel_radius if side == "left" else drive.right_wheel_radius
+        line = (
+            f"largest wheel speed in the log: {speed:.4g} rad/s ({speed * radius:.3g} m/s at the "
+            f"rim), {side} wheel, {self.where(row)}"
+        )
+        narrower = narrower_counter(self, counter_bits) if max_wheel_speed is None else None
+        if narrower is not None:
+            bits, row = narrower
+            jump = count_changes(self.wheels[row - 1 : row + 1], counter_bits)
+            read_as = f"{counter_bits}-bit" if counter_bits else "never rolling over"
+            raise TableError(
+                f"{self.where(row)}: the counters jump by {int(np.abs(jump).max())} counts, yet "
+                f"every reading fits {bits} bits: a {bits}-bit counter rolling over, read as "
+                f"{read_as}? Give --counter-bits {bits} (counter_bits={bits}); or "
+                "--max-wheel-speed to take the jump as read"
+            )
+        if max_wheel_speed is None and speed * radius > RIM_SPEED_LIMIT:
+            hint = (
+                " a wrong --counter-bits or --ticks-per-revolution?" if self.kind == "ticks" else ""
+            )
+            raise TableError(
+                f"{self.where(row)}: the {side} wheel would turn at {speed:.4g} rad/s "
+                f"({speed * radius:.3g} m/s at its rim), faster than any wheeled robot drives;"
+                f"{hint} Give --max-wheel-speed (max_wheel_speed) to set the limit yourself"
+            )
+        return increments, line
 
     def largest_wheel_speed(self, increments: np.ndarray) -> tuple[float, str, int]:
         """The fastest wheel over any interval, from this run's ``increments()`` ``(T, 2)``:
