@@ -424,3 +424,24 @@ def test_calibrate_and_evaluate_run_as_subprocesses(tmp_path):
         assert result.returncode == 0, result.stderr
     assert (tmp_path / "robot.toml").exists()
     assert "ate_aligned_m" in result.stdout
+
+
+def test_what_calibrate_reports_is_what_its_robot_file_gives(tmp_path, capsys):
+    """The largest error calibrate prints is the one odometry gets with the file it wrote, even
+    with a heading offset fitted (the reference's, which the file does not carry)."""
+    from data import data_folder
+
+    runs = sorted((data_folder("optiodom-diffdrive") / "free" / "030120210006").glob("*run*"))
+    robot = tmp_path / "robot.toml"
+    argv = ["calibrate", *runs, "--integration", "rk2", "--cv", "none", "-o", robot]
+    code, out, _ = run([*argv, "--extra", "axle_offset", "heading_offset"], capsys)
+    assert code == 0
+    assert "heading offset of the reference" in out and "not in the robot file" in out
+    claimed = float(out.split("m nominal, ")[1].split(" m calibrated")[0])
+    worst = 0.0
+    for path in runs:
+        argv = ["odometry", path, "--robot", robot, "--method", "rk2", "-o", tmp_path / "o.csv"]
+        code, printed, _ = run(argv, capsys)
+        assert code == 0
+        worst = max(worst, float(printed.split("position error max ")[1].split()[0]))
+    assert worst == pytest.approx(claimed, abs=1e-4)

@@ -9,6 +9,7 @@
 from diffdrive.calibration.cross_validation import CrossValidation, Fold, cross_validate
 from diffdrive.calibration.offline import (
     CALIBRATION_METHODS,
+    DEFAULT_EXTRA,
     EXTRAS,
     PARAMETERS,
     CalibrationError,
@@ -22,6 +23,7 @@ from diffdrive.calibration.online import OnlineCalibrator
 
 __all__ = [
     "CALIBRATION_METHODS",
+    "DEFAULT_EXTRA",
     "EXTRAS",
     "PARAMETERS",
     "CalibrationError",

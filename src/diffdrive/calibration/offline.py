@@ -58,6 +58,7 @@ from diffdrive.simulation import dead_reckon, integrate_increments
 
 __all__ = [
     "CALIBRATION_METHODS",
+    "DEFAULT_EXTRA",
     "EXTRAS",
     "PARAMETERS",
     "CalibrationError",
@@ -79,6 +80,10 @@ PARAMETERS = ("left_wheel_radius", "right_wheel_radius", "track_width")
 # Optional extra parameters of least squares and minimax: where the reference point lies ahead
 # of the axle (m), and a constant heading between the reference's body and the robot (rad).
 EXTRAS = ("axle_offset", "heading_offset")
+# The extra parameters fitted unless asked (the library's and the command line's): none. The
+# heading offset belongs to the reference, not to the robot file, and an axle offset only
+# helps runs that turn while driving (README: which to use when).
+DEFAULT_EXTRA: tuple[str, ...] = ()
 _EXTRA_BOUNDS = {"axle_offset": (-0.5, 0.5), "heading_offset": (-0.5, 0.5)}
 # Past this condition number of the scaled Jacobian, a parameter is not identified.
 _CONDITION_LIMIT = 1e6
@@ -169,7 +174,7 @@ def calibrate(
     names: list[str] | None = None,
     progress: bool = False,
     fixed: tuple[str, ...] = (),
-    extra: tuple[str, ...] = (),
+    extra: tuple[str, ...] = DEFAULT_EXTRA,
     prior_sigma: float | None = None,
     window: int = 1,
 ) -> CalibrationResult:
