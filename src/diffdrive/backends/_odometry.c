@@ -90,6 +90,7 @@ static double sinc_derivative(double u) {
 
 typedef struct {
     double dx, dy, dtheta; /* world-frame move of the pose */
+    double travel;         /* how far the reference point moved, m */
     double jac_pose[9];    /* d(new pose)/d(pose), row-major 3x3 */
     double jac_wheels[6];  /* d(new pose)/d(wheel-angle increments [left, right]), 3x2 */
 } Step;
@@ -110,6 +111,7 @@ static void step(const Core *c, double theta, double dphi_left, double dphi_righ
     s->dx = scale * gx;
     s->dy = scale * gy;
     s->dtheta = turn;
+    s->travel = hypot(forward, sideways);
     double jp[9] = {1.0, 0.0, -s->dy, 0.0, 1.0, s->dx, 0.0, 0.0, 1.0};
     memcpy(s->jac_pose, jp, sizeof jp);
     /* Per wheel arc (m): d forward = 1/2, d turn = -+1/track, d sideways = offset d turn. */
@@ -245,7 +247,6 @@ static int next_state(const Core *c, const char *name, double dl, double dr, Nex
     memcpy(n->cov, c->cov, sizeof n->cov);
     propagate(n->cov, s.jac_pose, s.jac_wheels, q);
     double left = c->r_left * dl, right = c->r_right * dr;
-    double travel = hypot(0.5 * (left + right), c->offset * (right - left) / c->track);
     n->x = c->x, n->x_comp = c->x_comp;
     n->y = c->y, n->y_comp = c->y_comp;
     n->theta = c->theta, n->theta_comp = c->theta_comp;
@@ -253,7 +254,7 @@ static int next_state(const Core *c, const char *name, double dl, double dr, Nex
     add(&n->x, &n->x_comp, s.dx);
     add(&n->y, &n->y_comp, s.dy);
     add(&n->theta, &n->theta_comp, s.dtheta);
-    add(&n->distance, &n->distance_comp, travel);
+    add(&n->distance, &n->distance_comp, s.travel);
     n->arc_left = c->arc_left + left;
     n->arc_right = c->arc_right + right;
     int finite = isfinite(n->x + n->x_comp) && isfinite(n->y + n->y_comp) &&

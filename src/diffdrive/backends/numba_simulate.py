@@ -49,8 +49,8 @@ _kernel = numba.njit(cache=True, error_model="numpy", nogil=True)
 
 
 @numba.njit(cache=True, inline="always")
-def _wheel_arcs(history, times, geometry, n, k, angles):
-    """Distances (m) the left and right wheels roll in step k of robot n.
+def _wheel_angles(history, times, n, k, angles):
+    """The angles (rad) the left and right wheels turn in step k of robot n.
 
     From wheel-angle differences or from rate times duration; a history or times array with
     one row serves every robot.
@@ -63,7 +63,7 @@ def _wheel_arcs(history, times, geometry, n, k, angles):
         t = n if times.shape[0] > 1 else 0
         duration = times[t, k + 1] - times[t, k]
         left, right = history[h, k, 0] * duration, history[h, k, 1] * duration
-    return geometry[0] * left, geometry[1] * right
+    return left, right
 
 
 def _compile_step() -> dict[str, Any]:
@@ -80,6 +80,14 @@ def _compile_step() -> dict[str, Any]:
 
 STEP = _compile_step()
 _sinc_cos = STEP["sinc_cos"]
+_wheel_move = STEP["wheel_move"]
+
+
+@numba.njit(cache=True, inline="always")
+def _move(history, times, geometry, n, k, angles):
+    """``_step.wheel_move`` of step k of robot n: ``(forward, sideways, turn)``, m, m, rad."""
+    left, right = _wheel_angles(history, times, n, k, angles)
+    return _wheel_move(geometry[0], geometry[1], geometry[2], geometry[3], left, right)
 
 
 @numba.njit(cache=True, inline="always")
@@ -93,11 +101,10 @@ def _compensated_add(total, compensation, term):
 @_kernel
 def _chunk_turn(history, times, angles, geometry, n, first, stop):
     """The heading change (rad) over steps ``first:stop`` of robot n."""
-    inverse_track = 1.0 / geometry[2]
     total, compensation = 0.0, 0.0
     for k in range(first, stop):
-        left, right = _wheel_arcs(history, times, geometry, n, k, angles)
-        total, compensation = _compensated_add(total, compensation, (right - left) * inverse_track)
+        turn = _move(history, times, geometry, n, k, angles)[2]
+        total, compensation = _compensated_add(total, compensation, turn)
     return total
 
 
@@ -111,15 +118,12 @@ def _integrate_chunk(
     of ``_ANCHOR``: each block starts from a fresh cos and sin of the heading and turns them
     step by step, and sums its moves from zero; the blocks' sums add up with compensation.
     """
-    inverse_track = 1.0 / geometry[2]
     x_error, y_error, heading_error = 0.0, 0.0, 0.0
     for block in range(first, stop, _ANCHOR):
         cos, sin = math.cos(heading), math.sin(heading)
         block_x, block_y, block_turn = 0.0, 0.0, 0.0
         for k in range(block, min(stop, block + _ANCHOR)):
-            left, right = _wheel_arcs(history, times, geometry, n, k, angles)
-            turn = (right - left) * inverse_track
-            forward, sideways = 0.5 * (left + right), geometry[3] * turn
+            forward, sideways, turn = _move(history, times, geometry, n, k, angles)
             sinc_half, cos_half = _sinc_cos(0.5 * turn)
             sin_half = 0.5 * turn * sinc_half
             scale = sinc_half if chord else 1.0

@@ -132,7 +132,9 @@ class OdometryCore:
     # -- the maths of one step --------------------------------------------------------------
 
     def _step(self, theta: float, dl: float, dr: float):
-        forward, _, turn = wheel_move(self._r_left, self._r_right, self._track, self._axle, dl, dr)
+        forward, sideways, turn = wheel_move(
+            self._r_left, self._r_right, self._track, self._axle, dl, dr
+        )
         dx, dy, by_forward, by_turn = move_jacobians(
             forward, self._axle, turn, self._weight, self._chord, theta
         )
@@ -143,7 +145,7 @@ class OdometryCore:
             jac_wheels[w] = radius * (0.5 * by_forward[0] + dturn[w] * by_turn[0])
             jac_wheels[2 + w] = radius * (0.5 * by_forward[1] + dturn[w] * by_turn[1])
             jac_wheels[4 + w] = radius * dturn[w]
-        return dx, dy, turn, jac_pose, jac_wheels
+        return dx, dy, turn, jac_pose, jac_wheels, math.hypot(forward, sideways)
 
     # -- checks, the next state, and the commit ------------------------------------------------
 
@@ -173,14 +175,13 @@ class OdometryCore:
 
     def _next(self, name: str, dl: float, dr: float):
         theta = self._pose[2] + self._comp[2]
-        dx, dy, turn, jac_pose, jac_wheels = self._step(theta, dl, dr)
+        dx, dy, turn, jac_pose, jac_wheels, travel = self._step(theta, dl, dr)
         q = (
             self._k_left * abs(self._r_left * dl) / (self._r_left * self._r_left),
             self._k_right * abs(self._r_right * dr) / (self._r_right * self._r_right),
         )
         cov = _propagate(self._cov, jac_pose, jac_wheels, q)
         left, right = self._r_left * dl, self._r_right * dr
-        travel = math.hypot(0.5 * (left + right), self._axle * (right - left) / self._track)
         moved = [
             _add(s, c, term)
             for s, c, term in zip(self._pose, self._comp, (dx, dy, turn, travel), strict=True)
@@ -336,7 +337,7 @@ class OdometryCore:
     def _jacobians(
         self, left: float, right: float
     ) -> tuple[Covariance, tuple[float, float, float, float, float, float]]:
-        _, _, _, p, w = self._step(self._pose[2] + self._comp[2], left, right)
+        _, _, _, p, w, _ = self._step(self._pose[2] + self._comp[2], left, right)
         return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]), (
             w[0],
             w[1],
