@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.calibration import calibrate
+from diffdrive.calibration import Increments, LeastSquares, calibrate
 from diffdrive.calibration.cross_validation import cross_validate
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
@@ -88,14 +88,14 @@ def results(experiments: dict[str, list]) -> dict[str, dict[str, float]]:
     return table
 
 
-OFFSETS = ("axle_offset", "heading_offset")
-HELD_OUT = {  # column: (method, extra parameters, steps a window)
-    "least_squares": ("least_squares", (), 1),
-    "with offsets": ("least_squares", OFFSETS, 1),
-    "minimax": ("minimax", (), 1),
-    "minimax with offsets": ("minimax", OFFSETS, 1),
-    "increments": ("increments", (), 1),
-    "increments, window 20": ("increments", (), 20),
+OFFSETS = LeastSquares(extra=("axle_offset", "heading_offset"))
+HELD_OUT = {  # column: (method, its options)
+    "least_squares": ("least_squares", None),
+    "with offsets": ("least_squares", OFFSETS),
+    "minimax": ("minimax", None),
+    "minimax with offsets": ("minimax", OFFSETS),
+    "increments": ("increments", None),
+    "increments, window 20": ("increments", Increments(window=20)),
 }
 
 
@@ -107,10 +107,8 @@ def held_out(experiments: dict[str, list]) -> dict[str, dict[str, object]]:
         if len(runs) < 2:
             continue
         row: dict[str, object] = {"runs": len(runs)}
-        for column, (method, extra, window) in HELD_OUT.items():
-            cv = cross_validate(
-                optiodom_robot(), runs, method, "loo", integration="rk2", extra=extra, window=window
-            )
+        for column, (method, options) in HELD_OUT.items():
+            cv = cross_validate(optiodom_robot(), runs, method, "loo", options, integration="rk2")
             row[f"{column}, in-sample"] = cv.in_sample.max_position
             row[f"{column}, held out"] = (
                 "refused" if cv.held_out is None or cv.refused else cv.held_out.max_position

@@ -8,7 +8,13 @@ import pytest
 
 import diffdrive as dd
 from data import DATA, data_folder, rows_or_missing
-from diffdrive.calibration import CalibrationError, calibrate
+from diffdrive.calibration import (
+    CalibrationError,
+    Increments,
+    LeastSquares,
+    UMBmark,
+    calibrate,
+)
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 from diffdrive.simulation import dead_reckon
@@ -93,7 +99,7 @@ def test_bad_runs_are_refused():
     with pytest.raises(CalibrationError, match="umbmark needs square_side"):
         calibrate(NOMINAL, turning_runs(), "umbmark")
     with pytest.raises(CalibrationError, match="0 clockwise and 1 counter-clockwise"):
-        calibrate(NOMINAL, square_runs(1.0, 1, clockwise=False), "umbmark", square_side=1.0)
+        calibrate(NOMINAL, square_runs(1.0, 1, clockwise=False), "umbmark", UMBmark(1.0))
 
 
 def square_run(side, clockwise, robot=TRUE, speed=8.0, dt=0.02):
@@ -118,9 +124,9 @@ def square_runs(side, count, clockwise):
 def test_umbmark_refuses_runs_that_are_not_squares_and_names_them():
     runs = [square_run(1.0, True), square_run(1.0, False), turning_runs()[0]]
     with pytest.raises(CalibrationError, match=r"run 2 is not one: it turns .* deg in all"):
-        calibrate(NOMINAL, runs, "umbmark", square_side=1.0)
+        calibrate(NOMINAL, runs, "umbmark", UMBmark(1.0))
     with pytest.raises(CalibrationError, match=r"a is not one: it is 4 m long, not about 8 m"):
-        calibrate(NOMINAL, runs[:2], "umbmark", square_side=2.0, names=["a", "weave.csv"])
+        calibrate(NOMINAL, runs[:2], "umbmark", UMBmark(2.0), names=["a", "weave.csv"])
 
 
 def test_umbmark_gives_an_uncertainty_from_repeated_runs_or_says_why_not():
@@ -131,12 +137,12 @@ def test_umbmark_gives_an_uncertainty_from_repeated_runs_or_says_why_not():
         jittered = truth.copy()
         jittered[-1, :2] += rng.normal(0, 0.003, 2)  # where the robot really stopped varies
         runs.append((increments, jittered))
-    result = calibrate(NOMINAL, runs, "umbmark", square_side=1.0)
+    result = calibrate(NOMINAL, runs, "umbmark", UMBmark(1.0))
     assert result.covariance.shape == (3, 3)
     assert np.all(np.isfinite(result.standard_errors))
     assert np.all(result.standard_errors > 0)
     assert result.condition is None
-    single = calibrate(NOMINAL, runs[:2], "umbmark", square_side=1.0)
+    single = calibrate(NOMINAL, runs[:2], "umbmark", UMBmark(1.0))
     assert single.covariance is None
     assert single.standard_errors is None
     assert "needs 2 or more in each direction" in single.uncertainty_note
@@ -158,7 +164,7 @@ def test_a_window_of_steps_outweighs_jitter_in_when_the_wheels_are_read():
         runs.append((np.diff(read, axis=0), truth))
     error = {}
     for window in (1, 20):
-        robot = calibrate(NOMINAL, runs, "increments", window=window).robot
+        robot = calibrate(NOMINAL, runs, "increments", Increments(window)).robot
         found = np.array([robot.left_wheel_radius, robot.right_wheel_radius])
         error[window] = np.abs(found / [TRUE.left_wheel_radius, TRUE.right_wheel_radius] - 1).max()
     assert error[20] < 0.002 < 0.01 < error[1]  # 0.05 % against 1.8 %: the radii shrink
@@ -188,16 +194,36 @@ def test_a_window_follows_a_turn_that_changes_within_it():
         )
         for s in (1, -1)
     ]
-    robot = calibrate(NOMINAL, runs, "increments", window=20).robot
+    robot = calibrate(NOMINAL, runs, "increments", Increments(20)).robot
     assert robot.track_width == pytest.approx(TRUE.track_width, rel=1e-9)
     assert robot.left_wheel_radius == pytest.approx(TRUE.left_wheel_radius, rel=1e-9)
 
 
 def test_a_window_is_the_increments_methods_only():
     with pytest.raises(ValueError, match="window is for the increments method only; got 5"):
-        calibrate(NOMINAL, turning_runs(), "least_squares", window=5)
+        calibrate(NOMINAL, turning_runs(), "least_squares", Increments(5))
     with pytest.raises(ValueError, match="window must be a whole number from 1, got 0"):
-        calibrate(NOMINAL, turning_runs(), "increments", window=0)
+        calibrate(NOMINAL, turning_runs(), "increments", Increments(0))
+
+
+@pytest.mark.parametrize(
+    ("method", "options", "message"),
+    [
+        ("least_squares", UMBmark(1.0), "square_side is for the umbmark method only"),
+        ("increments", LeastSquares(("axle_offset",)), "extra parameters are for least_squares"),
+        ("umbmark", Increments(20), "window is for the increments method only; got 20"),
+        ("minimax", "fast", "options must be UMBmark, LeastSquares or Increments"),
+        ("gradient", None, "method must be one of umbmark, least_squares, minimax"),
+    ],
+)
+def test_the_options_of_one_method_are_refused_for_another(method, options, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        calibrate(NOMINAL, turning_runs(), method, options)
+
+
+def test_minimax_takes_the_least_squares_options():
+    fit = calibrate(NOMINAL, turning_runs(), "minimax", LeastSquares(extra=("axle_offset",)))
+    assert fit.method == "minimax"
 
 
 # -- real data ---------------------------------------------------------------------------------
@@ -234,7 +260,7 @@ def test_a_window_of_twenty_cycles_fits_the_optiodom_circles(experiment, limit):
     runs = runs_of(experiment)
 
     def worst_error(window):
-        robot = calibrate(optiodom_robot(), runs, "increments", window=window).robot
+        robot = calibrate(optiodom_robot(), runs, "increments", Increments(window)).robot
         return worst(
             [
                 run_errors(dead_reckon(robot, run.increments(), run.truth[0], "rk2"), run.truth)
@@ -252,7 +278,7 @@ def test_umbmark_reproduces_the_authors_parameters(row):
         optiodom_robot(),
         runs_of(row["experiment"]),
         "umbmark",
-        square_side=float(row["path_param_m"]),
+        UMBmark(float(row["path_param_m"])),
     )
     robot = result.robot
     # The spreadsheet keeps 6 significant digits.
@@ -290,11 +316,13 @@ def test_a_prior_pulls_the_fit_toward_the_nominal_geometry():
     increments, truth = synthetic_run(TRUE, wheels)
     truth[1:, :2] += np.random.default_rng(1).normal(0, 0.03, truth[1:, :2].shape)
     track = {
-        sigma: calibrate(NOMINAL, [(increments, truth)], prior_sigma=sigma).robot.track_width
+        sigma: calibrate(
+            NOMINAL, [(increments, truth)], options=LeastSquares(prior_sigma=sigma)
+        ).robot.track_width
         for sigma in (None, 0.01, 1e-4)
     }
     assert abs(track[None] - 0.3) > 0.004  # the data alone move it 1.9 %
     assert abs(track[1e-4] - 0.3) < 0.3 * abs(track[None] - 0.3)
     assert abs(track[1e-4] - 0.3) <= abs(track[0.01] - 0.3) <= abs(track[None] - 0.3)
     with pytest.raises(ValueError, match="prior_sigma must be a finite number > 0"):
-        calibrate(NOMINAL, [(increments, truth)], prior_sigma=0.0)
+        calibrate(NOMINAL, [(increments, truth)], options=LeastSquares(prior_sigma=0.0))

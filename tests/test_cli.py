@@ -371,11 +371,16 @@ def test_calibrate_increments_a_window_at_a_time(tmp_path, capsys):
     windowed = read_robot(output)
     # The same as the library's fit, which the README's table scores (12.3 mm in-sample).
     nominal, read = dd.io.optiodom_robot(), [dd.io.read_run(path) for path in runs]
-    robot = dd.calibration.calibrate(nominal, read, "increments", window=20).robot
+    robot = dd.calibration.calibrate(
+        nominal, read, "increments", dd.calibration.Increments(20)
+    ).robot
     assert windowed["track_width"] == pytest.approx(robot.track_width, rel=1e-12)
     code, _, err = run([*argv, "--window", 20, "--method", "minimax"], capsys)
     assert code == 1
     assert "window is for the increments method only; got 20 with minimax" in err
+    code, _, err = run([*argv, "--square-side", 1.0], capsys)  # was silently ignored
+    assert code == 1
+    assert "square_side is for the umbmark method only; got it with increments" in err
     with pytest.raises(SystemExit, match="2"):
         run([*argv, "--window", 0], capsys)
     assert "argument --window: must be at least 1, got 0" in capsys.readouterr().err

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive.calibration import CalibrationError
+from diffdrive.calibration import CalibrationError, LeastSquares
 from diffdrive.calibration.cross_validation import cross_validate
 from diffdrive.simulation import dead_reckon
 
@@ -107,7 +107,7 @@ def test_held_out_optiodom_squares_beat_the_authors_in_sample_figure_with_the_of
     runs = [read_optiodom_run(path) for path in sorted(folder.glob("*_run-*.csv"))]
     offsets = ("axle_offset", "heading_offset")
     with_offsets = cross_validate(
-        optiodom_robot(), runs, "least_squares", "loo", integration="rk2", extra=offsets
+        optiodom_robot(), runs, "least_squares", "loo", LeastSquares(offsets), integration="rk2"
     )
     alone = cross_validate(optiodom_robot(), runs, "least_squares", "loo", integration="rk2")
     assert round(1000 * with_offsets.held_out.max_position, 1) == 12.8

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -19,11 +20,13 @@ from diffdrive.calibration.offline import (
     PARAMETERS,
     CalibrationError,
     CalibrationMethod,
+    MethodOptions,
     calibrate,
     checked_runs,
     run_names,
 )
 from diffdrive.evaluation import RunErrors, run_errors, worst
+from diffdrive.integrate import Method
 from diffdrive.io.run import Run
 from diffdrive.model import Robot
 from diffdrive.simulation import dead_reckon
@@ -87,14 +90,19 @@ def cross_validate(
     runs: Sequence[Run | tuple[np.ndarray, np.ndarray]],
     method: CalibrationMethod = "least_squares",
     scheme: str | int | Sequence[int] = "loo",
-    **options,
+    options: MethodOptions | None = None,
+    *,
+    integration: Method = "exact",
+    fixed: tuple[str, ...] = (),
+    names: list[str] | None = None,
 ) -> CrossValidation:
-    """Calibrate on all ``runs`` (in-sample) and by ``scheme`` (see the module); ``options``
-    go to ``calibrate`` (``integration`` also scores the runs)."""
+    """Calibrate on all ``runs`` (in-sample) and by ``scheme`` (see the module), as
+    ``calibrate(nominal_robot, runs, method, options, integration=, fixed=, names=)`` does;
+    ``integration`` also scores the runs."""
     if len(runs) < 2:
         raise CalibrationError("cross-validation needs 2 or more runs: one to fit, one to score")
-    integration = options.get("integration", "exact")
-    names = run_names(runs, options.pop("names", None))
+    names = run_names(runs, names)
+    fit_with = partial(calibrate, integration=integration, fixed=fixed)
     runs = checked_runs(runs, names)
 
     def scored(result, indices):
@@ -109,18 +117,18 @@ def cross_validate(
             for k in indices
         )
 
-    everything = calibrate(nominal_robot, runs, method, names=names, **options)
+    everything = fit_with(nominal_robot, runs, method, options, names=names)
     in_sample = worst(list(scored(everything, range(len(runs)))))
     folds = []
     for held in _folds(scheme, len(runs)):
         train = [k for k in range(len(runs)) if k not in held]
         try:
-            fit = calibrate(
+            fit = fit_with(
                 nominal_robot,
                 [runs[k] for k in train],
                 method,
+                options,
                 names=[names[k] for k in train],
-                **options,
             )
         except CalibrationError as refusal:
             folds.append(Fold(held, None, (), str(refusal)))

@@ -64,6 +64,10 @@ __all__ = [
     "CalibrationError",
     "CalibrationMethod",
     "CalibrationResult",
+    "Increments",
+    "LeastSquares",
+    "MethodOptions",
+    "UMBmark",
     "calibrate",
     "checked_runs",
     "run_names",
@@ -91,6 +95,72 @@ _CONDITION_LIMIT = 1e6
 
 class CalibrationError(ValueError):
     """The runs cannot determine the parameters (or are not what the method needs)."""
+
+
+@dataclass(frozen=True)
+class UMBmark:
+    """The ``umbmark`` method's options: ``square_side``, the side of the squares run, m."""
+
+    square_side: float | None = None
+
+
+@dataclass(frozen=True)
+class LeastSquares:
+    """The options of ``least_squares`` and ``minimax`` (which starts from least squares).
+
+    ``extra`` adds parameters: ``"axle_offset"`` (the tracked point is not on the axle; a
+    ``SkidSteer``'s ``-icr_x``) and ``"heading_offset"`` (a constant heading between the
+    reference's body and the robot); ``loss`` and ``loss_scale`` (m) are scipy's robust loss;
+    ``heading_weight`` (m per rad) weighs the heading errors against the position errors;
+    ``prior_sigma`` (relative, e.g. 0.02) pulls the fit toward the nominal geometry: a
+    Gaussian prior of that relative standard deviation on each geometry parameter, as
+    residuals ``loss_scale * (p / p_nominal - 1) / prior_sigma``, so that a few runs cannot
+    push the parameters far.
+    """
+
+    extra: tuple[str, ...] = DEFAULT_EXTRA
+    loss: str = "soft_l1"
+    loss_scale: float = 0.01
+    heading_weight: float = 1.0
+    prior_sigma: float | None = None
+
+
+@dataclass(frozen=True)
+class Increments:
+    """The ``increments`` method's options: ``window``, how many steps one residual spans (a
+    run's last window may be shorter)."""
+
+    window: int = 1
+
+
+MethodOptions = UMBmark | LeastSquares | Increments
+# Each method's options, and its defaults.
+_OPTIONS: dict[str, type] = {
+    "umbmark": UMBmark,
+    "least_squares": LeastSquares,
+    "minimax": LeastSquares,
+    "increments": Increments,
+}
+
+
+def _options_for(method: str, options: MethodOptions | None) -> MethodOptions:
+    """``options`` checked against ``method`` (None: the method's defaults); ``ValueError``
+    names the option that belongs to another method."""
+    if method not in _OPTIONS:
+        raise ValueError(f"method must be one of {', '.join(CALIBRATION_METHODS)}, got {method!r}")
+    if options is None:
+        return _OPTIONS[method]()
+    if isinstance(options, _OPTIONS[method]):
+        return options
+    if isinstance(options, Increments):
+        raise ValueError(
+            f"window is for the increments method only; got {options.window} with {method}"
+        )
+    if isinstance(options, UMBmark):
+        raise ValueError(f"square_side is for the umbmark method only; got it with {method}")
+    if isinstance(options, LeastSquares):
+        raise ValueError("extra parameters are for least_squares and minimax")
+    raise TypeError(f"options must be UMBmark, LeastSquares or Increments, got {options!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,37 +235,26 @@ def calibrate(
     nominal_robot: Robot,
     runs: Sequence[Run | tuple[np.ndarray, np.ndarray]],
     method: CalibrationMethod = "least_squares",
+    options: MethodOptions | None = None,
     *,
     integration: Method = "exact",
-    square_side: float | None = None,
-    loss: str = "soft_l1",
-    loss_scale: float = 0.01,
-    heading_weight: float = 1.0,
+    fixed: tuple[str, ...] = (),
     names: list[str] | None = None,
     progress: bool = False,
-    fixed: tuple[str, ...] = (),
-    extra: tuple[str, ...] = DEFAULT_EXTRA,
-    prior_sigma: float | None = None,
-    window: int = 1,
 ) -> CalibrationResult:
     """Calibrate ``nominal_robot``'s wheel radii and track width on ``runs``; see the module.
 
-    ``integration`` is the odometry's method (default exact, as everywhere; the OptiOdom
-    reproduction names rk2, the authors' method); ``square_side`` (m) is UMBmark's square; ``loss``
-    and ``loss_scale`` (m) are scipy's robust loss for least squares. ``names`` name the runs in
-    messages (default: a ``Run``'s source, else ``run 0``, ``run 1``, ...; a ``Run`` of ticks needs
-    its own ticks per revolution); ``progress`` shows a progress bar of the fit's evaluations on
-    standard error. ``fixed`` names parameters held at their nominal values (``"track_width"``, say,
-    when the runs cannot identify it). ``extra`` adds parameters to least squares and minimax:
-    ``"axle_offset"`` (the tracked point is not on the axle; a ``SkidSteer``'s ``-icr_x``) and
-    ``"heading_offset"`` (a constant heading between the reference's body and the robot). On the
-    OptiOdom runs held out one at a time, both lower the errors (see the README); a per-run
-    start-pose offset raised them and a time offset changed nothing, so neither is offered.
-    ``prior_sigma`` (relative, e.g. 0.02) pulls least squares toward the nominal geometry: a
-    Gaussian prior of that relative standard deviation on each geometry parameter, as residuals
-    ``loss_scale * (p / p_nominal - 1) / prior_sigma``, so that a few runs cannot push the
-    parameters far. ``window`` (the ``increments`` method's) fits that many steps at a time; a run's
-    last window may be shorter.
+    ``options`` are the method's own (``UMBmark``, ``LeastSquares`` for least squares and
+    minimax, ``Increments``; None: its defaults). ``integration`` is the odometry's method
+    (default exact, as everywhere; the OptiOdom reproduction names rk2, the authors' method).
+    ``fixed`` names parameters held at their nominal values (``"track_width"``, say, when the
+    runs cannot identify it). ``names`` name the runs in messages (default: a ``Run``'s
+    source, else ``run 0``, ``run 1``, ...; a ``Run`` of ticks needs its own ticks per
+    revolution); ``progress`` shows a progress bar of the fit's evaluations on standard error.
+    On the OptiOdom runs held out one at a time, the axle offset lowers the errors and the
+    heading offset's gain is the reference's, not the robot file's (see the README); a
+    per-run start-pose offset raised them and a time offset changed nothing, so neither is
+    offered.
 
     Before fitting, the runs must excite every free parameter: they must drive (the wheel
     radii), turn (the track width) and turn both ways (a difference between the wheels apart
@@ -203,47 +262,45 @@ def calibrate(
     supply it. Past that, the fit's condition number decides.
     """
     check_method(integration)
-    window = whole("window", window, smallest=1)
-    if window != 1 and method != "increments":
-        raise ValueError(f"window is for the increments method only; got {window} with {method}")
+    options = _options_for(method, options)
+    if isinstance(options, Increments):
+        window = whole("window", options.window, smallest=1)
+    if isinstance(options, LeastSquares):
+        extra = _check_extra(options.extra)
+        prior = _checked_prior(options.prior_sigma)
     names = run_names(runs, names)
     checked = checked_runs(runs, names)
     free = _free(fixed)
-    extra = _check_extra(extra, method, nominal_robot)
-    if method != "umbmark":
-        _check_excitation(nominal_robot, checked, free)
-    if method == "umbmark":
-        if square_side is None or not square_side > 0:
-            raise CalibrationError(f"umbmark needs square_side > 0 (m), got {square_side!r}")
-        return _umbmark(nominal_robot, checked, names, float(square_side), integration)
-    if method == "increments":
+    if isinstance(options, UMBmark):
+        side = options.square_side
+        if side is None or not side > 0:
+            raise CalibrationError(f"umbmark needs square_side > 0 (m), got {side!r}")
+        return _umbmark(nominal_robot, checked, names, float(side), integration)
+    _check_excitation(nominal_robot, checked, free)
+    if isinstance(options, Increments):
         parameters, covariance, condition = _fit_increments(nominal_robot, checked, free, window)
         robot = _robot_with(nominal_robot, parameters)
         residuals = _position_errors(robot, checked, integration)
         return CalibrationResult(robot, method, covariance, residuals, condition)
-    if method in ("least_squares", "minimax"):
-        parameters, covariance, condition, found = _fit_least_squares(
-            nominal_robot,
-            checked,
-            integration,
-            loss,
-            loss_scale,
-            heading_weight,
-            free,
-            progress,
-            extra,
-            _checked_prior(prior_sigma),
-        )
-        offset = found.get("heading_offset", 0.0)
-        axle = found.get("axle_offset")
-        if method == "minimax":
-            parameters = _minimax(nominal_robot, checked, integration, parameters, axle, offset)
-        robot = _robot_with(nominal_robot, parameters, axle)
-        residuals = _position_errors(robot, checked, integration, offset)
-        return CalibrationResult(
-            robot, method, covariance, residuals, condition, heading_offset=offset
-        )
-    raise ValueError(f"method must be one of {', '.join(CALIBRATION_METHODS)}, got {method!r}")
+    parameters, covariance, condition, found = _fit_least_squares(
+        nominal_robot,
+        checked,
+        integration,
+        options.loss,
+        options.loss_scale,
+        options.heading_weight,
+        free,
+        progress,
+        extra,
+        prior,
+    )
+    offset = found.get("heading_offset", 0.0)
+    axle = found.get("axle_offset")
+    if method == "minimax":
+        parameters = _minimax(nominal_robot, checked, integration, parameters, axle, offset)
+    robot = _robot_with(nominal_robot, parameters, axle)
+    residuals = _position_errors(robot, checked, integration, offset)
+    return CalibrationResult(robot, method, covariance, residuals, condition, heading_offset=offset)
 
 
 def _check_square(name: str, truth: np.ndarray, side: float) -> None:
@@ -490,16 +547,14 @@ def _checked_prior(prior_sigma) -> float | None:
     return float(prior_sigma)
 
 
-def _check_extra(extra, method: str, nominal) -> tuple[str, ...]:
-    """``extra`` as a tuple of known names, for a method and robot that take them."""
+def _check_extra(extra) -> tuple[str, ...]:
+    """``extra`` as a tuple of known names."""
     extra = (extra,) if isinstance(extra, str) else tuple(extra)
     unknown = [name for name in extra if name not in EXTRAS]
     if unknown:
         raise ValueError(
             f"extra names {unknown[0]!r}; the extra parameters are {', '.join(EXTRAS)}"
         )
-    if extra and method not in ("least_squares", "minimax"):
-        raise ValueError("extra parameters are for least_squares and minimax")
     return extra
 
 

@@ -8,7 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.calibration import CALIBRATION_METHODS, DEFAULT_EXTRA, EXTRAS, PARAMETERS, calibrate
+from diffdrive.calibration import (
+    CALIBRATION_METHODS,
+    DEFAULT_EXTRA,
+    EXTRAS,
+    PARAMETERS,
+    Increments,
+    LeastSquares,
+    MethodOptions,
+    UMBmark,
+    calibrate,
+)
 from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
@@ -68,18 +78,15 @@ def run_calibrate(args: argparse.Namespace) -> int:
         runs, what = _example_runs(), "the built-in example runs"
     names = [str(path) for path in args.runs] or ["example", "mirrored example"]
     fixed = tuple(args.fix or ())
-    # Unless asked, the library's own default (none): one default for both.
-    extra = DEFAULT_EXTRA if args.extra is None else tuple(e for e in args.extra if e != "none")
+    options = method_options(args)
     result = calibrate(
         nominal,
         runs,
         args.method,
+        options,
         integration=args.integration,
-        square_side=args.square_side,
         names=names,
         fixed=fixed,
-        extra=extra,
-        window=args.window,
         progress=not args.quiet and sys.stderr.isatty(),
     )
     settings = result.robot.settings()
@@ -89,12 +96,26 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(calibration_report(nominal, result, runs, args.integration))
         if args.cv != "none" and args.method != "umbmark":
-            print(held_out_report(nominal, runs, names, args, fixed, extra))
+            print(held_out_report(nominal, runs, names, args, fixed, options))
         print(f"calibrate: wrote the robot to {args.output}")
     return 0
 
 
-def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
+def method_options(args: argparse.Namespace) -> MethodOptions:
+    """The options of ``--method`` from the flags. A flag of another method gives that
+    method's options, which ``calibrate`` refuses by name (never ignored)."""
+    extra = DEFAULT_EXTRA if args.extra is None else tuple(e for e in args.extra if e != "none")
+    given: dict[str, tuple[bool, MethodOptions]] = {
+        "increments": (args.window is not None, Increments(args.window or 1)),
+        "umbmark": (args.square_side is not None, UMBmark(args.square_side)),
+        "least_squares": (args.extra is not None, LeastSquares(extra=extra)),
+    }
+    own = "least_squares" if args.method == "minimax" else args.method
+    foreign = [options for method, (flag, options) in given.items() if flag and method != own]
+    return foreign[0] if foreign else given[own][1]
+
+
+def held_out_report(nominal, runs, names, args, fixed, options: MethodOptions) -> str:
     """The in-sample and held-out errors side by side, and the parameters' spread."""
     from diffdrive.calibration.cross_validation import cross_validate
 
@@ -106,11 +127,10 @@ def held_out_report(nominal, runs, names, args, fixed, extra=()) -> str:
         runs,
         args.method,
         scheme,
+        options,
         integration=args.integration,
         names=names,
         fixed=fixed,
-        extra=extra,
-        window=args.window,
     )
     label = "leave one run out" if scheme == "loo" else f"{scheme} folds"
     lines = [f"{'errors over the runs':28} {'in-sample':>10} {'held-out':>10}   ({label})"]
@@ -205,7 +225,6 @@ def add_to(command: Command, parents: Parents) -> None:
     cal.add_argument(
         "--window",
         type=at_least(1),
-        default=1,
         metavar="STEPS",
         help="the increments method: fit this many steps at a time (default 1; "
         "20 suits 20 Hz motion capture)",
