@@ -453,3 +453,21 @@ def test_a_run_faster_than_any_robot_is_refused_by_its_line():
     with pytest.raises(TableError, match="fast, row 3: the left wheel would turn at 4999"):
         run.checked_increments(dd.DiffDrive(0.05, 0.3))
     run.checked_increments(dd.DiffDrive(0.05, 0.3), max_wheel_speed=1e4)  # the user's limit
+
+
+def test_update_arrays_names_its_time_arguments():
+    """Time stamps are t for readings and increments, dt for velocities: the other is refused
+    by name, and the velocities held for dt move as update_velocities does."""
+    robot = dd.DiffDrive(0.05, 0.3)
+    odometry, one = dd.Odometry(robot), dd.Odometry(robot)
+    with pytest.raises(ValueError, match="velocities updates take dt, not t"):
+        odometry.update_arrays("velocities", [1.0], [2.0], [0.1])
+    with pytest.raises(ValueError, match="increments updates take t, not dt"):
+        odometry.update_arrays("increments", [1.0], [2.0], dt=[0.1])
+    with pytest.raises(ValueError, match="dt must have 2 values, got 1"):
+        odometry.update_arrays("velocities", [1.0, 1.0], [2.0, 2.0], dt=[0.1])
+    poses, _ = odometry.update_arrays("velocities", [1.0, 3.0], [2.0, 1.0], dt=[0.1, 0.2])
+    one.update_velocities(1.0, 2.0, 0.1)
+    one.update_velocities(3.0, 1.0, 0.2)
+    np.testing.assert_array_equal(poses[-1], one.pose.to_array())
+    assert odometry.time == pytest.approx(0.3)

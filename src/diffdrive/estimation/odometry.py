@@ -238,12 +238,15 @@ class _OdometryMethods(_Base):
         kind: UpdateKind,
         left: object,
         right: object,
-        third: object = None,
+        t: object = None,
         covariance: bool = False,
+        *,
+        dt: object = None,
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """The updates of a whole log at C speed: row k is ``update_<kind>(left[k], right[k],
-        third[k])``, checked exactly as one call (``third``: the time stamps ``t``, or for
-        ``"velocities"`` the ``dt``; None: no time stamps).
+        t[k])`` (``"velocities"``: ``update_velocities(left[k], right[k], dt[k])``), checked
+        exactly as one call. ``t`` (s) are the rows' time stamps (None: none); ``dt`` (s) how
+        long each row's velocities are held, for ``"velocities"`` only.
 
         Returns the pose after each row ``(n, 3)`` and, if ``covariance``, the covariance after
         each row ``(n, 3, 3)``. A refused row raises ``RefusedUpdateError`` (a ``ValueError``) with
@@ -254,9 +257,13 @@ class _OdometryMethods(_Base):
         rows = [np.asarray(values).tolist() for values in (left, right)]
         if len(rows[0]) != len(rows[1]):
             raise ValueError(f"left and right differ in length: {len(rows[0])}, {len(rows[1])}")
+        name, third = ("dt", dt) if kind == "velocities" else ("t", t)
+        wrong, given = ("t", t) if kind == "velocities" else ("dt", dt)
+        if given is not None:
+            raise ValueError(f"{kind} updates take {name}, not {wrong} (s)")
         thirds = [None] * len(rows[0]) if third is None else np.asarray(third).tolist()
         if len(thirds) != len(rows[0]):
-            raise ValueError(f"third must have {len(rows[0])} values, got {len(thirds)}")
+            raise ValueError(f"{name} must have {len(rows[0])} values, got {len(thirds)}")
         poses = np.empty((len(thirds), 3))
         covariances = np.empty((len(thirds), 3, 3)) if covariance else None
         refused = self._run(UPDATE_KINDS.index(kind), rows[0], rows[1], thirds, poses, covariances)
@@ -337,10 +344,12 @@ def odometry_of_run(
     )
     times, wheels = run.times, run.wheels
     first = 1 if kind == "velocities" else 0  # a velocity is held until the next row
-    third = np.diff(times) if first else times
+    stamps = {"dt": np.diff(times)} if first else {"t": times}
     rows = wheels[:-1] if first else wheels
     try:
-        poses, covariances = odometry.update_arrays(kind, rows[:, 0], rows[:, 1], third, covariance)
+        poses, covariances = odometry.update_arrays(
+            kind, rows[:, 0], rows[:, 1], covariance=covariance, **stamps
+        )
     except RefusedUpdateError as refused:
         raise TableError(f"{run.where(refused.row + first)}: {refused.reason}") from None
     if first:
