@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive.estimation.gyro import (
@@ -124,6 +126,37 @@ def test_imu_mounting_rotates_the_rates_into_the_body():
     np.testing.assert_allclose(
         Gyro(times, np.full(5, 2.0)).angles(np.array([0.05, 0.4])), [0.1, 0.8]
     )
+
+
+def test_a_yaw_comes_back_at_its_own_stamps():
+    """Gyro.from_yaw's angles are the yaw given (less its first), not the mean of each
+    interval's rate and the next one's ([0, 0.5, 0.5, 0.5] before)."""
+    t = np.arange(4.0)
+    gyro = Gyro.from_yaw(t, [0.0, 1.0, 1.0, 1.0])
+    np.testing.assert_array_equal(gyro.angles(t), [0.0, 1.0, 1.0, 1.0])
+    np.testing.assert_allclose(gyro.angles([0.5, 1.5, 2.25]), [0.5, 1.0, 1.0])  # rate held
+
+
+@settings(max_examples=60)
+@given(
+    steps=st.lists(st.floats(1e-3, 0.5), min_size=1, max_size=40),
+    turns=st.lists(st.floats(-3.0, 3.0), min_size=40, max_size=40),
+    start=st.floats(-10.0, 10.0),
+)
+def test_any_yaw_comes_back_exactly_and_linear_between(steps, turns, start):
+    times = np.concatenate([[0.0], np.cumsum(steps)])
+    yaw = start + np.concatenate([[0.0], np.cumsum(turns[: len(steps)])])
+    gyro = Gyro.from_yaw(times, yaw)
+    np.testing.assert_allclose(gyro.angles(times), yaw - yaw[0], rtol=0, atol=1e-12)
+    middle = 0.5 * (times[1:] + times[:-1])
+    expected = 0.5 * ((yaw[1:] - yaw[0]) + (yaw[:-1] - yaw[0]))
+    np.testing.assert_allclose(gyro.angles(middle), expected, rtol=0, atol=1e-12)
+
+
+def test_a_wrapped_yaw_is_unwrapped_before_it_comes_back():
+    t = np.arange(5) * 0.1
+    wrapped = np.array([3.0, 3.1, -3.1, -3.0, -2.9])
+    np.testing.assert_allclose(Gyro.from_yaw(t, wrapped).angles(t), np.unwrap(wrapped) - 3.0)
 
 
 @pytest.mark.parametrize(
@@ -272,3 +305,17 @@ def test_the_command_line_reads_command_columns(tmp_path, capsys):
         == 0
     )
     assert "slip: 20 of 300 intervals flagged" in capsys.readouterr().out
+
+
+def test_the_exact_heading_as_yaw_flags_no_slip_and_follows_the_wheels():
+    """A 500-interval log whose yaw is the path's own heading: no interval slips, and the
+    gyro heading's path is the wheels' (436 flags and 1.5 m apart before)."""
+    robot = dd.DiffDrive(0.05, 0.3)
+    t = np.arange(501) * 0.02
+    wheels = np.stack([6 + 4 * np.sin(0.7 * t[:-1]), 6 - 4 * np.cos(0.5 * t[:-1])], axis=-1)
+    path = dd.simulate(robot, wheels, times=t)
+    increments = wheels * 0.02
+    gyro = Gyro.from_yaw(t, path.poses[:, 2])
+    result = gyro_odometry(robot, t, increments, gyro, "gyro", bias=0.0)
+    assert not result.slip.any()
+    np.testing.assert_allclose(result.poses, path.poses, atol=1e-9)

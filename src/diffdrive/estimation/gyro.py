@@ -102,11 +102,14 @@ def rotation_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class Gyro:
     """Body yaw rates ``rates`` ``(M,)`` rad/s at strictly increasing ``times`` ``(M,)`` s,
-    linear in between. ``max_gap`` (s) is the longest the stream may fall silent."""
+    linear in between. ``max_gap`` (s) is the longest the stream may fall silent. ``yaw``
+    ``(M,)`` rad, unwrapped, is set by ``from_yaw``: the angles are then the yaw's own, exact at
+    its stamps and linear between them (each interval's rate held)."""
 
     times: np.ndarray
     rates: np.ndarray
     max_gap: float = field(default=math.inf)
+    yaw: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         times = np.asarray(self.times, dtype=float)
@@ -116,18 +119,25 @@ class Gyro:
                 f"gyro times and rates must be (M,) with M >= 2, got {times.shape} "
                 f"and {rates.shape}"
             )
-        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(rates))):
+        if not np.all(np.isfinite(times)):
             raise ValueError("gyro times and rates must be finite")
         steps = np.diff(times)
         if np.any(steps <= 0):
             k = int(np.argmax(steps <= 0)) + 1
             raise ValueError(f"gyro times must increase: {times[k]:g} after {times[k - 1]:g}")
+        if not np.all(np.isfinite(rates)):
+            raise ValueError("gyro times and rates must be finite")
         if np.any(steps > self.max_gap):
             k = int(np.argmax(steps > self.max_gap))
             raise ValueError(
                 f"the gyro stream stops for {steps[k]:.3g} s after t = "
                 f"{times[k]:g} s (max_gap {self.max_gap:g} s)"
             )
+        if self.yaw is not None:
+            yaw = np.asarray(self.yaw, dtype=float)
+            if yaw.shape != times.shape or not np.all(np.isfinite(yaw)):
+                raise ValueError(f"gyro yaw must be finite and {times.shape}, got {yaw.shape}")
+            object.__setattr__(self, "yaw", yaw)
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "rates", rates)
 
@@ -149,10 +159,19 @@ class Gyro:
 
     @classmethod
     def from_yaw(cls, times, yaw, max_gap: float = math.inf) -> Gyro:
-        """From yaw angles ``(M,)`` rad (unwrapped here): the rate of each interval, held."""
-        times, yaw = np.asarray(times, dtype=float), np.unwrap(np.asarray(yaw, dtype=float))
-        rates = np.diff(yaw) / np.diff(times)
-        return cls(times, np.concatenate([rates, rates[-1:]]), max_gap)
+        """From yaw angles ``(M,)`` rad (unwrapped here): ``angles`` gives the yaw back at its
+        own stamps, and between them the rate of each interval, held."""
+        times, yaw = np.asarray(times, dtype=float), np.asarray(yaw, dtype=float)
+        if yaw.ndim != 1 or yaw.shape != times.shape or len(yaw) < 2:
+            raise ValueError(
+                f"gyro times and yaw must be (M,) with M >= 2, got {times.shape} and {yaw.shape}"
+            )
+        if not np.all(np.isfinite(yaw)):
+            raise ValueError("gyro yaw must be finite")
+        yaw = np.unwrap(yaw)
+        with np.errstate(divide="ignore", invalid="ignore"):  # times are checked when built
+            rates = np.diff(yaw) / np.diff(times)
+        return cls(times, np.concatenate([rates, rates[-1:]]), max_gap, yaw)
 
     def angles(self, at: np.ndarray) -> np.ndarray:
         """The angle turned (rad) from ``times[0]`` to each time ``at`` ``(N,)``, the rate linear
@@ -163,6 +182,8 @@ class Gyro:
                 f"the wheel log spans [{at.min():g}, {at.max():g}] s, the gyro only "
                 f"[{self.times[0]:g}, {self.times[-1]:g}] s"
             )
+        if self.yaw is not None:  # the yaw itself: exact at its stamps, linear between
+            return np.interp(at, self.times, self.yaw) - self.yaw[0]
         steps = np.diff(self.times)
         cumulative = np.concatenate(
             [[0.0], np.cumsum(0.5 * (self.rates[1:] + self.rates[:-1]) * steps)]
