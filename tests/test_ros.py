@@ -112,6 +112,45 @@ def test_messages_out_of_order_are_sorted_and_repeated_stamps_dropped(tmp_path):
     assert log.wheels[:, 0].tolist() == [1.0, 2.0, 0.0, 4.0]  # of stamp 2, the first kept
 
 
+def test_joint_states_that_mix_header_stamps_and_record_times_use_record_times(tmp_path, capsys):
+    """Two of 40 messages without a header stamp took their record time (1.7e9 s), sorted to
+    the end, and odometry exited 0 with the robot driving back: one clock for all, named."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    t = store.types
+    path = tmp_path / "mixed"
+    recorded = 1_700_000_000 * 10**9  # record times (ns), 0.05 s apart
+    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection("/js", "sensor_msgs/msg/JointState", typestore=store)
+        for k in range(40):
+            empty = k in (7, 23)
+            seconds = 0 if empty else 100 + k // 20
+            nanoseconds = 0 if empty else (k % 20) * 50_000_000
+            message = t["sensor_msgs/msg/JointState"](
+                header=t["std_msgs/msg/Header"](
+                    stamp=t["builtin_interfaces/msg/Time"](sec=seconds, nanosec=nanoseconds),
+                    frame_id="",
+                ),
+                name=["l", "r"],
+                position=np.array([0.5 * k, 0.5 * k]),
+                velocity=np.array([]),
+                effort=np.array([]),
+            )
+            raw = store.serialize_cdr(message, message.__msgtype__)
+            writer.write(connection, recorded + k * 50_000_000, raw)
+    log = ros.read_joint_states(path, "l", "r", "/js")
+    assert "record (as 2 of 40 messages have no header stamp) stamps" in log.source
+    assert np.all(np.diff(log.times) > 0)
+    assert np.all(np.diff(log.wheels[:, 0]) > 0)  # the wheels only ever turn forward
+    robot = ["--wheel-radius", "0.05", "--track-width", "0.3"]
+    argv = ["odometry", path, "--left-joint", "l", "--right-joint", "r", "--joint-topic", "/js"]
+    assert main([*map(str, argv), *robot, "-o", str(tmp_path / "o.csv")]) == 0
+    x = np.genfromtxt(tmp_path / "o.csv", delimiter=",", names=True)["x"]
+    assert np.all(np.diff(x) > 0)  # it never drives back
+
+
 def test_husky_odometry_imu_and_gps():
     odometry = ros.read_odometry(HUSKY, "/husky_velocity_controller/odom")
     assert len(odometry.times) == 3952

@@ -115,12 +115,12 @@ def _messages(reader, path: Path, topic: str, kinds: tuple[str, ...]):
         raise BagError(f"{path}: {topic}: cannot read every message: {exc}") from None
 
 
-def _stamp(message, recorded: int) -> tuple[float, bool]:
-    """The header stamp in s, or the record time when there is no header or it is zero."""
+def _stamp(message) -> float | None:
+    """The header stamp in s, or None when there is no header or its stamp is zero."""
     header = getattr(message, "header", None)
     if header is not None and (header.stamp.sec or header.stamp.nanosec):
-        return header.stamp.sec + header.stamp.nanosec * 1e-9, True
-    return recorded * 1e-9, False
+        return header.stamp.sec + header.stamp.nanosec * 1e-9
+    return None
 
 
 @dataclass(frozen=True)
@@ -131,14 +131,25 @@ class _Stamped:
     dropped: int
 
 
-def _order(stamps: list[float], headers: list[bool], path: Path, topic: str) -> _Stamped:
-    """Sort by stamp; drop a message whose stamp equals the one before (stated rule)."""
-    if not stamps:
+def _order(headers: list[float | None], recorded: list[float], path: Path, topic: str) -> _Stamped:
+    """Sort by stamp; drop a message whose stamp equals the one before (stated rule).
+
+    The stamps are the header stamps when every message has one, else the record times of
+    all: a header clock and the recorder's cannot be ordered together (two messages without
+    a header stamp sorted 1.7e9 s after the rest, and the robot drove back).
+    """
+    if not recorded:
         raise BagError(f"{path}: {topic} has no messages")
-    times = np.array(stamps)
+    missing = sum(stamp is None for stamp in headers)
+    if missing == 0:
+        times, source = np.array(headers, dtype=float), "header"
+    elif missing == len(headers):
+        times, source = np.array(recorded), "record"
+    else:
+        times = np.array(recorded)
+        source = f"record (as {missing} of {len(headers)} messages have no header stamp)"
     order = np.argsort(times, kind="stable")
     keep = np.concatenate([[True], np.diff(times[order]) > 0])
-    source = "header" if all(headers) else ("record" if not any(headers) else "header/record")
     return _Stamped(times[order][keep], order[keep], source, int(np.count_nonzero(~keep)))
 
 
@@ -150,18 +161,19 @@ def _yaw(q) -> float:
 def _collect(path: Path, topic: str, kinds: tuple[str, ...], extract) -> tuple:
     """``(stamps, rows, last message)`` of a topic, in stamp order (see ``_order``):
     ``extract(message)`` gives a message's row, or None to skip it."""
-    stamps, headers, rows, last = [], [], [], None
+    headers: list[float | None] = []
+    records: list[float] = []
+    rows, last = [], None
     with _open(path) as reader:
         for recorded, message in _messages(reader, path, topic, kinds):
             row = extract(message)
             if row is None:
                 continue
             rows.append(row)
-            stamp, from_header = _stamp(message, recorded)
-            stamps.append(stamp)
-            headers.append(from_header)
+            headers.append(_stamp(message))
+            records.append(recorded * 1e-9)
             last = message
-    ordered = _order(stamps, headers, path, topic)
+    ordered = _order(headers, records, path, topic)
     return ordered, np.array(rows, dtype=float)[ordered.order], last
 
 
