@@ -55,6 +55,52 @@ def test_recursive_equals_batch_weighted_least_squares_on_the_same_data(window):
     )
 
 
+@pytest.mark.parametrize("prior_sigma", [0.01, 0.5])
+def test_batch_solution_takes_the_same_prior(prior_sigma):
+    """batch_solution started from the default prior whatever this one's was (7.9 mm from the
+    online estimate with a prior of 0.01): the same estimator, started the same way."""
+    wheels, relative, _ = intervals(1, 200)
+    online = OnlineCalibrator(
+        NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, gate=1e12, window=5, prior_sigma=prior_sigma
+    )
+    for k in range(len(wheels)):
+        online.update(*wheels[k], relative[k])
+    np.testing.assert_allclose(
+        online.parameters, online.batch_solution(wheels, relative), rtol=1e-9
+    )
+
+
+def test_an_update_that_would_overflow_is_refused_and_changes_nothing():
+    """Two wheel increments of 1e308 in one window left [nan, nan, nan] for good."""
+    online = OnlineCalibrator(NOMINAL, window=2)
+    assert online.update(1e308, 0.0, (0.0, 0.0, 0.0))
+    before = (online.parameters, online.covariance, online._gathered[2])
+    with pytest.raises(ValueError, match="overflow; refused, nothing changed"):
+        online.update(1e308, 0.0, (0.0, 0.0, 0.0))
+    np.testing.assert_array_equal(online.parameters, before[0])
+    np.testing.assert_array_equal(online.covariance, before[1])
+    assert online._gathered[2] == before[2]
+    assert np.all(np.isfinite(online.parameters))
+    single = OnlineCalibrator(NOMINAL, window=1)
+    with pytest.raises(ValueError, match="would make the estimate overflow"):
+        single.update(1e300, 1e300, (1e300, 0.0, 0.0))
+    assert np.all(np.isfinite(single.parameters))
+    assert single.accepted == single.rejected == 0
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"prior_sigma": 1e200}, r"prior_sigma 1e\+200 gives a prior variance"),
+        ({"sigma_distance": 1e-200}, "sigma_distance 1e-200 squares to 0.0"),
+        ({"sigma_turn": 1e200}, r"sigma_turn 1e\+200 squares to inf"),
+    ],
+)
+def test_noise_and_priors_that_square_out_of_range_are_refused(options, message):
+    with pytest.raises(ValueError, match=message):
+        OnlineCalibrator(NOMINAL, **options)
+
+
 def test_a_window_composes_the_relative_poses_and_sums_the_wheels():
     wheels, relative, truth = intervals(3, 40)
     by_cycle = OnlineCalibrator(NOMINAL, window=20, gate=1e12)

@@ -1,5 +1,6 @@
-"""Stateful property tests: random sequences of calls on Odometry, Limiter and
-OpenLoopOdometry, each checked against a twin that sees only the calls that were accepted.
+"""Stateful property tests: random sequences of calls on Odometry, Limiter,
+OpenLoopOdometry and OnlineCalibrator, each checked against a twin that sees only the calls
+that were accepted.
 
 A refused call must raise ValueError or TypeError and leave the object exactly as its twin;
 an accepted one must leave a finite state that every reading returns. The values drawn reach
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 import diffdrive as dd
+from diffdrive.calibration import OnlineCalibrator
 
 ROBOT = dd.DiffDrive(
     left_wheel_radius=0.05, right_wheel_radius=0.051, track_width=0.3, axle_offset=0.02
@@ -160,6 +162,28 @@ class OpenLoopMachine(RuleBasedStateMachine):
         assert all(math.isfinite(v) for v in self.open_loop.pose.to_array())
 
 
+class OnlineCalibratorMachine(RuleBasedStateMachine):
+    def __init__(self):
+        super().__init__()
+        self.online = OnlineCalibrator(ROBOT, window=3, gate=1e12)
+        self.twin = OnlineCalibrator(ROBOT, window=3, gate=1e12)
+
+    @rule(left=numbers, right=numbers, pose=st.tuples(numbers, numbers, numbers))
+    def update(self, left, right, pose):
+        if attempt(lambda: self.online.update(left, right, pose)):
+            self.twin.update(left, right, pose)
+        state = (*self.online.parameters, *self.online.covariance.ravel())
+        twin = (*self.twin.parameters, *self.twin.covariance.ravel())
+        assert same(state, twin)
+        assert self.online._gathered[2] == self.twin._gathered[2]
+
+    @invariant()
+    def finite(self):
+        assert np.all(np.isfinite(self.online.parameters))
+        assert np.all(np.isfinite(self.online.covariance))
+
+
 TestOdometryMachine = SETTINGS(OdometryMachine).TestCase
 TestLimiterMachine = SETTINGS(LimiterMachine).TestCase
 TestOpenLoopMachine = SETTINGS(OpenLoopMachine).TestCase
+TestOnlineCalibratorMachine = SETTINGS(OnlineCalibratorMachine).TestCase

@@ -59,14 +59,23 @@ class OnlineCalibrator:
             raise TypeError(f"nominal must be a DiffDrive, got {type(nominal).__name__}")
         self.nominal = nominal
         self.noise = (
-            positive("sigma_distance", sigma_distance) ** 2,
-            positive("sigma_turn", sigma_turn) ** 2,
+            _variance("sigma_distance", sigma_distance),
+            _variance("sigma_turn", sigma_turn),
         )
         self.gate = positive("gate", gate)
         prior = positive("prior_sigma", prior_sigma)
         radii = np.array([nominal.left_wheel_radius, nominal.right_wheel_radius])
         self.estimates = [radii.copy(), radii / nominal.track_width]
-        self.covariances = [np.diag((prior * e) ** 2) for e in self.estimates]
+        with np.errstate(over="ignore", under="ignore"):  # refused below, not warned about
+            self.covariances = [np.diag((prior * e) ** 2) for e in self.estimates]
+        for covariance in self.covariances:
+            if not (np.all(np.isfinite(covariance)) and np.all(np.diag(covariance) > 0)):
+                raise ValueError(
+                    f"prior_sigma {prior_sigma!r} gives a prior variance that is not a finite "
+                    "number > 0 for this robot"
+                )
+        # The prior, kept: batch_solution starts from it, as this estimator did.
+        self._prior = ([e.copy() for e in self.estimates], [p.copy() for p in self.covariances])
         self.window = whole("window", window, smallest=1)
         self.accepted = 0  # measurements, each of `window` updates
         self.rejected = 0
@@ -76,33 +85,56 @@ class OnlineCalibrator:
         """One interval: wheel-angle increments (rad) and the reference's relative pose
         ``(dx, dy, dtheta)`` in the frame at the interval's start. Every ``window``-th update
         completes a measurement; returns False when the gate refused it, True otherwise. A
-        refused (non-finite) input changes nothing."""
+        refused input (not finite, or one whose window or estimate would overflow) raises
+        ``ValueError`` and changes nothing."""
         left, right = finite("left", left), finite("right", right)
-        pose = np.asarray(relative_pose, dtype=float)
+        try:
+            pose = np.asarray(relative_pose, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            pose = np.full(1, np.nan)
         if pose.shape != (3,) or not np.all(np.isfinite(pose)):
             raise ValueError(f"relative_pose must be 3 finite numbers, got {relative_pose!r}")
         wheels, motion, count = self._gathered
-        wheels, motion = wheels + np.array([left, right]), batch.compose(motion, pose)
+        with np.errstate(over="ignore", invalid="ignore"):  # refused below, not warned about
+            wheels, motion = wheels + np.array([left, right]), batch.compose(motion, pose)
+        if not (np.all(np.isfinite(wheels)) and np.all(np.isfinite(motion))):
+            raise ValueError(
+                "the window's summed wheel increments or composed poses overflow; refused, "
+                "nothing changed"
+            )
         if count + 1 < self.window:
             self._gathered = (wheels, motion, count + 1)
             return True
+        accepted = self._measure(float(wheels[0]), float(wheels[1]), motion)
         self._gathered = (np.zeros(2), np.zeros(3), 0)
-        return self._measure(float(wheels[0]), float(wheels[1]), motion)
+        return accepted
 
     def _measure(self, left: float, right: float, relative_pose: np.ndarray) -> bool:
+        """Gate and apply one measurement; ``ValueError`` (nothing changed) where the gate's
+        score or the new estimate would not be finite."""
         motion = batch.log(relative_pose)
         rows = (np.array([0.5 * left, 0.5 * right]), np.array([-left, right]))
         values = (motion[0], motion[2])
-        pairs = zip(rows, values, self.estimates, self.covariances, self.noise, strict=True)
-        scores = [(v - h @ e) ** 2 / (h @ p @ h + n) for h, v, e, p, n in pairs]
+        pairs = list(zip(rows, values, self.estimates, self.covariances, self.noise, strict=True))
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            scores = [(v - h @ e) ** 2 / (h @ p @ h + n) for h, v, e, p, n in pairs]
+            updated = []
+            for h, v, e, p, n in pairs:
+                gain = p @ h / (h @ p @ h + n)
+                updated.append((e + gain * (v - h @ e), p - np.outer(gain, h @ p)))
+        finite = all(np.isfinite(scores)) and all(
+            np.all(np.isfinite(e)) and np.all(np.isfinite(p)) for e, p in updated
+        )
+        if not finite:
+            raise ValueError(
+                "this measurement would make the estimate overflow (wheel increments or a "
+                "relative pose too large for the noise given); refused, nothing changed"
+            )
         if max(scores) > self.gate:
             self.rejected += 1
             return False
-        for k, (h, v, n) in enumerate(zip(rows, values, self.noise, strict=True)):
-            p = self.covariances[k]
-            gain = p @ h / (h @ p @ h + n)
-            self.estimates[k] = self.estimates[k] + gain * (v - h @ self.estimates[k])
-            self.covariances[k] = p - np.outer(gain, h @ p)
+        self.estimates = [e for e, _ in updated]
+        self.covariances = [p for _, p in updated]
         self.accepted += 1
         return True
 
@@ -150,15 +182,26 @@ class OnlineCalibrator:
         for k in range(1, self.window):
             composed = batch.compose(composed, blocks[:, k])
         motion = batch.log(composed)
-        fresh = OnlineCalibrator(self.nominal)  # the prior, as this one started
+        estimates, covariances = self._prior  # the prior, as this estimator started
         designs = (0.5 * summed, summed * np.array([-1.0, 1.0]))
         solved = []
         for k, (design, values) in enumerate(
             zip(designs, (motion[:, 0], motion[:, 2]), strict=True)
         ):
-            information = np.linalg.inv(fresh.covariances[k])
+            information = np.linalg.inv(covariances[k])
             normal = information + design.T @ design / self.noise[k]
-            right = information @ fresh.estimates[k] + design.T @ values / self.noise[k]
+            right = information @ estimates[k] + design.T @ values / self.noise[k]
             solved.append(np.linalg.solve(normal, right))
         (r_l, r_r), (c_l, c_r) = solved
         return np.array([r_l, r_r, (r_l + r_r) / (c_l + c_r)])
+
+
+def _variance(name: str, sigma: float) -> float:
+    """``sigma ** 2``, refused by name unless a finite number > 0 (1e-200 squares to 0)."""
+    sigma = positive(name, sigma)
+    variance = sigma * sigma  # not **: a float's power raises where the product gives inf
+    if not (0.0 < variance < float("inf")):
+        raise ValueError(
+            f"{name} {sigma!r} squares to {variance!r}: give a noise of 1e-150 to 1e150"
+        )
+    return variance
