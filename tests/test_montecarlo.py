@@ -105,3 +105,29 @@ def test_bad_input_is_refused_with_its_name(changes, message):
         monte_carlo(
             ROBOT, arguments.pop("wheel_velocities"), arguments.pop("dt"), robots, **arguments
         )
+
+
+def test_seeds_past_two_to_the_53_are_kept_exactly():
+    """2**53 and 2**53 + 1 went through a float and gave the same robots."""
+    runs = [monte_carlo(ROBOT, WHEELS, DT, 20, k_left=1e-4, seed=2**53 + k) for k in (0, 1)]
+    assert not np.array_equal(runs[0].final, runs[1].final)
+    again = monte_carlo(ROBOT, WHEELS, DT, 20, k_left=1e-4, seed=np.uint64(2**53 + 1))
+    np.testing.assert_array_equal(again.final, runs[1].final)
+    with pytest.raises(ValueError, match="seed must be a whole number from 0"):
+        monte_carlo(ROBOT, WHEELS, DT, 20, seed=-1)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize(
+    ("wheels", "dt", "options", "message"),
+    [
+        (np.full((3, 2), 1e300), 1e10, {}, "the wheels' travel"),
+        (np.full((4, 2), 1e307), 10.0, {}, "the wheels' travel"),
+        (np.tile([1e150, -1e150], (4, 1)), 1.0, {"k_left": 1e300}, "poses overflow the floats"),
+    ],
+)
+def test_travel_that_overflows_is_refused_not_returned_as_nan(
+    wheels, dt, options, message, backend
+):
+    with pytest.raises(ValueError, match=message):
+        monte_carlo(ROBOT, wheels, dt, 5, seed=0, backend=backend, **options)

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from diffdrive.model import DiffDrive
-from diffdrive.montecarlo import Moments, MonteCarlo, Plan, plan, run_chunks
+from diffdrive.montecarlo import Moments, MonteCarlo, Plan, checked_result, plan, run_chunks
 
 __all__ = ["map_runs", "monte_carlo"]
 
@@ -104,7 +104,7 @@ def monte_carlo(
         ]
         results = active.gather(futures)
     finals, parts = zip(*results, strict=True)
-    return MonteCarlo(np.concatenate(finals), Moments.combine(parts))
+    return checked_result(np.concatenate(finals), Moments.combine(parts))
 
 
 def map_runs(function: Callable[[Any], Any], items: Iterable[Any], *, client: Any = None) -> list:

@@ -43,7 +43,7 @@ from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive
 
-__all__ = ["Moments", "MonteCarlo", "Plan", "monte_carlo", "plan", "run_chunks"]
+__all__ = ["Moments", "MonteCarlo", "Plan", "checked_result", "monte_carlo", "plan", "run_chunks"]
 
 Backend = Literal["auto", "numpy", "numba"]
 BACKENDS: tuple[Backend, ...] = ("auto", "numpy", "numba")
@@ -158,11 +158,41 @@ def plan(
         raise ValueError(f"initial_pose must be 3 finite numbers, got {initial_pose!r}")
     if seed is None:
         seed = np.random.SeedSequence().entropy
-    seed = whole("seed", seed)
+    seed = _seed(seed)
     robots, chunk = whole("robots", robots, smallest=1), whole("chunk", chunk, smallest=1)
-    return Plan(
-        robot, wheels * step, start, k, sigma, method, seed, robots, chunk, _backend(backend)
-    )
+    with np.errstate(over="ignore"):  # refused below, not warned about
+        travel = wheels * step
+        arcs = np.sum(np.abs(travel), axis=0) * np.array(geometry_of(robot)[:2])
+    if not (np.all(np.isfinite(travel)) and np.all(np.isfinite(arcs))):
+        raise ValueError(
+            "the wheels' travel (wheel_velocities times dt, summed over the history) overflows "
+            "the floats: no pose could be computed"
+        )
+    return Plan(robot, travel, start, k, sigma, method, seed, robots, chunk, _backend(backend))
+
+
+def _seed(seed: object) -> int:
+    """``seed`` as an int >= 0, exactly: an int stays itself (2**53 + 1 is not 2**53), a
+    whole float becomes one."""
+    if isinstance(seed, int | np.integer) and not isinstance(seed, bool):
+        if seed < 0:
+            raise ValueError(f"seed must be a whole number from 0, got {seed!r}")
+        return int(seed)
+    return whole("seed", seed)
+
+
+def checked_result(final: np.ndarray, moments: Moments) -> MonteCarlo:
+    """The result, refused by name where a pose or moment overflowed (NaN poses before)."""
+    if not (
+        np.all(np.isfinite(final))
+        and np.all(np.isfinite(moments.mean))
+        and np.all(np.isfinite(moments.m2))
+    ):
+        raise ValueError(
+            "the robots' poses overflow the floats (wheel travel, noise or geometry spread "
+            "too large): no finite result"
+        )
+    return MonteCarlo(final, moments)
 
 
 def _backend(backend: str) -> Literal["numpy", "numba"]:
@@ -175,7 +205,13 @@ def _backend(backend: str) -> Literal["numpy", "numba"]:
 
 
 def _run_chunk(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
-    """Final poses and per-step moments of chunk ``index``'s robots."""
+    """Final poses and per-step moments of chunk ``index``'s robots (an overflow gives
+    non-finite values, which ``checked_result`` refuses, not warnings)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _chunk_of(setup, index)
+
+
+def _chunk_of(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
     # The same stream as child ``index`` of SeedSequence(seed).spawn(...), without the others.
     sequence = np.random.SeedSequence(setup.seed, spawn_key=(index,))
     count = min(setup.chunk, setup.robots - index * setup.chunk)
@@ -264,4 +300,4 @@ def monte_carlo(
         backend=backend,
     )
     final, moments = run_chunks(setup, range(setup.chunks), threads)
-    return MonteCarlo(final, moments)
+    return checked_result(final, moments)
