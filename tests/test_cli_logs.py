@@ -184,6 +184,36 @@ def test_a_log_in_other_time_units(tmp_path, capsys, unit, scale):
     np.testing.assert_allclose(a[1], b[1], atol=1e-9)
 
 
+@pytest.mark.parametrize("kind", ["velocity", "ticks"])
+def test_a_200_hz_log_in_milliseconds_is_not_read_as_seconds(tmp_path, capsys, kind):
+    """Rows 5 ms apart read as 5 s: 530 turns over "9995 s" (velocities), or the right path
+    with times 1000 times too long (ticks), both with exit 0. A wheel log of 100 rows or more
+    a second or more apart is refused with the unit named; a short hand-written history at
+    1 s a row still reads as seconds."""
+    log, short = tmp_path / f"{kind}.csv", tmp_path / "short.csv"
+    if kind == "velocity":
+        rows = [f"{5 * k},8.0,10.0" for k in range(2000)]
+        header = "t,left_velocity,right_velocity"
+        extra = []
+    else:
+        rows = [f"{5 * k},{8 * k},{10 * k}" for k in range(2000)]
+        header = "t,left_ticks,right_ticks"
+        extra = ["--ticks-per-revolution", TICKS]
+    log.write_text(header + "\n" + "\n".join(rows) + "\n")
+    short.write_text(header + "\n" + "\n".join(rows[:20]) + "\n")
+    for command in ("simulate", "odometry"):
+        code, _, err = run([command, log, *ROBOT, *extra, "-o", tmp_path / "x.csv"], capsys)
+        assert code == 1, command
+        assert "is not in seconds: 2000 rows 5 apart" in err
+        assert "a 200 Hz log in ms? Give the time unit (--time-unit ms)" in err
+        assert not (tmp_path / "x.csv").exists()
+        argv = [command, log, *ROBOT, *extra, "--time-unit", "ms", "-o", tmp_path / "ms.csv"]
+        assert run(argv, capsys)[0] == 0
+        assert read_trajectory(tmp_path / "ms.csv")[0][-1] == pytest.approx(9.995)
+        argv = [command, short, *ROBOT, *extra, "-o", tmp_path / "s.csv"]
+        assert run(argv, capsys)[0] == 0
+
+
 # -- one convention for velocities -------------------------------------------------------------
 
 
@@ -297,6 +327,35 @@ def test_half_track_from_the_command_line(capsys):
     _, full, _ = run(["fk", "8", "10", "--wheel-radius", "0.05", "--track-width", "0.3"], capsys)
     _, half, _ = run(["fk", "8", "10", "--wheel-radius", "0.05", "--half-track", "0.15"], capsys)
     assert full == half
+
+
+def test_flags_that_set_the_same_length_are_refused_and_override_a_file_alike(tmp_path, capsys):
+    """--track-width 0.5 --half-track 0.15 used 0.3, silently; --wheel-radius against a file's
+    left and right radii was refused, with the blame on the file."""
+    argv = ["fk", "8", "10", "--wheel-radius", "0.05", "--track-width", "0.5"]
+    code, _, err = run([*argv, "--half-track", "0.15"], capsys)
+    assert code == 1
+    assert "--track-width and --half-track both given: they set the same length" in err
+    code, _, err = run([*argv, "--left-wheel-radius", "0.05"], capsys)
+    assert code == 1
+    assert "--wheel-radius and --left-wheel-radius both given" in err
+    robot = tmp_path / "robot.toml"
+    robot.write_text("left_wheel_radius = 0.04\nright_wheel_radius = 0.06\nhalf_track = 0.1\n")
+
+    def fk(*flags):
+        code, out, err = run(["fk", "8", "10", "--robot", robot, *flags, "--json"], capsys)
+        assert code == 0, err
+        return json.loads(out)
+
+    plain = dd.DiffDrive(0.05, 0.5).to_twist((8, 10))
+    overridden = fk("--wheel-radius", "0.05", "--track-width", "0.5")
+    assert overridden["vx"] == pytest.approx(plain.vx)
+    assert overridden["omega"] == pytest.approx(plain.omega)
+    one = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.06, half_track=0.1)
+    assert fk("--left-wheel-radius", "0.05")["omega"] == pytest.approx(one.to_twist((8, 10)).omega)
+    robot.write_text("wheel_radius = 0.04\ntrack_width = 0.2\n")
+    kept = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.04, track_width=0.2)
+    assert fk("--left-wheel-radius", "0.05")["omega"] == pytest.approx(kept.to_twist((8, 10)).omega)
 
 
 @pytest.mark.parametrize("command", ["simulate", "odometry"])

@@ -10,7 +10,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 from diffdrive.demo import (
     EXAMPLE_DURATION,
@@ -25,6 +25,7 @@ from diffdrive.io import (
     ROBOT_KEYS,
     TIME_UNITS,
     Run,
+    overridden,
     read_robot,
     read_run,
     read_trajectory,
@@ -123,13 +124,9 @@ def output_options(default: str) -> argparse.ArgumentParser:
 
 def robot_from(args: argparse.Namespace) -> tuple[Robot, float | None]:
     """The robot of the command's options, and its ticks per revolution if known."""
-    settings: dict[str, Any] = dict(read_robot(args.robot)) if args.robot else {}
-    for name in ROBOT_KEYS:
-        value = getattr(args, name)
-        if value is not None:
-            settings[name] = value
-            if name in ("track_width", "half_track"):  # a flag overrides the file's either
-                settings.pop("half_track" if name == "track_width" else "track_width", None)
+    flags = {name: getattr(args, name) for name in ROBOT_KEYS if getattr(args, name) is not None}
+    from_file = read_robot(args.robot) if args.robot else {}
+    settings = overridden(from_file, flags, lambda key: "--" + key.replace("_", "-"))
     ticks = settings.pop("ticks_per_revolution", None)
     if ticks is not None and not (math.isfinite(ticks) and ticks > 0):
         raise ValueError(f"ticks_per_revolution must be finite and > 0, got {ticks!r}")

@@ -19,7 +19,13 @@ from diffdrive.atomic import atomic_output, atomic_write
 from diffdrive.io.logs import read_log
 from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
 from diffdrive.io.read import read_run
-from diffdrive.io.robots import ROBOT_KEYS, read_robot, robot_from_settings, write_robot
+from diffdrive.io.robots import (
+    ROBOT_KEYS,
+    overridden,
+    read_robot,
+    robot_from_settings,
+    write_robot,
+)
 from diffdrive.io.run import RIM_SPEED_LIMIT, WHEEL_COLUMNS, Run, WheelKind, narrower_counter
 from diffdrive.io.sniff import is_bag
 from diffdrive.io.tables import TIME_UNITS, TableError, read_table
@@ -40,6 +46,7 @@ __all__ = [
     "is_bag",
     "narrower_counter",
     "optiodom_robot",
+    "overridden",
     "read_log",
     "read_optiodom_run",
     "read_robot",

@@ -15,7 +15,14 @@ import numpy as np
 
 from diffdrive.io.optiodom import read_optiodom_run
 from diffdrive.io.run import WHEEL_COLUMNS, Run
-from diffdrive.io.tables import Table, TableError, is_number, read_header, read_table
+from diffdrive.io.tables import (
+    Table,
+    TableError,
+    is_number,
+    read_header,
+    read_table,
+    refuse_a_slow_wheel_log,
+)
 
 __all__ = ["read_log"]
 
@@ -27,7 +34,8 @@ def read_log(path: str | Path, time_unit: str | None = None) -> Run:
     """The run in a wheel-log table or an OptiOdom run file (see the module).
 
     ``time_unit`` is the unit of ``t`` (``s``, ``ms``, ``us``, ``ns``; None: seconds, refused
-    when plainly not). ``TableError`` names the file, line and column of what is wrong.
+    when plainly not, as a wheel log of 100 rows or more a second or more apart is).
+    ``TableError`` names the file, line and column of what is wrong.
     """
     path = Path(path)
     header = read_header(path)
@@ -53,6 +61,8 @@ def read_log(path: str | Path, time_unit: str | None = None) -> Run:
         commands = np.column_stack([table[name] for name in _COMMANDS])
     if len(table["t"]) < 2:
         raise TableError(f"{path}: a log needs at least 2 rows")
+    if time_unit is None:
+        refuse_a_slow_wheel_log(table["t"], "t", path)
     left, right = table[columns[0]], table[columns[1]]
     if left.dtype != right.dtype and kind == "ticks":
         # One column needs uint64 (readings of 2^63 and more): only a 64-bit counter reads

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ from diffdrive.io.tables import TableError
 from diffdrive.model import DiffDrive, Robot
 from diffdrive.skid_steer import SkidSteer
 
-__all__ = ["ROBOT_KEYS", "read_robot", "robot_from_settings", "write_robot"]
+__all__ = ["ROBOT_KEYS", "overridden", "read_robot", "robot_from_settings", "write_robot"]
 
 # What a robot file may set: the DiffDrive's arguments, and the encoders' resolution.
 ROBOT_KEYS = (
@@ -73,6 +74,43 @@ def write_robot(path: str | Path, settings: dict[str, float], comment: str = "")
     with atomic_write(path) as stream:
         stream.writelines(f"# {line}\n" for line in comment.splitlines())
         stream.writelines(f"{key} = {float(value)!r}\n" for key, value in settings.items())
+
+
+# Settings that say the same thing in two ways: an override of one replaces the other too.
+_SAME_LENGTH = ("track_width", "half_track")
+_RADII = ("left_wheel_radius", "right_wheel_radius")
+
+
+def overridden(
+    settings: dict[str, Any],
+    overrides: dict[str, Any],
+    named: Callable[[str], str] = str,
+) -> dict[str, Any]:
+    """A robot file's ``settings`` with ``overrides`` applied, consistently: an override of
+    the track (``track_width`` or ``half_track``) replaces the file's either; ``wheel_radius``
+    replaces the file's radii; one of the left and right radii keeps the file's
+    ``wheel_radius`` for the other wheel. Two overrides of the same length are refused, the
+    keys called by ``named`` (the command line's flags, say)."""
+    given = set(overrides)
+    for group in (_SAME_LENGTH, ("wheel_radius", *_RADII)):
+        clash = [key for key in group if key in given]
+        if len(clash) > 1 and not set(clash) <= set(_RADII):
+            raise ValueError(
+                f"{' and '.join(map(named, clash))} both given: they set the same length, give one"
+            )
+    merged = dict(settings)
+    if given & set(_SAME_LENGTH):
+        for key in _SAME_LENGTH:
+            merged.pop(key, None)
+    if "wheel_radius" in given:
+        for key in _RADII:
+            merged.pop(key, None)
+    if given & set(_RADII) and "wheel_radius" in merged:
+        radius = merged.pop("wheel_radius")
+        for key in _RADII:
+            merged.setdefault(key, radius)
+    merged.update(overrides)
+    return merged
 
 
 def robot_from_settings(settings: dict[str, Any], where: str = "") -> Robot:

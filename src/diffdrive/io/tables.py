@@ -35,6 +35,7 @@ __all__ = [
     "number_row",
     "read_header",
     "read_table",
+    "refuse_a_slow_wheel_log",
     "text_lines",
     "times_in_seconds",
 ]
@@ -47,6 +48,11 @@ _EPOCH_LIMIT = 1e11
 # or slower steps by 10 or more. Hand-written histories that hold each row this long need
 # --time-unit s.
 _LONGEST_STEP = 10.0
+# A wheel log of this many rows or more, a second or more apart, is no robot's either: its
+# wheels are logged at 10 Hz or faster. Rows 1 to 9 apart are a log in ms at 100 Hz to 1 kHz
+# (a 200 Hz log in ms simulated 530 turns over "9995 s" as seconds).
+_SLOWEST_WHEEL_STEP = 1.0
+_MANY_ROWS = 100
 
 
 class Table(dict):
@@ -180,6 +186,22 @@ def times_in_seconds(table: dict, name: str, unit: str | None, path: Path) -> No
         return
     if unit != "s":
         table[name] = times * TIME_UNITS[unit]
+
+
+def refuse_a_slow_wheel_log(times: np.ndarray, name: str, path: Path) -> None:
+    """Refuse a wheel log's time column read as seconds whose rows are ``_SLOWEST_WHEEL_STEP``
+    or more apart over ``_MANY_ROWS`` rows or more: no robot logs its wheels that slowly."""
+    if len(times) < _MANY_ROWS:
+        return
+    step = float(np.median(np.diff(times)))
+    if step < _SLOWEST_WHEEL_STEP:
+        return
+    raise TableError(
+        f"{path}: column {name!r} is not in seconds: {len(times)} rows {step:.3g} apart, "
+        f"{times[-1] - times[0]:.6g} in all, a wheel log at {1 / step:.3g} Hz, slower than any "
+        f"robot logs its wheels; a {1 / (step * TIME_UNITS['ms']):.3g} Hz log in ms? Give the "
+        "time unit (--time-unit ms), or --time-unit s to read it as seconds all the same"
+    )
 
 
 def _whole(cell: str) -> int:
