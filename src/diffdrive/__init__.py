@@ -32,6 +32,7 @@ _LAZY = (
     "learn",
     "montecarlo",
     "plot",
+    "sensors",
 )
 
 

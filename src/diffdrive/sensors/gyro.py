@@ -1,0 +1,138 @@
+"""A synthetic yaw gyro: what an IMU mounted on the robot would read along a trajectory.
+
+The true yaw rate of each interval (its turn over its duration, held) is read at each sample
+with the error terms ``diffdrive.estimation.gyro`` states (IEEE Std 952-1997):
+
+    rate = (1 + scale) omega + bias + b_in(t) + b_rw(t) + white
+
+- ``bias`` (rad/s), a constant;
+- ``bias_instability`` (rad/s): a first-order Gauss-Markov bias of that standard deviation
+  and ``correlation_time`` (s), started from its stationary distribution;
+- ``rate_random_walk`` (rad/s/sqrt(s)): a bias that random-walks, from 0;
+- ``angle_random_walk`` (rad/s/sqrt(Hz)): white rate noise, of standard deviation
+  ``arw / sqrt(dt)`` over a sample of ``dt`` s, so that the angle's variance grows by
+  ``arw^2 dt``;
+- ``scale`` (relative), an error of the gain.
+
+The reading is the body's yaw rate; an IMU reports three rates in its own frame:
+``angular_velocity`` is the body vector ``(0, 0, rate)`` turned into the IMU frame by
+``mounting`` (the rotation from the IMU frame to the body frame, as ``Gyro.from_imu`` takes it),
+so that ``Gyro.from_imu(times, angular_velocity[n], mounting)`` gives ``rates[n]`` back.
+``angles`` integrates the rates, each held over its sample (``Gyro.from_yaw``'s reading).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from diffdrive._validate import finite, positive
+from diffdrive.model import Robot
+from diffdrive.sensors.motion import motion_of, rng_of
+
+__all__ = ["GyroModel", "GyroReadings", "gyro_readings"]
+
+
+@dataclass(frozen=True)
+class GyroModel:
+    """The gyro's error terms (see the module); every default is the ideal gyro."""
+
+    bias: float = 0.0
+    bias_instability: float = 0.0
+    correlation_time: float = 100.0
+    angle_random_walk: float = 0.0
+    rate_random_walk: float = 0.0
+    scale: float = 0.0
+    mounting: Any = None
+
+    def __post_init__(self) -> None:
+        finite("bias", self.bias)
+        finite("scale", self.scale)
+        positive("correlation_time", self.correlation_time)
+        for name in ("bias_instability", "angle_random_walk", "rate_random_walk"):
+            if not finite(name, getattr(self, name)) >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        rotation = self.rotation
+        orthonormal = np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-9)
+        if not (orthonormal and np.linalg.det(rotation) > 0):
+            raise ValueError("mounting is not a rotation (orthonormal, determinant +1)")
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """The mounting, IMU frame to body frame (default: the identity, z up)."""
+        rotation = np.eye(3) if self.mounting is None else np.asarray(self.mounting, dtype=float)
+        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
+            raise ValueError(f"mounting must be a finite 3x3 rotation, got {self.mounting!r}")
+        return rotation
+
+
+@dataclass(frozen=True, eq=False)
+class GyroReadings:
+    """``rates`` ``(N, M)`` rad/s at ``times`` ``(M,)``; ``truth`` ``(B, M)`` the true yaw
+    rates; ``bias`` ``(N, M)`` the whole bias at each sample (constant, instability and
+    random walk); ``model`` the terms."""
+
+    times: np.ndarray
+    rates: np.ndarray
+    truth: np.ndarray
+    bias: np.ndarray
+    model: GyroModel
+
+    @property
+    def angles(self) -> np.ndarray:
+        """The angle turned from the first sample, each rate held over its sample: ``(N, M)``."""
+        turned = self.rates[:, :-1] * np.diff(self.times)
+        return np.concatenate([np.zeros((len(self.rates), 1)), np.cumsum(turned, axis=1)], 1)
+
+    @property
+    def angular_velocity(self) -> np.ndarray:
+        """The IMU's three rates in its own frame ``(N, M, 3)``: what ``sensor_msgs/Imu``
+        carries (``Gyro.from_imu`` with the ``mounting`` reads ``rates`` back)."""
+        return self.rates[..., None] * self.model.rotation[2]
+
+
+def gyro_readings(
+    robot: Robot,
+    times: object,
+    poses: object,
+    model: GyroModel | None = None,
+    *,
+    robots: int | None = None,
+    seed: int | None = None,
+) -> GyroReadings:
+    """What the gyros of ``robots`` robots read at the trajectory's ``times`` (see the
+    module), the errors drawn from ``seed``."""
+    model = GyroModel() if model is None else model
+    motion = motion_of(robot, times, poses)
+    count = motion.robots(robots)
+    rng = rng_of(seed)
+    durations = motion.durations
+    omega = motion.increments[..., 2] / durations  # (B, T): each interval's rate, held
+    truth = np.concatenate([omega, omega[:, -1:]], axis=1)  # the last sample holds the last
+    samples = len(motion.times)
+    bias = np.full((count, samples), model.bias)
+    # Each sample's noise spans the interval it starts (the last, the one before it).
+    spans = np.concatenate([durations, durations[-1:]])
+    if model.bias_instability:
+        decay = np.exp(-durations / model.correlation_time)
+        drive = model.bias_instability * np.sqrt(1.0 - decay**2)
+        markov = np.empty((count, samples))
+        markov[:, 0] = model.bias_instability * rng.standard_normal(count)
+        for k in range(1, samples):
+            markov[:, k] = decay[k - 1] * markov[:, k - 1] + drive[k - 1] * rng.standard_normal(
+                count
+            )
+        bias += markov
+    if model.rate_random_walk:
+        steps = (
+            model.rate_random_walk * np.sqrt(durations) * rng.standard_normal((count, samples - 1))
+        )
+        bias[:, 1:] += np.cumsum(steps, axis=1)
+    rates = (1.0 + model.scale) * truth + bias
+    if model.angle_random_walk:
+        rates = rates + model.angle_random_walk / np.sqrt(spans) * rng.standard_normal(rates.shape)
+    if not np.all(np.isfinite(rates)):
+        raise ValueError("the gyro's rates overflow: the trajectory turns too fast for floats")
+    return GyroReadings(motion.times, rates, np.broadcast_to(truth, rates.shape), bias, model)

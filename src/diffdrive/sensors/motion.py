@@ -1,0 +1,109 @@
+"""What every synthetic sensor starts from: a trajectory, checked, and its motion per interval.
+
+A trajectory is its sample ``times`` ``(T+1,)`` s, strictly increasing, and its ``poses``
+``(T+1, 3)`` or, for a batch of robots, ``(N, T+1, 3)`` (a ``simulate`` result, or a
+reference read from a file or bag). Between two samples the body moves along the constant
+twist that joins them (the SE(2) logarithm of the relative pose), as ``simulate``'s exact step
+does; so a trajectory that ``simulate`` made gives its own wheel motion back to rounding.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive.model import Robot
+
+__all__ = ["Motion", "motion_of", "rng_of", "robot_geometry"]
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A checked trajectory: ``times`` ``(T+1,)`` s, ``poses`` ``(B, T+1, 3)`` (``B`` is 1 for
+    one trajectory shared by every robot), ``increments`` ``(B, T, 3)``: the body-frame twist
+    of each interval times its duration, at the robot's equivalent-drive point."""
+
+    times: np.ndarray
+    poses: np.ndarray
+    increments: np.ndarray
+
+    @property
+    def durations(self) -> np.ndarray:
+        return np.diff(self.times)
+
+    def robots(self, robots: int | None) -> int:
+        """How many robots: the batch's, or ``robots`` for one trajectory (default 1)."""
+        batch_size = self.poses.shape[0]
+        if robots is None:
+            return batch_size
+        if isinstance(robots, bool) or not isinstance(robots, int | np.integer) or robots < 1:
+            raise ValueError(f"robots must be a whole number from 1, got {robots!r}")
+        if batch_size not in (1, robots):
+            raise ValueError(f"robots={robots} for a batch of {batch_size} trajectories")
+        return int(robots)
+
+
+def motion_of(robot: Robot, times: object, poses: object) -> Motion:
+    """``times`` and ``poses`` checked (``ValueError`` naming what is wrong), and the motion of
+    the robot's equivalent-drive point between samples."""
+    t = np.asarray(times, dtype=float)
+    p = np.asarray(poses, dtype=float)
+    if t.ndim != 1 or len(t) < 2:
+        raise ValueError(f"times must be (T+1,) with T >= 1, got shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("times must be finite")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        k = int(np.argmax(steps <= 0)) + 1
+        raise ValueError(
+            f"times must increase: times[{k}] = {float(t[k])!r} after {float(t[k - 1])!r}"
+        )
+    if p.ndim == 2:
+        p = p[None]
+    if p.ndim != 3 or p.shape[1:] != (len(t), 3):
+        raise ValueError(
+            f"poses must be ({len(t)}, 3) or (N, {len(t)}, 3) for {len(t)} times, got {p.shape}"
+        )
+    if not np.all(np.isfinite(p)):
+        raise ValueError("poses must be finite")
+    offset = robot.reference_offset
+    moved = batch.compose(p, np.array([0.0, offset, 0.0])) if offset else p
+    relative = batch.relative_to(moved[:, 1:], moved[:, :-1])
+    increments = batch.log(relative)
+    # The log wraps each turn to (-pi, pi]; an unwrapped trajectory's own turn is kept.
+    increments[..., 2] = np.diff(p[..., 2], axis=-1)
+    return Motion(t, p, increments)
+
+
+def robot_geometry(
+    robot: Robot,
+    robots: int,
+    radius_bias: tuple[float, float],
+    track_bias: float,
+    geometry_sigma: tuple[float, float, float],
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Each robot's true geometry ``(N, 3)`` ``[r_left, r_right, track]`` (m): the equivalent
+    drive's, biased, and drawn around that with relative standard deviations
+    ``geometry_sigma`` (as ``monte_carlo``'s)."""
+    drive = robot.equivalent
+    nominal = np.array([drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width])
+    biased = nominal * (1.0 + np.array([*radius_bias, track_bias]))
+    sigma = np.asarray(geometry_sigma, dtype=float)
+    if not np.any(sigma):
+        return np.broadcast_to(biased, (robots, 3))
+    drawn = biased * (1.0 + sigma * rng.standard_normal((robots, 3)))
+    if np.any(drawn <= 0):
+        raise ValueError("geometry_sigma draws a radius or track <= 0: make it smaller")
+    return drawn
+
+
+def rng_of(seed: object) -> np.random.Generator:
+    """NumPy's generator for ``seed`` (an int >= 0, kept exactly; None: from the system)."""
+    if seed is not None and (
+        isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0
+    ):
+        raise ValueError(f"seed must be a whole number from 0 or None, got {seed!r}")
+    return np.random.default_rng(None if seed is None else int(seed))

@@ -1,0 +1,241 @@
+"""Synthetic sensors: ideal streams give their trajectory back, each error source has the
+statistics its model states, and the estimators meet what they were built for."""
+
+import math
+
+import numpy as np
+import pytest
+
+import diffdrive as dd
+from diffdrive import sensors
+from diffdrive.estimation.gyro import Gyro, gyro_odometry
+from diffdrive.simulation import dead_reckon
+
+ROBOT = dd.DiffDrive(0.05, 0.3, axle_offset=0.02)
+SKID = dd.SkidSteer(0.11, 0.45, -0.40, icr_x=0.03)
+T = np.arange(501) * 0.02
+WHEELS = np.stack([6 + 4 * np.sin(0.7 * T[:-1]), 6 - 4 * np.cos(0.5 * T[:-1])], axis=-1)
+
+
+def path(robot=ROBOT):
+    return dd.simulate(robot, WHEELS, times=T)
+
+
+@pytest.mark.parametrize("robot", [ROBOT, SKID], ids=["diff drive", "skid steer"])
+def test_ideal_encoders_give_the_wheels_back_and_the_path_through_a_run(robot):
+    trajectory = path(robot)
+    readings = sensors.encoder_readings(robot, trajectory.times, trajectory.poses)
+    np.testing.assert_allclose(np.diff(readings.readings[0], axis=0), WHEELS * 0.02, atol=1e-12)
+    run = readings.run(0)
+    assert run.kind == "angle"
+    poses = dead_reckon(robot, run.increments(), run.truth[0])
+    np.testing.assert_allclose(poses, trajectory.poses, atol=1e-12)
+    commands = sensors.commands_of(robot, trajectory.times, trajectory.poses)
+    np.testing.assert_allclose(commands.wheels[0], WHEELS, atol=1e-11)
+    np.testing.assert_allclose(commands.twists[0], trajectory.twists, atol=1e-11)
+
+
+@pytest.mark.parametrize(("bits", "signed"), [(12, True), (10, False), (64, False), (None, True)])
+def test_counts_roll_over_and_odometry_reads_them_back(bits, signed):
+    model = sensors.EncoderModel(ticks_per_revolution=4096, counter_bits=bits, signed=signed)
+    trajectory = path()
+    readings = sensors.encoder_readings(ROBOT, T, trajectory.poses, model)
+    counts = readings.readings[0]
+    if bits is not None and bits < 64:
+        low, high = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signed else (0, 2**bits - 1)
+        assert counts.min() >= low
+        assert counts.max() <= high
+        assert counts.max() - counts.min() > 2 ** (bits - 1)  # it did roll over
+    assert counts.dtype == (np.uint64 if bits == 64 and not signed else np.int64)
+    odometry = dd.Odometry(
+        ROBOT,
+        ticks_per_revolution=4096,
+        counter_bits=bits,
+        initial_pose=dd.Pose(*trajectory.poses[0]),
+    )
+    poses, _ = odometry.update_arrays("ticks", counts[:, 0], counts[:, 1], T)
+    # One count is 1.5 mrad of wheel, 77 um at the rim: the path within a millimetre.
+    assert np.abs(poses[:, :2] - trajectory.poses[:, :2]).max() < 1e-3
+
+
+def test_biases_make_the_nominal_odometry_drift_as_calibration_would_undo():
+    model = sensors.EncoderModel(radius_bias=(0.02, -0.01), track_bias=0.03)
+    trajectory = path()
+    readings = sensors.encoder_readings(ROBOT, T, trajectory.poses, model)
+    np.testing.assert_allclose(readings.geometry[0], [0.051, 0.0495, 0.309])
+    increments = np.diff(readings.readings[0], axis=0)
+    true_robot = dd.DiffDrive(
+        left_wheel_radius=0.051, right_wheel_radius=0.0495, track_width=0.309, axle_offset=0.02
+    )
+    np.testing.assert_allclose(
+        dead_reckon(true_robot, increments, trajectory.poses[0]), trajectory.poses, atol=1e-9
+    )
+    drift = dead_reckon(ROBOT, increments, trajectory.poses[0]) - trajectory.poses
+    assert np.abs(drift[:, :2]).max() > 0.05
+
+
+def test_wheel_noise_matches_the_odometry_covariance_it_is_modelled_on():
+    """10^4 robots with wheel random-walk noise only: the final poses' sample covariance is
+    Odometry's propagated one, trace and each diagonal term within 5 %."""
+    k = (2e-4, 4e-4)
+    steps = 100
+    trajectory = dd.simulate(ROBOT, WHEELS[:steps], times=T[: steps + 1])
+    model = sensors.EncoderModel(k_left=k[0], k_right=k[1])
+    readings = sensors.encoder_readings(
+        ROBOT, trajectory.times, trajectory.poses, model, robots=10_000, seed=7
+    )
+    start = trajectory.poses[0]
+    finals = dead_reckon(ROBOT, np.diff(readings.readings, axis=1), start)[:, -1]
+    sample = np.cov(finals.T)
+    odometry = dd.Odometry(ROBOT, initial_pose=dd.Pose(*start), k_left=k[0], k_right=k[1])
+    odometry.update_arrays("increments", *(WHEELS[:steps] * 0.02).T)
+    propagated = odometry.covariance
+    assert np.trace(sample) == pytest.approx(np.trace(propagated), rel=0.05)
+    np.testing.assert_allclose(np.diag(sample), np.diag(propagated), rtol=0.05)
+
+
+def test_slips_are_labelled_and_the_gyro_filter_finds_them():
+    """A wheel spinning half again as far as the ground moves over three episodes: the
+    detector flags the labelled intervals (README: what it finds) and few others."""
+    slips = tuple(sensors.Slip(s, s + 0.4, "left", 0.5) for s in (2.0, 5.0, 8.0))
+    model = sensors.EncoderModel(k_left=1e-6, k_right=1e-6, slips=slips)
+    trajectory = path()
+    readings = sensors.encoder_readings(ROBOT, T, trajectory.poses, model, robots=20, seed=3)
+    labelled = readings.slipping[0].any(axis=1)
+    assert labelled.sum() == 60  # 3 episodes of 20 intervals
+    gyro = sensors.gyro_readings(
+        ROBOT, T, trajectory.poses, sensors.GyroModel(angle_random_walk=1e-3), robots=20, seed=4
+    )
+    found = alarms = 0
+    for n in range(20):
+        result = gyro_odometry(
+            ROBOT,
+            T,
+            np.diff(readings.readings[n], axis=0),
+            Gyro(T, gyro.rates[n]),
+            "fused",
+            bias=0.0,
+            k_left=1e-6,
+            k_right=1e-6,
+            noise=dd.estimation.GyroNoise(angle_random_walk=1e-3),
+        )
+        flagged = result.slip[1:]
+        found += int(np.count_nonzero(flagged & labelled))
+        alarms += int(np.count_nonzero(flagged & ~labelled))
+    assert found >= 0.99 * 20 * labelled.sum()
+    assert alarms <= 0.005 * 20 * (~labelled).sum()
+
+
+def test_jitter_latency_and_drops():
+    trajectory = path()
+    late = sensors.encoder_readings(
+        ROBOT, T, trajectory.poses, sensors.EncoderModel(latency=0.1), seed=1
+    )
+    ideal = sensors.encoder_readings(ROBOT, T, trajectory.poses)
+    np.testing.assert_allclose(late.readings[0, 5:], ideal.readings[0, :-5], atol=1e-12)
+    np.testing.assert_array_equal(late.readings[0, :5], 0.0)  # before the start: the start
+    jitter = sensors.encoder_readings(
+        ROBOT, T, trajectory.poses, sensors.EncoderModel(jitter=0.002), seed=1
+    )
+    speed = np.abs(WHEELS).max()
+    assert np.abs(jitter.readings - ideal.readings).max() < 5 * 0.002 * speed
+    dropped = sensors.encoder_readings(
+        ROBOT, T, trajectory.poses, sensors.EncoderModel(drop=0.2), robots=50, seed=2
+    )
+    assert dropped.kept[:, 0].all()
+    assert dropped.kept.mean() == pytest.approx(0.8, abs=0.02)
+    run = dropped.run(3)
+    assert len(run.times) == dropped.kept[3].sum()
+
+
+def test_seeds_repeat_and_differ():
+    model = sensors.EncoderModel(k_left=1e-4, k_right=1e-4, geometry_sigma=(0.01, 0.01, 0.02))
+    poses = path().poses
+    one, two, other = (
+        sensors.encoder_readings(ROBOT, T, poses, model, robots=4, seed=s) for s in (5, 5, 6)
+    )
+    np.testing.assert_array_equal(one.readings, two.readings)
+    assert not np.array_equal(one.readings, other.readings)
+    assert len({tuple(g) for g in one.geometry}) == 4
+
+
+def test_gyro_noise_has_the_stated_statistics_and_reads_back_through_the_imu():
+    """White rate noise of arw / sqrt(dt); a rate random walk whose variance grows as
+    rrw^2 t; a constant bias and scale; the mounting's three rates back to the yaw rate."""
+    poses = path().poses
+    dt = 0.02
+    white = sensors.gyro_readings(
+        ROBOT, T, poses, sensors.GyroModel(angle_random_walk=2e-3), robots=200, seed=1
+    )
+    noise = white.rates - white.truth
+    assert noise.std() == pytest.approx(2e-3 / math.sqrt(dt), rel=0.02)
+    walk = sensors.gyro_readings(
+        ROBOT, T, poses, sensors.GyroModel(rate_random_walk=1e-3), robots=4000, seed=2
+    )
+    assert walk.bias[:, -1].var() == pytest.approx(1e-6 * T[-1], rel=0.1)
+    mounting = dd.estimation.rotation_from_rpy(math.pi / 2, 0.0, 0.3)
+    model = sensors.GyroModel(bias=0.01, scale=0.02, mounting=mounting)
+    fixed = sensors.gyro_readings(ROBOT, T, poses, model)
+    np.testing.assert_allclose(fixed.rates, 1.02 * fixed.truth + 0.01, atol=1e-15)
+    back = Gyro.from_imu(T, fixed.angular_velocity[0], mounting)
+    np.testing.assert_allclose(back.rates, fixed.rates[0], atol=1e-12)
+    markov = sensors.gyro_readings(
+        ROBOT, T, poses, sensors.GyroModel(bias_instability=1e-3), robots=4000, seed=3
+    )
+    assert markov.bias.std(axis=0).mean() == pytest.approx(1e-3, rel=0.05)
+
+
+def test_absolute_sensors_noise_latency_dropouts_outliers_and_gps():
+    pytest.importorskip("pymap3d", reason="pymap3d is in the test group")
+    poses = path().poses
+    model = sensors.AbsoluteModel(
+        sigma=(0.05, 0.05, 0.02), period=0.1, latency=0.25, dropout=0.1, outlier=0.05
+    )
+    readings = sensors.absolute_readings(ROBOT, T, poses, model, robots=200, seed=4)
+    assert readings.times[1] - readings.times[0] == pytest.approx(0.1)
+    np.testing.assert_allclose(readings.arrival - readings.times, 0.25)
+    error = (readings.poses - readings.truth)[~readings.outliers]
+    np.testing.assert_allclose(error.std(axis=0), [0.05, 0.05, 0.02], rtol=0.05)
+    assert readings.outliers.mean() == pytest.approx(0.05, abs=0.01)
+    jumps = np.hypot(*(readings.poses - readings.truth)[readings.outliers][:, :2].T)
+    assert np.median(jumps) == pytest.approx(1.0, abs=0.1)
+    assert readings.kept.mean() == pytest.approx(0.9, abs=0.01)
+    gps = sensors.absolute_readings(ROBOT, T, poses, sensors.AbsoluteModel(position_only=True))
+    assert np.isnan(gps.poses[..., 2]).all()
+    geodetic = gps.geodetic((48.0, 11.0, 500.0))
+    metres_per_degree = 111_200.0
+    north = (geodetic[0, -1, 0] - 48.0) * metres_per_degree
+    assert north == pytest.approx(poses[-1, 1], abs=0.5)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: sensors.EncoderModel(k_left=-1e-4), "k_left must be >= 0"),
+        (lambda: sensors.EncoderModel(k_right=math.nan), "k_right must be finite"),
+        (lambda: sensors.EncoderModel(ticks_per_revolution=100, counter_bits=65), "from 2 to 64"),
+        (lambda: sensors.EncoderModel(counter_bits=16), "counter_bits needs ticks_per_revolution"),
+        (lambda: sensors.EncoderModel(drop=1.0), "drop must be a probability"),
+        (lambda: sensors.Slip(2.0, 1.0), "must end after it starts"),
+        (lambda: sensors.Slip(1.0, 2.0, ratio=-1.0), "ratio must be > -1"),
+        (lambda: sensors.GyroModel(angle_random_walk=-1.0), "angle_random_walk must be >= 0"),
+        (lambda: sensors.GyroModel(mounting=np.diag([1, 1, -1])), "mounting is not a rotation"),
+        (lambda: sensors.AbsoluteModel(sigma=(0.1, -0.1, 0.0)), "sigma must be 3"),
+        (
+            lambda: sensors.encoder_readings(ROBOT, [0.0, 1.0, 0.5], np.zeros((3, 3))),
+            r"times must increase: times\[2\] = 0.5 after 1.0",
+        ),
+        (
+            lambda: sensors.encoder_readings(
+                ROBOT, T, path().poses, sensors.EncoderModel(slips=(sensors.Slip(9.0, 11.0),))
+            ),
+            "slip episode 9 to 11 s lies outside the run",
+        ),
+        (lambda: sensors.encoder_readings(ROBOT, T, np.zeros((501, 2))), "poses must be"),
+        (lambda: sensors.encoder_readings(ROBOT, T, path().poses, seed=-1), "seed must be"),
+        (lambda: sensors.encoder_readings(ROBOT, T, path().poses, robots=0), "robots must be"),
+    ],
+)
+def test_bad_input_is_refused_by_name(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
