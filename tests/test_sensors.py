@@ -239,3 +239,78 @@ def test_absolute_sensors_noise_latency_dropouts_outliers_and_gps():
 def test_bad_input_is_refused_by_name(make, message):
     with pytest.raises(ValueError, match=message):
         make()
+
+
+def test_streams_round_trip_through_a_bag_and_a_table(tmp_path):
+    """Written as MCAP and read back by diffdrive's readers (and rosbags under them): the
+    joints, the IMU through its mounting, the late poses and the commands; the table reads as
+    a Run with its gyro and commands."""
+    pytest.importorskip("rosbags", reason="rosbags is in the test group")
+    from diffdrive.io import read_run, ros
+
+    trajectory = path()
+    encoder_model = sensors.EncoderModel(ticks_per_revolution=4096, counter_bits=12, drop=0.1)
+    encoders = sensors.encoder_readings(ROBOT, T, trajectory.poses, encoder_model, seed=1)
+    mounting = dd.estimation.rotation_from_rpy(math.pi / 2, 0.0, 0.0)
+    gyro = sensors.gyro_readings(
+        ROBOT, T, trajectory.poses, sensors.GyroModel(bias=0.01, mounting=mounting), seed=2
+    )
+    late = sensors.AbsoluteModel(sigma=(0.02, 0.02, 0.01), period=0.5, latency=0.3)
+    absolute = sensors.absolute_readings(ROBOT, T, trajectory.poses, late, seed=3)
+    commands = sensors.commands_of(ROBOT, T, trajectory.poses)
+    bag = sensors.write_bag(
+        tmp_path / "run.mcap", encoders=encoders, gyro=gyro, absolute=absolute, commands=commands
+    )
+    run = ros.read_joint_states(bag, "left_wheel_joint", "right_wheel_joint")
+    kept = encoders.kept[0]
+    # A stamp of 0 reads as unset in ROS: the streams start 1 s in.
+    np.testing.assert_allclose(run.times, T[kept] + 1.0, atol=1e-9)
+    angles = np.diff(run.wheels, axis=0)
+    np.testing.assert_allclose(angles, encoders.run(0).increments(counter_bits=12), atol=1e-12)
+    imu = ros.read_imu(bag, "/imu/data")
+    back = Gyro.from_imu(imu.times, imu.angular_velocity, mounting)
+    np.testing.assert_allclose(back.rates, gyro.rates[0], atol=1e-12)
+    poses = ros.read_odometry(bag, "/pose")
+    np.testing.assert_allclose(poses.times, absolute.times + 1.0, atol=1e-9)
+    assert poses.stamp_source == "header"  # stamped when measured, recorded 0.3 s later
+    np.testing.assert_allclose(poses.poses[:, :2], absolute.poses[0, :, :2], atol=1e-12)
+    np.testing.assert_allclose(poses.covariances[0], np.diag([4e-4, 4e-4, 1e-4]))
+    recorded = {t.name: t for t in ros.topics(bag)}
+    assert recorded["/pose"].msgtype == "geometry_msgs/msg/PoseWithCovarianceStamped"
+    twists = ros.read_twists(bag, "/cmd_vel")
+    np.testing.assert_allclose(twists.twists, commands.twists[0][:, [0, 2]], atol=1e-12)
+    table = sensors.write_table(tmp_path / "run.csv", encoders, gyro=gyro, commands=commands)
+    read = read_run(table)
+    np.testing.assert_array_equal(read.wheels, encoders.readings[0][kept])
+    np.testing.assert_allclose(read.gyro_rates, gyro.rates[0][kept])
+    np.testing.assert_allclose(read.truth, trajectory.poses[kept], atol=1e-12)
+    assert read.commands is not None
+
+
+def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, capsys):
+    pytest.importorskip("rosbags", reason="rosbags is in the test group")
+    from diffdrive.cli import main
+    from diffdrive.io import read_run, ros
+
+    bag, table = tmp_path / "run.mcap", tmp_path / "run.csv"
+    common = ["--ticks-per-revolution", "4096", "--counter-bits", "12", "--seed", "1"]
+    argv = ["synth", *common, "--gyro-arw", "2e-3", "--pose-sigma", "0.02", "0.02", "0.01"]
+    assert main([*argv, "--pose-period", "0.5", "-o", str(bag)]) == 0
+    assert "/joint_states, /imu/data, /cmd_vel, /pose in" in capsys.readouterr().out
+    names = {topic.name for topic in ros.topics(bag)}
+    assert names == {"/joint_states", "/imu/data", "/cmd_vel", "/pose"}
+    assert main(["synth", *common, "-o", str(table), "-q"]) == 0
+    run = read_run(table)
+    assert run.kind == "ticks"
+    assert run.wheels.max() < 2**11
+    odometry = tmp_path / "o.csv"
+    argv = ["odometry", str(table), "--counter-bits", "12", "-o", str(odometry)]
+    assert main([*argv, "--ticks-per-revolution", "4096"]) == 0
+    assert "position error max 0.00" in capsys.readouterr().out  # counts alone: mm off
+    code = main(["synth", "--slip", "30", "40", "left", "0.5", "-o", str(tmp_path / "x.mcap")])
+    assert code == 1
+    assert "slip episode 30 to 40 s lies outside the run" in capsys.readouterr().err
+    code = main(["synth", "--pose-sigma", "0.1", "0.1", "0.1", "-o", str(tmp_path / "x.csv")])
+    assert code == 1
+    assert "a pose or GPS sensor needs a bag" in capsys.readouterr().err
+    assert not (tmp_path / "x.csv").exists()

@@ -11,7 +11,17 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from diffdrive.cli import calibrate, evaluate, info, kinematics, learn, odometry, plot, simulate
+from diffdrive.cli import (
+    calibrate,
+    evaluate,
+    info,
+    kinematics,
+    learn,
+    odometry,
+    plot,
+    simulate,
+    synth,
+)
 from diffdrive.cli.options import (
     Parents,
     log_options,
@@ -59,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         "input", nargs="?", type=Path, help="trajectory (CSV, JSON lines, TUM); none: built-in"
     )
     parents = Parents(robot=robot_options(), logs=log_options(), times=times, pictures=pictures)
-    for module in (simulate, odometry, plot, calibrate, evaluate, info, learn, kinematics):
+    for module in (simulate, odometry, plot, calibrate, evaluate, info, learn, kinematics, synth):
         module.add_to(command, parents)
     return parser
 

@@ -42,7 +42,11 @@ Format = Literal["csv", "jsonl", "tum"]
 FORMATS: tuple[Format, ...] = ("csv", "jsonl", "tum")
 _POSE = ("t", "x", "y", "theta")
 _ROWS_PER_WRITE = 1 << 16
-_BAG_TYPES = ("nav_msgs/msg/Odometry", "sensor_msgs/msg/NavSatFix")
+_BAG_TYPES = (
+    "nav_msgs/msg/Odometry",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "sensor_msgs/msg/NavSatFix",
+)
 
 
 def trajectory_format(path: str | Path) -> Format:

@@ -9,13 +9,16 @@ from a file or bag), with the truth to test estimators against.
   walk, scale error and a mounting rotation (an IMU's three rates);
 - ``absolute``: ``absolute_readings``: poses or positions (GPS, in latitude and longitude)
   with noise, latency, dropouts and labelled outliers;
-- ``commands``: ``commands_of``: the twists and wheel velocities a controller would have sent.
+- ``commands``: ``commands_of``: the twists and wheel velocities a controller would have sent;
+- ``output``: ``write_bag`` (a ROS 2 bag or MCAP file: ``JointState``, ``Imu``, ``NavSatFix``,
+  ``PoseWithCovarianceStamped``, ``Twist``) and ``write_table`` (a wheel-log table).
 """
 
 from diffdrive.sensors.absolute import AbsoluteModel, AbsoluteReadings, absolute_readings
 from diffdrive.sensors.commands import Commands, commands_of
 from diffdrive.sensors.encoders import EncoderModel, EncoderReadings, Slip, encoder_readings
 from diffdrive.sensors.gyro import GyroModel, GyroReadings, gyro_readings
+from diffdrive.sensors.output import streams_of, write_bag, write_table
 
 __all__ = [
     "AbsoluteModel",
@@ -30,4 +33,7 @@ __all__ = [
     "commands_of",
     "encoder_readings",
     "gyro_readings",
+    "streams_of",
+    "write_bag",
+    "write_table",
 ]

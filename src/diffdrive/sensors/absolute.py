@@ -58,7 +58,8 @@ class AbsoluteModel:
 class AbsoluteReadings:
     """``poses`` ``(N, M, 3)`` measured at ``times`` ``(M,)`` (``theta`` NaN for a position
     sensor), arriving at ``arrival`` ``(M,)``; ``kept`` ``(N, M)`` those not lost;
-    ``outliers`` ``(N, M)`` the labels; ``truth`` ``(B, M, 3)`` the true poses then."""
+    ``outliers`` ``(N, M)`` the labels; ``truth`` ``(B, M, 3)`` the true poses then; ``model``
+    its terms."""
 
     times: np.ndarray
     arrival: np.ndarray
@@ -66,6 +67,7 @@ class AbsoluteReadings:
     kept: np.ndarray
     outliers: np.ndarray
     truth: np.ndarray
+    model: AbsoluteModel
 
     def geodetic(self, origin: tuple[float, float, float]) -> np.ndarray:
         """Latitude, longitude (deg) and height (m) of the positions ``(N, M, 3)``, about the
@@ -116,4 +118,4 @@ def absolute_readings(
     kept = np.ones((count, len(at)), dtype=bool)
     if model.dropout:
         kept = rng.random((count, len(at))) >= model.dropout
-    return AbsoluteReadings(at, at + model.latency, measured, kept, outliers, truth)
+    return AbsoluteReadings(at, at + model.latency, measured, kept, outliers, truth, model)

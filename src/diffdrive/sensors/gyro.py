@@ -1,7 +1,8 @@
 """A synthetic yaw gyro: what an IMU mounted on the robot would read along a trajectory.
 
-The true yaw rate of each interval (its turn over its duration, held) is read at each sample
-with the error terms ``diffdrive.estimation.gyro`` states (IEEE Std 952-1997):
+The true yaw rate at each sample (between two intervals, the mean of their rates: the
+trajectory's turn over an interval over its duration; at the ends, the end interval's) is
+read with the error terms ``diffdrive.estimation.gyro`` states (IEEE Std 952-1997):
 
     rate = (1 + scale) omega + bias + b_in(t) + b_rw(t) + white
 
@@ -18,7 +19,7 @@ The reading is the body's yaw rate; an IMU reports three rates in its own frame:
 ``angular_velocity`` is the body vector ``(0, 0, rate)`` turned into the IMU frame by
 ``mounting`` (the rotation from the IMU frame to the body frame, as ``Gyro.from_imu`` takes it),
 so that ``Gyro.from_imu(times, angular_velocity[n], mounting)`` gives ``rates[n]`` back.
-``angles`` integrates the rates, each held over its sample (``Gyro.from_yaw``'s reading).
+``angles`` integrates the rates linearly between samples, as ``Gyro`` reads a gyro's rates.
 """
 
 from __future__ import annotations
@@ -82,8 +83,9 @@ class GyroReadings:
 
     @property
     def angles(self) -> np.ndarray:
-        """The angle turned from the first sample, each rate held over its sample: ``(N, M)``."""
-        turned = self.rates[:, :-1] * np.diff(self.times)
+        """The angle turned from the first sample, the rate linear between samples (as
+        ``Gyro.angles`` integrates it): ``(N, M)`` rad."""
+        turned = 0.5 * (self.rates[:, 1:] + self.rates[:, :-1]) * np.diff(self.times)
         return np.concatenate([np.zeros((len(self.rates), 1)), np.cumsum(turned, axis=1)], 1)
 
     @property
@@ -109,8 +111,10 @@ def gyro_readings(
     count = motion.robots(robots)
     rng = rng_of(seed)
     durations = motion.durations
-    omega = motion.increments[..., 2] / durations  # (B, T): each interval's rate, held
-    truth = np.concatenate([omega, omega[:, -1:]], axis=1)  # the last sample holds the last
+    omega = motion.increments[..., 2] / durations  # (B, T): each interval's mean rate
+    # At a sample, the rate between its two intervals': what a gyro sampled there reads of a
+    # smooth turn, and what linear interpolation between samples integrates back.
+    truth = np.concatenate([omega[:, :1], 0.5 * (omega[:, 1:] + omega[:, :-1]), omega[:, -1:]], 1)
     samples = len(motion.times)
     bias = np.full((count, samples), model.bias)
     # Each sample's noise spans the interval it starts (the last, the one before it).

@@ -30,7 +30,7 @@ from diffdrive.io.ros.reader import (
     read_twists,
     topics,
 )
-from diffdrive.io.ros.writer import BAG_FORMATS, write_odometry
+from diffdrive.io.ros.writer import BAG_FORMATS, Stream, write_odometry, write_streams
 from diffdrive.io.sniff import is_bag
 
 __all__ = [
@@ -39,6 +39,7 @@ __all__ = [
     "Imu",
     "NavSatFix",
     "OdometryTopic",
+    "Stream",
     "Topic",
     "Twists",
     "is_bag",
@@ -50,4 +51,5 @@ __all__ = [
     "read_twists",
     "topics",
     "write_odometry",
+    "write_streams",
 ]

@@ -38,6 +38,7 @@ USES = {
     "geometry_msgs/msg/TwistStamped": "commands (v, omega)",
     "tf2_msgs/msg/TFMessage": "a trajectory of a frame: --tf PARENT CHILD",
     "sensor_msgs/msg/NavSatFix": "reference positions (local east, north): --truth-topic",
+    "geometry_msgs/msg/PoseWithCovarianceStamped": "poses (a camera, a localiser): --topic",
 }
 
 
@@ -217,7 +218,8 @@ def read_joint_states(
 
 @dataclass(frozen=True, eq=False)
 class OdometryTopic:
-    """``nav_msgs/Odometry``: ``times`` ``(N,)`` s, ``poses`` ``(N, 3)`` ``[x, y, yaw]``
+    """``nav_msgs/Odometry`` (or ``geometry_msgs/PoseWithCovarianceStamped``, whose twists
+    are zero and child frame empty): ``times`` ``(N,)`` s, ``poses`` ``(N, 3)`` ``[x, y, yaw]``
     (yaw unwrapped), ``twists`` ``(N, 3)`` ``[vx, vy, omega]``, ``covariances`` ``(N, 3, 3)``
     over ``(x, y, yaw)``, the frames, which stamp was used and how many were dropped."""
 
@@ -232,10 +234,12 @@ class OdometryTopic:
 
 
 def read_odometry(path: str | Path, topic: str) -> OdometryTopic:
-    """The poses, twists and covariances of a ``nav_msgs/Odometry`` topic."""
+    """The poses, twists and covariances of a ``nav_msgs/Odometry`` topic (or a
+    ``geometry_msgs/PoseWithCovarianceStamped`` one: a camera's or a localiser's poses)."""
 
     def row(m):
-        p, t = m.pose.pose, m.twist.twist
+        p = m.pose.pose
+        t = m.twist.twist if hasattr(m, "twist") else _NO_TWIST
         full = np.asarray(m.pose.covariance, dtype=float).reshape(6, 6)
         planar = full[np.ix_([0, 1, 5], [0, 1, 5])].ravel()
         return (
@@ -248,7 +252,8 @@ def read_odometry(path: str | Path, topic: str) -> OdometryTopic:
             *planar,
         )
 
-    ordered, rows, last = _collect(Path(path), topic, ("nav_msgs/msg/Odometry",), row)
+    kinds = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseWithCovarianceStamped")
+    ordered, rows, last = _collect(Path(path), topic, kinds, row)
     poses = rows[:, :3].copy()
     poses[:, 2] = np.unwrap(poses[:, 2])
     return OdometryTopic(
@@ -257,10 +262,22 @@ def read_odometry(path: str | Path, topic: str) -> OdometryTopic:
         rows[:, 3:6],
         rows[:, 6:].reshape(-1, 3, 3),
         last.header.frame_id,
-        last.child_frame_id,
+        getattr(last, "child_frame_id", ""),
         ordered.source,
         ordered.dropped,
     )
+
+
+class _Still:
+    """A twist of zeros, for a pose message that has none."""
+
+    class _Zero:
+        x = y = z = 0.0
+
+    linear = angular = _Zero()
+
+
+_NO_TWIST = _Still()
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,4 +1,6 @@
-"""Writing odometry to MCAP files and ROS 2 bags with ``rosbags`` (see the package)."""
+"""Writing odometry and sensor streams to MCAP files and ROS 2 bags with ``rosbags`` (see
+the package). Every writer goes through ``_bag``: the file or folder appears whole or not at
+all, and an existing folder is not replaced."""
 
 from __future__ import annotations
 
@@ -6,6 +8,9 @@ import math
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
@@ -13,7 +18,7 @@ import numpy as np
 
 from diffdrive.io.tables import TableError
 
-__all__ = ["BAG_FORMATS", "write_odometry"]
+__all__ = ["BAG_FORMATS", "Stream", "write_odometry", "write_streams"]
 
 BagFormat = Literal["mcap", "ros2"]
 BAG_FORMATS: tuple[BagFormat, ...] = ("mcap", "ros2")
@@ -46,6 +51,26 @@ def write_odometry(
     name ending in ``.mcap``, else ``ros2``. The file or folder appears whole or not at all; an
     existing folder is not replaced.
     """
+    times, poses, covariances, twists = _checked(times, poses, covariances, twists)
+    with _bag(path, format) as (writer, store):
+        odometry = writer.add_connection(topic, "nav_msgs/msg/Odometry", typestore=store)
+        transforms = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        for k in range(len(times)):
+            stamp = _stamp(store, times[k])
+            message = _odometry(
+                store, stamp, frame, child_frame, poses[k], covariances[k], twists[k]
+            )
+            _write(writer, store, odometry, stamp, message)
+            if tf:
+                message = _transform(store, stamp, frame, child_frame, poses[k])
+                _write(writer, store, transforms, stamp, message)
+    return Path(path)
+
+
+@contextmanager
+def _bag(path: str | Path, format: BagFormat | None) -> Iterator[tuple]:
+    """A ``rosbags`` writer and type store for a bag at ``path``, written whole or not at all
+    (``format``: ``"mcap"``, one file; ``"ros2"``, a bag folder; None: by the suffix)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -53,7 +78,6 @@ def write_odometry(
     format = format or ("mcap" if path.suffix == ".mcap" else "ros2")
     if format not in BAG_FORMATS:
         raise ValueError(f"format must be one of {', '.join(BAG_FORMATS)}, got {format!r}")
-    times, poses, covariances, twists = _checked(times, poses, covariances, twists)
     if not path.parent.is_dir():
         raise TableError(f"cannot write {path}: the folder {path.parent} does not exist")
     if format == "ros2" and path.exists():
@@ -64,29 +88,150 @@ def write_odometry(
     try:
         bag = scratch / path.stem
         with Writer(bag, version=8, storage_plugin=plugin) as writer:
-            odometry = writer.add_connection(topic, "nav_msgs/msg/Odometry", typestore=store)
-            transforms = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
-            for k in range(len(times)):
-                stamp = _stamp(store, times[k])
-                nanoseconds = stamp.sec * 1_000_000_000 + stamp.nanosec
-                message = _odometry(
-                    store, stamp, frame, child_frame, poses[k], covariances[k], twists[k]
-                )
-                writer.write(
-                    odometry, nanoseconds, store.serialize_cdr(message, message.__msgtype__)
-                )
-                if tf:
-                    message = _transform(store, stamp, frame, child_frame, poses[k])
-                    writer.write(
-                        transforms, nanoseconds, store.serialize_cdr(message, message.__msgtype__)
-                    )
+            yield writer, store
         if format == "mcap":
             os.replace(next(bag.glob("*.mcap")), path)
         else:
             os.rename(bag, path)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
-    return path
+
+
+def _write(writer, store, connection, stamp, message) -> None:
+    """One message, recorded at its stamp."""
+    nanoseconds = stamp.sec * 1_000_000_000 + stamp.nanosec
+    writer.write(connection, nanoseconds, store.serialize_cdr(message, message.__msgtype__))
+
+
+@dataclass(frozen=True, eq=False)
+class Stream:
+    """One topic of ``write_streams``: ``kind`` is ``"joints"`` (``values`` ``(M, 2)`` wheel
+    angles, rad, as ``sensor_msgs/JointState`` of the joints ``names``), ``"imu"`` (``(M, 3)``
+    angular velocity, rad/s, ``sensor_msgs/Imu``), ``"fix"`` (``(M, 3)`` latitude, longitude
+    (deg), height (m), ``sensor_msgs/NavSatFix``), ``"pose"`` (``(M, 3)`` x, y, theta,
+    ``geometry_msgs/PoseWithCovarianceStamped`` with ``covariance`` ``(3, 3)``) or
+    ``"twist"`` (``(M, 3)`` vx, vy, omega, ``geometry_msgs/Twist``); ``times`` ``(M,)`` s, the
+    stamps (a ``Twist`` has none: its record time); ``recorded`` ``(M,)`` s, when each was
+    recorded (default: its stamp; later for a measurement that arrives late)."""
+
+    kind: Literal["joints", "imu", "fix", "pose", "twist"]
+    topic: str
+    times: np.ndarray
+    values: np.ndarray
+    frame: str = "base_link"
+    names: tuple[str, str] = ("left_wheel_joint", "right_wheel_joint")
+    covariance: np.ndarray | None = None
+    recorded: np.ndarray | None = None
+
+
+def write_streams(path: str | Path, streams: list[Stream], format: BagFormat | None = None):
+    """Write ``streams`` to one MCAP file or ROS 2 bag (see ``Stream`` and ``write_odometry``'s
+    ``format``); ``diffdrive.io.ros``'s readers read every one back."""
+    for stream in streams:
+        times, values = np.asarray(stream.times, float), np.asarray(stream.values, float)
+        width = 2 if stream.kind == "joints" else 3
+        if times.ndim != 1 or values.shape != (len(times), width):
+            raise ValueError(
+                f"{stream.topic}: times (M,) and values (M, {width}) must match, got "
+                f"{times.shape} and {values.shape}"
+            )
+        if len(times) and (times.min() < 0 or np.any(np.diff(times) <= 0)):
+            raise ValueError(f"{stream.topic}: times must be >= 0 (ROS time) and increase")
+        if stream.kind != "twist" and len(times) and times[0] == 0.0:
+            raise ValueError(
+                f"{stream.topic}: a stamp of 0 s reads as unset in ROS; start the times after "
+                "0 (sensors.write_bag's time_offset)"
+            )
+    with _bag(path, format) as (writer, store):
+        for stream in streams:
+            msgtype, build = _MESSAGES[stream.kind]
+            connection = writer.add_connection(stream.topic, msgtype, typestore=store)
+            times = np.asarray(stream.times, float)
+            recorded = times if stream.recorded is None else np.asarray(stream.recorded, float)
+            rows = zip(times, recorded, np.asarray(stream.values, float), strict=True)
+            for t, at, value in rows:
+                message = build(store, _stamp(store, float(t)), stream, value)
+                _write(writer, store, connection, _stamp(store, float(at)), message)
+    return Path(path)
+
+
+def _header(store, stamp, frame):
+    return store.types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+
+def _joints(store, stamp, stream, value):
+    return store.types["sensor_msgs/msg/JointState"](
+        header=_header(store, stamp, ""),
+        name=list(stream.names),
+        position=np.asarray(value, dtype=float),
+        velocity=np.array([]),
+        effort=np.array([]),
+    )
+
+
+def _imu(store, stamp, stream, value):
+    t = store.types
+    unknown = np.zeros(9)
+    unknown[0] = -1.0  # sensor_msgs/Imu: -1 says "no orientation estimate"
+    return t["sensor_msgs/msg/Imu"](
+        header=_header(store, stamp, stream.frame),
+        orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=unknown,
+        angular_velocity=t["geometry_msgs/msg/Vector3"](
+            x=float(value[0]), y=float(value[1]), z=float(value[2])
+        ),
+        angular_velocity_covariance=np.zeros(9),
+        linear_acceleration=t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+        linear_acceleration_covariance=unknown,
+    )
+
+
+def _fix(store, stamp, stream, value):
+    t = store.types
+    return t["sensor_msgs/msg/NavSatFix"](
+        header=_header(store, stamp, stream.frame),
+        status=t["sensor_msgs/msg/NavSatStatus"](status=0, service=1),
+        latitude=float(value[0]),
+        longitude=float(value[1]),
+        altitude=float(value[2]),
+        position_covariance=np.zeros(9),
+        position_covariance_type=0,
+    )
+
+
+def _pose(store, stamp, stream, value):
+    t = store.types
+    full = np.zeros((6, 6))
+    full[2, 2] = full[3, 3] = full[4, 4] = _UNESTIMATED_VARIANCE
+    if stream.covariance is not None:
+        full[np.ix_(_PLANAR, _PLANAR)] = stream.covariance
+    position = t["geometry_msgs/msg/Point"](x=float(value[0]), y=float(value[1]), z=0.0)
+    return t["geometry_msgs/msg/PoseWithCovarianceStamped"](
+        header=_header(store, stamp, stream.frame),
+        pose=t["geometry_msgs/msg/PoseWithCovariance"](
+            pose=t["geometry_msgs/msg/Pose"](
+                position=position, orientation=_quaternion(store, float(value[2]))
+            ),
+            covariance=full.ravel(),
+        ),
+    )
+
+
+def _twist(store, stamp, stream, value):
+    vector = store.types["geometry_msgs/msg/Vector3"]
+    return store.types["geometry_msgs/msg/Twist"](
+        linear=vector(x=float(value[0]), y=float(value[1]), z=0.0),
+        angular=vector(x=0.0, y=0.0, z=float(value[2])),
+    )
+
+
+_MESSAGES = {
+    "joints": ("sensor_msgs/msg/JointState", _joints),
+    "imu": ("sensor_msgs/msg/Imu", _imu),
+    "fix": ("sensor_msgs/msg/NavSatFix", _fix),
+    "pose": ("geometry_msgs/msg/PoseWithCovarianceStamped", _pose),
+    "twist": ("geometry_msgs/msg/Twist", _twist),
+}
 
 
 def _checked(

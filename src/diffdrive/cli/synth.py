@@ -1,0 +1,197 @@
+"""``diffdrive synth``: what a robot would have logged along a trajectory, as a bag or table."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from diffdrive import sensors
+from diffdrive.cli.options import Command, Parents, example_trajectory, robot_from
+from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS
+from diffdrive.estimation.gyro import rotation_from_rpy
+from diffdrive.io import read_trajectory
+
+
+def run_synth(args: argparse.Namespace) -> int:
+    robot, ticks = robot_from(args)
+    if args.input is None:
+        example = example_trajectory(robot, dt=0.02)
+        times, poses, what = example.times, example.poses, "the built-in example"
+    else:
+        times, poses = read_trajectory(args.input, args.time_unit, args.topic)
+        what = str(args.input)
+    if np.isnan(poses[:, 2]).any():
+        raise ValueError(f"{what}: the trajectory has no heading; sensors need the full pose")
+    encoders = sensors.encoder_readings(
+        robot, times, poses, _encoder_model(args, ticks), seed=args.seed
+    )
+    gyro = sensors.gyro_readings(
+        robot, times, poses, _gyro_model(args), seed=None if args.seed is None else args.seed + 1
+    )
+    commands = sensors.commands_of(robot, times, poses)
+    absolute = _absolute(args, robot, times, poses)
+    format = args.format or _format_of(args.output)
+    if format == "csv":
+        if absolute is not None:
+            raise ValueError("a pose or GPS sensor needs a bag (-o NAME.mcap, or --format ros2)")
+        sensors.write_table(args.output, encoders, gyro=gyro, commands=commands)
+        written = "wheels, gyro_z, commands and truth as a table"
+    else:
+        streams: dict[str, Any] = {"encoders": encoders, "gyro": gyro, "commands": commands}
+        if absolute is not None:
+            streams["absolute"] = absolute
+        origin = tuple(args.gps) if args.gps else None
+        sensors.write_bag(
+            args.output, format=format, origin=origin, time_offset=args.time_offset, **streams
+        )
+        written = "/joint_states, /imu/data, /cmd_vel" + (
+            "" if absolute is None else (", /fix" if args.gps else ", /pose")
+        )
+    if not args.quiet:
+        print(f"synth: {len(times)} samples along {what}: {written} in {args.output} ({format})")
+    return 0
+
+
+def _format_of(path: Path) -> str:
+    suffix = path.suffix.lower()
+    return "csv" if suffix == ".csv" else ("mcap" if suffix == ".mcap" else "ros2")
+
+
+def _encoder_model(args: argparse.Namespace, ticks: float | None) -> sensors.EncoderModel:
+    slips = tuple(
+        sensors.Slip(float(start), float(stop), wheel, float(ratio))
+        for start, stop, wheel, ratio in (args.slip or [])
+    )
+    return sensors.EncoderModel(
+        ticks_per_revolution=ticks,
+        counter_bits=args.counter_bits,
+        signed=not args.unsigned,
+        radius_bias=tuple(args.radius_bias),
+        track_bias=args.track_bias,
+        k_left=args.k_left,
+        k_right=args.k_right,
+        slips=slips,
+        jitter=args.jitter,
+        latency=args.latency,
+        drop=args.drop,
+    )
+
+
+def _gyro_model(args: argparse.Namespace) -> sensors.GyroModel:
+    return sensors.GyroModel(
+        bias=args.gyro_bias,
+        bias_instability=args.gyro_instability,
+        angle_random_walk=args.gyro_arw,
+        rate_random_walk=args.gyro_rrw,
+        scale=args.gyro_scale,
+        mounting=rotation_from_rpy(*(math.radians(a) for a in args.imu_rpy)),
+    )
+
+
+def _absolute(args, robot, times, poses):
+    """A pose sensor's readings (or a GPS's, with --gps), or None without --pose-sigma."""
+    if args.pose_sigma is None and args.gps is None:
+        return None
+    sigma = tuple(args.pose_sigma or (0.0, 0.0, 0.0))
+    model = sensors.AbsoluteModel(
+        sigma=sigma,
+        period=args.pose_period,
+        latency=args.pose_latency,
+        dropout=args.pose_dropout,
+        outlier=args.pose_outlier,
+        position_only=args.gps is not None,
+    )
+    seed = None if args.seed is None else args.seed + 2
+    return sensors.absolute_readings(robot, times, poses, model, seed=seed)
+
+
+EPILOGS = {
+    "synth": """examples:
+  diffdrive synth -o run.mcap                    the built-in path: joints, IMU, commands
+  diffdrive synth path.csv --robot robot.toml --ticks-per-revolution 4096 --counter-bits 16 \\
+      --k-left 1e-5 --k-right 1e-5 --slip 6 6.4 left 0.5 --gyro-arw 2e-3 --seed 1 -o run.mcap
+  diffdrive synth --ticks-per-revolution 4096 -o run.csv    a wheel log odometry reads
+
+Every error source defaults to none (an ideal sensor); --seed makes the run repeatable. ROS
+reads a stamp of 0 as unset: bag times start --time-offset s in (default 1 s for a path that
+starts at 0).""",
+}
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive synth``."""
+    synth = command(
+        "synth",
+        "what a robot would log along a trajectory: encoders, gyro, poses or GPS, commands",
+        [parents.robot],
+        run_synth,
+        EPILOGS["synth"],
+    )
+    synth.add_argument("input", nargs="?", type=Path, help="trajectory (CSV, JSON lines, TUM, bag)")
+    synth.add_argument("--topic", metavar="TOPIC", help="for a bag: the trajectory's topic")
+    synth.add_argument("--time-unit", choices=("s", "ms", "us", "ns"), help="of t (default s)")
+    synth.add_argument("-o", "--output", type=Path, default=Path("synth.mcap"))
+    synth.add_argument("--format", choices=("mcap", "ros2", "csv"), help="default: by suffix")
+    synth.add_argument("--seed", type=int, help="the random numbers' seed (default: fresh)")
+    synth.add_argument("--time-offset", type=float, help="s added to a bag's times")
+    synth.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    encoder = synth.add_argument_group("encoders")
+    encoder.add_argument(
+        "--counter-bits",
+        type=int,
+        metavar="B",
+        help=f"counter width, {MIN_COUNTER_BITS}-{MAX_COUNTER_BITS} (default: no roll-over)",
+    )
+    encoder.add_argument("--unsigned", action="store_true", help="an unsigned counter")
+    encoder.add_argument(
+        "--radius-bias",
+        type=float,
+        nargs=2,
+        default=(0.0, 0.0),
+        metavar=("LEFT", "RIGHT"),
+        help="relative radius errors",
+    )
+    encoder.add_argument("--track-bias", type=float, default=0.0, help="relative track error")
+    encoder.add_argument("--k-left", type=float, default=0.0, help="wheel noise, m (Odometry's)")
+    encoder.add_argument("--k-right", type=float, default=0.0, help="wheel noise, m")
+    encoder.add_argument(
+        "--slip",
+        nargs=4,
+        action="append",
+        metavar=("START", "STOP", "WHEEL", "RATIO"),
+        help="a slip episode (s, s, left|right|both, ratio); repeat for more",
+    )
+    encoder.add_argument("--jitter", type=float, default=0.0, help="sampling jitter, s")
+    encoder.add_argument("--latency", type=float, default=0.0, help="encoder latency, s")
+    encoder.add_argument("--drop", type=float, default=0.0, help="probability a row is lost")
+    gyro = synth.add_argument_group("gyro (rad/s)")
+    gyro.add_argument("--gyro-bias", type=float, default=0.0)
+    gyro.add_argument("--gyro-instability", type=float, default=0.0, help="bias instability")
+    gyro.add_argument("--gyro-arw", type=float, default=0.0, help="angle random walk")
+    gyro.add_argument("--gyro-rrw", type=float, default=0.0, help="rate random walk")
+    gyro.add_argument("--gyro-scale", type=float, default=0.0, help="relative scale error")
+    gyro.add_argument(
+        "--imu-rpy",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("ROLL", "PITCH", "YAW"),
+        help="IMU mounting, deg",
+    )
+    pose = synth.add_argument_group("a pose sensor (or a GPS) in the bag")
+    pose.add_argument("--pose-sigma", type=float, nargs=3, metavar=("X", "Y", "THETA"))
+    pose.add_argument("--pose-period", type=float, help="s between poses (default: each sample)")
+    pose.add_argument("--pose-latency", type=float, default=0.0, help="s until a pose arrives")
+    pose.add_argument("--pose-dropout", type=float, default=0.0, help="probability one is lost")
+    pose.add_argument("--pose-outlier", type=float, default=0.0, help="probability of an outlier")
+    pose.add_argument(
+        "--gps",
+        type=float,
+        nargs=3,
+        metavar=("LAT", "LON", "HEIGHT"),
+        help="positions as NavSatFix about this origin (deg, deg, m)",
+    )
