@@ -11,6 +11,7 @@ the median of several runs and the ratios.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import platform
 import time
 
@@ -47,15 +48,7 @@ def main() -> None:
         track_bias=0.02,
         slips=slips,
     )
-    noisy = sensors.EncoderModel(
-        ticks_per_revolution=4096,
-        counter_bits=16,
-        radius_bias=(0.01, -0.01),
-        track_bias=0.02,
-        slips=slips,
-        k_left=1e-4,
-        k_right=1e-4,
-    )
+    noisy = dataclasses.replace(plain, k_left=1e-4, k_right=1e-4)
     samples = args.robots * (args.steps + 1) * 2
     rng = np.random.default_rng(0)
 
