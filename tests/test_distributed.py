@@ -77,3 +77,14 @@ def test_map_runs_gives_one_answer_per_item_in_order(client):
     ]
     scaled = distributed.map_runs(functools.partial(np.multiply, 2.0), [1.0, 2.0], client=client)
     assert scaled == [2.0, 4.0]
+
+
+def test_the_same_experiment_twice_on_one_client(client):
+    """The second call lost its scattered plan to the first one's release before."""
+    first, second = (
+        distributed.monte_carlo(ROBOT, WHEELS, DT, 200, seed=3, client=client, k_left=1e-4)
+        for _ in range(2)
+    )
+    np.testing.assert_array_equal(first.final, second.final)
+    with pytest.raises(ValueError, match="tasks must be a whole number from 1"):
+        distributed.monte_carlo(ROBOT, WHEELS, DT, 10, seed=3, client=client, tasks=0)

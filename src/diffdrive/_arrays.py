@@ -39,6 +39,9 @@ def floating(xp: ModuleType, value: object, name: str, like: Any = None) -> Any:
     """
     if like is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
         return xp.asarray(value, dtype=like.dtype, device=device(like))
+    to_array = getattr(value, "to_array", None)
+    if callable(to_array) and not array_api_compat.is_array_api_obj(value):
+        value = to_array()  # a Pose, Twist or WheelVelocities: its numbers, in field order
     array = xp.asarray(value)
     if xp is np and not array.dtype.isnative:  # big-endian data: compiled kernels want native
         array = array.astype(array.dtype.newbyteorder("="))

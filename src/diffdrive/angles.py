@@ -12,7 +12,11 @@ def wrap_angle(angle: float) -> float:
 
     Headings stay unwrapped in poses and trajectories; wrap only to display or compare.
     """
-    if not math.isfinite(angle):
+    try:
+        finite_angle = math.isfinite(angle)
+    except OverflowError:  # an int too large for a float
+        finite_angle = False
+    if not finite_angle:
         raise ValueError(f"angle must be finite to wrap, got {angle!r}")
     wrapped = math.remainder(angle, TAU)
     # remainder() rounds half to even, so -pi (and 3*pi, ...) lands on -pi: move it to +pi.

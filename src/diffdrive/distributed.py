@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from diffdrive._validate import whole
 from diffdrive.model import DiffDrive
 from diffdrive.montecarlo import Moments, MonteCarlo, Plan, checked_result, plan, run_chunks
 
@@ -94,10 +95,14 @@ def monte_carlo(
     ``geometry_sigma``, ``seed``, ``chunk``, ``backend``, ...). Give ``seed`` for results
     that can be repeated."""
     setup = plan(robot, wheel_velocities, dt, robots, **options)
+    if tasks is not None:
+        tasks = whole("tasks", tasks, smallest=1)
     with _client(client) as active:
         count = min(setup.chunks, tasks or _threads(active))
         bounds = np.linspace(0, setup.chunks, count + 1).round().astype(int)
-        shared = active.scatter(setup, broadcast=True)
+        # Not hashed: a second call with the same plan would share the first one's key,
+        # which the first call releases (lost dependencies).
+        shared = active.scatter(setup, broadcast=True, hash=False)
         futures = [
             active.submit(_task, shared, int(a), int(b), pure=False)
             for a, b in itertools.pairwise(bounds)

@@ -90,6 +90,9 @@ def worst(errors: list[RunErrors]) -> RunErrors:
     """The largest of each measure over runs (an experiment's figure in the paper)."""
     if not errors:
         raise ValueError("worst needs the errors of at least one run")
+    for k, error in enumerate(errors):
+        if not isinstance(error, RunErrors):
+            raise TypeError(f"errors[{k}] must be RunErrors (run_errors'), got {error!r}")
     return RunErrors(*np.max([e.to_array() for e in errors], axis=0))
 
 

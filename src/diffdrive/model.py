@@ -30,7 +30,7 @@ from diffdrive._step import wheel_move
 from diffdrive._validate import finite, positive
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
-__all__ = ["DiffDrive", "Robot"]
+__all__ = ["DiffDrive", "Robot", "check_robot"]
 
 
 @dataclass(frozen=True, slots=True, init=False)
@@ -303,3 +303,12 @@ class Robot(Protocol):
     def to_twist(self, wheels: WheelsLike) -> Twist: ...
     def to_wheel_velocities(self, twist: TwistLike) -> WheelVelocities: ...
     def turning_radius(self, wheels: WheelsLike) -> float: ...
+
+
+def check_robot(robot: object, name: str = "robot") -> Robot:
+    """``robot`` if it is a robot model; ``TypeError`` naming ``name`` and what it got if not."""
+    if not isinstance(robot, Robot):
+        raise TypeError(
+            f"{name} must be a robot model (DiffDrive, SkidSteer), got {type(robot).__name__}"
+        )
+    return robot

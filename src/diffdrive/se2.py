@@ -42,7 +42,11 @@ relative_to = Pose.relative_to
 def sinc(u: float) -> float:
     """``sin(u)/u`` (unnormalised), 1 at u = 0, smooth through 0 (``diffdrive._step``'s rule);
     u must be finite."""
-    if not math.isfinite(u):
+    try:
+        finite_u = math.isfinite(u)
+    except OverflowError:  # an int too large for a float
+        finite_u = False
+    if not finite_u:
         raise ValueError(f"sinc needs a finite u, got {u!r}")
     return _step.sinc(u)
 

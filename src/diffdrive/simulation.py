@@ -315,10 +315,22 @@ def _whole_steps(duration: object, dt: object) -> int:
     step = floating(np, dt, "dt")
     if not (np.isfinite(total) and np.isfinite(step) and total > 0 and step > 0):
         raise ValueError(f"duration and dt must be finite and > 0, got {duration!r}, {dt!r}")
-    steps = round(float(total / step))
+    ratio = float(total / step)
+    if not ratio <= _MOST_FUNCTION_STEPS:
+        raise ValueError(
+            f"duration {duration!r} s in steps of dt {dt!r} s is {ratio:.3g} steps, "
+            f"{ratio * 56 / 2**30:.3g} GiB of poses and wheel velocities: more than "
+            f"{_MOST_FUNCTION_STEPS:.0e} steps; use a longer dt or a shorter duration"
+        )
+    steps = round(ratio)
     if steps < 1 or abs(steps * float(step) - float(total)) > 1e-9 * float(total):
         raise ValueError(f"duration {duration!r} is not a whole number of steps of dt {dt!r}")
     return steps
+
+
+# A wheel-velocity function's history is made whole in memory: past this many steps
+# (5.6 GB of poses and wheel velocities) it would not fit.
+_MOST_FUNCTION_STEPS = 1e8
 
 
 def _check_history_shape(name: str, array: np.ndarray, length: str) -> None:
@@ -428,6 +440,8 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
         start = batch.compose(start, np.array([0.0, offset, 0.0]))
     leading, samples = poses.shape[:-2], poses.shape[-2]
     robots = math.prod(leading)
+    if robots == 0:  # no robot: nothing to integrate
+        return
 
     def rows(array: np.ndarray, items: int) -> np.ndarray:
         tail = array.shape[array.ndim - items :]

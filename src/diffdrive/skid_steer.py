@@ -25,8 +25,11 @@ it and move the poses back to the body origin, exactly (a rigid offset).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
+
+import numpy as np
 
 from diffdrive._validate import finite, positive
 from diffdrive.model import DiffDrive, path_radius, wheel_radii
@@ -72,9 +75,14 @@ class SkidSteer:
         left, right = finite("icr_left", icr_left), finite("icr_right", icr_right)
         if not left > right:
             raise ValueError(f"icr_left must lie left of icr_right, got {left} and {right}")
+        if not math.isfinite(left - right):
+            raise ValueError(
+                f"icr_left - icr_right (the ICR spread, the effective track) overflows: "
+                f"{left} and {right}"
+            )
         if (
             isinstance(wheels_per_side, bool)
-            or not isinstance(wheels_per_side, int)
+            or not isinstance(wheels_per_side, int | np.integer)
             or (wheels_per_side < 1)
         ):
             raise ValueError(
@@ -85,7 +93,7 @@ class SkidSteer:
         object.__setattr__(self, "icr_left", left)
         object.__setattr__(self, "icr_right", right)
         object.__setattr__(self, "icr_x", finite("icr_x", icr_x))
-        object.__setattr__(self, "wheels_per_side", wheels_per_side)
+        object.__setattr__(self, "wheels_per_side", int(wheels_per_side))
 
     @classmethod
     def from_effective_track(

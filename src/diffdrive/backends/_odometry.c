@@ -220,6 +220,13 @@ static int check_update(const Core *c, const char *name, double dl, double dr, i
                      "moved: no velocity", name, num(t).text);
         return -1;
     }
+    if (dt > 0.0 && !isfinite(fmax(fabs(dl), fabs(dr)) / dt)) {
+        double worst = fabs(dl) > fabs(dr) ? dl : dr;
+        PyErr_Format(PyExc_ValueError, "%s: a wheel turned %s rad in %s s, a speed past the "
+                     "largest float: a glitch, or a time stamp in the wrong unit", name,
+                     num(worst).text, num(dt).text);
+        return -1;
+    }
     if (dt > 0.0 && fmax(fabs(dl), fabs(dr)) > c->max_wheel_speed * dt) {
         double worst = fabs(dl) > fabs(dr) ? dl : dr;
         PyErr_Format(PyExc_ValueError, "%s: a wheel turned %s rad in %s s, %s rad/s, over "

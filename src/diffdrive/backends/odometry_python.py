@@ -165,6 +165,12 @@ class OdometryCore:
             raise ValueError(
                 f"{name}: time stands still at t = {t!r} s while the wheels moved: no velocity"
             )
+        if dt > 0.0 and not math.isfinite(max(abs(dl), abs(dr)) / dt):
+            worst = dl if abs(dl) > abs(dr) else dr
+            raise ValueError(
+                f"{name}: a wheel turned {worst!r} rad in {dt!r} s, a speed past the largest "
+                "float: a glitch, or a time stamp in the wrong unit"
+            )
         if dt > 0.0 and max(abs(dl), abs(dr)) > self._max_wheel_speed * dt:
             worst = dl if abs(dl) > abs(dr) else dr
             raise ValueError(

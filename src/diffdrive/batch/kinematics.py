@@ -13,7 +13,7 @@ from typing import Any
 from diffdrive._arrays import components, device, finite_positive_dt, leading_shape, namespace
 from diffdrive._step import wheel_move
 from diffdrive.batch.se2 import TWIST
-from diffdrive.model import Robot
+from diffdrive.model import Robot, check_robot
 
 __all__ = [
     "advance_wheel_positions",
@@ -36,7 +36,7 @@ def _wheels(xp: Any, value: object, name: str = "wheels") -> Any:
 def geometry_of(robot: Robot) -> tuple[float, float, float, float]:
     """``(left_wheel_radius, right_wheel_radius, track_width, axle_offset)`` of the robot's
     equivalent drive: the row ``wheel_map`` and the kernels take."""
-    drive = robot.equivalent
+    drive = check_robot(robot).equivalent
     return (drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width, drive.axle_offset)
 
 
@@ -74,7 +74,7 @@ def to_wheel_velocities(robot: Robot, twists: object) -> Any:
     """Wheel velocities ``(..., 2)`` that drive ``twists`` ``(..., 3)``; ``vy`` is not used."""
     xp = namespace(twists)
     v = components(xp, twists, "twists", TWIST)
-    drive, shift = robot.equivalent, robot.reference_offset
+    drive, shift = check_robot(robot).equivalent, robot.reference_offset
     forward = v[..., 0] - shift * v[..., 2] if shift else v[..., 0]  # at the reference point
     half_turn = 0.5 * drive.track_width * v[..., 2]
     return xp.stack(
@@ -105,7 +105,7 @@ def instantaneous_center(robot: Robot, wheels: object) -> Any:
     drive's axle line (``x = -axle_offset``; a ``SkidSteer``'s ``icr_x``)."""
     xp = namespace(wheels)
     radius = turning_radius(robot, wheels)
-    x = -robot.equivalent.axle_offset
+    x = -check_robot(robot).equivalent.axle_offset
     return xp.stack([xp.full_like(radius, x), radius], axis=-1)
 
 

@@ -53,7 +53,7 @@ from diffdrive._progress import progress_bar
 from diffdrive._validate import whole
 from diffdrive.integrate import Method, check_method
 from diffdrive.io.run import Run
-from diffdrive.model import Robot
+from diffdrive.model import Robot, check_robot
 from diffdrive.simulation import dead_reckon, integrate_increments
 
 __all__ = [
@@ -261,6 +261,7 @@ def calibrate(
     from the track width); ``CalibrationError`` names what is missing and which runs would
     supply it. Past that, the fit's condition number decides.
     """
+    check_robot(nominal_robot, "nominal_robot")
     check_method(integration)
     options = _options_for(method, options)
     if isinstance(options, Increments):

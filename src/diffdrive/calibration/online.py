@@ -36,6 +36,7 @@ import numpy as np
 from diffdrive import batch
 from diffdrive._validate import finite, positive, whole
 from diffdrive.model import DiffDrive
+from diffdrive.types import Pose
 
 __all__ = ["OnlineCalibrator"]
 
@@ -89,7 +90,7 @@ class OnlineCalibrator:
         ``ValueError`` and changes nothing."""
         left, right = finite("left", left), finite("right", right)
         try:
-            pose = np.asarray(relative_pose, dtype=float)
+            pose = Pose.coerce(relative_pose, "relative_pose").to_array()
         except (TypeError, ValueError, OverflowError):
             pose = np.full(1, np.nan)
         if pose.shape != (3,) or not np.all(np.isfinite(pose)):
@@ -112,11 +113,13 @@ class OnlineCalibrator:
     def _measure(self, left: float, right: float, relative_pose: np.ndarray) -> bool:
         """Gate and apply one measurement; ``ValueError`` (nothing changed) where the gate's
         score or the new estimate would not be finite."""
-        motion = batch.log(relative_pose)
-        rows = (np.array([0.5 * left, 0.5 * right]), np.array([-left, right]))
-        values = (motion[0], motion[2])
-        pairs = list(zip(rows, values, self.estimates, self.covariances, self.noise, strict=True))
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # refused below
+            motion = batch.log(relative_pose)
+            rows = (np.array([0.5 * left, 0.5 * right]), np.array([-left, right]))
+            values = (motion[0], motion[2])
+            pairs = list(
+                zip(rows, values, self.estimates, self.covariances, self.noise, strict=True)
+            )
             scores = [(v - h @ e) ** 2 / (h @ p @ h + n) for h, v, e, p, n in pairs]
             updated = []
             for h, v, e, p, n in pairs:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 from diffdrive.cli.options import (
@@ -23,7 +22,6 @@ from diffdrive.simulation import simulate_run
 def run_simulate(args: argparse.Namespace) -> int:
     robot, ticks = robot_from(args)
     if args.input is None:
-        _check_step_count(args.dt)
         trajectory = example_trajectory(robot, args.dt, args.method)
         write_output(
             args,
@@ -39,19 +37,6 @@ def run_simulate(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(note)
     return 0
-
-
-def _check_step_count(dt: float) -> None:
-    """Refuse a step for the built-in history that is not a number of steps memory can hold."""
-    if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"--dt must be finite and > 0, got {dt}")
-    steps = EXAMPLE_DURATION / dt
-    if steps > 1e8:
-        raise ValueError(
-            f"--dt {dt:g} s makes {steps:.3g} steps of the {EXAMPLE_DURATION:g} s history, "
-            f"{steps * 56 / 2**30:.3g} GiB of poses and wheel velocities; use a step of "
-            f"{EXAMPLE_DURATION / 1e8:g} s or more"
-        )
 
 
 EPILOGS = {

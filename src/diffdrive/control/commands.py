@@ -17,7 +17,7 @@ from diffdrive._arrays import components
 from diffdrive._step import wheel_move
 from diffdrive._validate import positive
 from diffdrive.batch.kinematics import WHEELS
-from diffdrive.model import Robot
+from diffdrive.model import Robot, check_robot
 from diffdrive.types import WheelVelocities
 
 __all__ = ["KEEP", "Keep", "desaturate"]
@@ -42,6 +42,8 @@ def desaturate(
         raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
     if keep != "curvature" and robot is None:
         raise ValueError(f"keep={keep!r} needs the robot, to convert between wheels and twist")
+    if robot is not None:
+        check_robot(robot)
     if isinstance(wheels, WheelVelocities):
         return WheelVelocities(*_desaturate(wheels.to_array(), limit, keep, robot).tolist())
     w = components(np, wheels, "wheels", WHEELS)

@@ -48,7 +48,7 @@ import numpy as np
 from diffdrive._step import Method, check_method, method_flags, move_jacobians, wheel_move
 from diffdrive._validate import finite, positive
 from diffdrive.estimation.odometry import offset_jacobian
-from diffdrive.model import Robot
+from diffdrive.model import Robot, check_robot
 from diffdrive.types import Pose, WheelVelocities
 
 __all__ = [
@@ -112,6 +112,7 @@ class Gyro:
     yaw: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
+        gap = math.inf if self.max_gap == math.inf else positive("max_gap", self.max_gap)
         times = np.asarray(self.times, dtype=float)
         rates = np.asarray(self.rates, dtype=float)
         if times.ndim != 1 or rates.shape != times.shape or len(times) < 2:
@@ -127,8 +128,8 @@ class Gyro:
             raise ValueError(f"gyro times must increase: {times[k]:g} after {times[k - 1]:g}")
         if not np.all(np.isfinite(rates)):
             raise ValueError("gyro times and rates must be finite")
-        if np.any(steps > self.max_gap):
-            k = int(np.argmax(steps > self.max_gap))
+        if np.any(steps > gap):
+            k = int(np.argmax(steps > gap))
             raise ValueError(
                 f"the gyro stream stops for {steps[k]:.3g} s after t = "
                 f"{times[k]:g} s (max_gap {self.max_gap:g} s)"
@@ -140,6 +141,7 @@ class Gyro:
             object.__setattr__(self, "yaw", yaw)
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "rates", rates)
+        object.__setattr__(self, "max_gap", gap)
 
     @classmethod
     def from_imu(cls, times, angular_velocity, mounting=None, max_gap: float = math.inf) -> Gyro:
@@ -177,6 +179,8 @@ class Gyro:
         """The angle turned (rad) from ``times[0]`` to each time ``at`` ``(N,)``, the rate linear
         between samples; every time must lie within the gyro's span."""
         at = np.asarray(at, dtype=float)
+        if at.size == 0:
+            return np.zeros(at.shape)
         if at.min() < self.times[0] or at.max() > self.times[-1]:
             raise ValueError(
                 f"the wheel log spans [{at.min():g}, {at.max():g}] s, the gyro only "
@@ -219,10 +223,9 @@ class GyroOdometry:
         command_sigma: float = 1.0,
         method: Method = "exact",
     ) -> None:
-        if not isinstance(robot, Robot):
-            raise TypeError(
-                f"robot must be a robot model (DiffDrive, SkidSteer), got {type(robot).__name__}"
-            )
+        check_robot(robot)
+        if noise is not None and not isinstance(noise, GyroNoise):
+            raise TypeError(f"noise must be a GyroNoise, got {type(noise).__name__}")
         if heading not in HEADINGS:
             raise ValueError(f"heading must be one of {', '.join(HEADINGS)}, got {heading!r}")
         for name, value in (("k_left", k_left), ("k_right", k_right)):
@@ -386,6 +389,10 @@ def gyro_odometry(
     wheel velocities commanded over each interval. ``options`` go to ``GyroOdometry``."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
+    if times.ndim != 1:
+        raise ValueError(f"times must be (N,) s, got shape {times.shape}")
+    if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
+        raise ValueError("times must be finite and increase strictly")
     if increments.shape != (len(times) - 1, 2) or len(times) < 2:
         raise ValueError(
             f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"

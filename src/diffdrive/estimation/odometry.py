@@ -40,7 +40,7 @@ from diffdrive._validate import finite, positive
 from diffdrive.backends import odometry_python
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
-from diffdrive.model import Robot
+from diffdrive.model import Robot, check_robot
 from diffdrive.types import Pose, Twist, WheelVelocities
 
 if TYPE_CHECKING:
@@ -119,10 +119,7 @@ class _OdometryMethods(_Base):
         initial_covariance: object = None,
         velocity_window: float = 0.1,
     ) -> None:
-        if not isinstance(robot, Robot):
-            raise TypeError(
-                f"robot must be a robot model (DiffDrive, SkidSteer), got {type(robot).__name__}"
-            )
+        check_robot(robot)
         check_method(method)
         counter_bits = check_counter_bits(counter_bits)
         rad_per_tick = 0.0

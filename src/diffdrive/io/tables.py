@@ -76,7 +76,7 @@ def text_lines(path: str | Path) -> Iterator[tuple[int, str]]:
         raise TableError(f"{path}: cannot read: {exc.strerror}") from None
     decoder = codecs.getincrementaldecoder("utf-8")()
     with handle:
-        for number, raw in enumerate(handle, start=1):
+        for number, raw in enumerate(_physical_lines(handle), start=1):
             if number == 1 and raw.startswith(codecs.BOM_UTF8):
                 raw = raw[len(codecs.BOM_UTF8) :]
             try:
@@ -90,6 +90,15 @@ def text_lines(path: str | Path) -> Iterator[tuple[int, str]]:
             if "\0" in text:
                 raise TableError(f"{path}:{number}: a NUL byte: this is not a text file")
             yield number, text.rstrip("\r\n")
+
+
+def _physical_lines(handle) -> Iterator[bytes]:
+    """The lines of a binary file ended by LF, CR LF or a lone CR (old Macs, some loggers)."""
+    for raw in handle:
+        pieces = raw.split(b"\r")
+        if len(pieces) > 1 and pieces[-1] in (b"\n", b""):
+            pieces.pop()  # CR LF, or a CR that ends the file
+        yield from pieces
 
 
 def is_number(text: str) -> bool:

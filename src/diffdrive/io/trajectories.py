@@ -210,7 +210,21 @@ def write_trajectory(
     poses = np.asarray(poses, dtype=float)
     if poses.ndim not in (2, 3) or poses.shape[-1] != 3:
         raise ValueError(f"poses must have shape (T+1, 3) or (N, T+1, 3), got {poses.shape}")
-    times = np.broadcast_to(np.asarray(times, dtype=float), poses.shape[:-1])
+    given_times = np.asarray(times, dtype=float)
+    try:
+        times = np.broadcast_to(given_times, poses.shape[:-1])
+    except ValueError:
+        raise ValueError(
+            f"times must broadcast to {poses.shape[:-1]} for poses "
+            f"{poses.shape}, got {given_times.shape}"
+        ) from None
+    # What is written must read back: read_trajectory refuses these, so refuse them here.
+    if not np.all(np.isfinite(times)):
+        raise ValueError("times must be finite")
+    if np.any(np.diff(times, axis=-1) <= 0):
+        raise ValueError("times must increase strictly (read_trajectory refuses them otherwise)")
+    if Path(path).is_dir():
+        raise TableError(f"cannot write {path}: it is a folder")
     extra = {name: np.asarray(values, dtype=float) for name, values in (columns or {}).items()}
     for name, given in extra.items():
         if given.shape != poses.shape[:-1]:

@@ -192,6 +192,10 @@ def read_joint_states(
     default is position when the messages have it.
     """
     path = Path(path)
+    if field not in (None, "position", "velocity"):
+        raise ValueError(f"field must be 'position', 'velocity' or None, got {field!r}")
+    if left_joint == right_joint:
+        raise ValueError(f"the left and right wheels are one joint, {left_joint!r}: name both")
     chosen = [field]
 
     def wheels(message):
