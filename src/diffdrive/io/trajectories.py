@@ -240,24 +240,25 @@ def write_trajectory(
     arrays = [times, poses[..., 0], poses[..., 1], poses[..., 2], *extra.values()]
     if robots:
         arrays.insert(0, np.broadcast_to(np.arange(robots)[:, None], times.shape))
-    cells: list[list] = [np.reshape(column, -1).tolist() for column in arrays]
-    if robots:
-        cells[0] = [int(k) for k in cells[0]]
+    columns_flat = [np.ascontiguousarray(column).reshape(-1) for column in arrays]
+    # A block of rows at a time: the text of a whole log would take ten times its numbers.
     with atomic_write(path) as stream:
         if format == "csv":
             stream.write(",".join(names) + "\n")
-            text = [_float_texts(column) for column in cells]
-            for start in range(0, len(text[0]), _ROWS_PER_WRITE):
-                chunk = [column[start : start + _ROWS_PER_WRITE] for column in text]
-                stream.write("\n".join(map(",".join, zip(*chunk, strict=True))) + "\n")
-        else:
-            stream.writelines(
-                json.dumps(_record(names, list(row))) + "\n" for row in zip(*cells, strict=True)
-            )
+        for start in range(0, len(columns_flat[0]), _ROWS_PER_WRITE):
+            block = [column[start : start + _ROWS_PER_WRITE] for column in columns_flat]
+            if robots:
+                block[0] = block[0].astype(np.int64)
+            if format == "csv":
+                text = [_float_texts(column) for column in block]
+                stream.write("\n".join(map(",".join, zip(*text, strict=True))) + "\n")
+            else:
+                rows = zip(*(column.tolist() for column in block), strict=True)
+                stream.writelines(json.dumps(_record(names, list(row))) + "\n" for row in rows)
     return [Path(path)]
 
 
-def _float_texts(values: list) -> list[str]:
+def _float_texts(values: np.ndarray) -> list[str]:
     """Each value as the shortest text that reads back to the same float (ints as ints).
 
     orjson, where installed (``pip install 'diffdrive[fast]'``), writes them about twice as
@@ -272,7 +273,7 @@ def _float_texts(values: list) -> list[str]:
         else:
             text = orjson.dumps(array, option=orjson.OPT_SERIALIZE_NUMPY)
             return text[1:-1].decode("ascii").split(",")
-    return list(map(repr, values))
+    return list(map(repr, array.tolist()))
 
 
 def _record(names: list[str], row: list) -> dict:
