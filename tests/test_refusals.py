@@ -44,6 +44,21 @@ QUIET = Gyro([0.0, 3.0], [0.0, 0.0])
             ValueError,
             "icr_left - icr_right .* overflows",  # later errors named track_width before
         ),
+        (
+            lambda: GyroOdometry(ROBOT, noise=dd.estimation.GyroNoise(angle_random_walk=1e200)),
+            ValueError,
+            "angle_random_walk 1e\\+200 squares past the largest float",  # an OverflowError
+        ),
+        (
+            lambda: GyroOdometry(ROBOT, command_sigma=1e-200),
+            ValueError,
+            "command_sigma 1e-200 squares to 0",
+        ),
+        (
+            lambda: dd.simulate(ROBOT, lambda t: np.ones((len(t), 2)), dt=1e-320, duration=1.0),
+            ValueError,
+            "is inf steps",
+        ),
         (lambda: dd.batch.to_twist("robot", [1.0, 2.0]), TypeError, "robot must be a robot"),
         (
             lambda: dd.batch.to_wheel_velocities(None, [1.0, 0.0, 2.0]),
@@ -166,3 +181,10 @@ def test_writing_a_long_trajectory_takes_memory_by_the_block_not_by_the_log(tmp_
             tracemalloc.stop()
 
     assert peak(400_000) < 1.5 * peak(140_000)  # three times the rows: was three times the peak
+
+
+def test_a_robot_file_with_a_number_of_hundreds_of_digits_is_named(tmp_path):
+    robot = tmp_path / "robot.toml"
+    robot.write_text("wheel_radius = 0.05\ntrack_width = 1" + "0" * 400 + "\n")
+    with pytest.raises(dd.io.TableError, match="track_width must be finite, got a number of 401"):
+        dd.io.read_robot(robot)

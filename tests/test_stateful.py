@@ -1,6 +1,6 @@
 """Stateful property tests: random sequences of calls on Odometry, Limiter,
-OpenLoopOdometry and OnlineCalibrator, each checked against a twin that sees only the calls
-that were accepted.
+OpenLoopOdometry, OnlineCalibrator and GyroOdometry, each checked against a twin that sees
+only the calls that were accepted.
 
 A refused call must raise ValueError or TypeError and leave the object exactly as its twin;
 an accepted one must leave a finite state that every reading returns. The values drawn reach
@@ -16,6 +16,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 import diffdrive as dd
 from diffdrive.calibration import OnlineCalibrator
+from diffdrive.estimation.gyro import GyroOdometry
 
 ROBOT = dd.DiffDrive(
     left_wheel_radius=0.05, right_wheel_radius=0.051, track_width=0.3, axle_offset=0.02
@@ -183,7 +184,33 @@ class OnlineCalibratorMachine(RuleBasedStateMachine):
         assert np.all(np.isfinite(self.online.covariance))
 
 
+class GyroOdometryMachine(RuleBasedStateMachine):
+    """The gyro filter, fused and with the gyro's heading, on any update: refused ones leave
+    it as its twin; accepted ones leave a finite pose, bias and covariance."""
+
+    def __init__(self):
+        super().__init__()
+        self.filters = [GyroOdometry(ROBOT, heading) for heading in ("fused", "gyro")]
+        self.twins = [GyroOdometry(ROBOT, heading) for heading in ("fused", "gyro")]
+
+    @rule(left=numbers, right=numbers, angle=numbers, dt=steps)
+    def update(self, left, right, angle, dt):
+        for ours, twin in zip(self.filters, self.twins, strict=True):
+            if attempt(lambda o=ours: o.update(left, right, angle, dt)):
+                twin.update(left, right, angle, dt)
+            assert same(
+                (*ours.state, *ours.covariance4.ravel()), (*twin.state, *twin.covariance4.ravel())
+            )
+
+    @invariant()
+    def finite(self):
+        for ours in self.filters:
+            assert np.all(np.isfinite(ours.state))
+            assert np.all(np.isfinite(ours.covariance))
+
+
 TestOdometryMachine = SETTINGS(OdometryMachine).TestCase
 TestLimiterMachine = SETTINGS(LimiterMachine).TestCase
 TestOpenLoopMachine = SETTINGS(OpenLoopMachine).TestCase
 TestOnlineCalibratorMachine = SETTINGS(OnlineCalibratorMachine).TestCase
+TestGyroOdometryMachine = SETTINGS(GyroOdometryMachine).TestCase

@@ -315,7 +315,8 @@ def _whole_steps(duration: object, dt: object) -> int:
     step = floating(np, dt, "dt")
     if not (np.isfinite(total) and np.isfinite(step) and total > 0 and step > 0):
         raise ValueError(f"duration and dt must be finite and > 0, got {duration!r}, {dt!r}")
-    ratio = float(total / step)
+    with np.errstate(over="ignore"):  # refused below
+        ratio = float(total / step)
     if not ratio <= _MOST_FUNCTION_STEPS:
         raise ValueError(
             f"duration {duration!r} s in steps of dt {dt!r} s is {ratio:.3g} steps, "

@@ -81,8 +81,11 @@ class GyroNoise:
 
     def __post_init__(self) -> None:
         for name in ("angle_random_walk", "rate_random_walk", "initial_bias_sigma"):
-            if not finite(name, getattr(self, name)) >= 0.0:
+            value = finite(name, getattr(self, name))
+            if not value >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+            if not math.isfinite(value * value):  # the filter works with its square
+                raise ValueError(f"{name} {value!r} squares past the largest float")
 
 
 def rotation_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -237,6 +240,8 @@ class GyroOdometry:
         self.slip_threshold = positive("slip_threshold", slip_threshold)
         self.slip_inflation = positive("slip_inflation", slip_inflation)
         self.command_sigma = positive("command_sigma", command_sigma)
+        if not 0.0 < self.command_sigma * self.command_sigma < math.inf:
+            raise ValueError(f"command_sigma {command_sigma!r} squares to 0 or past the floats")
         pose = Pose() if initial_pose is None else Pose.coerce(initial_pose, "initial_pose")
         self._offset = robot.reference_offset
         pose = pose.compose(Pose(0.0, self._offset))  # to the equivalent drive's point
@@ -282,7 +287,10 @@ class GyroOdometry:
         if commanded is not None:
             wanted = WheelVelocities.coerce(commanded, "commanded")
             measured = (float(left) / dt - wanted.left, float(right) / dt - wanted.right)
-            command_score = (measured[0] ** 2 + measured[1] ** 2) / self.command_sigma**2
+            sigma = self.command_sigma
+            command_score = (measured[0] * measured[0] + measured[1] * measured[1]) / (
+                sigma * sigma
+            )
         with np.errstate(over="ignore", invalid="ignore"):  # refused below, not warned about
             state, covariance, slip, score = _step(
                 self, left, right, gyro_angle, dt, command_score > COMMAND_THRESHOLD
@@ -319,15 +327,17 @@ def _step(o: GyroOdometry, left: float, right: float, gyro_angle: float, dt: flo
     r_l, r_r, track = drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width
     forward, _, wheel_turn = wheel_move(r_l, r_r, track, drive.axle_offset, left, right)
     spread = k_l * abs(r_l * left) + k_r * abs(r_r * right)
-    forward_var, wheel_turn_var = spread / 4.0, spread / track**2 + 1e-18
-    gyro_var = noise.angle_random_walk**2 * dt
+    # Products, not powers: a float's power raises where the product overflows to inf,
+    # which the update then refuses with the state unchanged.
+    forward_var, wheel_turn_var = spread / 4.0, spread / (track * track) + 1e-18
+    gyro_var = noise.angle_random_walk * noise.angle_random_walk * dt
     gyro_turn = gyro_angle - o.state[3] * dt
     turn = wheel_turn if o.heading == "wheels" else gyro_turn
     turn_var = wheel_turn_var if o.heading == "wheels" else gyro_var
     moved, by_state, by_input = _jacobians(drive.axle_offset, o.state, forward, turn, dt, o.method)
     if o.heading == "wheels":
         by_state[:3, 3] = 0.0  # the bias plays no part in this heading
-    bias_var = noise.rate_random_walk**2 * dt if o.heading == "fused" else 0.0
+    bias_var = noise.rate_random_walk * noise.rate_random_walk * dt if o.heading == "fused" else 0.0
     previous = o.covariance4
     # The clone of the heading at the interval's start rides along as a fifth state.
     lift = np.vstack([by_state, [0.0, 0.0, 1.0, 0.0]])
@@ -336,8 +346,8 @@ def _step(o: GyroOdometry, left: float, right: float, gyro_angle: float, dt: flo
     covariance[3, 3] += bias_var
     # Slip: the wheels' heading change against the gyro's, chi-square with one dof.
     innovation = wheel_turn - gyro_turn
-    gyro_side = gyro_var + dt**2 * previous[3, 3]
-    score = innovation**2 / (wheel_turn_var + gyro_side)
+    gyro_side = gyro_var + dt * dt * previous[3, 3]
+    score = innovation * innovation / (wheel_turn_var + gyro_side)
     slip = bool(score > o.slip_threshold) or forced
     state = moved
     if o.heading == "fused" and not slip:

@@ -61,8 +61,15 @@ def read_robot(path: str | Path) -> dict[str, float]:
     for key, value in settings.items():
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise TableError(f"{path}: {key} must be a number, got {value!r}")
-        if not math.isfinite(float(value)):
-            raise TableError(f"{path}: {key} must be finite, got {value!r}")
+        try:
+            number = float(value)
+        except OverflowError:  # an integer of hundreds of digits
+            number = math.inf
+        if not math.isfinite(number):
+            shown = (
+                f"{value!r}" if len(repr(value)) < 40 else f"a number of {len(repr(value))} digits"
+            )
+            raise TableError(f"{path}: {key} must be finite, got {shown}")
     return {key: float(value) for key, value in settings.items()}
 
 
