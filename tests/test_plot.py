@@ -64,3 +64,26 @@ def test_a_trajectory_prints_as_a_short_summary():
     many = dd.simulate(ROBOT, np.ones((4, 3, 10, 2)), dt=0.1)
     assert "4x3 robots, 10 steps" in repr(many)
     assert "<(4, 3, 3) array>" in repr(many)
+
+
+def test_the_plot_says_which_robot_it_assumed_for_the_wheels(tmp_path, monkeypatch):
+    """The wheel-velocity panel of a file's path was drawn with the built-in robot, silently,
+    when no robot was given (the TurtleBot and Husky panels were wrong)."""
+    import diffdrive.plot as plotting
+    from diffdrive.cli import main
+
+    made = []
+    original = plotting._figure
+
+    def recorded(**options):
+        made.append(original(**options))
+        return made[-1]
+
+    monkeypatch.setattr(plotting, "_figure", recorded)
+    path = tmp_path / "path.csv"
+    assert main(["simulate", "-o", str(path), "-q"]) == 0
+    assert main(["plot", str(path), "-o", str(tmp_path / "a.png"), "-q"]) == 0
+    assert "assumed: give --robot" in made[-1].axes[2].get_title()
+    argv = ["plot", str(path), "--wheel-radius", "0.042", "--track-width", "0.2"]
+    assert main([*argv, "-o", str(tmp_path / "b.png"), "-q"]) == 0
+    assert made[-1].axes[2].get_title() == ""

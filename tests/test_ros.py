@@ -419,3 +419,22 @@ def test_a_tf_chain_and_velocity_joint_states(tmp_path):
     log = ros.read_joint_states(path, "l", "r", "/js")
     assert log.kind == "velocity"
     assert log.wheels.tolist() == [[1.0, 2.0], [2.0, 4.0], [3.0, 6.0]]
+
+
+def test_bag_errors_come_in_the_order_a_user_needs_them(capsys):
+    """A bag without the JointState topic says so before asking for joint names; without
+    names, the joints there are are listed; info shows them and how to ask for a tf chain."""
+    code = main(["odometry", str(HUSKY), "-o", "x.csv"])
+    assert code == 1
+    assert "no topic '/joint_states' (the bag has: /fix" in capsys.readouterr().err
+    assert main(["odometry", str(TB3), "-o", "x.csv"]) == 1
+    err = capsys.readouterr().err
+    assert "--left-joint NAME --right-joint NAME (the joints on /joint_states: " in err
+    assert "wheel_right_joint, wheel_left_joint)" in err
+    assert main(["info", str(TB3)]) == 0
+    out = capsys.readouterr().out
+    assert "(joints: wheel_right_joint, wheel_left_joint)" in out
+    assert "--tf PARENT CHILD" not in out
+    from diffdrive.io.ros.reader import USES
+
+    assert USES["tf2_msgs/msg/TFMessage"].endswith("--topic tf:PARENT:CHILD")

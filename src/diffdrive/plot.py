@@ -68,8 +68,12 @@ def plot_trajectory(
     output: str | Path,
     truth: tuple[np.ndarray, np.ndarray] | None = None,
     robots_drawn: int = 6,
+    assumed: str | None = None,
 ) -> None:
     """Draw path, heading and wheel velocities to ``output`` (PNG or SVG, by its suffix).
+
+    The wheel velocities are the ``robot``'s along the path; ``assumed`` says on the figure
+    which robot that was when the user did not give one.
 
     The path has equal axes, start and end marked, the robot drawn at ``robots_drawn`` poses
     with its centre of curvature (+) where that is near. ``truth`` is ``(times, poses)`` of a
@@ -104,6 +108,8 @@ def plot_trajectory(
     wheels_ax.step(times[:-1], wheels[:, 0], where="post", label="left")
     wheels_ax.step(times[:-1], wheels[:, 1], where="post", label="right")
     wheels_ax.set(xlabel="t, s", ylabel="wheel velocity, rad/s")
+    if assumed is not None:
+        wheels_ax.set_title(f"wheels of {assumed}", fontsize="small")
     wheels_ax.legend(loc="best")
     for ax in (path, heading, wheels_ax):
         ax.grid(True, alpha=0.3)

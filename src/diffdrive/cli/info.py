@@ -18,7 +18,10 @@ def run_info(args: argparse.Namespace) -> int:
     print(f"{args.input}: {len(found)} topics")
     print(f"{'topic':32} {'type':32} {'messages':>8} {'Hz':>7}  use")
     for topic in found:
-        print(f"{topic.name:32} {topic.msgtype:32} {topic.count:8} {topic.rate:7.2f}  {topic.use}")
+        use = topic.use
+        if topic.msgtype == "sensor_msgs/msg/JointState" and topic.count:
+            use += f" (joints: {', '.join(ros.joint_names(args.input, topic.name))})"
+        print(f"{topic.name:32} {topic.msgtype:32} {topic.count:8} {topic.rate:7.2f}  {use}")
     return 0
 
 

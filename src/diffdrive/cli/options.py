@@ -36,6 +36,7 @@ from diffdrive.model import Robot
 from diffdrive.simulation import simulate
 
 ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
+ASSUMED_ROBOT = "the built-in robot (42 mm wheels, track 0.2 m; assumed: give --robot)"
 
 
 LOG_COLUMNS = """input: a table (CSV, or separated by ; tab or spaces; UTF-8, a BOM is fine)
@@ -120,6 +121,11 @@ def output_options(default: str) -> argparse.ArgumentParser:
     options.add_argument("--method", choices=METHODS, default="exact", help="default: exact")
     options.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     return options
+
+
+def robot_given(args: argparse.Namespace) -> bool:
+    """Whether the command was told of a robot (a file or a flag)."""
+    return args.robot is not None or any(getattr(args, k) is not None for k in ROBOT_KEYS)
 
 
 def robot_from(args: argparse.Namespace) -> tuple[Robot, float | None]:

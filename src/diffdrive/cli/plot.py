@@ -7,11 +7,13 @@ import sys
 from pathlib import Path
 
 from diffdrive.cli.options import (
+    ASSUMED_ROBOT,
     TRAJECTORY_FILES,
     Command,
     Parents,
     at_least,
     robot_from,
+    robot_given,
     trajectory_or_example,
 )
 from diffdrive.io import TableError, atomic_output, read_trajectory
@@ -25,8 +27,10 @@ def run_plot(args: argparse.Namespace) -> int:
     truth = None
     if args.truth is not None:
         truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
+    # A file's path was driven by a robot the command was not told of: say which it assumed.
+    assumed = None if robot_given(args) or args.input is None else ASSUMED_ROBOT
     with atomic_output(args.output) as temporary:
-        plot_trajectory(robot, times, poses, temporary, truth)
+        plot_trajectory(robot, times, poses, temporary, truth, assumed=assumed)
     if not args.quiet:
         print(f"plotted {what} to {args.output}")
     return 0

@@ -20,6 +20,7 @@ __all__ = [
     "OdometryTopic",
     "Topic",
     "Twists",
+    "joint_names",
     "read_imu",
     "read_joint_states",
     "read_navsatfix",
@@ -36,7 +37,7 @@ USES = {
     "sensor_msgs/msg/Imu": "a gyro (angular velocity, orientation)",
     "geometry_msgs/msg/Twist": "commands (v, omega)",
     "geometry_msgs/msg/TwistStamped": "commands (v, omega)",
-    "tf2_msgs/msg/TFMessage": "a trajectory of a frame: --tf PARENT CHILD",
+    "tf2_msgs/msg/TFMessage": "a trajectory of a frame: --topic tf:PARENT:CHILD",
     "sensor_msgs/msg/NavSatFix": "reference positions (local east, north): --truth-topic",
     "geometry_msgs/msg/PoseWithCovarianceStamped": "poses (a camera, a localiser): --topic",
 }
@@ -98,6 +99,15 @@ def topics(path: str | Path) -> list[Topic]:
         Topic(name, kind, count, (count - 1) / duration if count > 1 else 0.0, USES.get(kind, ""))
         for (name, kind), count in sorted(found.items())
     ]
+
+
+def joint_names(path: str | Path, topic: str = "/joint_states") -> list[str]:
+    """The joint names of a ``sensor_msgs/JointState`` topic's first message, in its order."""
+    path = Path(path)
+    with _open(path) as reader:
+        for _, message in _messages(reader, path, topic, ("sensor_msgs/msg/JointState",)):
+            return list(message.name)
+    raise BagError(f"{path}: {topic} has no messages")
 
 
 def _messages(reader, path: Path, topic: str, kinds: tuple[str, ...]):
