@@ -421,7 +421,7 @@ def test_a_tf_chain_and_velocity_joint_states(tmp_path):
     assert log.wheels.tolist() == [[1.0, 2.0], [2.0, 4.0], [3.0, 6.0]]
 
 
-def test_bag_errors_come_in_the_order_a_user_needs_them(capsys):
+def test_bag_errors_come_in_the_order_a_user_needs_them(capsys, tmp_path, monkeypatch):
     """A bag without the JointState topic says so before asking for joint names; without
     names, the joints there are are listed; info shows them and how to ask for a tf chain."""
     code = main(["odometry", str(HUSKY), "-o", "x.csv"])
@@ -438,3 +438,19 @@ def test_bag_errors_come_in_the_order_a_user_needs_them(capsys):
     from diffdrive.io.ros.reader import USES
 
     assert USES["tf2_msgs/msg/TFMessage"].endswith("--topic tf:PARENT:CHILD")
+
+
+def test_a_wrong_imu_mounting_is_named_when_the_gyro_and_wheels_disagree_that_often(
+    capsys, tmp_path, monkeypatch
+):
+    """--imu-rpy 90 0 0 on the TurtleBot3 exited 0, 34 m off with half the intervals flagged
+    as slip, and said nothing."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["odometry", str(TB3), "--left-joint", "wheel_left_joint", "--right-joint"]
+    argv += ["wheel_right_joint", "--gyro-topic", "/imu", "-q"]
+    assert main([*argv, "--imu-rpy", "90", "0", "0", "-o", "x.csv"]) == 0
+    err = capsys.readouterr().err
+    assert "% of the intervals flagged as slip" in err
+    assert "A wrong IMU mounting (--imu-rpy)" in err
+    assert main([*argv, "-o", "y.csv"]) == 0  # the right mounting: no such warning
+    assert "flagged as slip" not in capsys.readouterr().err
