@@ -140,3 +140,20 @@ def test_a_topic_of_a_file_and_a_reference_of_a_log_are_refused(tmp_path):
         dd.io.read_trajectory(path, topic="/odom")
     with pytest.raises(TableError, match="a reference topic needs a bag"):
         read_run(path, reference_topic="/odom")
+
+
+def test_evaluate_and_plot_read_an_optiodom_run_file_as_its_ground_truth(tmp_path, capsys):
+    """odometry and calibrate read OptiOdom files; evaluate and plot refused them (no 't')."""
+    from diffdrive.cli import main
+
+    folder = data_folder("optiodom-diffdrive") / "free" / "030120210006"
+    run_file = sorted(folder.glob("*_run-*.csv"))[0]
+    times, poses = dd.io.read_trajectory(run_file)
+    run = dd.io.read_run(run_file)
+    np.testing.assert_array_equal(times, run.times)
+    np.testing.assert_array_equal(poses, run.truth)
+    estimate = tmp_path / "o.csv"
+    assert main(["odometry", str(run_file), "--method", "rk2", "-o", str(estimate), "-q"]) == 0
+    assert main(["evaluate", str(estimate), "--truth", str(run_file), "--json"]) == 0
+    assert '"poses_compared": 2157' in capsys.readouterr().out
+    assert main(["plot", str(run_file), "-o", str(tmp_path / "p.png"), "-q"]) == 0

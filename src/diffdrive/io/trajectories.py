@@ -31,6 +31,7 @@ from diffdrive.io.tables import (
     check_time_unit,
     is_number,
     number_row,
+    read_header,
     read_table,
     text_lines,
     times_in_seconds,
@@ -73,8 +74,8 @@ def read_trajectory(
     ``(N, T+1, 3)``. Its times are in ``time_unit`` (None: seconds, refused when plainly
     not; see ``diffdrive.io.tables``), returned in seconds. A bag's topic is
     ``nav_msgs/Odometry``, ``sensor_msgs/NavSatFix`` (local east, north; the heading
-    unknown, NaN) or ``tf:PARENT:CHILD`` (a transform chain). ``TableError`` names the file
-    and line.
+    unknown, NaN) or ``tf:PARENT:CHILD`` (a transform chain). An OptiOdom run file (no
+    header) gives its ground truth. ``TableError`` names the file and line.
     """
     if is_bag(path):
         return _read_bag(path, topic)
@@ -83,6 +84,13 @@ def read_trajectory(
     path = Path(path)
     check_time_unit(time_unit)
     format = trajectory_format(path)
+    if format == "csv" and all(is_number(name) for name in read_header(path)):
+        # A table without a header: an OptiOdom run file, whose ground truth is the path.
+        from diffdrive.io.optiodom import read_optiodom_run
+
+        run = read_optiodom_run(path, time_unit)
+        assert run.truth is not None
+        return run.times, run.truth
     if format == "tum":
         table = _read_tum(path)
     elif format == "jsonl":
