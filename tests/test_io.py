@@ -157,3 +157,25 @@ def test_evaluate_and_plot_read_an_optiodom_run_file_as_its_ground_truth(tmp_pat
     assert main(["evaluate", str(estimate), "--truth", str(run_file), "--json"]) == 0
     assert '"poses_compared": 2157' in capsys.readouterr().out
     assert main(["plot", str(run_file), "-o", str(tmp_path / "p.png"), "-q"]) == 0
+
+
+def test_a_plain_tum_file_reads_as_fast_as_csv_and_a_bad_one_names_its_line(tmp_path):
+    """TUM files went through a Python loop a line (10^6 poses: 15.5 s against 3.3 s for
+    CSV); a plain one now goes through NumPy's parser, giving the same poses."""
+    times = np.arange(2000) * 0.01
+    poses = np.column_stack([np.cos(times), np.sin(times), 0.3 * times])
+    write_trajectory(tmp_path / "p.tum", times, poses, "tum")
+    from diffdrive.io import trajectories
+
+    plain = trajectories._plain_tum(tmp_path / "p.tum")
+    assert plain is not None
+    careful = trajectories._careful_tum(tmp_path / "p.tum")
+    np.testing.assert_array_equal(plain, careful)
+    read = dd.io.read_trajectory(tmp_path / "p.tum")
+    np.testing.assert_allclose(read[1], poses, atol=1e-12)
+    bad = tmp_path / "bad.tum"
+    lines = (tmp_path / "p.tum").read_text().splitlines()
+    lines[5] = lines[5].replace(" 0.0 ", " x ", 1)
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(TableError, match=r"bad\.tum:6"):
+        dd.io.read_trajectory(bad)
