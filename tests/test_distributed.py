@@ -88,3 +88,25 @@ def test_the_same_experiment_twice_on_one_client(client):
     np.testing.assert_array_equal(first.final, second.final)
     with pytest.raises(ValueError, match="tasks must be a whole number from 1"):
         distributed.monte_carlo(ROBOT, WHEELS, DT, 10, seed=3, client=client, tasks=0)
+
+
+def test_a_script_without_a_main_guard_is_told_what_to_do(tmp_path):
+    """Without a client, a plain script's workers import it again: it failed with screens of
+    "Nanny failed to start"; the last word is now what to do."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "plain.py"
+    script.write_text(
+        "import numpy as np\n"
+        "import diffdrive as dd\n"
+        "from diffdrive import distributed\n"
+        "distributed.monte_carlo(dd.DiffDrive(0.05, 0.3), np.ones((10, 2)), 0.1, 100, seed=1)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
+    assert done.returncode != 0
+    last = done.stderr.strip().splitlines()[-1]
+    assert 'under `if __name__ == "__main__":`' in last
+    assert "or pass client=" in last

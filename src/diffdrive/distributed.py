@@ -23,6 +23,7 @@ from __future__ import annotations
 import importlib.util
 import itertools
 import os
+import sys
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -66,14 +67,26 @@ def _client(client: Any) -> Iterator[Any]:
         return
     from distributed import Client, LocalCluster
 
+    if getattr(sys.modules.get("__main__"), "__name__", "") == "__mp_main__":
+        # A worker process importing the user's script again: the script has no main guard.
+        raise RuntimeError(_GUARD)
     workers = os.cpu_count() or 1
-    with (
-        LocalCluster(
+    try:
+        cluster = LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
-        ) as cluster,
-        Client(cluster) as local,
-    ):
+        )
+    except RuntimeError:
+        raise RuntimeError(_GUARD) from None
+    with cluster, Client(cluster) as local:
         yield local
+
+
+_GUARD = (
+    "the local Dask workers could not start. A script that calls diffdrive.distributed "
+    'without a client must do so under `if __name__ == "__main__":` (each worker process '
+    "imports the script again, and would start a cluster of its own); or pass client= a "
+    "dask.distributed Client"
+)
 
 
 def _threads(client: Any) -> int:
