@@ -454,3 +454,17 @@ def test_a_wrong_imu_mounting_is_named_when_the_gyro_and_wheels_disagree_that_of
     assert "A wrong IMU mounting (--imu-rpy)" in err
     assert main([*argv, "-o", "y.csv"]) == 0  # the right mounting: no such warning
     assert "flagged as slip" not in capsys.readouterr().err
+
+
+def test_calibrate_warns_of_offsets_no_robot_of_its_size_has(capsys, tmp_path):
+    """Both offsets on the TurtleBot3 against /odom: a 0.34 m axle offset and a 28.6 degree
+    heading offset were accepted without a word."""
+    argv = ["calibrate", str(TB3), "--left-joint", "wheel_left_joint", "--right-joint"]
+    argv += ["wheel_right_joint", "--reference-topic", "/odom", "--wheel-radius", "0.033"]
+    argv += ["--track-width", "0.287", "--cv", "none", "-o", str(tmp_path / "r.toml"), "-q"]
+    assert main([*argv, "--extra", "axle_offset", "heading_offset"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: axle offset 0.337 m is more than the track" in err
+    assert "warning: heading offset 28.6 deg" in err
+    assert main(argv) == 0  # no extra parameters: nothing to warn of
+    assert "warning" not in capsys.readouterr().err

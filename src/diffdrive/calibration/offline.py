@@ -88,6 +88,8 @@ EXTRAS = ("axle_offset", "heading_offset")
 # heading offset belongs to the reference, not to the robot file, and an axle offset only
 # helps runs that turn while driving (README: which to use when).
 DEFAULT_EXTRA: tuple[str, ...] = ()
+# A motion-capture body is set up within a few degrees of the robot's heading.
+PLAUSIBLE_HEADING_OFFSET = math.radians(10.0)
 _EXTRA_BOUNDS = {"axle_offset": (-0.5, 0.5), "heading_offset": (-0.5, 0.5)}
 # Past this condition number of the scaled Jacobian, a parameter is not identified.
 _CONDITION_LIMIT = 1e6
@@ -187,6 +189,27 @@ class CalibrationResult:
     def standard_errors(self) -> np.ndarray | None:
         """One standard deviation of each parameter, m; None without a covariance."""
         return None if self.covariance is None else np.sqrt(np.diag(self.covariance))
+
+    @property
+    def implausible(self) -> list[str]:
+        """What the fitted extra parameters say that no robot of this size would: an axle
+        offset of more than the track (the tracked point outside the robot), a heading
+        offset of more than ``PLAUSIBLE_HEADING_OFFSET`` (a reference frame turned that far
+        from the robot's is more likely a fit that absorbed something else)."""
+        found = []
+        drive = self.robot.equivalent
+        if abs(drive.axle_offset) > drive.track_width:
+            found.append(
+                f"axle offset {drive.axle_offset:.3f} m is more than the track "
+                f"({drive.track_width:.3f} m): the tracked point would lie outside the robot"
+            )
+        if abs(self.heading_offset) > PLAUSIBLE_HEADING_OFFSET:
+            found.append(
+                f"heading offset {math.degrees(self.heading_offset):.1f} deg: a reference "
+                f"turned more than {math.degrees(PLAUSIBLE_HEADING_OFFSET):.0f} deg from the "
+                "robot is more likely a fit that absorbed a slip or a bad stretch"
+            )
+        return found
 
 
 def _robot_with(nominal: Robot, parameters: np.ndarray, axle_offset: float | None = None):

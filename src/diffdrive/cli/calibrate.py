@@ -93,6 +93,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if ticks is not None:
         settings["ticks_per_revolution"] = ticks
     write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")
+    for finding in result.implausible:  # said even with -q: the robot file may be wrong
+        print(f"diffdrive calibrate: warning: {finding}", file=sys.stderr)
     if not args.quiet:
         print(calibration_report(nominal, result, runs, args.integration))
         if args.cv != "none" and args.method != "umbmark":
