@@ -110,6 +110,8 @@ def test_held_out_optiodom_squares_beat_the_authors_in_sample_figure_with_the_of
         optiodom_robot(), runs, "least_squares", "loo", LeastSquares(offsets), integration="rk2"
     )
     alone = cross_validate(optiodom_robot(), runs, "least_squares", "loo", integration="rk2")
-    assert round(1000 * with_offsets.held_out.max_position, 1) == 12.8
+    # Scored as the robot file gives it (12.8 mm when each start was turned by the heading
+    # offset, which the file does not carry).
+    assert round(1000 * with_offsets.held_out.max_position, 1) == 18.3
     assert round(1000 * alone.held_out.max_position, 1) == 19.8
     assert with_offsets.held_out.max_position < 0.0190  # the authors' in-sample OptiOdom

@@ -106,13 +106,12 @@ def cross_validate(
     runs = checked_runs(runs, names)
 
     def scored(result, indices):
-        """The runs ``indices`` dead-reckoned with a calibration, from each run's first
-        reference pose (turned by its fitted heading offset)."""
-        shift = np.array([0.0, 0.0, result.heading_offset])
+        """The runs ``indices`` dead-reckoned with a calibration's robot, from each run's
+        first reference pose: what its robot file gives (a fitted heading offset belongs to
+        the reference, and the file does not carry it)."""
         return tuple(
             run_errors(
-                dead_reckon(result.robot, runs[k][0], runs[k][1][0] + shift, integration),
-                runs[k][1],
+                dead_reckon(result.robot, runs[k][0], runs[k][1][0], integration), runs[k][1]
             )
             for k in indices
         )
