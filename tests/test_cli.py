@@ -451,3 +451,19 @@ def test_what_calibrate_reports_is_what_its_robot_file_gives(tmp_path, capsys):
         assert code == 0
         worst = max(worst, float(printed.split("position error max ")[1].split()[0]))
     assert worst == pytest.approx(claimed, abs=1e-4)
+
+
+def test_a_long_evaluation_says_what_it_is_doing_on_a_terminal(tmp_path, capsys, monkeypatch):
+    """A 10^6-pose evaluate was silent for 23 s; on a terminal each stage is named."""
+    import sys
+
+    from diffdrive.cli import evaluate
+
+    truth = tmp_path / "truth.csv"
+    truth.write_text("t,x,y,theta\n0,0,0,0\n1,1,0,0\n2,2,0,0\n")
+    monkeypatch.setattr(evaluate, "_LARGE_FILE", 0)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["evaluate", str(truth), "--truth", str(truth), "--json"]) == 0
+    err = capsys.readouterr().err
+    assert "evaluate: reading the trajectory" in err
+    assert "evaluate: pairing and measuring 3 poses" in err

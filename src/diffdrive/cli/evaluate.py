@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -30,8 +31,11 @@ def run_evaluate(args: argparse.Namespace) -> int:
     else:
         if args.truth is None:
             raise TableError("evaluate needs --truth with a ground-truth trajectory or bag")
+        _stage(args.input, "reading the trajectory")
         times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
+        _stage(args.truth, "reading the truth")
         truth_times, truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
+        _stage(args.input, f"pairing and measuring {len(times)} poses")
         for path, poses in ((args.input, estimate), (args.truth, truth)):
             if poses.ndim != 2:
                 raise TableError(f"{path}: evaluate takes one robot; the file has {len(poses)}")
@@ -48,6 +52,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
             )
             print(f"{key:34} {shown:>12}")
     return 0
+
+
+# Files this large take seconds: a terminal is told what is going on (10^6 poses, ~50 MB).
+_LARGE_FILE = 20_000_000
+
+
+def _stage(path: Path, doing: str) -> None:
+    """Say on a terminal's standard error what a long evaluation is doing."""
+    if not sys.stderr.isatty() or not path.is_file() or path.stat().st_size < _LARGE_FILE:
+        return
+    print(f"evaluate: {doing} ({path}, {path.stat().st_size / 1e6:.0f} MB)", file=sys.stderr)
 
 
 def evaluation_metrics(args, times, estimate, truth) -> dict:
