@@ -99,11 +99,10 @@ def write_bag(
     trajectory starts at 0 (as ``simulate``'s do) and 0 otherwise."""
     from diffdrive.io.ros import write_streams
 
-    if time_offset is None:
-        starts = [r.times[0] for r in readings.values() if hasattr(r, "times")]
+    if time_offset is None:  # from the streams' own first stamps
+        starts = [stream.times[0] for stream in streams_of(robot, **readings) if len(stream.times)]
         time_offset = 1.0 if starts and min(starts) <= 0.0 else 0.0
-    streams = streams_of(robot, **readings, time_offset=time_offset)
-    return write_streams(path, streams, format)
+    return write_streams(path, streams_of(robot, **readings, time_offset=time_offset), format)
 
 
 def write_table(
