@@ -5,6 +5,7 @@ commands and truth as a wheel-log table (``diffdrive.io.read_run`` reads it)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -44,18 +45,20 @@ def streams_of(
     ``/imu/data``, ``/pose`` (or, for a position sensor with an ``origin``, ``/fix``, in
     latitude and longitude) recorded when it arrives, and ``/cmd_vel``; every time plus
     ``time_offset`` (s)."""
-    from dataclasses import replace
-
     from diffdrive.io.ros import Stream
 
-    streams = _streams(robot, encoders, gyro, absolute, commands, origin, Stream)
-    if not time_offset:
+    return _shifted(_streams(robot, encoders, gyro, absolute, commands, origin, Stream), time_offset)
+
+
+def _shifted(streams: list, offset: float) -> list:
+    """``streams`` with ``offset`` s added to every stamp and record time."""
+    if not offset:
         return streams
     return [
         replace(
             stream,
-            times=stream.times + time_offset,
-            recorded=None if stream.recorded is None else stream.recorded + time_offset,
+            times=stream.times + offset,
+            recorded=None if stream.recorded is None else stream.recorded + offset,
         )
         for stream in streams
     ]
@@ -99,10 +102,11 @@ def write_bag(
     trajectory starts at 0 (as ``simulate``'s do) and 0 otherwise."""
     from diffdrive.io.ros import write_streams
 
+    streams = streams_of(robot, **readings)
     if time_offset is None:  # from the streams' own first stamps
-        starts = [stream.times[0] for stream in streams_of(robot, **readings) if len(stream.times)]
+        starts = [stream.times[0] for stream in streams if len(stream.times)]
         time_offset = 1.0 if starts and min(starts) <= 0.0 else 0.0
-    return write_streams(path, streams_of(robot, **readings, time_offset=time_offset), format)
+    return write_streams(path, _shifted(streams, time_offset), format)
 
 
 def write_table(
