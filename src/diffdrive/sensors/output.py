@@ -47,7 +47,8 @@ def streams_of(
     ``time_offset`` (s)."""
     from diffdrive.io.ros import Stream
 
-    return _shifted(_streams(robot, encoders, gyro, absolute, commands, origin, Stream), time_offset)
+    streams = _streams(robot, encoders, gyro, absolute, commands, origin, Stream)
+    return _shifted(streams, time_offset)
 
 
 def _shifted(streams: list, offset: float) -> list:
