@@ -18,27 +18,12 @@ from __future__ import annotations
 
 import argparse
 import platform
-import statistics
-import time
 
 import numpy as np
 
 import diffdrive as dd
 from diffdrive.demo import example_robot
-
-
-def per_call(loops, repeats):
-    """Median seconds per call of each of ``loops`` (name: a loop that returns how many calls
-    it made), taken in rounds that run every loop once, after a round that is not timed: a
-    slow spell of the machine falls on all of them alike, not on one."""
-    times = {name: [] for name in loops}
-    for round in range(repeats + 1):
-        for name, loop in loops.items():
-            start = time.perf_counter()
-            calls = loop()
-            if round:
-                times[name].append((time.perf_counter() - start) / calls)
-    return {name: statistics.median(taken) for name, taken in times.items()}
+from timing import per_call  # benchmarks/timing.py
 
 
 def main() -> None:

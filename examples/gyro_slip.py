@@ -16,21 +16,20 @@
 from __future__ import annotations
 
 import argparse
-import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 import diffdrive as dd
-from diffdrive import batch
-from diffdrive.estimation.gyro import HEADINGS, Gyro, gyro_odometry, rotation_from_rpy
+from diffdrive.estimation.gyro import HEADINGS, Gyro, gyro_odometry
 from diffdrive.evaluation import align, ate, interpolate
-from diffdrive.io import ros
 
-BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the Husky's reading is shared
+from husky_fusion import BAGS, HUSKY
+from husky_fusion import read as read_husky
+
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
-# A Husky's nominal geometry: 0.165 m wheels, 0.555 m between the wheel centres.
-HUSKY = dd.DiffDrive(wheel_radius=0.165, track_width=0.555)
 
 
 def synthetic(seed: int = 0) -> dict:
@@ -60,25 +59,21 @@ def synthetic(seed: int = 0) -> dict:
 
 def husky(bags: Path) -> dict:
     """Each source's Husky path, aligned to GPS, and its ATE (m)."""
-    bag = bags / "husky_robot_localization_test1.bag"
-    odometry = ros.read_odometry(bag, "/husky_velocity_controller/odom")
-    imu = ros.read_imu(bag, "/imu/data")
-    gps = ros.read_navsatfix(bag, "/fix")
-    gyro = Gyro.from_imu(imu.times, imu.angular_velocity, rotation_from_rpy(math.pi / 2, 0, 0))
-    inside = (odometry.times >= gyro.times[0]) & (odometry.times <= gyro.times[-1])
-    times, poses = odometry.times[inside], odometry.poses[inside]
-    motion = batch.log(batch.relative_to(poses[1:], poses[:-1]))  # travel and turn each step
-    half = 0.5 * HUSKY.track_width
-    arcs = motion[:, :1] + half * motion[:, 2:] * np.array([-1.0, 1.0])  # left, right, m
-    increments = arcs / np.array([HUSKY.left_wheel_radius, HUSKY.right_wheel_radius])
-    fixes = (gps.times >= times[0]) & (gps.times <= times[-1])
-    truth = np.column_stack([gps.positions[fixes], np.zeros(np.count_nonzero(fixes))])
+    data = read_husky(bags)
+    truth = np.column_stack([data["fixes"], np.zeros(len(data["fixes"]))])
     found = {"truth": truth}
     for heading in HEADINGS:
         run = gyro_odometry(
-            HUSKY, times, increments, gyro, heading, poses[0], k_left=1e-3, k_right=1e-3
+            HUSKY,
+            data["times"],
+            data["increments"],
+            data["gyro"],
+            heading,
+            data["start"],
+            k_left=1e-3,
+            k_right=1e-3,
         )
-        estimate = interpolate(times, run.poses, gps.times[fixes])
+        estimate = interpolate(data["times"], run.poses, data["fix_times"])
         estimate[:, 2] = 0.0  # positions only
         found[heading] = (align(estimate, truth), ate(estimate, truth, aligned=True))
     return found

@@ -130,3 +130,27 @@ def test_online_calibration_example_settles_near_batch_least_squares(tmp_path, c
         differences = [float(part.strip(" %")) for part in line.split(": ")[1].split(",")]
         assert max(abs(d) for d in differences) < 1.0
         assert ", ".join(f"{d:+.2f} %" for d in differences) in readme
+
+
+def test_late_vision_example_fuses_the_camera_and_draws(tmp_path, capsys):
+    script = load("late_vision")
+    output = tmp_path / "late.png"
+    script.main(["--seeds", "3", "--output", str(output)])
+    lines = capsys.readouterr().out.splitlines()
+    alone, fused = (float(line.split("error ")[1].split()[0]) for line in lines[:2])
+    assert fused < alone
+    assert output.stat().st_size > 10_000
+
+
+def test_husky_fusion_example_prints_the_figures_the_readme_quotes(capsys):
+    from data import data_folder
+
+    script = load("husky_fusion")
+    script.main(["--bags", str(data_folder("ros-bags"))])
+    printed = capsys.readouterr().out
+    readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
+    numbers = [part for part in printed.replace(";", " ").split() if part[0].isdigit()]
+    figures = [n for n in numbers if "." in n and not n.endswith(")")]
+    assert len(figures) >= 6
+    for figure in figures:
+        assert figure in readme, figure

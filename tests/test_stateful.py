@@ -1,6 +1,6 @@
 """Stateful property tests: random sequences of calls on Odometry, Limiter,
-OpenLoopOdometry, OnlineCalibrator and GyroOdometry, each checked against a twin that sees
-only the calls that were accepted.
+OpenLoopOdometry, OnlineCalibrator, GyroOdometry and PoseEstimator, each checked against a
+twin that sees only the calls that were accepted.
 
 A refused call must raise ValueError or TypeError and leave the object exactly as its twin;
 an accepted one must leave a finite state that every reading returns. The values drawn reach
@@ -16,6 +16,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 import diffdrive as dd
 from diffdrive.calibration import OnlineCalibrator
+from diffdrive.estimation import PoseEstimator
 from diffdrive.estimation.gyro import GyroOdometry
 
 ROBOT = dd.DiffDrive(
@@ -209,8 +210,51 @@ class GyroOdometryMachine(RuleBasedStateMachine):
             assert np.all(np.isfinite(ours.covariance))
 
 
+class PoseEstimatorMachine(RuleBasedStateMachine):
+    """The estimator on 8-bit ticks, a gyro and absolute measurements, stamps anywhere:
+    refused calls leave it as its twin, state, covariance, counts and history alike."""
+
+    def __init__(self):
+        super().__init__()
+        options = dict(ticks_per_revolution=100, counter_bits=8, max_wheel_speed=1e4, history=2.0)
+        self.ours = PoseEstimator(ROBOT, "fused", **options)
+        self.twin = PoseEstimator(ROBOT, "fused", **options)
+
+    def same(self):
+        ours, twin = self.ours, self.twin
+        return (
+            same(
+                (*ours.state, *ours.state_covariance.ravel()),
+                (*twin.state, *twin.state_covariance.ravel()),
+            )
+            and (ours.accepted, ours.rejected, ours.time)
+            == (twin.accepted, twin.rejected, twin.time)
+            and ours.history_start == twin.history_start
+        )
+
+    @rule(left=numbers, right=numbers, t=times, rate=numbers)
+    def ticks(self, left, right, t, rate):
+        if attempt(lambda: self.ours.update_ticks(left, right, t, gyro_rate=rate)):
+            self.twin.update_ticks(left, right, t, gyro_rate=rate)
+        assert self.same()
+
+    @rule(t=times, x=numbers, sigma=numbers, kind=st.sampled_from(["pose", "position"]))
+    def measure(self, t, x, sigma, kind):
+        value = (x, 0.0, 0.0)[: 3 if kind == "pose" else 2]
+        add = self.ours.add_pose if kind == "pose" else self.ours.add_position
+        if attempt(lambda: add(t, value, sigma)):
+            (self.twin.add_pose if kind == "pose" else self.twin.add_position)(t, value, sigma)
+        assert self.same()
+
+    @invariant()
+    def finite(self):
+        assert np.all(np.isfinite(self.ours.state))
+        assert np.all(np.isfinite(self.ours.state_covariance))
+
+
 TestOdometryMachine = SETTINGS(OdometryMachine).TestCase
 TestLimiterMachine = SETTINGS(LimiterMachine).TestCase
 TestOpenLoopMachine = SETTINGS(OpenLoopMachine).TestCase
 TestOnlineCalibratorMachine = SETTINGS(OnlineCalibratorMachine).TestCase
 TestGyroOdometryMachine = SETTINGS(GyroOdometryMachine).TestCase
+TestPoseEstimatorMachine = SETTINGS(PoseEstimatorMachine).TestCase

@@ -590,6 +590,70 @@ static PyObject *get_covariance(Core *c, PyObject *unused) {
                          c->cov[5], c->cov[6], c->cov[7], c->cov[8]);
 }
 
+/* Each wheel's travel (m) since the object was made: what an estimator built on this one takes
+ * as the wheels' increments, every check of the update already passed. */
+static PyObject *get_arcs(Core *c, PyObject *unused) {
+    return Py_BuildValue("(dd)", c->arc_left, c->arc_right);
+}
+
+/* What one update can change, so that an estimator built on this core can take a reading
+ * back when its own step refuses it: the state, the references, and the velocity window's
+ * bounds and newest sample (an update appends or replaces one sample and drops from the
+ * front, so the samples it does not touch are still in place). */
+typedef struct {
+    double x, y, theta, distance, x_comp, y_comp, theta_comp, distance_comp;
+    double cov[9];
+    double time;
+    int have_ticks, have_positions;
+    long long ticks_left, ticks_right;
+    double position_left, position_right, arc_left, arc_right;
+    Py_ssize_t first, count, capacity;
+    Sample last;
+} Snapshot;
+
+static PyObject *snapshot(Core *c, PyObject *unused) {
+    Snapshot s = {c->x, c->y, c->theta, c->distance, c->x_comp, c->y_comp, c->theta_comp,
+                  c->distance_comp};
+    memcpy(s.cov, c->cov, sizeof s.cov);
+    s.time = c->time;
+    s.have_ticks = c->have_ticks;
+    s.have_positions = c->have_positions;
+    s.ticks_left = c->ticks_left;
+    s.ticks_right = c->ticks_right;
+    s.position_left = c->position_left;
+    s.position_right = c->position_right;
+    s.arc_left = c->arc_left;
+    s.arc_right = c->arc_right;
+    s.first = c->first;
+    s.count = c->count;
+    s.capacity = c->capacity;
+    if (c->count > 0) s.last = c->samples[(c->first + c->count - 1) % c->capacity];
+    return PyBytes_FromStringAndSize((const char *)&s, sizeof s);
+}
+
+static PyObject *restore(Core *c, PyObject *arg) {
+    if (!PyBytes_Check(arg) || PyBytes_GET_SIZE(arg) != (Py_ssize_t)sizeof(Snapshot)) {
+        PyErr_SetString(PyExc_TypeError, "_restore takes what _snapshot gave");
+        return NULL;
+    }
+    Snapshot s;
+    memcpy(&s, PyBytes_AS_STRING(arg), sizeof s);
+    c->x = s.x, c->y = s.y, c->theta = s.theta, c->distance = s.distance;
+    c->x_comp = s.x_comp, c->y_comp = s.y_comp, c->theta_comp = s.theta_comp;
+    c->distance_comp = s.distance_comp;
+    memcpy(c->cov, s.cov, sizeof s.cov);
+    c->time = s.time;
+    c->have_ticks = s.have_ticks, c->have_positions = s.have_positions;
+    c->ticks_left = s.ticks_left, c->ticks_right = s.ticks_right;
+    c->position_left = s.position_left, c->position_right = s.position_right;
+    c->arc_left = s.arc_left, c->arc_right = s.arc_right;
+    /* A grown buffer holds the samples in order from index 0. */
+    c->first = s.capacity == c->capacity ? s.first : 0;
+    c->count = s.count;
+    if (s.count > 0) c->samples[(c->first + c->count - 1) % c->capacity] = s.last;
+    Py_RETURN_NONE;
+}
+
 /* Mean wheel velocities (rad/s) over the window, or None with fewer than two samples. */
 static PyObject *get_window_velocities(Core *c, PyObject *unused) {
     if (c->count < 2) Py_RETURN_NONE;
@@ -727,6 +791,9 @@ static PyMethodDef core_methods[] = {
     {"_state", (PyCFunction)get_state, METH_NOARGS, NULL},
     {"_covariance", (PyCFunction)get_covariance, METH_NOARGS, NULL},
     {"_window_velocities", (PyCFunction)get_window_velocities, METH_NOARGS, NULL},
+    {"_wheel_arcs", (PyCFunction)get_arcs, METH_NOARGS, NULL},
+    {"_snapshot", (PyCFunction)snapshot, METH_NOARGS, NULL},
+    {"_restore", (PyCFunction)restore, METH_O, NULL},
     {"_set_pose", (PyCFunction)set_pose, METH_VARARGS, NULL},
     {"_jacobians", (PyCFunction)jacobians, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},

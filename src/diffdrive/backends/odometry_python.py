@@ -330,6 +330,20 @@ class OdometryCore:
         c = self._cov
         return (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8])
 
+    def _wheel_arcs(self) -> tuple[float, float]:
+        return self._arcs
+
+    def _snapshot(self) -> Any:
+        state = dict(vars(self))
+        for name in ("_pose", "_comp", "_cov", "_samples"):
+            state[name] = list(state[name])
+        return state
+
+    def _restore(self, snapshot: Any) -> None:
+        vars(self).update(snapshot)
+        for name in ("_pose", "_comp", "_cov", "_samples"):
+            setattr(self, name, list(snapshot[name]))
+
     def _window_velocities(self) -> tuple[float, float, float] | None:
         if len(self._samples) < 2:
             return None

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch
+from diffdrive.cli.fusion import run_fusion, wants_fusion
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
     LOG_COLUMNS,
@@ -37,6 +38,11 @@ def run_odometry(args: argparse.Namespace) -> int:
     ticks = ticks or log.ticks_per_revolution
     increments, note = log.checked_increments(robot, ticks, args.counter_bits, args.max_wheel_speed)
     gyro = _gyro(args, log)
+    if wants_fusion(args):
+        if gyro is not None:
+            log, note = _within_gyro(log, gyro, note)
+        increments = log.increments(ticks, args.counter_bits)
+        return run_fusion(args, robot, log, increments, gyro, note)
     if gyro is not None:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
@@ -93,12 +99,7 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
     from diffdrive.estimation.gyro import gyro_odometry
 
-    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
-    if np.count_nonzero(inside) < 2:
-        raise TableError(f"{log.source}: the gyro does not cover the log's times")
-    if not inside.all():  # a bag's IMU may start a little after the wheels: keep the overlap
-        log = log.rows(inside)
-        note += f"\nthe log is cut to [{log.times[0]:g}, {log.times[-1]:g}] s, where the gyro is"
+    log, note = _within_gyro(log, gyro, note)
     options = {
         "k_left": 1e-4 if args.k_left is None else args.k_left,
         "k_right": 1e-4 if args.k_right is None else args.k_right,
@@ -145,6 +146,17 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     return 0
 
 
+def _within_gyro(log: Run, gyro, note: str) -> tuple[Run, str]:
+    """The log cut to the gyro's span (a bag's IMU may start a little after the wheels)."""
+    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{log.source}: the gyro does not cover the log's times")
+    if not inside.all():
+        log = log.rows(inside)
+        note += f"\nthe log is cut to [{log.times[0]:g}, {log.times[-1]:g}] s, where the gyro is"
+    return log, note
+
+
 def _commands(args, robot, log: Run):
     """The wheel velocities commanded over each interval ``(T, 2)``: a bag's Twist topic
     (each held until the next) through inverse kinematics, the log's command columns, or
@@ -165,6 +177,8 @@ EPILOGS = {
   diffdrive odometry                      a built-in 20 Hz log of the example -> odometry.csv
   diffdrive odometry log.csv --ticks-per-revolution 4096 --counter-bits 12 -o odometry.csv
   diffdrive odometry log.csv --time-unit ns --max-wheel-speed 30 --twist --covariance
+  diffdrive odometry run.mcap --left-joint left_wheel_joint --right-joint right_wheel_joint \
+      --gyro-topic /imu/data --pose-topic /pose --smooth -o estimate.csv
 
 {LOG_COLUMNS}
 With ground truth an error summary is printed. The largest wheel speed the log implies is
@@ -228,6 +242,59 @@ def add_to(command: Command, parents: Parents) -> None:
         metavar="TOPIC",
         help="geometry_msgs/Twist commands of the bag, to flag wheels that spin "
         "beyond them (or left_command, right_command columns)",
+    )
+    fused = odo.add_argument_group(
+        "absolute measurements and smoothing (PoseEstimator; writes the covariance)"
+    )
+    fused.add_argument(
+        "--pose-topic", metavar="TOPIC", help="PoseWithCovarianceStamped or Odometry topic"
+    )
+    fused.add_argument("--gps-topic", metavar="TOPIC", help="NavSatFix topic of the bag")
+    fused.add_argument(
+        "--measurements",
+        type=Path,
+        metavar="FILE",
+        help="a table t, x, y[, theta][, sigma_x, sigma_y[, sigma_theta]]: poses with theta, "
+        "else positions",
+    )
+    fused.add_argument(
+        "--pose-sigma",
+        type=float,
+        nargs=3,
+        metavar=("SX", "SY", "STHETA"),
+        help="standard deviations (m, m, rad) of poses that come without a covariance",
+    )
+    fused.add_argument(
+        "--gps-sigma",
+        type=float,
+        metavar="M",
+        help="standard deviation (m) of positions that come without a covariance",
+    )
+    fused.add_argument(
+        "--lever-arm",
+        type=float,
+        nargs=2,
+        metavar=("X", "Y"),
+        help="where the pose or GPS sensor sits in the body frame, m (default 0 0)",
+    )
+    fused.add_argument(
+        "--gate",
+        type=float,
+        default=0.999,
+        metavar="P",
+        help="chi-square gate: refuse a measurement outside this probability (default 0.999)",
+    )
+    fused.add_argument(
+        "--turn-scale-sigma",
+        type=float,
+        metavar="S",
+        help="estimate the wheels' turn scale (an effective track), prior standard deviation S",
+    )
+    fused.add_argument(
+        "--smooth",
+        action="store_true",
+        help="the whole log forward and back (Rauch-Tung-Striebel): every pose uses every "
+        "measurement",
     )
     odo.add_argument(
         "--twist",

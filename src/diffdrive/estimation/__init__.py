@@ -2,22 +2,26 @@
 
 - ``odometry``: ``Odometry``, streaming dead reckoning from wheel encoders with covariance (its
   core in C, ``diffdrive.backends``);
-- ``gyro``: ``Gyro``, ``GyroOdometry`` and ``gyro_odometry``: the heading from the wheels, the
-  gyro or both, and slip detection.
+- ``fusion``: ``PoseEstimator``, one extended Kalman filter for wheels, a gyro and absolute
+  measurements that arrive late (``measurements``: ``Measurement``), on ``filter``'s step;
+- ``smoother``: ``estimate_trajectory``, a whole log forward and a Rauch-Tung-Striebel smoother
+  back;
+- ``gyro``: ``Gyro`` streams, ``gyro_odometry`` (the estimator over a log with a gyro, for slip
+  studies) and ``GyroOdometry`` (the estimator behind a per-interval ``update``).
 
 Every estimator runs the robot model's equivalent drive through ``diffdrive._step`` and keeps
 the pose ``(x, y, theta)`` first in its state and covariance.
 """
 
+from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
 from diffdrive.estimation.gyro import (
-    HEADINGS,
     Gyro,
-    GyroNoise,
     GyroOdometry,
     GyroTrajectory,
     gyro_odometry,
     rotation_from_rpy,
 )
+from diffdrive.estimation.measurements import Measurement, chi2_quantile
 from diffdrive.estimation.odometry import (
     COMPILED,
     UPDATE_KINDS,
@@ -27,19 +31,26 @@ from diffdrive.estimation.odometry import (
     odometry_of_run,
     offset_jacobian,
 )
+from diffdrive.estimation.smoother import Estimate, estimate_trajectory, measurements_of
 
 __all__ = [
     "COMPILED",
     "HEADINGS",
     "UPDATE_KINDS",
+    "Estimate",
     "Gyro",
     "GyroNoise",
     "GyroOdometry",
     "GyroTrajectory",
+    "Measurement",
     "Odometry",
+    "PoseEstimator",
     "PythonOdometry",
     "RefusedUpdateError",
+    "chi2_quantile",
+    "estimate_trajectory",
     "gyro_odometry",
+    "measurements_of",
     "odometry_of_run",
     "offset_jacobian",
     "rotation_from_rpy",

@@ -1,40 +1,14 @@
-"""Gyro-aided odometry and slip detection.
+"""Gyro streams and gyro-aided odometry of whole logs.
 
-Real robots slip, and carry a gyro. ``GyroOdometry`` takes, for each interval between two wheel
-readings, the wheels' travel and the angle the gyro turned, and keeps the pose with one of three
-heading sources:
+``Gyro`` holds a gyro's own samples (yaw rates, or a yaw angle) and integrates them over any
+interval; ``Gyro.from_imu`` rotates an IMU's three rates by its mounting (IMU frame to body
+frame, which must be a rotation), ``Gyro.from_yaw`` takes a yaw angle.
 
-- ``"wheels"``: the heading from the wheels, as ``Odometry`` (the gyro only watches for slip);
-- ``"gyro"``: the heading from the gyro less a fixed bias, the translation from the wheels (as
-  WPILib's odometry takes its heading from the gyro);
-- ``"fused"``: an extended Kalman filter on ``(x, y, theta, gyro bias)``. The gyro drives the
-  heading; each interval's wheel heading change is a measurement of it (the filter keeps a copy
-  of the heading at the interval's start, "stochastic cloning", Roumeliotis and Burdick, ICRA
-  2002), which also makes the bias observable. Its covariance is the pose covariance.
-
-Noise models. Gyro (IEEE Std 952-1997 terms): white rate noise of ``angle_random_walk``
-rad/s/sqrt(Hz), so an interval of ``dt`` s adds ``arw^2 dt`` rad^2 to the heading; a bias that
-random-walks by ``rate_random_walk`` rad/s/sqrt(s). Wheels (Siegwart, Nourbakhsh and
-Scaramuzza, 2011, sec. 5.2.4, as ``Odometry``): each wheel's travel has variance ``k |travel|``,
-so the forward travel has variance ``(k_l |s_l| + k_r |s_r|) / 4`` and the wheels' heading change
-``(k_l |s_l| + k_r |s_r|) / track^2``.
-
-Slip. Every interval, the wheels' heading change is compared with the gyro's (less the bias):
-the innovation squared over its variance is chi-square with one degree of freedom when neither
-slips. Past ``slip_threshold`` (default 10.83, a false-alarm probability of 0.1 %) the interval
-is flagged: its wheel heading is left out of the fused estimate and its forward-travel variance
-is multiplied by ``slip_inflation``. Where the log also has the commanded wheel velocities,
-each interval's measured wheel velocities are compared with them as well: the sum of both
-wheels' squared differences over ``command_sigma^2`` (rad/s, how closely the drives follow
-their commands) is chi-square with two degrees of freedom, flagged past 13.82 (0.1 %): a wheel
-that spins up far beyond its command has lost the ground. Flags and scores are kept for every
-interval.
-
-The gyro's yaw rate is in the body frame: ``Gyro.from_imu`` rotates an IMU's three rates by the
-mounting rotation (IMU frame to body frame), which must be a rotation; ``Gyro.from_yaw`` takes a
-yaw angle instead. ``gyro_odometry`` runs a whole log, the gyro's own samples integrated over
-each wheel interval; the bias, unless given, is the gyro's mean rate while the wheels stand
-still.
+The filter is ``PoseEstimator`` (``diffdrive.estimation.fusion``: heading from the wheels, the
+gyro or both, slip tests, noise models). ``gyro_odometry`` runs it over a whole log, the
+gyro's own samples integrated over each wheel interval, and keeps what a slip study needs
+per interval; the bias, unless given, is the gyro's mean rate while the wheels stand still.
+``GyroOdometry`` is ``PoseEstimator`` behind the per-interval ``update`` it had before.
 """
 
 from __future__ import annotations
@@ -45,11 +19,10 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive._step import Method, check_method, method_flags, move_jacobians, wheel_move
-from diffdrive._validate import finite, positive
-from diffdrive.estimation.odometry import offset_jacobian
-from diffdrive.model import Robot, check_robot
-from diffdrive.types import Pose, WheelVelocities
+from diffdrive._validate import positive
+from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator, mounting_yaw_row
+from diffdrive.model import Robot
+from diffdrive.types import Pose
 
 __all__ = [
     "HEADINGS",
@@ -62,30 +35,6 @@ __all__ = [
 ]
 
 Heading = Literal["wheels", "gyro", "fused"]
-HEADINGS: tuple[Heading, ...] = ("wheels", "gyro", "fused")
-# chi-square, one degree of freedom: P(score > 10.83) = 0.001.
-SLIP_THRESHOLD = 10.83
-# chi-square, two degrees of freedom (both wheels): P(score > 13.82) = 0.001.
-COMMAND_THRESHOLD = 13.82
-
-
-@dataclass(frozen=True)
-class GyroNoise:
-    """The gyro's noise: ``angle_random_walk`` (rad/s/sqrt(Hz)), ``rate_random_walk`` (the
-    bias's random walk, rad/s/sqrt(s)) and ``initial_bias_sigma`` (rad/s, the prior on the
-    bias). The defaults are those of a mid-range MEMS gyro."""
-
-    angle_random_walk: float = 2e-3
-    rate_random_walk: float = 1e-4
-    initial_bias_sigma: float = 5e-3
-
-    def __post_init__(self) -> None:
-        for name in ("angle_random_walk", "rate_random_walk", "initial_bias_sigma"):
-            value = finite(name, getattr(self, name))
-            if not value >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-            if not math.isfinite(value * value):  # the filter works with its square
-                raise ValueError(f"{name} {value!r} squares past the largest float")
 
 
 def rotation_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -150,17 +99,11 @@ class Gyro:
     def from_imu(cls, times, angular_velocity, mounting=None, max_gap: float = math.inf) -> Gyro:
         """From an IMU's rates ``(M, 3)`` in its own frame and ``mounting``, the 3x3 rotation
         from the IMU frame to the body frame (default: the identity, z up)."""
-        rotation = np.eye(3) if mounting is None else np.asarray(mounting, dtype=float)
-        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
-            raise ValueError(f"mounting must be a finite 3x3 rotation, got shape {rotation.shape}")
-        if not (
-            np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) and np.linalg.det(rotation) > 0
-        ):
-            raise ValueError("mounting is not a rotation (orthonormal, determinant +1)")
+        yaw_row = mounting_yaw_row(mounting)
         rates = np.asarray(angular_velocity, dtype=float)
         if rates.ndim != 2 or rates.shape[1] != 3:
             raise ValueError(f"angular_velocity must be (M, 3), got {rates.shape}")
-        return cls(times, rates @ rotation[2], max_gap)
+        return cls(times, rates @ yaw_row, max_gap)
 
     @classmethod
     def from_yaw(cls, times, yaw, max_gap: float = math.inf) -> Gyro:
@@ -201,74 +144,25 @@ class Gyro:
         return cumulative[k] + self.rates[k] * into + 0.5 * slope * into**2
 
 
-class GyroOdometry:
-    """Dead reckoning with a gyro, one interval at a time (see the module).
-
-    ``robot`` gives the geometry (any model: the filter runs its equivalent drive, at its
-    reference point, and moves poses and covariances back to the body origin); ``heading`` is
-    ``"wheels"``, ``"gyro"`` or ``"fused"``; ``bias`` (rad/s) is the gyro's, fixed for
-    ``"gyro"`` and the prior mean for ``"fused"``; ``k_left``, ``k_right`` (m) the wheel
-    model; ``noise`` the gyro's; ``method`` the step's (``"exact"``, ``"rk2"``, ``"euler"``).
-    """
+class GyroOdometry(PoseEstimator):
+    """``PoseEstimator`` behind the interface gyro-aided odometry had before it: one
+    ``update`` per interval of ``dt`` s with the wheel-angle increments and the angle the gyro
+    turned, its clock starting at 0 s. ``robot``, ``heading``, ``bias``, ``noise``, ``k_left``,
+    ``k_right``, the slip options and ``method`` are ``PoseEstimator``'s."""
 
     def __init__(
         self,
         robot: Robot,
         heading: Heading = "fused",
         initial_pose: Pose | None = None,
-        *,
-        bias: float = 0.0,
-        noise: GyroNoise | None = None,
-        k_left: float = 1e-4,
-        k_right: float = 1e-4,
-        slip_threshold: float = SLIP_THRESHOLD,
-        slip_inflation: float = 100.0,
-        command_sigma: float = 1.0,
-        method: Method = "exact",
+        **options,
     ) -> None:
-        check_robot(robot)
-        if noise is not None and not isinstance(noise, GyroNoise):
-            raise TypeError(f"noise must be a GyroNoise, got {type(noise).__name__}")
-        if heading not in HEADINGS:
-            raise ValueError(f"heading must be one of {', '.join(HEADINGS)}, got {heading!r}")
-        for name, value in (("k_left", k_left), ("k_right", k_right)):
-            if not finite(name, value) >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {value!r}")
-        self.robot, self.heading, self.method = robot, heading, check_method(method)
-        self.noise = GyroNoise() if noise is None else noise
-        self.k = (float(k_left), float(k_right))
-        self.slip_threshold = positive("slip_threshold", slip_threshold)
-        self.slip_inflation = positive("slip_inflation", slip_inflation)
-        self.command_sigma = positive("command_sigma", command_sigma)
-        if not 0.0 < self.command_sigma * self.command_sigma < math.inf:
-            raise ValueError(f"command_sigma {command_sigma!r} squares to 0 or past the floats")
-        pose = Pose() if initial_pose is None else Pose.coerce(initial_pose, "initial_pose")
-        self._offset = robot.reference_offset
-        pose = pose.compose(Pose(0.0, self._offset))  # to the equivalent drive's point
-        # The state is the equivalent drive's: its reference point's pose, then the bias.
-        self.state = np.array([pose.x, pose.y, pose.theta, finite("bias", bias)])
-        self.covariance4 = np.diag([0.0, 0.0, 0.0, self.noise.initial_bias_sigma**2])
-        self.slip = False
-        self.slip_score = 0.0
-        self.command_score = 0.0
+        super().__init__(robot, heading, initial_pose, initial_time=0.0, **options)
 
     @property
-    def pose(self) -> Pose:
-        """The body origin's pose."""
-        return Pose(*self.state[:3].tolist()).compose(Pose(0.0, -self._offset))
-
-    @property
-    def bias(self) -> float:
-        """The gyro bias estimate, rad/s."""
-        return float(self.state[3])
-
-    @property
-    def covariance(self) -> np.ndarray:
-        """The body origin's pose covariance, 3x3 over ``(x, y, theta)``."""
-        if not self._offset:
-            return self.covariance4[:3, :3].copy()
-        moved = offset_jacobian(self.state[2], -self._offset)
-        return moved @ self.covariance4[:3, :3] @ moved.T
+    def covariance4(self) -> np.ndarray:
+        """The covariance of ``(x, y, theta, bias)`` of the reference point, 4x4."""
+        return self.state_covariance[:4, :4]
 
     def update(
         self,
@@ -281,88 +175,11 @@ class GyroOdometry:
         """One interval of ``dt`` s: wheel-angle increments ``left``, ``right`` (rad), the
         angle the gyro turned (rad, bias included) and, if known, the ``commanded`` wheel
         velocities ``(left, right)`` (rad/s). A refused update changes nothing."""
-        left, right = finite("left", left), finite("right", right)
-        gyro_angle, dt = finite("gyro_angle", gyro_angle), positive("dt", dt)
-        command_score = 0.0
-        if commanded is not None:
-            wanted = WheelVelocities.coerce(commanded, "commanded")
-            measured = (float(left) / dt - wanted.left, float(right) / dt - wanted.right)
-            sigma = self.command_sigma
-            command_score = (measured[0] * measured[0] + measured[1] * measured[1]) / (
-                sigma * sigma
-            )
-        with np.errstate(over="ignore", invalid="ignore"):  # refused below, not warned about
-            state, covariance, slip, score = _step(
-                self, left, right, gyro_angle, dt, command_score > COMMAND_THRESHOLD
-            )
-        if not (np.all(np.isfinite(state)) and np.all(np.isfinite(covariance))):
-            raise ValueError("the update would overflow the state; refused, nothing changed")
-        self.state, self.covariance4, self.slip, self.slip_score = state, covariance, slip, score
-        self.command_score = float(command_score)
-
-
-def _jacobians(
-    offset: float, state: np.ndarray, forward: float, turn: float, dt: float, method: Method
-):
-    """The next state after ``forward`` m and ``turn`` rad by the ``method``'s step (exact: the
-    constant-curvature arc), d(next state)/d(state) (4x4, the bias turning the heading by
-    ``-dt`` per rad/s) and d(next state)/d(forward, turn) (4x2)."""
-    x, y, theta, bias = state
-    dx, dy, by_forward, by_turn = move_jacobians(
-        forward, offset, turn, *method_flags(method), heading=theta
-    )
-    by_state = np.eye(4)
-    by_state[:2, 2] = -dy, dx
-    by_state[:3, 3] = -dt * by_turn[0], -dt * by_turn[1], -dt
-    by_input = np.array(
-        [[by_forward[0], by_turn[0]], [by_forward[1], by_turn[1]], [0.0, 1.0], [0.0, 0.0]]
-    )
-    return np.array([x + dx, y + dy, theta + turn, bias]), by_state, by_input
-
-
-def _step(o: GyroOdometry, left: float, right: float, gyro_angle: float, dt: float, forced: bool):
-    """The next state and covariance, the slip flag and score of one interval of wheel-angle
-    increments ``left``, ``right`` (rad)."""
-    drive, noise, (k_l, k_r) = o.robot.equivalent, o.noise, o.k
-    r_l, r_r, track = drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width
-    forward, _, wheel_turn = wheel_move(r_l, r_r, track, drive.axle_offset, left, right)
-    spread = k_l * abs(r_l * left) + k_r * abs(r_r * right)
-    # Products, not powers: a float's power raises where the product overflows to inf,
-    # which the update then refuses with the state unchanged.
-    forward_var, wheel_turn_var = spread / 4.0, spread / (track * track) + 1e-18
-    gyro_var = noise.angle_random_walk * noise.angle_random_walk * dt
-    gyro_turn = gyro_angle - o.state[3] * dt
-    turn = wheel_turn if o.heading == "wheels" else gyro_turn
-    turn_var = wheel_turn_var if o.heading == "wheels" else gyro_var
-    moved, by_state, by_input = _jacobians(drive.axle_offset, o.state, forward, turn, dt, o.method)
-    if o.heading == "wheels":
-        by_state[:3, 3] = 0.0  # the bias plays no part in this heading
-    bias_var = noise.rate_random_walk * noise.rate_random_walk * dt if o.heading == "fused" else 0.0
-    previous = o.covariance4
-    # The clone of the heading at the interval's start rides along as a fifth state.
-    lift = np.vstack([by_state, [0.0, 0.0, 1.0, 0.0]])
-    covariance = lift @ previous @ lift.T
-    covariance[:4, :4] += by_input @ np.diag([forward_var, turn_var]) @ by_input.T
-    covariance[3, 3] += bias_var
-    # Slip: the wheels' heading change against the gyro's, chi-square with one dof.
-    innovation = wheel_turn - gyro_turn
-    gyro_side = gyro_var + dt * dt * previous[3, 3]
-    score = innovation * innovation / (wheel_turn_var + gyro_side)
-    slip = bool(score > o.slip_threshold) or forced
-    state = moved
-    if o.heading == "fused" and not slip:
-        h = np.array([0.0, 0.0, 1.0, 0.0, -1.0])
-        predicted = moved[2] - o.state[2]
-        s = float(h @ covariance @ h) + wheel_turn_var
-        gain = covariance @ h / s
-        state = moved + gain[:4] * (wheel_turn - predicted)
-        covariance = covariance - np.outer(gain, h @ covariance)
-    if slip:
-        covariance[:4, :4] += (
-            (o.slip_inflation - 1.0) * forward_var * np.outer(by_input[:, 0], by_input[:, 0])
-        )
-    covariance = 0.5 * (covariance + covariance.T)
-    return state, covariance[:4, :4], slip, float(score)
+        now = self.time
+        t = now + positive("dt", dt)  # type: ignore[operator]
+        if not math.isfinite(t):
+            raise ValueError(f"dt {dt!r} s takes the clock past the largest float")
+        self.update_increments(left, right, t, gyro_angle=gyro_angle, commanded=commanded)
 
 
 @dataclass(frozen=True, eq=False)
@@ -421,33 +238,29 @@ def gyro_odometry(
                     "log in which the wheels stand still for a while"
                 )
             bias = 0.0
-    start = None if initial_pose is None else Pose.coerce(initial_pose, "initial_pose")
-    odometry = GyroOdometry(robot, heading, start, bias=bias, **options)
-    n = len(times)
-    poses, covariances = np.empty((n, 3)), np.empty((n, 3, 3))
-    biases, slips, scores = np.empty(n), np.zeros(n, dtype=bool), np.zeros(n)
-    poses[0], covariances[0], biases[0] = (
-        odometry.pose.to_array(),
-        odometry.covariance,
-        odometry.bias,
+    from diffdrive.estimation.smoother import estimate_trajectory
+
+    estimate = estimate_trajectory(
+        robot,
+        times,
+        increments,
+        gyro=gyro,
+        heading=heading,
+        initial_pose=initial_pose,
+        smooth=False,
+        commanded=commanded,
+        bias=bias,
+        **options,
     )
-    dts = np.diff(times)
-    for k in range(1, n):
-        try:
-            odometry.update(
-                increments[k - 1, 0],
-                increments[k - 1, 1],
-                turned[k - 1],
-                dts[k - 1],
-                None if commanded is None else commanded[k - 1],
-            )
-        except ValueError as exc:
-            raise ValueError(
-                f"interval {k - 1} ({times[k - 1]!r} to {times[k]!r} s): {exc}"
-            ) from None
-        poses[k], covariances[k] = odometry.pose.to_array(), odometry.covariance
-        biases[k], slips[k], scores[k] = odometry.bias, odometry.slip, odometry.slip_score
-    return GyroTrajectory(times, poses, covariances, biases, slips, scores, heading)
+    return GyroTrajectory(
+        times,
+        estimate.poses,
+        estimate.covariances,
+        estimate.states[:, 3],
+        estimate.slip,
+        estimate.slip_score,
+        heading,
+    )
 
 
 def stationary_bias(times, increments, turned, least: float = 0.5) -> float | None:

@@ -1,0 +1,209 @@
+"""``diffdrive odometry`` with absolute measurements or a smoother: the log through
+``estimate_trajectory``.
+
+Measurements come from a bag's pose topic (``PoseWithCovarianceStamped`` or ``Odometry``: a
+camera, a localiser), its GPS topic (``NavSatFix``, in the local east-north frame at its first
+fix) or a table (``t, x, y`` and, for poses, ``theta``; optional ``sigma_x, sigma_y,
+sigma_theta``). Their covariance is the message's or the table's, else ``--pose-sigma`` or
+``--gps-sigma``; a message covariance that is not positive definite needs those.
+
+Frames. The measurements are in their own frame (a map, or east-north); the log's wheels only
+know where they started. The start pose in the measurements' frame is the one that best fits
+the dead-reckoned path at the measurements' stamps onto their positions (least squares, SE(2)),
+its uncertainty the fit's residual; the command prints it. Measurements outside the log's time
+span are left out, and said so.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive.cli.options import COVARIANCE_COLUMNS, write_output
+from diffdrive.cli.report import error_summary
+from diffdrive.estimation import Measurement, estimate_trajectory
+from diffdrive.evaluation import align, interpolate
+from diffdrive.io import Run, TableError, is_bag
+from diffdrive.model import Robot
+
+
+def wants_fusion(args) -> bool:
+    """Whether the command runs the estimator with measurements or a smoother."""
+    return bool(args.pose_topic or args.gps_topic or args.measurements or args.smooth) or bool(
+        args.turn_scale_sigma
+    )
+
+
+def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:
+    """The measurements the options name, and a line about each source."""
+    made: list[Measurement] = []
+    notes: list[str] = []
+    if args.pose_topic or args.gps_topic:
+        if args.input is None or not is_bag(args.input):
+            raise TableError("--pose-topic and --gps-topic need a bag as the log")
+        from diffdrive.io import ros
+
+        if args.pose_topic:
+            topic = ros.read_odometry(args.input, args.pose_topic)
+            rows = zip(topic.times, topic.poses, topic.covariances, strict=True)
+            made += [_made("pose", t, p, c, args, f"{args.pose_topic}") for t, p, c in rows]
+            notes.append(f"{len(topic.times)} poses from {args.pose_topic}")
+        if args.gps_topic:
+            fixes = ros.read_navsatfix(args.input, args.gps_topic)
+            rows = zip(fixes.times, fixes.positions, fixes.variance, strict=True)
+            made += [
+                _made("position", t, p, np.eye(2) * v, args, args.gps_topic) for t, p, v in rows
+            ]
+            notes.append(
+                f"{len(fixes.times)} GPS fixes from {args.gps_topic}, east-north at the first"
+            )
+    if args.measurements:
+        made += _table_measurements(args)
+        notes.append(f"measurements from {args.measurements}")
+    return made, notes
+
+
+def _made(kind, t, value, covariance, args, where) -> Measurement:
+    """One measurement; its covariance, else the sigma option, else a named refusal."""
+    size = 3 if kind == "pose" else 2
+    given = np.asarray(covariance, dtype=float)
+    usable = np.all(np.isfinite(given)) and np.all(np.linalg.eigvalsh(given) > 0.0)
+    if not usable:
+        sigma = args.pose_sigma if kind == "pose" else args.gps_sigma
+        if sigma is None:
+            option = "--pose-sigma SX SY STHETA" if kind == "pose" else "--gps-sigma M"
+            raise TableError(
+                f"{where}: the {kind} at t = {t!r} s has no positive definite covariance: "
+                f"give {option}"
+            )
+        given = np.asarray(sigma, dtype=float) if kind == "pose" else np.full(2, sigma)
+    value = np.asarray(value, dtype=float)[:size]
+    try:
+        return Measurement.make(kind, t, value, given, args.lever_arm)
+    except ValueError as exc:
+        raise TableError(f"{where}: {exc}") from None
+
+
+def _table_measurements(args) -> list[Measurement]:
+    from diffdrive.io.tables import read_header, read_table
+
+    path = args.measurements
+    header = read_header(path)
+    kind = "pose" if "theta" in header else "position"
+    names = ("sigma_x", "sigma_y", "sigma_theta") if kind == "pose" else ("sigma_x", "sigma_y")
+    optional = ("theta", *names) if kind == "pose" else names
+    table = read_table(path, ["t", "x", "y"], optional, time_unit=args.time_unit)
+    columns = ["x", "y", "theta"] if kind == "pose" else ["x", "y"]
+    values = np.column_stack([table[name] for name in columns])
+    sigmas = (
+        np.column_stack([table[name] for name in names])
+        if all(name in table for name in names)
+        else None
+    )
+    made = []
+    for k, t in enumerate(table["t"]):
+        where = f"{path}:{table.lines[k]}"
+        covariance = np.full((len(columns), len(columns)), np.nan)
+        if sigmas is not None:
+            covariance = np.diag(sigmas[k] * sigmas[k])
+        made.append(_made(kind, t, values[k], covariance, args, where))
+    return made
+
+
+def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str) -> int:
+    """The estimator over the log with the measurements, filtered or smoothed; the poses,
+    covariance and the filter's own columns written."""
+    measurements, notes = measurements_of_args(args)
+    inside = [m for m in measurements if log.times[0] <= m.t <= log.times[-1]]
+    if len(inside) < len(measurements):
+        notes.append(f"{len(measurements) - len(inside)} measurements outside the log left out")
+    heading = args.heading or ("fused" if gyro is not None else "wheels")
+    if heading != "wheels" and gyro is None:
+        raise ValueError(f"--heading {heading} needs a gyro: --gyro-topic, or a gyro_z column")
+    options = {
+        "k_left": 1e-4 if args.k_left is None else args.k_left,
+        "k_right": 1e-4 if args.k_right is None else args.k_right,
+        "turn_scale_sigma": args.turn_scale_sigma or 0.0,
+        "gate": args.gate,
+        "method": args.method,
+    }
+    if args.gyro_bias is not None:
+        options["bias"] = args.gyro_bias
+    common = dict(gyro=gyro, heading=heading, **options)
+    start, covariance = log.start_pose(), None
+    if inside:
+        dead = estimate_trajectory(robot, log.times, increments, smooth=False, **common)
+        start, covariance, fit = _start_in_frame(log.times, dead.poses, inside)
+        notes.append(
+            f"start pose in the measurements' frame: ({start[0]:.3f} m, {start[1]:.3f} m, "
+            f"{start[2]:.4f} rad), fitted to them (RMS {fit:.3f} m)"
+        )
+    result = estimate_trajectory(
+        robot,
+        log.times,
+        increments,
+        measurements=inside,
+        initial_pose=start,
+        initial_covariance=covariance,
+        smooth=args.smooth,
+        **common,
+    )
+    flat = result.covariances.reshape(-1, 9)
+    columns = {name: flat[:, index] for name, index in COVARIANCE_COLUMNS.items()}
+    if heading != "wheels":
+        columns.update(slip=result.slip.astype(float), gyro_bias=result.states[:, 3])
+    if options["turn_scale_sigma"]:
+        columns["turn_scale"] = result.states[:, 4]
+    which = "smoothed" if args.smooth else "filtered"
+    what = f"{which} estimate of {log.source} ({heading} heading)"
+    write_output(args, log.times, result.poses, what, columns, result.covariances)
+    if result.rejected and result.rejected > 0.5 * max(1, len(inside)):
+        print(
+            f"diffdrive odometry: warning: the gate refused {result.rejected} of {len(inside)} "
+            "measurements: the wheels' noise (--k-left, --k-right) or the measurements' "
+            "covariance is likely too small, or the frames disagree",
+            file=sys.stderr,
+        )
+    if not args.quiet:
+        print(note)
+        for line in notes:
+            print(line)
+        print(
+            f"measurements: {len(inside) - result.rejected} taken, {result.rejected} refused by "
+            f"the gate ({args.gate:g})"
+        )
+        if options["turn_scale_sigma"]:
+            print(f"turn scale at the end: {result.states[-1, 4]:.4f}")
+        if log.truth is not None:
+            print(error_summary(result.poses, log.truth))
+    return 0
+
+
+def _start_in_frame(times, poses, measurements: list[Measurement]):
+    """The start pose in the measurements' frame (the dead-reckoned path fitted onto their
+    positions), a covariance from the fit's residual, and the residual's RMS (m)."""
+    stamps = np.array([m.t for m in measurements])
+    seen = np.array([[*m.value[:2], 0.0] for m in measurements])
+    path = interpolate(times, poses, stamps)
+    flat = np.column_stack([path[:, :2], np.zeros(len(path))])
+    if len(measurements) == 1 or np.ptp(flat[:, :2], axis=0).max() < 1e-9:
+        shift = seen[0, :2] - flat[0, :2]  # one point, or no travel: a translation only
+        moved = np.array([*shift, 0.0])
+        if measurements[0].kind == "pose":
+            moved = batch.compose(
+                np.array([*measurements[0].value[:2], measurements[0].value[2]]),
+                batch.inverse(path[0]),
+            )
+    else:
+        fitted = align(flat, seen)
+        moved = batch.compose(fitted[0], batch.inverse(flat[0]))
+    start = batch.compose(moved, poses[0])
+    placed = batch.compose(moved, path)
+    rms = float(np.sqrt(np.mean(np.sum((placed[:, :2] - seen[:, :2]) ** 2, axis=1))))
+    spread = max(rms, 0.01)
+    extent = max(float(np.ptp(seen[:, :2], axis=0).max()), 1.0)
+    covariance = np.diag([spread**2, spread**2, min((spread / extent) ** 2 * 4, math.pi**2)])
+    return start, covariance, rms

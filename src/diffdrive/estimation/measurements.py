@@ -1,0 +1,144 @@
+"""Absolute measurements for ``PoseEstimator``: a pose ``(x, y, theta)`` (camera, AprilTag,
+localiser), a position ``(x, y)`` (GPS in a local east-north frame) or a heading ``(theta,)``
+(a compass, or a gyro's integrated angle whose noise is white in the angle), each with its own
+time stamp, covariance and lever arm, checked once where they are made.
+
+A covariance is given as a ``k x k`` matrix (symmetric positive definite), or as ``k``
+standard deviations (m, m, rad), or one standard deviation for every axis of a position.
+The lever arm ``(x, y)`` (m, body frame) is where the sensor sits on the robot: a position
+sensor measures that point, a pose sensor that point and the body's heading.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from diffdrive._validate import finite
+
+__all__ = ["MEASUREMENT_KINDS", "Measurement", "chi2_quantile"]
+
+MeasurementKind = Literal["pose", "position", "heading"]
+MEASUREMENT_KINDS: tuple[MeasurementKind, ...] = ("pose", "position", "heading")
+_SIZE = {"pose": 3, "position": 2, "heading": 1}
+
+
+def _chi2_cdf(x: float, dof: int) -> float:
+    """P(chi-square with ``dof`` (1, 2 or 3) degrees of freedom <= ``x``), in closed form."""
+    if x <= 0.0:
+        return 0.0
+    if dof == 1:
+        return math.erf(math.sqrt(0.5 * x))
+    if dof == 2:
+        return -math.expm1(-0.5 * x)
+    return math.erf(math.sqrt(0.5 * x)) - math.sqrt(2.0 * x / math.pi) * math.exp(-0.5 * x)
+
+
+def chi2_quantile(probability: float, dof: int) -> float:
+    """The ``probability`` quantile of chi-square with ``dof`` (1 to 3) degrees of freedom,
+    e.g. ``chi2_quantile(0.999, 2) = 13.82``: the gate a measurement's squared Mahalanobis
+    distance must not pass."""
+    if dof not in (1, 2, 3):
+        raise ValueError(f"dof must be 1, 2 or 3, got {dof!r}")
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"probability must lie in (0, 1), got {probability!r}")
+    low, high = 0.0, 1.0
+    while _chi2_cdf(high, dof) < probability:
+        high *= 2.0
+    for _ in range(200):  # bisection to the float's resolution
+        middle = 0.5 * (low + high)
+        if middle in (low, high):
+            break
+        low, high = (middle, high) if _chi2_cdf(middle, dof) < probability else (low, middle)
+    return 0.5 * (low + high)
+
+
+def _floats(given: object, what: str, where: str) -> np.ndarray:
+    """``given`` as a float array; ``ValueError`` or ``TypeError`` naming it otherwise."""
+    try:
+        return np.asarray(given, dtype=float)
+    except OverflowError:
+        raise ValueError(f"{where}: {what} must be finite, got an integer too large") from None
+    except (TypeError, ValueError):
+        raise TypeError(f"{where}: {what} must be numbers, got {given!r}") from None
+
+
+def _covariance(given: object, size: int, where: str) -> np.ndarray:
+    matrix = _floats(given, "covariance", where)
+    if matrix.ndim == 0 and size < 3:  # one standard deviation for every axis
+        matrix = np.full(size, float(matrix))
+    if matrix.shape == (size,):
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            variances = matrix * matrix
+        if not (np.all(np.isfinite(variances)) and np.all(matrix > 0.0) and np.all(variances > 0)):
+            raise ValueError(
+                f"{where}: standard deviations must be > 0 and square to a finite float > 0, "
+                f"got {matrix}"
+            )
+        return np.diag(variances)
+    if matrix.shape != (size, size):
+        raise ValueError(
+            f"{where}: covariance must be {size}x{size} or {size} standard deviations, "
+            f"got shape {matrix.shape}"
+        )
+    if not np.all(np.isfinite(matrix)):
+        raise ValueError(f"{where}: covariance must be finite")
+    if not np.allclose(matrix, matrix.T, rtol=1e-9, atol=0.0):
+        raise ValueError(f"{where}: covariance is not symmetric")
+    try:
+        np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:
+        raise ValueError(f"{where}: covariance is not positive definite") from None
+    return 0.5 * (matrix + matrix.T)
+
+
+@dataclass(frozen=True, eq=False)
+class Measurement:
+    """One absolute measurement, checked: ``kind`` ``"pose"``, ``"position"`` or
+    ``"heading"``, its time stamp ``t`` (s), ``value`` ``(k,)`` (3, 2 or 1 numbers),
+    ``covariance`` ``(k, k)`` and ``lever_arm`` ``(2,)`` m. Build it with
+    ``Measurement.make``."""
+
+    kind: MeasurementKind
+    t: float
+    value: np.ndarray
+    covariance: np.ndarray
+    lever_arm: tuple[float, float]
+
+    @classmethod
+    def make(
+        cls,
+        kind: str,
+        t: object,
+        value: object,
+        covariance: object,
+        lever_arm: object = None,
+    ) -> Measurement:
+        """A checked measurement; ``ValueError`` naming it (kind and stamp) if anything is
+        wrong: a stamp or value that is not finite, a covariance that is not symmetric
+        positive definite, a lever arm that is not two finite numbers."""
+        if kind not in MEASUREMENT_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(MEASUREMENT_KINDS)}, got {kind!r}")
+        stamp = finite(f"{kind} measurement time", t)
+        where = f"{kind} measurement at t = {stamp!r} s"
+        size = _SIZE[kind]
+        values = _floats(value, "value", where)
+        if values.shape != (size,):
+            raise ValueError(f"{where}: value must have {size} numbers, got shape {values.shape}")
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"{where}: value must be finite, got {values}")
+        arm = np.zeros(2) if lever_arm is None else _floats(lever_arm, "lever_arm", where)
+        if arm.shape != (2,) or not np.all(np.isfinite(arm)):
+            raise ValueError(f"{where}: lever_arm must be two finite numbers (m), got {arm}")
+        matrix = _covariance(covariance, size, where)
+        values.flags.writeable = matrix.flags.writeable = False
+        return cls(kind, stamp, values, matrix, (float(arm[0]), float(arm[1])))
+
+    @property
+    def order(self) -> tuple:
+        """A total order: by stamp, then kind and values, so that measurements at one stamp
+        are applied the same way whatever order they came in."""
+        return (self.t, self.kind, tuple(self.value.tolist()), tuple(self.covariance.ravel()))

@@ -1,0 +1,108 @@
+"""``diffdrive odometry`` with absolute measurements and the smoother: tables and bags in, the
+estimate and its covariance out, and the refusals that name what is wrong."""
+
+import numpy as np
+import pytest
+
+import diffdrive as dd
+from diffdrive.cli import main
+from diffdrive.demo import EXAMPLE_TICKS_PER_REVOLUTION, example_encoder_log
+
+TICKS = ["--ticks-per-revolution", str(EXAMPLE_TICKS_PER_REVOLUTION)]
+
+
+def write_table(path, columns):
+    names = list(columns)
+    rows = np.column_stack([columns[name] for name in names])
+    path.write_text(
+        ",".join(names) + "\n" + "\n".join(",".join(map(repr, r)) for r in rows.tolist())
+    )
+
+
+@pytest.fixture
+def log_and_fixes(tmp_path, monkeypatch):
+    """The built-in encoder log with its truth, and GPS-like fixes of the truth every 1 s with
+    0.05 m noise; the odometry is told a ticks-per-revolution 3 % off, so it drifts."""
+    monkeypatch.chdir(tmp_path)
+    log = example_encoder_log()
+    write_table(tmp_path / "log.csv", log)
+    rng = np.random.default_rng(0)
+    every = slice(0, None, 20)
+    noise = rng.normal(size=(len(log["t"][every]), 2)) * 0.05
+    fixes = {
+        "t": log["t"][every],
+        "x": log["x"][every] + noise[:, 0],
+        "y": log["y"][every] + noise[:, 1],
+        "sigma_x": np.full(len(noise), 0.05),
+        "sigma_y": np.full(len(noise), 0.05),
+    }
+    write_table(tmp_path / "fixes.csv", fixes)
+    return tmp_path, log
+
+
+def final_error(path, log):
+    table = np.genfromtxt(path, delimiter=",", names=True)
+    return float(np.hypot(table["x"][-1] - log["x"][-1], table["y"][-1] - log["y"][-1])), table
+
+
+def test_fixes_from_a_table_pull_a_drifting_odometry_back(log_and_fixes, capsys):
+    folder, log = log_and_fixes
+    wrong = ["--ticks-per-revolution", str(EXAMPLE_TICKS_PER_REVOLUTION * 1.03)]
+    assert main(["odometry", "log.csv", *wrong, "-o", "plain.csv"]) == 0
+    assert main(["odometry", "log.csv", *wrong, "--measurements", "fixes.csv", "-o", "f.csv"]) == 0
+    printed = capsys.readouterr().out
+    assert "refused by the gate" in printed
+    assert "start pose in the measurements' frame" in printed
+    smoothed = ["--measurements", "fixes.csv", "--smooth", "-o", "s.csv"]
+    assert main(["odometry", "log.csv", *wrong, *smoothed]) == 0
+    plain, _ = final_error(folder / "plain.csv", log)
+    filtered, table = final_error(folder / "f.csv", log)
+    smooth, _ = final_error(folder / "s.csv", log)
+    assert filtered < 0.5 * plain
+    assert smooth <= filtered + 1e-9
+    assert {"cov_xx", "cov_yy", "cov_thetatheta"} <= set(table.dtype.names)
+    assert np.all(table["cov_xx"] > 0)
+
+
+def test_a_bag_pose_topic_is_fused(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("rosbags")
+    monkeypatch.chdir(tmp_path)
+    synth = ["synth", "--k-left", "1e-4", "--k-right", "1e-4", "--pose-sigma", "0.1", "0.1"]
+    synth += ["0.05", "--pose-period", "0.5", "--pose-latency", "0.2", "--seed", "1"]
+    assert main([*synth, "-o", "run.mcap"]) == 0
+    joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
+    code = main(["odometry", "run.mcap", *joints, "--pose-topic", "/pose", "--smooth", "-q"])
+    assert code == 0
+    table = np.genfromtxt(tmp_path / "odometry.csv", delimiter=",", names=True)
+    assert np.all(np.isfinite(table["cov_xx"]))
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--pose-topic", "/pose"], "--pose-topic and --gps-topic need a bag"),
+        (["--measurements", "bad.csv"], "bad.csv:3"),
+        (["--measurements", "nosigma.csv"], "give --gps-sigma M"),
+    ],
+)
+def test_bad_measurements_are_refused_by_name_and_nothing_is_written(
+    log_and_fixes, capsys, extra, message
+):
+    folder, _ = log_and_fixes
+    (folder / "bad.csv").write_text("t,x,y,sigma_x,sigma_y\n0,0,0,1,1\n1,0,nan,1,1\n")
+    (folder / "nosigma.csv").write_text("t,x,y\n0,0,0\n1,0,0\n")
+    assert main(["odometry", "log.csv", *TICKS, *extra, "-o", "out.csv"]) != 0
+    assert message in capsys.readouterr().err
+    assert not (folder / "out.csv").exists()
+
+
+def test_the_turn_scale_option_reports_its_estimate(log_and_fixes, capsys):
+    log = example_encoder_log()
+    gyro = np.gradient(np.unwrap(log["theta"]), log["t"])
+    write_table(log_and_fixes[0] / "gyro.csv", {**log, "gyro_z": gyro})
+    code = main(["odometry", "gyro.csv", *TICKS, "--turn-scale-sigma", "0.1", "-o", "t.csv"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    scale = float(printed.split("turn scale at the end: ")[1].split()[0])
+    assert scale == pytest.approx(1.0, abs=0.02)
+    assert dd.DiffDrive  # the robot is the built-in one: its wheels turn as the robot does
