@@ -4,7 +4,8 @@
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
-SOURCES := pyproject.toml setup.py src/diffdrive/backends/_odometry.c
+SOURCES := pyproject.toml setup.py src/diffdrive/backends/_odometry.c \
+	src/diffdrive/backends/_estimator.c src/diffdrive/backends/_odometry.h
 
 .PHONY: demo test bench clean
 

@@ -1,14 +1,19 @@
-"""The C core of ``diffdrive.Odometry`` (one update in well under a microsecond).
+"""The C cores of ``diffdrive.Odometry`` (one update in well under a microsecond) and of
+``diffdrive.estimation.PoseEstimator`` (one extension, two sources and the header they share).
 
 Everything else about the package is in pyproject.toml; setuptools' own table for extension
 modules there is still experimental, so the one extension is declared here. It is optional:
 where no C compiler is found the build goes on without it, and ``diffdrive.Odometry`` runs on
-its pure-Python twin (``backends/odometry_python.py``; ``diffdrive.odometry.COMPILED`` says which).
+its pure-Python twins (``backends/odometry_python.py``, ``backends/estimator_python.py``;
+``COMPILED`` in ``diffdrive.estimation.odometry`` and ``.fusion`` says which).
 """
 
 from setuptools import Extension, setup
 
 CORE = Extension(
-    "diffdrive.backends._odometry", ["src/diffdrive/backends/_odometry.c"], optional=True
+    "diffdrive.backends._odometry",
+    ["src/diffdrive/backends/_odometry.c", "src/diffdrive/backends/_estimator.c"],
+    depends=["src/diffdrive/backends/_odometry.h"],
+    optional=True,
 )
 setup(ext_modules=[CORE])

@@ -20,6 +20,7 @@ import pytest
 import diffdrive as dd
 from diffdrive import batch, integrate
 from diffdrive.estimation import COMPILED, GyroOdometry, PoseEstimator, PythonOdometry
+from diffdrive.estimation.fusion import PythonPoseEstimator
 from diffdrive.montecarlo import monte_carlo
 
 jax = pytest.importorskip("jax", reason="jax is part of the test extra")
@@ -117,16 +118,20 @@ def _gyro(heading):
     return run
 
 
-def _estimator(case, method, dtype):
-    """PoseEstimator, heading from the wheels, fed accumulated wheel angles as a log gives
-    them (the first reading is the reference)."""
-    estimator = PoseEstimator(case.robot, "wheels", dd.Pose(*case.start), method=method)
-    positions = np.concatenate([[[0.0, 0.0]], np.cumsum(case.wheels * case.dt, axis=0)])
-    poses = []
-    for k, (left, right) in enumerate(positions):
-        estimator.update_positions(left, right, float(k))
-        poses.append(estimator.pose.to_array())
-    return np.array(poses)
+def _estimator(kind):
+    """PoseEstimator (its C core, or its pure-Python twin), heading from the wheels, fed
+    accumulated wheel angles as a log gives them (the first reading is the reference)."""
+
+    def run(case, method, dtype):
+        estimator = kind(case.robot, "wheels", dd.Pose(*case.start), method=method)
+        positions = np.concatenate([[[0.0, 0.0]], np.cumsum(case.wheels * case.dt, axis=0)])
+        poses = []
+        for k, (left, right) in enumerate(positions):
+            estimator.update_positions(left, right, float(k))
+            poses.append(estimator.pose.to_array())
+        return np.array(poses)
+
+    return run
 
 
 def _monte_carlo(case, method, dtype):
@@ -168,7 +173,8 @@ BACKENDS = {
     "odometry (pure Python)": (_odometry(PythonOdometry), ("float64",)),
     "gyro filter, wheel heading": (_gyro("wheels"), ("float64",)),
     "gyro filter, gyro heading": (_gyro("gyro"), ("float64",)),
-    "pose estimator, wheel heading": (_estimator, ("float64",)),
+    "pose estimator (C), wheel heading": (_estimator(PoseEstimator), ("float64",)),
+    "pose estimator (pure Python), wheel heading": (_estimator(PythonPoseEstimator), ("float64",)),
     "monte carlo (numba)": (_monte_carlo, ("float64",)),
     "rollout numpy": (_rollout(np.asarray), ("float32", "float64")),
     "rollout array-api-strict": (_rollout(xps.asarray), ("float32", "float64")),

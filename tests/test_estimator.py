@@ -17,6 +17,7 @@ from diffdrive.estimation import (
     PoseEstimator,
     chi2_quantile,
     estimate_trajectory,
+    fusion,
     measurements_of,
 )
 
@@ -351,3 +352,48 @@ def test_fusing_late_vision_pays_and_the_covariance_is_honest():
     assert np.median([e.mean() for e, _ in fused]) < 0.85 * np.median([e.mean() for e, _ in alone])
     inside = np.mean(np.concatenate([d for _, d in fused]) < 5.991)
     assert 0.93 <= inside <= 0.97
+
+
+readings = st.lists(
+    st.tuples(
+        st.floats(-0.5, 0.5),  # left increment, rad
+        st.floats(-0.5, 0.5),  # right
+        st.floats(1e-3, 0.05),  # dt, s
+        st.floats(-0.05, 0.05),  # gyro angle, rad
+        st.one_of(st.none(), st.tuples(st.floats(0.0, 1.5), st.floats(-1, 1), st.floats(-1, 1))),
+    ),
+    min_size=1,
+    max_size=60,
+)
+
+
+@pytest.mark.skipif(not fusion.COMPILED, reason="the C core was not built")
+@settings(max_examples=40, deadline=None)
+@given(readings, st.sampled_from(["wheels", "gyro", "fused"]), st.booleans())
+def test_the_c_core_is_its_python_twin(steps, heading, scale):
+    """Any wheel, gyro and measurement sequence, late stamps included: the C core and the
+    pure-Python core give the same state, covariance, counts and pose in the past."""
+    options = dict(k_left=1e-4, k_right=2e-4, turn_scale_sigma=0.1 if scale else 0.0)
+    options.update(initial_time=0.0, history=0.5, initial_covariance=np.eye(3) * 1e-4)
+    pair = [
+        kind(ROBOT, heading, **options)
+        for kind in (fusion.PoseEstimator, fusion.PythonPoseEstimator)
+    ]
+    now = 0.0
+    for left, right, dt, angle, seen in steps:
+        now += dt
+        for estimator in pair:
+            estimator.update_increments(left, right, now, gyro_angle=angle)
+            if seen is not None:
+                back, x, y = seen
+                stamp = max(now - 0.3 * back, estimator.history_start)
+                estimator.add_pose(stamp, (x, y, 0.1 * x), (0.3, 0.3, 0.2))
+    c, python = pair
+    np.testing.assert_allclose(c.state, python.state, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(c.state_covariance, python.state_covariance, rtol=1e-7, atol=1e-15)
+    assert (c.accepted, c.rejected) == (python.accepted, python.rejected)
+    assert c.history_start == python.history_start
+    middle = 0.5 * (c.history_start + now)
+    np.testing.assert_allclose(
+        c.pose_at(middle)[0].to_array(), python.pose_at(middle)[0].to_array(), atol=1e-12
+    )

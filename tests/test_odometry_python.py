@@ -106,15 +106,21 @@ def test_whole_logs_agree_row_by_row_with_the_same_refusal():
 
 @pytest.mark.slow
 def test_the_odometry_tests_pass_on_the_twin():
-    """test_odometry, test_stateful and test_edges with DIFFDRIVE_PURE_PYTHON=1, but for the
-    two runs of 10^6 updates (a minute in Python; the C core runs them) and the fuzzing of the
-    command line's file reading (about files, not the core; it failed here once, in a run whose
-    report was cut off, and never again in dozens of runs: kept out until it can be read)."""
+    """test_odometry, test_stateful, test_estimator and test_edges with DIFFDRIVE_PURE_PYTHON=1
+    (Odometry's and PoseEstimator's twins), but for the two runs of 10^6 updates (a minute in
+    Python; the C core runs them) and the fuzzing of the command line's file reading (about
+    files, not the core; it failed here once, in a run whose report was cut off, and never
+    again in dozens of runs: kept out until it can be read)."""
     tests = Path(__file__).resolve().parent
     environment = os.environ | {"DIFFDRIVE_PURE_PYTHON": "1"}
-    check = "import diffdrive.estimation.odometry as o; assert not o.COMPILED"
+    check = (
+        "import diffdrive.estimation.odometry as o, diffdrive.estimation.fusion as f; "
+        "assert not o.COMPILED and not f.COMPILED"
+    )
     subprocess.run([sys.executable, "-c", check], env=environment, check=True)
-    modules = [str(tests / f"test_{name}.py") for name in ("odometry", "stateful", "edges")]
+    modules = [
+        str(tests / f"test_{name}.py") for name in ("odometry", "stateful", "estimator", "edges")
+    ]
     done = subprocess.run(
         [
             sys.executable,

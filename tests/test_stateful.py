@@ -17,6 +17,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 import diffdrive as dd
 from diffdrive.calibration import OnlineCalibrator
 from diffdrive.estimation import PoseEstimator
+from diffdrive.estimation.fusion import PythonPoseEstimator
 from diffdrive.estimation.gyro import GyroOdometry
 
 ROBOT = dd.DiffDrive(
@@ -210,15 +211,17 @@ class GyroOdometryMachine(RuleBasedStateMachine):
             assert np.all(np.isfinite(ours.covariance))
 
 
-class PoseEstimatorMachine(RuleBasedStateMachine):
+class _PoseEstimatorMachine(RuleBasedStateMachine):
     """The estimator on 8-bit ticks, a gyro and absolute measurements, stamps anywhere:
     refused calls leave it as its twin, state, covariance, counts and history alike."""
+
+    KIND: type = PoseEstimator
 
     def __init__(self):
         super().__init__()
         options = dict(ticks_per_revolution=100, counter_bits=8, max_wheel_speed=1e4, history=2.0)
-        self.ours = PoseEstimator(ROBOT, "fused", **options)
-        self.twin = PoseEstimator(ROBOT, "fused", **options)
+        self.ours = self.KIND(ROBOT, "fused", **options)
+        self.twin = self.KIND(ROBOT, "fused", **options)
 
     def same(self):
         ours, twin = self.ours, self.twin
@@ -252,9 +255,18 @@ class PoseEstimatorMachine(RuleBasedStateMachine):
         assert np.all(np.isfinite(self.ours.state_covariance))
 
 
+class PoseEstimatorMachine(_PoseEstimatorMachine):
+    KIND = PoseEstimator  # the C core where it was built
+
+
+class PythonPoseEstimatorMachine(_PoseEstimatorMachine):
+    KIND = PythonPoseEstimator
+
+
 TestOdometryMachine = SETTINGS(OdometryMachine).TestCase
 TestLimiterMachine = SETTINGS(LimiterMachine).TestCase
 TestOpenLoopMachine = SETTINGS(OpenLoopMachine).TestCase
 TestOnlineCalibratorMachine = SETTINGS(OnlineCalibratorMachine).TestCase
 TestGyroOdometryMachine = SETTINGS(GyroOdometryMachine).TestCase
 TestPoseEstimatorMachine = SETTINGS(PoseEstimatorMachine).TestCase
+TestPythonPoseEstimatorMachine = SETTINGS(PythonPoseEstimatorMachine).TestCase

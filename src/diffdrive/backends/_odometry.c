@@ -19,6 +19,8 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "_odometry.h"
+
 enum { EULER = 0, RK2 = 1, EXACT = 2 };
 
 typedef struct {
@@ -810,10 +812,42 @@ static PyTypeObject CoreType = {
     .tp_methods = core_methods,
 };
 
+/* -- what the estimator core (_estimator.c) takes from this one ---------------------------- */
+
+double dd_sinc(double u) { return sinc(u); }
+double dd_sinc_derivative(double u) { return sinc_derivative(u); }
+
+int odometry_check(PyObject *obj) { return PyObject_TypeCheck(obj, &CoreType); }
+
+PyObject *odometry_update(PyObject *core, int kind, PyObject *const *args, Py_ssize_t nargs) {
+    Core *c = (Core *)core;
+    switch (kind) {
+    case 0: return update_ticks(c, args, nargs, NULL);
+    case 1: return update_positions(c, args, nargs, NULL);
+    case 2: return update_increments(c, args, nargs, NULL);
+    default: return update_velocities(c, args, nargs, NULL);
+    }
+}
+
+double odometry_time(PyObject *core) { return ((Core *)core)->time; }
+
+void odometry_arcs(PyObject *core, double arcs[2]) {
+    arcs[0] = ((Core *)core)->arc_left;
+    arcs[1] = ((Core *)core)->arc_right;
+}
+
+PyObject *odometry_snapshot(PyObject *core) { return snapshot((Core *)core, NULL); }
+
+int odometry_restore(PyObject *core, PyObject *saved) {
+    PyObject *done = restore((Core *)core, saved);
+    Py_XDECREF(done);
+    return done == NULL ? -1 : 0;
+}
+
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT,
     .m_name = "diffdrive.backends._odometry",
-    .m_doc = "The compiled core of diffdrive.Odometry.",
+    .m_doc = "The compiled cores of diffdrive.Odometry and diffdrive.estimation.PoseEstimator.",
     .m_size = -1,
 };
 
@@ -824,6 +858,10 @@ PyMODINIT_FUNC PyInit__odometry(void) {
     Py_INCREF(&CoreType);
     if (PyModule_AddObject(m, "OdometryCore", (PyObject *)&CoreType) < 0) {
         Py_DECREF(&CoreType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    if (estimator_add_type(m) < 0) {
         Py_DECREF(m);
         return NULL;
     }

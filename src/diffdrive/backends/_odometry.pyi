@@ -50,3 +50,59 @@ class OdometryCore:
     def _jacobians(
         self, left: float, right: float
     ) -> tuple[Covariance, tuple[float, float, float, float, float, float]]: ...
+
+class EstimatorCore:
+    """The state, history and updates of PoseEstimator; use that class (its arguments are
+    those of ``diffdrive.backends.estimator_python.EstimatorCore``)."""
+
+    def __init__(self, wheels: OdometryCore, *settings: Any) -> None: ...
+    def update_ticks(
+        self,
+        left: Any,
+        right: Any,
+        t: Any,
+        *,
+        gyro_angle: Any = None,
+        gyro_rate: Any = None,
+        commanded: Any = None,
+    ) -> None: ...
+    def update_positions(
+        self,
+        left: Any,
+        right: Any,
+        t: Any,
+        *,
+        gyro_angle: Any = None,
+        gyro_rate: Any = None,
+        commanded: Any = None,
+    ) -> None: ...
+    def update_increments(
+        self,
+        left: Any,
+        right: Any,
+        t: Any,
+        *,
+        gyro_angle: Any = None,
+        gyro_rate: Any = None,
+        commanded: Any = None,
+    ) -> None: ...
+    def update_velocities(
+        self,
+        left: Any,
+        right: Any,
+        dt: Any,
+        *,
+        gyro_angle: Any = None,
+        gyro_rate: Any = None,
+        commanded: Any = None,
+    ) -> None: ...
+    def _add_fast(
+        self, kind: int, t: Any, value: Any, covariance: Any, lever_arm: Any
+    ) -> bool | None: ...
+    def _add(self, measurement: Any) -> bool: ...
+    def _state_now(self) -> tuple[float, ...]: ...
+    def _covariance_now(self) -> tuple[float, ...]: ...
+    def _counts(self) -> tuple[int, int]: ...
+    def _history_start(self) -> float: ...
+    def _slip(self) -> tuple[bool, float, float]: ...
+    def _pose_at(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]: ...

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive.estimation import filter as ekf
-from diffdrive.estimation.fusion import PoseEstimator, _body_covariance, _body_pose
+from diffdrive.estimation.fusion import PythonPoseEstimator, _body_covariance, _body_pose
 from diffdrive.estimation.gyro import Gyro
 from diffdrive.estimation.measurements import Measurement
 from diffdrive.model import Robot
@@ -137,7 +137,7 @@ def estimate_trajectory(
                 f"[{times[0]!r}, {times[-1]!r}] s"
             )
     options.setdefault("history", float("inf"))
-    estimator = PoseEstimator(
+    estimator = PythonPoseEstimator(  # the Python core keeps the smoother's records
         robot,
         heading,
         initial_pose,

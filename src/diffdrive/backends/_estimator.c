@@ -1,0 +1,1140 @@
+/* The state, history and updates of diffdrive.estimation.PoseEstimator, in C so that a wheel
+ * and gyro update costs about a microsecond and a late measurement a few: the compiled twin
+ * of backends/estimator_python.py, which it mirrors step for step (the tests hold the two
+ * together), on the maths of diffdrive/estimation/filter.py.
+ *
+ * The wheels are read by an OdometryCore kept alongside (_odometry.c): its checks refuse a
+ * reading before anything changes, and its snapshot takes a reading back when the filter's
+ * own step refuses it. The history keeps each wheel interval with the state at its start;
+ * absolute measurements are kept in one array in the order of Measurement.order (stamp, kind,
+ * values, covariance), and a measurement stamped in the past is applied at its stamp and the
+ * intervals since replayed.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+#include "_odometry.h"
+
+#define N 5
+#define NN 25
+enum { BIAS = 3, SCALE = 4 };
+enum { WHEELS = 0, GYRO = 1, FUSED = 2 };
+enum { POSE = 0, POSITION = 1, HEADING = 2 };
+static const char *KIND_NAMES[3] = {"pose", "position", "heading"};
+static const int KIND_RANK[3] = {1, 2, 0}; /* "heading" < "pose" < "position", as Python's */
+static const char *UPDATES[4] = {"update_ticks", "update_positions", "update_increments",
+                                 "update_velocities"};
+#define SLIP_COMMAND_THRESHOLD 13.82
+
+typedef struct {
+    double t;
+    int kind, size;
+    double value[3], cov[9], lever[2];
+    int ok;
+    double score;
+} Meas;
+
+typedef struct {
+    double t0, t1, dl, dr, g;
+    int forced, slip;
+    double score;
+    double x[N], P[NN];
+} Interval;
+
+typedef struct {
+    PyObject_HEAD
+    PyObject *wheels;
+    /* configuration */
+    double r_l, r_r, track, axle, weight;
+    int chord, heading, est_bias, est_scale;
+    double k_l, k_r, arw2, rrw2, slip_thr, slip_infl, command_sigma;
+    double gate[4], offset, history, ahead, mount[3];
+    /* state */
+    double x[N], P[NN];
+    Interval *iv;
+    Py_ssize_t iv0, niv, civ;
+    Meas *ms;
+    Py_ssize_t ms0, nms, cms;
+    Meas *pend;
+    Py_ssize_t npend, cpend;
+    long long settled_ok, settled_bad;
+    double rate;
+    int have_rate, slip;
+    double slip_score, command_score;
+} Est;
+
+/* -- the maths of filter.py ------------------------------------------------------------- */
+
+static double wrap(double a) {
+    double w = remainder(a, 2.0 * M_PI);
+    return w <= -M_PI ? w + 2.0 * M_PI : w;
+}
+
+/* _step.move_jacobians */
+static void move_jacobians(double forward, double offset, double turn, double weight, int chord,
+                           double heading, double *dx, double *dy, double bf[2], double bt[2]) {
+    double angle = heading + weight * turn, ca = cos(angle), sa = sin(angle);
+    double sideways = offset * turn;
+    double gx = ca * forward - sa * sideways, gy = sa * forward + ca * sideways;
+    double scale = 1.0, slope = 0.0;
+    if (chord) {
+        scale = dd_sinc(0.5 * turn);
+        slope = 0.5 * dd_sinc_derivative(0.5 * turn);
+    }
+    bt[0] = slope * gx + scale * (-sa * offset - gy * weight);
+    bt[1] = slope * gy + scale * (ca * offset + gx * weight);
+    *dx = scale * gx;
+    *dy = scale * gy;
+    bf[0] = scale * ca;
+    bf[1] = scale * sa;
+}
+
+static double slip_score(const Est *e, const double *x, const double *P, double dl, double dr,
+                         double g, double dt) {
+    double wheel_turn = (e->r_r * dr - e->r_l * dl) / e->track, scale = x[SCALE];
+    double spread = e->k_l * fabs(e->r_l * dl) + e->k_r * fabs(e->r_r * dr);
+    double innovation = scale * wheel_turn - (g - x[BIAS] * dt);
+    double variance = scale * scale * spread / (e->track * e->track) + e->arw2 * dt +
+                      dt * dt * P[BIAS * N + BIAS] + wheel_turn * wheel_turn * P[SCALE * N + SCALE] +
+                      1e-18;
+    return innovation * innovation / variance;
+}
+
+/* filter.advance without the smoother's record: x, P (in) to xo, Po (out). */
+static void advance(const Est *e, const double *x, const double *P, double dl, double dr, double g,
+                    double dt, int slip, double *xo, double *Po) {
+    double left = e->r_l * dl, right = e->r_r * dr;
+    double wheel_turn = (right - left) / e->track, forward = 0.5 * (left + right);
+    double scale = x[SCALE], inflation = slip ? e->slip_infl : 1.0;
+    double noise[3] = {inflation * e->k_l * fabs(e->r_l * dl) / (e->r_l * e->r_l),
+                       inflation * e->k_r * fabs(e->r_r * dr) / (e->r_r * e->r_r),
+                       e->heading != WHEELS ? e->arw2 * dt : 0.0};
+    double bnf[3] = {0.5 * e->r_l, 0.5 * e->r_r, 0.0}, bnt[3], bst[N] = {0};
+    double turn;
+    if (e->heading == WHEELS) {
+        turn = scale * wheel_turn;
+        bnt[0] = -scale * e->r_l / e->track;
+        bnt[1] = scale * e->r_r / e->track;
+        bnt[2] = 0.0;
+        bst[SCALE] = wheel_turn;
+    } else {
+        turn = g - x[BIAS] * dt;
+        bnt[0] = bnt[1] = 0.0;
+        bnt[2] = 1.0;
+        bst[BIAS] = -dt;
+    }
+    double dx, dy, bf[2], bt[2];
+    move_jacobians(forward, e->axle, turn, e->weight, e->chord, x[2], &dx, &dy, bf, bt);
+    double F[NN] = {0}, G[N * 3] = {0};
+    for (int i = 0; i < N; ++i) F[i * N + i] = 1.0;
+    F[0 * N + 2] = -dy;
+    F[1 * N + 2] = dx;
+    for (int j = 0; j < N; ++j) {
+        F[0 * N + j] += bt[0] * bst[j];
+        F[1 * N + j] += bt[1] * bst[j];
+        F[2 * N + j] += bst[j];
+    }
+    for (int i = 0; i < 3; ++i) {
+        G[0 * 3 + i] = bf[0] * bnf[i] + bt[0] * bnt[i];
+        G[1 * 3 + i] = bf[1] * bnf[i] + bt[1] * bnt[i];
+        G[2 * 3 + i] = bnt[i];
+    }
+    double after[N];
+    memcpy(after, x, sizeof after);
+    after[0] += dx;
+    after[1] += dy;
+    after[2] += turn;
+    /* F is the identity but for columns 2 to 4 of rows 0 to 2, and G is zero below row 2:
+     * FP = P + A P and moved = FP F^T + G Q G^T over those entries only. */
+    double FP[NN], moved[NN], GQ[N * 3];
+    int cols[3] = {2}, ncols = 1; /* the columns of A = F - I that are not all zero */
+    for (int k = 3; k < N; ++k)
+        if (bst[k] != 0.0) cols[ncols++] = k;
+    memcpy(FP, P, sizeof FP);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = 0.0;
+            for (int c = 0; c < ncols; ++c) {
+                int k = cols[c];
+                sum += (F[i * N + k] - (i == k)) * P[k * N + j];
+            }
+            FP[i * N + j] += sum;
+        }
+    for (int i = 0; i < N; ++i)
+        for (int k = 0; k < 3; ++k) GQ[i * 3 + k] = G[i * 3 + k] * noise[k];
+    /* moved is symmetric: its upper triangle, mirrored */
+    for (int i = 0; i < N; ++i)
+        for (int j = i; j < N; ++j) {
+            double sum = FP[i * N + j];
+            if (j < 3) {
+                for (int c = 0; c < ncols; ++c) {
+                    int k = cols[c];
+                    sum += FP[i * N + k] * (F[j * N + k] - (j == k));
+                }
+                if (i < 3)
+                    for (int k = 0; k < 3; ++k) sum += GQ[i * 3 + k] * G[j * 3 + k];
+            }
+            moved[i * N + j] = moved[j * N + i] = sum;
+        }
+    if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
+    if (!(e->heading == FUSED && !slip)) {
+        memcpy(xo, after, sizeof after);
+        for (int i = 0; i < N; ++i)
+            for (int j = 0; j < N; ++j) Po[i * N + j] = 0.5 * (moved[i * N + j] + moved[j * N + i]);
+        return;
+    }
+    /* The wheels measure the turn over the scale, less their own noise. On the joint of
+     * (state after, state before, noises), [[moved, FP, GQ], [FP^T, P, 0], [GQ^T, 0, Q]], with
+     * H = (h_after, h_before, h_noise): its spread along H, block by block. */
+    double h1[N] = {0}, h0[N] = {0}, hn[3] = {e->r_l / e->track, -e->r_r / e->track, 0.0};
+    h1[2] = 1.0 / scale;
+    h1[SCALE] = -turn / (scale * scale);
+    h0[2] = -1.0 / scale;
+    double spread[N], before[N], s = 0.0;
+    for (int i = 0; i < N; ++i) {
+        double sum = 0.0, back = 0.0;
+        for (int k = 0; k < N; ++k) {
+            sum += moved[i * N + k] * h1[k] + FP[i * N + k] * h0[k];
+            back += FP[k * N + i] * h1[k] + P[i * N + k] * h0[k];
+        }
+        for (int k = 0; k < 3; ++k) sum += GQ[i * 3 + k] * hn[k];
+        spread[i] = sum;
+        before[i] = back;
+    }
+    for (int i = 0; i < N; ++i) s += h1[i] * spread[i] + h0[i] * before[i];
+    for (int k = 0; k < 3; ++k) {
+        double sum = noise[k] * hn[k];
+        for (int i = 0; i < N; ++i) sum += GQ[i * 3 + k] * h1[i];
+        s += hn[k] * sum;
+    }
+    s += 1e-18;
+    double innovation = wheel_turn - turn / scale;
+    for (int i = 0; i < N; ++i) xo[i] = after[i] + spread[i] / s * innovation;
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double a = moved[i * N + j] - spread[i] / s * spread[j];
+            double b = moved[j * N + i] - spread[j] / s * spread[i];
+            Po[i * N + j] = 0.5 * (a + b);
+        }
+}
+
+/* Cholesky of a k x k (k <= 3) matrix into L (lower); -1 unless positive definite. */
+static int cholesky(const double *A, int k, double *L) {
+    memset(L, 0, sizeof(double) * k * k);
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j <= i; ++j) {
+            double sum = A[i * k + j];
+            for (int m = 0; m < j; ++m) sum -= L[i * k + m] * L[j * k + m];
+            if (i == j) {
+                if (!(sum > 0.0)) return -1;
+                L[i * k + i] = sqrt(sum);
+            } else {
+                L[i * k + j] = sum / L[j * k + j];
+            }
+        }
+    return 0;
+}
+
+/* Solve L L^T y = b in place (b of k values). */
+static void cholesky_solve(const double *L, int k, double *b) {
+    for (int i = 0; i < k; ++i) {
+        for (int m = 0; m < i; ++m) b[i] -= L[i * k + m] * b[m];
+        b[i] /= L[i * k + i];
+    }
+    for (int i = k - 1; i >= 0; --i) {
+        for (int m = i + 1; m < k; ++m) b[i] -= L[m * k + i] * b[m];
+        b[i] /= L[i * k + i];
+    }
+}
+
+/* filter.absolute_update: x, P (in and out, unchanged if the gate refuses); ok and score. */
+static void absolute_update(const Est *e, double *x, double *P, const Meas *m, int *ok,
+                            double *score) {
+    int k = m->size;
+    double H[3 * N] = {0}, innovation[3];
+    if (m->kind == HEADING) {
+        H[2] = 1.0;
+        innovation[0] = wrap(m->value[0] - x[2]);
+    } else {
+        double ax = m->lever[0], ay = m->lever[1] - e->offset, c = cos(x[2]), s = sin(x[2]);
+        H[0 * N + 0] = H[1 * N + 1] = 1.0;
+        H[0 * N + 2] = -s * ax - c * ay;
+        H[1 * N + 2] = c * ax - s * ay;
+        innovation[0] = m->value[0] - (x[0] + c * ax - s * ay);
+        innovation[1] = m->value[1] - (x[1] + s * ax + c * ay);
+        if (k == 3) {
+            H[2 * N + 2] = 1.0;
+            innovation[2] = wrap(m->value[2] - x[2]);
+        }
+    }
+    double HP[3 * N], S[9] = {0}, L[9];
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < N; ++q) sum += H[i * N + q] * P[q * N + j];
+            HP[i * N + j] = sum;
+        }
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j < k; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < N; ++q) sum += HP[i * N + q] * H[j * N + q];
+            S[i * k + j] = sum + m->cov[i * k + j];
+        }
+    *ok = 0;
+    if (cholesky(S, k, L) < 0) {
+        *score = INFINITY;
+        return;
+    }
+    double white[3];
+    for (int i = 0; i < k; ++i) {
+        double sum = innovation[i];
+        for (int q = 0; q < i; ++q) sum -= L[i * k + q] * white[q];
+        white[i] = sum / L[i * k + i];
+    }
+    double d2 = 0.0;
+    for (int i = 0; i < k; ++i) d2 += white[i] * white[i];
+    *score = d2;
+    if (d2 > e->gate[k]) return;
+    /* gain = (S^-1 H P)^T, N x k */
+    double gain[N * 3];
+    for (int j = 0; j < N; ++j) {
+        double column[3];
+        for (int i = 0; i < k; ++i) column[i] = HP[i * N + j];
+        cholesky_solve(L, k, column);
+        for (int i = 0; i < k; ++i) gain[j * 3 + i] = column[i];
+    }
+    double keep[NN], KP[NN], out[NN];
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = i == j ? 1.0 : 0.0;
+            for (int q = 0; q < k; ++q) sum -= gain[i * 3 + q] * H[q * N + j];
+            keep[i * N + j] = sum;
+        }
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < N; ++q) sum += keep[i * N + q] * P[q * N + j];
+            KP[i * N + j] = sum;
+        }
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < N; ++q) sum += KP[i * N + q] * keep[j * N + q];
+            double noisy = 0.0;
+            for (int a = 0; a < k; ++a)
+                for (int b = 0; b < k; ++b)
+                    noisy += gain[i * 3 + a] * m->cov[a * k + b] * gain[j * 3 + b];
+            out[i * N + j] = sum + noisy;
+        }
+    for (int i = 0; i < N; ++i) {
+        double sum = 0.0;
+        for (int q = 0; q < k; ++q) sum += gain[i * 3 + q] * innovation[q];
+        x[i] += sum;
+    }
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) P[i * N + j] = 0.5 * (out[i * N + j] + out[j * N + i]);
+    *ok = 1;
+}
+
+/* -- the history ------------------------------------------------------------------------ */
+
+static int finite_state(const double *x, const double *P) {
+    for (int i = 0; i < N; ++i)
+        if (!isfinite(x[i])) return 0;
+    for (int i = 0; i < NN; ++i)
+        if (!isfinite(P[i])) return 0;
+    return 1;
+}
+
+/* Measurement.order: -1, 0 or 1 as a sorts before, with or after b. */
+static int order(const Meas *a, const Meas *b) {
+    if (a->t != b->t) return a->t < b->t ? -1 : 1;
+    if (a->kind != b->kind) return KIND_RANK[a->kind] < KIND_RANK[b->kind] ? -1 : 1;
+    for (int i = 0; i < a->size; ++i)
+        if (a->value[i] != b->value[i]) return a->value[i] < b->value[i] ? -1 : 1;
+    for (int i = 0; i < a->size * a->size; ++i)
+        if (a->cov[i] != b->cov[i]) return a->cov[i] < b->cov[i] ? -1 : 1;
+    return 0;
+}
+
+/* The first measurement index (absolute, in ms) whose stamp is > t (or >= t if inclusive). */
+static Py_ssize_t first_after(const Est *e, double t, int inclusive) {
+    Py_ssize_t lo = e->ms0, hi = e->ms0 + e->nms;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        int before = inclusive ? e->ms[mid].t < t : e->ms[mid].t <= t;
+        if (before)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* The measurements of history interval i (absolute index): (t0, t1], or [t0, t1] for the first. */
+static void slice_of(const Est *e, Py_ssize_t i, Py_ssize_t *lo, Py_ssize_t *hi) {
+    *lo = first_after(e, e->iv[i].t0, i == e->iv0);
+    *hi = first_after(e, e->iv[i].t1, 0);
+}
+
+/* Run interval iv from its start over the measurements m[0..nm) (sorted), to its end (record:
+ * the slip test and the outcomes kept) or to stop (recording nothing). */
+static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int record,
+                         double stop, double *x, double *P) {
+    memcpy(x, iv->x, sizeof iv->x);
+    memcpy(P, iv->P, sizeof iv->P);
+    double duration = iv->t1 - iv->t0;
+    if (record) {
+        if (isnan(iv->g)) {
+            iv->slip = iv->forced;
+            iv->score = 0.0;
+        } else {
+            iv->score = slip_score(e, x, P, iv->dl, iv->dr, iv->g, duration);
+            iv->slip = iv->score > e->slip_thr || iv->forced;
+        }
+    }
+    double end = record ? iv->t1 : stop, done = 0.0, t = iv->t0;
+    Py_ssize_t j = 0;
+    for (;;) {
+        double cut = (j < nm && m[j].t <= end) ? m[j].t : end;
+        double share = duration > 0.0 ? (cut - iv->t0) / duration : 1.0, part = share - done;
+        if (cut > t) {
+            double xn[N], Pn[NN];
+            advance(e, x, P, part * iv->dl, part * iv->dr, part * iv->g, cut - t, iv->slip, xn,
+                    Pn);
+            memcpy(x, xn, sizeof xn);
+            memcpy(P, Pn, sizeof Pn);
+        }
+        done = share;
+        t = cut;
+        while (j < nm && m[j].t <= cut) {
+            int ok;
+            double score;
+            absolute_update(e, x, P, &m[j], &ok, &score);
+            if (record) {
+                m[j].ok = ok;
+                m[j].score = score;
+            }
+            ++j;
+        }
+        if (cut >= end) break;
+    }
+}
+
+/* Replay history intervals from absolute index k on: x, P now. */
+static void replay(Est *e, Py_ssize_t k, double *x, double *P) {
+    memcpy(x, e->iv[k].x, sizeof e->iv[k].x);
+    memcpy(P, e->iv[k].P, sizeof e->iv[k].P);
+    Py_ssize_t lo, hi;
+    slice_of(e, k, &lo, &hi);
+    for (Py_ssize_t i = k; i < e->iv0 + e->niv; ++i) {
+        memcpy(e->iv[i].x, x, sizeof e->iv[i].x);
+        memcpy(e->iv[i].P, P, sizeof e->iv[i].P);
+        if (i > k) { /* the slices follow one another */
+            lo = hi;
+            while (hi < e->ms0 + e->nms && e->ms[hi].t <= e->iv[i].t1) ++hi;
+        }
+        run_interval(e, &e->iv[i], e->ms + lo, hi - lo, 1, 0.0, x, P);
+    }
+}
+
+static int grow(void **array, Py_ssize_t *first, Py_ssize_t count, Py_ssize_t *capacity,
+                size_t size) {
+    if (*first + count < *capacity) return 0;
+    if (*first > 0) { /* move to the front: the space the trimmed ones left */
+        memmove(*array, (char *)*array + *first * size, count * size);
+        *first = 0;
+        if (count < *capacity) return 0;
+    }
+    Py_ssize_t larger = *capacity ? 2 * *capacity : 64;
+    void *bigger = PyMem_Realloc(*array, larger * size);
+    if (bigger == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    *array = bigger;
+    *capacity = larger;
+    return 0;
+}
+
+static void trim(Est *e) {
+    double newest = e->iv[e->iv0 + e->niv - 1].t1;
+    while (e->niv > 1 && e->iv[e->iv0 + 1].t0 < newest - e->history) {
+        Py_ssize_t lo, hi;
+        slice_of(e, e->iv0, &lo, &hi);
+        for (Py_ssize_t j = e->ms0; j < hi; ++j) {
+            if (e->ms[j].ok)
+                e->settled_ok++;
+            else
+                e->settled_bad++;
+        }
+        e->nms -= hi - e->ms0;
+        e->ms0 = hi;
+        e->iv0++;
+        e->niv--;
+    }
+    if (e->nms == 0) e->ms0 = 0;
+}
+
+/* -- numbers from Python objects --------------------------------------------------------- */
+
+/* A float from a real number (not text, not a bool-free check: as float() takes it); -1 with
+ * nothing set when obj is not a plain number. */
+static int plain_number(PyObject *obj, double *out) {
+    if (PyFloat_CheckExact(obj)) {
+        *out = PyFloat_AS_DOUBLE(obj);
+        return 0;
+    }
+    if (PyLong_CheckExact(obj)) {
+        *out = PyLong_AsDouble(obj);
+        if (*out == -1.0 && PyErr_Occurred()) {
+            PyErr_Clear();
+            return -1;
+        }
+        return 0;
+    }
+    return -1;
+}
+
+/* _validate.finite's checks and words, for a plain number or anything float() takes. */
+static int finite_number(PyObject *obj, const char *name, double *out) {
+    if (PyUnicode_Check(obj) || PyBytes_Check(obj)) {
+        PyErr_Format(PyExc_TypeError, "%s must be a real number, not text: got %R", name, obj);
+        return -1;
+    }
+    if (plain_number(obj, out) < 0) {
+        if (PyLong_Check(obj)) {
+            PyErr_Format(PyExc_ValueError,
+                         "%s must be finite, got an integer too large for a float", name);
+            return -1;
+        }
+        *out = PyFloat_AsDouble(obj);
+        if (*out == -1.0 && PyErr_Occurred()) {
+            if (PyErr_ExceptionMatches(PyExc_OverflowError)) {
+                PyErr_Clear();
+                PyErr_Format(PyExc_ValueError,
+                             "%s must be finite, got an integer too large for a float", name);
+            } else {
+                PyErr_Clear();
+                PyErr_Format(PyExc_TypeError, "%s must be a real number, got %R", name, obj);
+            }
+            return -1;
+        }
+    }
+    if (!isfinite(*out)) {
+        PyObject *shown = PyFloat_FromDouble(*out);
+        if (shown != NULL) {
+            PyErr_Format(PyExc_ValueError, "%s must be finite, got %S", name, shown);
+            Py_DECREF(shown);
+        }
+        return -1;
+    }
+    return 0;
+}
+
+/* n plain numbers from a sequence (a list, tuple or array of floats); -1, nothing set, if not. */
+static int plain_numbers(PyObject *obj, double *out, Py_ssize_t n) {
+    if (!(PyList_Check(obj) || PyTuple_Check(obj))) return -1;
+    if (PySequence_Fast_GET_SIZE(obj) != n) return -1;
+    PyObject **items = PySequence_Fast_ITEMS(obj);
+    for (Py_ssize_t i = 0; i < n; ++i)
+        if (plain_number(items[i], &out[i]) < 0) return -1;
+    return 0;
+}
+
+/* -- the wheel readings ------------------------------------------------------------------ */
+
+static double gyro_rate_of(Est *e, PyObject *obj, int *failed) {
+    double rate;
+    *failed = 0;
+    if (PyFloat_Check(obj) || PyLong_Check(obj)) {
+        if (finite_number(obj, "gyro_rate", &rate) < 0) *failed = 1;
+        return rate;
+    }
+    double three[3];
+    PyObject *seq = PySequence_Check(obj) ? PySequence_Fast(obj, "") : NULL;
+    if (seq != NULL && PySequence_Fast_GET_SIZE(seq) == 3) {
+        PyObject **items = PySequence_Fast_ITEMS(seq);
+        int good = 1;
+        for (int i = 0; i < 3 && good; ++i) {
+            three[i] = PyFloat_AsDouble(items[i]);
+            if (three[i] == -1.0 && PyErr_Occurred()) {
+                PyErr_Clear();
+                good = 0;
+            }
+        }
+        Py_DECREF(seq);
+        if (good) {
+            rate = e->mount[0] * three[0] + e->mount[1] * three[1] + e->mount[2] * three[2];
+            if (isfinite(rate)) return rate;
+        }
+    } else {
+        PyErr_Clear();
+        Py_XDECREF(seq);
+    }
+    PyErr_Format(PyExc_ValueError, "gyro_rate must be a finite yaw rate or 3 IMU rates, got %R",
+                 obj);
+    *failed = 1;
+    return 0.0;
+}
+
+/* WheelVelocities.coerce(obj, "commanded"), for its checks and words. */
+static int commanded_of(PyObject *obj, double out[2]) {
+    double pair[2];
+    if (plain_numbers(obj, pair, 2) == 0 && isfinite(pair[0]) && isfinite(pair[1])) {
+        out[0] = pair[0];
+        out[1] = pair[1];
+        return 0;
+    }
+    PyObject *types = PyImport_ImportModule("diffdrive.types");
+    if (types == NULL) return -1;
+    PyObject *cls = PyObject_GetAttrString(types, "WheelVelocities");
+    Py_DECREF(types);
+    if (cls == NULL) return -1;
+    PyObject *made = PyObject_CallMethod(cls, "coerce", "Os", obj, "commanded");
+    Py_DECREF(cls);
+    if (made == NULL) return -1;
+    const char *sides[2] = {"left", "right"};
+    for (int i = 0; i < 2; ++i) {
+        PyObject *side = PyObject_GetAttrString(made, sides[i]);
+        out[i] = side == NULL ? -1.0 : PyFloat_AsDouble(side);
+        Py_XDECREF(side);
+    }
+    Py_DECREF(made);
+    return PyErr_Occurred() ? -1 : 0;
+}
+
+static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t nargs,
+                        PyObject *kwnames) {
+    const char *name = UPDATES[kind], *third = kind == 3 ? "dt" : "t";
+    PyObject *given[6] = {NULL}; /* left, right, t, gyro_angle, gyro_rate, commanded */
+    static const char *names[6] = {"left", "right", NULL, "gyro_angle", "gyro_rate", "commanded"};
+    if (nargs > 3) {
+        PyErr_Format(PyExc_TypeError, "%s() takes 3 positional arguments but %zd were given",
+                     name, nargs);
+        return NULL;
+    }
+    for (Py_ssize_t i = 0; i < nargs; ++i) given[i] = args[i];
+    Py_ssize_t nkw = kwnames ? PyTuple_GET_SIZE(kwnames) : 0;
+    for (Py_ssize_t i = 0; i < nkw; ++i) {
+        const char *key = PyUnicode_AsUTF8(PyTuple_GET_ITEM(kwnames, i));
+        if (key == NULL) return NULL;
+        int found = -1;
+        for (int k = 0; k < 6; ++k)
+            if (strcmp(key, k == 2 ? third : names[k]) == 0) found = k;
+        if (found < 0 || given[found] != NULL) {
+            PyErr_Format(PyExc_TypeError, "%s() got an unexpected or repeated argument '%s'",
+                         name, key);
+            return NULL;
+        }
+        given[found] = args[nargs + i];
+    }
+    if (given[0] == NULL || given[1] == NULL) {
+        PyErr_Format(PyExc_TypeError, "%s() missing required arguments 'left' and 'right'", name);
+        return NULL;
+    }
+    if (given[2] == NULL || given[2] == Py_None) {
+        PyErr_Format(PyExc_ValueError,
+                     "%s: PoseEstimator needs the time %s (s) of every reading: late "
+                     "measurements are placed by time",
+                     name, third);
+        return NULL;
+    }
+    double previous = odometry_time(e->wheels);
+    int have_previous = !isnan(previous);
+    if (!have_previous && kind == 2) {
+        PyErr_Format(PyExc_ValueError,
+                     "%s: the estimator's clock has not started: give initial_time, or begin "
+                     "with a ticks or positions reading",
+                     name);
+        return NULL;
+    }
+    if (!have_previous && kind == 3) {
+        previous = 0.0; /* velocities start the clock at 0 s, as Odometry's do */
+        have_previous = 1;
+    }
+    /* Everything about this reading is checked before anything changes: the gyro and the
+     * commands here, the wheels by their own update, which is all or nothing. */
+    int have_rate = given[4] != NULL && given[4] != Py_None, failed = 0;
+    double rate = have_rate ? gyro_rate_of(e, given[4], &failed) : 0.0;
+    if (failed) return NULL;
+    int have_angle = given[3] != NULL && given[3] != Py_None;
+    double angle = 0.0;
+    if (have_angle && finite_number(given[3], "gyro_angle", &angle) < 0) return NULL;
+    if (have_previous && !have_angle && !have_rate && e->heading != WHEELS) {
+        PyErr_Format(PyExc_ValueError,
+                     "%s: heading '%s' needs gyro_angle or gyro_rate with every wheel reading",
+                     name, e->heading == GYRO ? "gyro" : "fused");
+        return NULL;
+    }
+    int have_wanted = given[5] != NULL && given[5] != Py_None;
+    double wanted[2] = {0.0, 0.0};
+    if (have_wanted && commanded_of(given[5], wanted) < 0) return NULL;
+    double before[2], after[2];
+    odometry_arcs(e->wheels, before);
+    PyObject *saved = odometry_snapshot(e->wheels);
+    if (saved == NULL) return NULL;
+    PyObject *reading[3] = {given[0], given[1], given[2]};
+    PyObject *done = odometry_update(e->wheels, kind, reading, 3);
+    if (done == NULL) {
+        Py_DECREF(saved);
+        return NULL;
+    }
+    Py_DECREF(done);
+    double now = odometry_time(e->wheels);
+    if (!have_previous) { /* a reference reading: the clock starts */
+        Py_DECREF(saved);
+        e->have_rate = have_rate;
+        e->rate = rate;
+        Py_RETURN_NONE;
+    }
+    double dt = now - previous;
+    odometry_arcs(e->wheels, after);
+    double dl = (after[0] - before[0]) / e->r_l, dr = (after[1] - before[1]) / e->r_r;
+    double g = NAN;
+    if (have_angle)
+        g = angle;
+    else if (have_rate)
+        g = 0.5 * ((e->have_rate ? e->rate : rate) + rate) * dt;
+    double command_score = 0.0;
+    if (have_wanted && dt > 0.0) {
+        double miss[2] = {dl / dt - wanted[0], dr / dt - wanted[1]};
+        double sigma2 = e->command_sigma * e->command_sigma;
+        command_score = (miss[0] * miss[0] + miss[1] * miss[1]) / sigma2;
+    }
+    Interval iv = {previous, now, dl, dr, g, command_score > SLIP_COMMAND_THRESHOLD, 0, 0.0};
+    memcpy(iv.x, e->x, sizeof e->x);
+    memcpy(iv.P, e->P, sizeof e->P);
+    /* The measurements that waited for the wheels and are due now, in order. */
+    Py_ssize_t due = 0;
+    for (Py_ssize_t i = 0; i < e->npend; ++i)
+        if (e->pend[i].t <= now) ++due;
+    if (grow((void **)&e->ms, &e->ms0, e->nms + due, &e->cms, sizeof(Meas)) < 0 ||
+        grow((void **)&e->iv, &e->iv0, e->niv, &e->civ, sizeof(Interval)) < 0) {
+        odometry_restore(e->wheels, saved);
+        Py_DECREF(saved);
+        return NULL;
+    }
+    Meas *tail = e->ms + e->ms0 + e->nms;
+    Py_ssize_t n = 0;
+    for (Py_ssize_t i = 0; i < e->npend; ++i)
+        if (e->pend[i].t <= now) {
+            Py_ssize_t at = n++;
+            while (at > 0 && order(&tail[at - 1], &e->pend[i]) > 0) {
+                tail[at] = tail[at - 1];
+                --at;
+            }
+            tail[at] = e->pend[i];
+        }
+    double x[N], P[NN];
+    run_interval(e, &iv, tail, due, 1, 0.0, x, P);
+    if (!finite_state(x, P)) {
+        int restored = odometry_restore(e->wheels, saved);
+        Py_DECREF(saved);
+        if (restored < 0) return NULL;
+        PyErr_Format(PyExc_ValueError,
+                     "%s: the update would overflow the state; refused, nothing changed", name);
+        return NULL;
+    }
+    Py_DECREF(saved);
+    e->nms += due;
+    Py_ssize_t kept = 0;
+    for (Py_ssize_t i = 0; i < e->npend; ++i)
+        if (e->pend[i].t > now) e->pend[kept++] = e->pend[i];
+    e->npend = kept;
+    if (have_rate) {
+        e->rate = rate;
+        e->have_rate = 1;
+    }
+    e->iv[e->iv0 + e->niv++] = iv;
+    memcpy(e->x, x, sizeof x);
+    memcpy(e->P, P, sizeof P);
+    e->slip = iv.slip;
+    e->slip_score = iv.score;
+    e->command_score = command_score;
+    trim(e);
+    Py_RETURN_NONE;
+}
+
+#define UPDATE_METHOD(fn, kind)                                                              \
+    static PyObject *fn(Est *e, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames) { \
+        return update(e, kind, args, nargs, kwnames);                                        \
+    }
+UPDATE_METHOD(update_ticks, 0)
+UPDATE_METHOD(update_positions, 1)
+UPDATE_METHOD(update_increments, 2)
+UPDATE_METHOD(update_velocities, 3)
+
+/* -- absolute measurements ----------------------------------------------------------------- */
+
+static PyObject *float_of(double v) { return PyFloat_FromDouble(v); }
+
+static PyObject *add_measurement(Est *e, Meas *m) {
+    PyObject *t = float_of(m->t);
+    if (t == NULL) return NULL;
+    double now = odometry_time(e->wheels);
+    PyObject *result = NULL;
+    if (isnan(now)) {
+        PyErr_Format(PyExc_ValueError,
+                     "%s measurement at t = %R s: no wheel reading yet, so no time to place it at",
+                     KIND_NAMES[m->kind], t);
+        goto done;
+    }
+    double start = e->niv ? e->iv[e->iv0].t0 : now;
+    if (m->t > now + e->ahead) {
+        PyObject *ahead = float_of(e->ahead), *newest = float_of(now);
+        if (ahead && newest)
+            PyErr_Format(PyExc_ValueError,
+                         "%s measurement at t = %R s: more than ahead = %R s past the newest "
+                         "wheel reading (%R s)",
+                         KIND_NAMES[m->kind], t, ahead, newest);
+        Py_XDECREF(ahead);
+        Py_XDECREF(newest);
+        goto done;
+    }
+    if (m->t > now) {
+        Py_ssize_t zero = 0;
+        if (grow((void **)&e->pend, &zero, e->npend, &e->cpend, sizeof(Meas)) < 0) goto done;
+        e->pend[e->npend++] = *m;
+        result = Py_NewRef(Py_False);
+        goto done;
+    }
+    if (e->niv == 0 || m->t < start) {
+        if (m->t == now && e->niv == 0) { /* at the start itself */
+            double x[N], P[NN];
+            int ok;
+            double score;
+            memcpy(x, e->x, sizeof x);
+            memcpy(P, e->P, sizeof P);
+            absolute_update(e, x, P, m, &ok, &score);
+            if (!finite_state(x, P)) {
+                PyErr_Format(PyExc_ValueError,
+                             "%s measurement at t = %R s: it would overflow the state; refused",
+                             KIND_NAMES[m->kind], t);
+                goto done;
+            }
+            memcpy(e->x, x, sizeof x);
+            memcpy(e->P, P, sizeof P);
+            if (ok)
+                e->settled_ok++;
+            else
+                e->settled_bad++;
+            result = PyBool_FromLong(ok);
+            goto done;
+        }
+        PyObject *first = float_of(start), *history = float_of(e->history);
+        if (first && history)
+            PyErr_Format(PyExc_ValueError,
+                         "%s measurement at t = %R s: older than the history, which starts at "
+                         "%R s (history = %R s)",
+                         KIND_NAMES[m->kind], t, first, history);
+        Py_XDECREF(first);
+        Py_XDECREF(history);
+        goto done;
+    }
+    /* The interval it falls in, and its place among the measurements. */
+    Py_ssize_t lo = e->iv0, hi = e->iv0 + e->niv;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        if (e->iv[mid].t1 < m->t)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    Py_ssize_t k = lo;
+    if (grow((void **)&e->ms, &e->ms0, e->nms + 1, &e->cms, sizeof(Meas)) < 0) goto done;
+    Py_ssize_t at = e->ms0 + e->nms;
+    while (at > e->ms0 && order(&e->ms[at - 1], m) > 0) --at;
+    memmove(e->ms + at + 1, e->ms + at, (e->ms0 + e->nms - at) * sizeof(Meas));
+    e->ms[at] = *m;
+    e->nms++;
+    double x[N], P[NN];
+    replay(e, k, x, P);
+    if (!finite_state(x, P)) {
+        /* The history as it was: without the measurement, the same replay gives back, to the
+         * bit, the states and outcomes it had (nothing else changed). */
+        memmove(e->ms + at, e->ms + at + 1, (e->ms0 + e->nms - at - 1) * sizeof(Meas));
+        e->nms--;
+        replay(e, k, x, P);
+        PyErr_Format(PyExc_ValueError,
+                     "%s measurement at t = %R s: it would overflow the state; refused, "
+                     "nothing changed",
+                     KIND_NAMES[m->kind], t);
+    } else {
+        memcpy(e->x, x, sizeof x);
+        memcpy(e->P, P, sizeof P);
+        result = PyBool_FromLong(e->ms[at].ok);
+    }
+done:
+    Py_DECREF(t);
+    return result;
+}
+
+/* _add_fast(kind, t, value, covariance, lever_arm): plain numbers, checked as
+ * Measurement.make checks them, straight in; None for anything else, which the Python class
+ * then makes (and names, if it is wrong). */
+static PyObject *add_fast(Est *e, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "_add_fast takes 5 arguments");
+        return NULL;
+    }
+    long kind = PyLong_AsLong(args[0]);
+    if (kind < 0 || kind > 2) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "_add_fast: no such kind");
+        return NULL;
+    }
+    Meas m = {0};
+    m.kind = (int)kind;
+    m.size = kind == POSE ? 3 : kind == POSITION ? 2 : 1;
+    int k = m.size;
+    if (plain_number(args[1], &m.t) < 0 || !isfinite(m.t)) Py_RETURN_NONE;
+    if (kind == HEADING) {
+        if (plain_number(args[2], &m.value[0]) < 0) Py_RETURN_NONE;
+    } else if (plain_numbers(args[2], m.value, k) < 0) {
+        Py_RETURN_NONE;
+    }
+    for (int i = 0; i < k; ++i)
+        if (!isfinite(m.value[i])) Py_RETURN_NONE;
+    double sigma[3], row[3];
+    if (kind != POSE && plain_number(args[3], &sigma[0]) == 0) {
+        for (int i = 1; i < k; ++i) sigma[i] = sigma[0];
+    } else if (plain_numbers(args[3], sigma, k) < 0) {
+        /* a k x k matrix as nested lists or tuples */
+        if (!(PyList_Check(args[3]) || PyTuple_Check(args[3])) ||
+            PySequence_Fast_GET_SIZE(args[3]) != k)
+            Py_RETURN_NONE;
+        PyObject **rows = PySequence_Fast_ITEMS(args[3]);
+        for (int i = 0; i < k; ++i) {
+            if (plain_numbers(rows[i], row, k) < 0) Py_RETURN_NONE;
+            for (int j = 0; j < k; ++j) m.cov[i * k + j] = row[j];
+        }
+        for (int i = 0; i < k * k; ++i)
+            if (!isfinite(m.cov[i])) Py_RETURN_NONE;
+        for (int i = 0; i < k; ++i)
+            for (int j = 0; j < k; ++j) /* np.allclose(m, m.T, rtol=1e-9, atol=0) */
+                if (fabs(m.cov[i * k + j] - m.cov[j * k + i]) > 1e-9 * fabs(m.cov[j * k + i]))
+                    Py_RETURN_NONE;
+        double L[9];
+        if (cholesky(m.cov, k, L) < 0) Py_RETURN_NONE;
+        for (int i = 0; i < k; ++i)
+            for (int j = 0; j < k; ++j) {
+                double a = m.cov[i * k + j], b = m.cov[j * k + i];
+                m.cov[i * k + j] = 0.5 * (a + b);
+            }
+        sigma[0] = NAN; /* a matrix, not standard deviations */
+    }
+    if (!isnan(sigma[0])) {
+        memset(m.cov, 0, sizeof m.cov);
+        for (int i = 0; i < k; ++i) {
+            double variance = sigma[i] * sigma[i];
+            if (!(sigma[i] > 0.0 && isfinite(variance) && variance > 0.0)) Py_RETURN_NONE;
+            m.cov[i * k + i] = variance;
+        }
+    }
+    if (args[4] != Py_None && plain_numbers(args[4], m.lever, 2) < 0) Py_RETURN_NONE;
+    if (!isfinite(m.lever[0]) || !isfinite(m.lever[1])) Py_RETURN_NONE;
+    return add_measurement(e, &m);
+}
+
+/* _add(measurement): a Measurement made (and checked) in Python. */
+static PyObject *add_made(Est *e, PyObject *made) {
+    Meas m = {0};
+    PyObject *kind = PyObject_GetAttrString(made, "kind");
+    if (kind == NULL) return NULL;
+    m.kind = -1;
+    for (int i = 0; i < 3; ++i)
+        if (PyUnicode_CompareWithASCIIString(kind, KIND_NAMES[i]) == 0) m.kind = i;
+    Py_DECREF(kind);
+    if (m.kind < 0) {
+        PyErr_SetString(PyExc_ValueError, "_add: no such kind of measurement");
+        return NULL;
+    }
+    m.size = m.kind == POSE ? 3 : m.kind == POSITION ? 2 : 1;
+    PyObject *t = PyObject_GetAttrString(made, "t");
+    if (t == NULL) return NULL;
+    m.t = PyFloat_AsDouble(t);
+    Py_DECREF(t);
+    const char *fields[3] = {"value", "covariance", "lever_arm"};
+    double *into[3] = {m.value, m.cov, m.lever};
+    Py_ssize_t sizes[3] = {m.size, m.size * m.size, 2};
+    for (int f = 0; f < 3; ++f) {
+        PyObject *field = PyObject_GetAttrString(made, fields[f]);
+        if (field == NULL) return NULL;
+        PyObject *flat = f == 1 ? PyObject_CallMethod(field, "ravel", NULL) : Py_NewRef(field);
+        Py_DECREF(field);
+        if (flat == NULL) return NULL;
+        PyObject *seq = PySequence_Fast(flat, "a measurement's field must be a sequence");
+        Py_DECREF(flat);
+        if (seq == NULL) return NULL;
+        if (PySequence_Fast_GET_SIZE(seq) != sizes[f]) {
+            Py_DECREF(seq);
+            PyErr_Format(PyExc_ValueError, "_add: the measurement's %s has the wrong size",
+                         fields[f]);
+            return NULL;
+        }
+        for (Py_ssize_t i = 0; i < sizes[f]; ++i)
+            into[f][i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, i));
+        Py_DECREF(seq);
+        if (PyErr_Occurred()) return NULL;
+    }
+    if (PyErr_Occurred()) return NULL;
+    return add_measurement(e, &m);
+}
+
+/* -- what the Python class reads ------------------------------------------------------------- */
+
+static PyObject *tuple_of(const double *v, int n) {
+    PyObject *out = PyTuple_New(n);
+    if (out == NULL) return NULL;
+    for (int i = 0; i < n; ++i) {
+        PyObject *item = PyFloat_FromDouble(v[i]);
+        if (item == NULL) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        PyTuple_SET_ITEM(out, i, item);
+    }
+    return out;
+}
+
+static PyObject *state_now(Est *e, PyObject *unused) { return tuple_of(e->x, N); }
+static PyObject *covariance_now(Est *e, PyObject *unused) { return tuple_of(e->P, NN); }
+
+static PyObject *counts(Est *e, PyObject *unused) {
+    long long ok = e->settled_ok, bad = e->settled_bad;
+    for (Py_ssize_t j = e->ms0; j < e->ms0 + e->nms; ++j) {
+        if (e->ms[j].ok)
+            ++ok;
+        else
+            ++bad;
+    }
+    return Py_BuildValue("(LL)", ok, bad);
+}
+
+static PyObject *history_start(Est *e, PyObject *unused) {
+    return PyFloat_FromDouble(e->niv ? e->iv[e->iv0].t0 : odometry_time(e->wheels));
+}
+
+static PyObject *slip_now(Est *e, PyObject *unused) {
+    return Py_BuildValue("(Ndd)", PyBool_FromLong(e->slip), e->slip_score, e->command_score);
+}
+
+static PyObject *pose_at(Est *e, PyObject *arg) {
+    double t = PyFloat_AsDouble(arg);
+    if (t == -1.0 && PyErr_Occurred()) return NULL;
+    Py_ssize_t lo = e->iv0, hi = e->iv0 + e->niv;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        if (e->iv[mid].t1 < t)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    double x[N], P[NN];
+    if (lo == e->iv0 + e->niv) {
+        memcpy(x, e->x, sizeof x);
+        memcpy(P, e->P, sizeof P);
+    } else {
+        Py_ssize_t a, b;
+        slice_of(e, lo, &a, &b);
+        Interval copy = e->iv[lo];
+        run_interval(e, &copy, e->ms + a, b - a, 0, t, x, P);
+    }
+    return Py_BuildValue("(NN)", tuple_of(x, N), tuple_of(P, NN));
+}
+
+/* -- the type -------------------------------------------------------------------------------- */
+
+static int sequence_into(PyObject *obj, double *out, Py_ssize_t n, const char *what) {
+    PyObject *seq = PySequence_Fast(obj, what);
+    if (seq == NULL) return -1;
+    if (PySequence_Fast_GET_SIZE(seq) != n) {
+        Py_DECREF(seq);
+        PyErr_Format(PyExc_ValueError, "%s must have %zd numbers", what, n);
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < n; ++i) out[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, i));
+    Py_DECREF(seq);
+    return PyErr_Occurred() ? -1 : 0;
+}
+
+static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
+    PyObject *wheels, *mount, *state, *covariance;
+    int method;
+    if (!PyArg_ParseTuple(args, "OddddiiddddppdddddddddOOO", &wheels, &e->r_l, &e->r_r,
+                          &e->track, &e->axle, &method, &e->heading, &e->k_l, &e->k_r, &e->arw2,
+                          &e->rrw2, &e->est_bias, &e->est_scale, &e->slip_thr, &e->slip_infl,
+                          &e->command_sigma, &e->gate[1], &e->gate[2], &e->gate[3], &e->offset,
+                          &e->history, &e->ahead, &mount, &state, &covariance))
+        return -1;
+    if (!odometry_check(wheels)) {
+        PyErr_SetString(PyExc_TypeError, "EstimatorCore reads its wheels through an OdometryCore");
+        return -1;
+    }
+    /* METHODS: euler, rk2, exact (_step.METHOD_FLAGS) */
+    e->weight = method == 0 ? 0.0 : 0.5;
+    e->chord = method == 2;
+    if (sequence_into(mount, e->mount, 3, "mounting") < 0 ||
+        sequence_into(state, e->x, N, "state") < 0 ||
+        sequence_into(covariance, e->P, NN, "covariance") < 0)
+        return -1;
+    Py_XSETREF(e->wheels, Py_NewRef(wheels));
+    e->iv0 = e->niv = e->ms0 = e->nms = e->npend = 0;
+    e->settled_ok = e->settled_bad = 0;
+    e->have_rate = e->slip = 0;
+    e->rate = e->slip_score = e->command_score = 0.0;
+    return 0;
+}
+
+static void est_dealloc(Est *e) {
+    Py_XDECREF(e->wheels);
+    PyMem_Free(e->iv);
+    PyMem_Free(e->ms);
+    PyMem_Free(e->pend);
+    Py_TYPE(e)->tp_free((PyObject *)e);
+}
+
+#define FASTCALL_KW (METH_FASTCALL | METH_KEYWORDS)
+static PyMethodDef est_methods[] = {
+    {"update_ticks", (PyCFunction)(void (*)(void))update_ticks, FASTCALL_KW,
+     "update_ticks(left, right, t, *, gyro_angle=None, gyro_rate=None, commanded=None): "
+     "absolute encoder counter readings at t s (the first sets the reference)."},
+    {"update_positions", (PyCFunction)(void (*)(void))update_positions, FASTCALL_KW,
+     "update_positions(left, right, t, *, ...): accumulated wheel angles (rad) at t s."},
+    {"update_increments", (PyCFunction)(void (*)(void))update_increments, FASTCALL_KW,
+     "update_increments(left, right, t, *, ...): wheel-angle increments (rad) at t s."},
+    {"update_velocities", (PyCFunction)(void (*)(void))update_velocities, FASTCALL_KW,
+     "update_velocities(left, right, dt, *, ...): wheel velocities (rad/s) held dt s."},
+    {"_add_fast", (PyCFunction)(void (*)(void))add_fast, METH_FASTCALL, NULL},
+    {"_add", (PyCFunction)add_made, METH_O, NULL},
+    {"_state_now", (PyCFunction)state_now, METH_NOARGS, NULL},
+    {"_covariance_now", (PyCFunction)covariance_now, METH_NOARGS, NULL},
+    {"_counts", (PyCFunction)counts, METH_NOARGS, NULL},
+    {"_history_start", (PyCFunction)history_start, METH_NOARGS, NULL},
+    {"_slip", (PyCFunction)slip_now, METH_NOARGS, NULL},
+    {"_pose_at", (PyCFunction)pose_at, METH_O, NULL},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject EstType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "diffdrive.backends._odometry.EstimatorCore",
+    .tp_basicsize = sizeof(Est),
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE,
+    .tp_doc = "The state, history and updates of PoseEstimator; use that class.",
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)est_init,
+    .tp_dealloc = (destructor)est_dealloc,
+    .tp_methods = est_methods,
+};
+
+int estimator_add_type(PyObject *module) {
+    if (PyType_Ready(&EstType) < 0) return -1;
+    Py_INCREF(&EstType);
+    if (PyModule_AddObject(module, "EstimatorCore", (PyObject *)&EstType) < 0) {
+        Py_DECREF(&EstType);
+        return -1;
+    }
+    return 0;
+}
