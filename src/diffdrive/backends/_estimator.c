@@ -49,6 +49,7 @@ typedef struct {
     /* configuration */
     double r_l, r_r, track, axle, weight;
     int chord, heading, est_bias, est_scale;
+    int active; /* the states estimated: x, y, theta, then bias and scale as configured */
     double k_l, k_r, arw2, rrw2, slip_thr, slip_infl, command_sigma;
     double gate[4], offset, history, ahead, mount[3];
     /* state */
@@ -147,14 +148,17 @@ static void advance(const Est *e, const double *x, const double *P, double dl, d
     after[1] += dy;
     after[2] += turn;
     /* F is the identity but for columns 2 to 4 of rows 0 to 2, and G is zero below row 2:
-     * FP = P + A P and moved = FP F^T + G Q G^T over those entries only. */
-    double FP[NN], moved[NN], GQ[N * 3];
+     * FP = P + A P and moved = FP F^T + G Q G^T over those entries only. The states that are
+     * not estimated (n and on) have zero rows and columns in P, and keep them: the loops stop
+     * at n, which changes no sum (what they leave out is exactly zero). */
+    const int n = e->active;
+    double FP[NN], moved[NN] = {0}, GQ[N * 3];
     int cols[3] = {2}, ncols = 1; /* the columns of A = F - I that are not all zero */
-    for (int k = 3; k < N; ++k)
+    for (int k = 3; k < n; ++k)
         if (bst[k] != 0.0) cols[ncols++] = k;
     memcpy(FP, P, sizeof FP);
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < N; ++j) {
+        for (int j = 0; j < n; ++j) {
             double sum = 0.0;
             for (int c = 0; c < ncols; ++c) {
                 int k = cols[c];
@@ -162,11 +166,12 @@ static void advance(const Est *e, const double *x, const double *P, double dl, d
             }
             FP[i * N + j] += sum;
         }
-    for (int i = 0; i < N; ++i)
+    for (int i = 0; i < 3; ++i)
         for (int k = 0; k < 3; ++k) GQ[i * 3 + k] = G[i * 3 + k] * noise[k];
+    for (int i = 3; i < N; ++i) GQ[i * 3] = GQ[i * 3 + 1] = GQ[i * 3 + 2] = 0.0;
     /* moved is symmetric: its upper triangle, mirrored */
-    for (int i = 0; i < N; ++i)
-        for (int j = i; j < N; ++j) {
+    for (int i = 0; i < n; ++i)
+        for (int j = i; j < n; ++j) {
             double sum = FP[i * N + j];
             if (j < 3) {
                 for (int c = 0; c < ncols; ++c) {
@@ -181,8 +186,7 @@ static void advance(const Est *e, const double *x, const double *P, double dl, d
     if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
     if (!(e->heading == FUSED && !slip)) {
         memcpy(xo, after, sizeof after);
-        for (int i = 0; i < N; ++i)
-            for (int j = 0; j < N; ++j) Po[i * N + j] = 0.5 * (moved[i * N + j] + moved[j * N + i]);
+        memcpy(Po, moved, sizeof moved);
         return;
     }
     /* The wheels measure the turn over the scale, less their own noise. On the joint of
@@ -192,10 +196,10 @@ static void advance(const Est *e, const double *x, const double *P, double dl, d
     h1[2] = 1.0 / scale;
     h1[SCALE] = -turn / (scale * scale);
     h0[2] = -1.0 / scale;
-    double spread[N], before[N], s = 0.0;
-    for (int i = 0; i < N; ++i) {
+    double spread[N] = {0}, before[N] = {0}, s = 0.0;
+    for (int i = 0; i < n; ++i) {
         double sum = 0.0, back = 0.0;
-        for (int k = 0; k < N; ++k) {
+        for (int k = 0; k < n; ++k) {
             sum += moved[i * N + k] * h1[k] + FP[i * N + k] * h0[k];
             back += FP[k * N + i] * h1[k] + P[i * N + k] * h0[k];
         }
@@ -203,20 +207,21 @@ static void advance(const Est *e, const double *x, const double *P, double dl, d
         spread[i] = sum;
         before[i] = back;
     }
-    for (int i = 0; i < N; ++i) s += h1[i] * spread[i] + h0[i] * before[i];
+    for (int i = 0; i < n; ++i) s += h1[i] * spread[i] + h0[i] * before[i];
     for (int k = 0; k < 3; ++k) {
         double sum = noise[k] * hn[k];
-        for (int i = 0; i < N; ++i) sum += GQ[i * 3 + k] * h1[i];
+        for (int i = 0; i < 3; ++i) sum += GQ[i * 3 + k] * h1[i];
         s += hn[k] * sum;
     }
     s += 1e-18;
     double innovation = wheel_turn - turn / scale;
     for (int i = 0; i < N; ++i) xo[i] = after[i] + spread[i] / s * innovation;
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
+    memset(Po, 0, sizeof(double) * NN);
+    for (int i = 0; i < n; ++i)
+        for (int j = i; j < n; ++j) {
             double a = moved[i * N + j] - spread[i] / s * spread[j];
             double b = moved[j * N + i] - spread[j] / s * spread[i];
-            Po[i * N + j] = 0.5 * (a + b);
+            Po[i * N + j] = Po[j * N + i] = 0.5 * (a + b);
         }
 }
 
@@ -1074,6 +1079,7 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
         return -1;
     }
     /* METHODS: euler, rk2, exact (_step.METHOD_FLAGS) */
+    e->active = e->est_scale ? 5 : (e->est_bias ? 4 : 3);
     e->weight = method == 0 ? 0.0 : 0.5;
     e->chord = method == 2;
     if (sequence_into(mount, e->mount, 3, "mounting") < 0 ||
