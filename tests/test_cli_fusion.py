@@ -1,6 +1,8 @@
 """``diffdrive odometry`` with absolute measurements and the smoother: tables and bags in, the
 estimate and its covariance out, and the refusals that name what is wrong."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -106,3 +108,23 @@ def test_the_turn_scale_option_reports_its_estimate(log_and_fixes, capsys):
     scale = float(printed.split("turn scale at the end: ")[1].split()[0])
     assert scale == pytest.approx(1.0, abs=0.02)
     assert dd.DiffDrive  # the robot is the built-in one: its wheels turn as the robot does
+
+
+def test_evaluate_says_how_honest_the_written_covariance_is(log_and_fixes, capsys):
+    folder, log = log_and_fixes
+    write_table(folder / "truth.csv", {k: log[k] for k in ("t", "x", "y", "theta")})
+    noisy = ["--k-left", "1e-6", "--k-right", "1e-6", "--covariance", "-o", "odo.csv"]
+    assert main(["odometry", "log.csv", *TICKS, *noisy]) == 0
+    fused = ["--measurements", "fixes.csv", "--smooth", "-o", "fused.csv"]
+    assert main(["odometry", "log.csv", *TICKS, *fused]) == 0
+    capsys.readouterr()
+    for name in ("odo.csv", "fused.csv"):
+        assert main(["evaluate", name, "--truth", "truth.csv", "--consistency", "--json"]) == 0
+        metrics = json.loads(capsys.readouterr().out)
+        # the start (and any pose before the wheels first move) is known exactly: left out
+        assert len(log["t"]) - 5 <= metrics["consistency_poses"] <= len(log["t"])
+        assert metrics["consistency_dof"] == 3
+        assert 0.0 < metrics["anees"] < 100.0
+        assert 0.0 <= metrics["inside_50_percent"] <= metrics["inside_95_percent"] <= 1.0
+    assert main(["evaluate", "truth.csv", "--truth", "truth.csv", "--consistency"]) != 0
+    assert "--consistency needs the estimate's covariance" in capsys.readouterr().err

@@ -14,6 +14,11 @@
   ``"all"`` (evo's ``--all_pairs``: from every pose, the pose whose distance is nearest to
   ``delta``, within a tolerance of 10 % of it). Pairs are measured along the estimate, as evo
   does by default, or along the ground truth (evo's ``--pairs_from_reference``).
+- ``consistency``: whether an estimate's covariance is honest: the normalised estimation error
+  squared (NEES, ``e^T C^-1 e``) of every pose, its average over poses and dimensions (ANEES:
+  1 for a covariance that matches the errors, below 1 too wide, above too narrow; Bar-Shalom,
+  Li and Kirubarajan, *Estimation with Applications to Tracking and Navigation*, 2001, sec.
+  5.4.2), and the shares of poses whose truth lies inside the 50 % and 95 % ellipses.
 - ``associate`` pairs the poses of two trajectories by time, as evo does (nearest stamp
   within ``max_diff``, after shifting one by ``offset``); ``interpolate`` samples a trajectory
   at given times along the arc between its poses (the SE(2) geodesic).
@@ -31,12 +36,15 @@ from typing import Literal
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._stats import chi2_quantile
 
 __all__ = [
+    "Consistency",
     "RunErrors",
     "align",
     "associate",
     "ate",
+    "consistency",
     "interpolate",
     "rpe",
     "run_errors",
@@ -239,3 +247,66 @@ def interpolate(times: object, poses: object, at: object) -> np.ndarray:
     fraction = (at - times[step]) / (times[step + 1] - times[step])
     motion = batch.log(batch.relative_to(poses[step + 1], poses[step]))
     return batch.compose(poses[step], batch.exp(motion, fraction))
+
+
+@dataclass(frozen=True, eq=False)
+class Consistency:
+    """``consistency``'s result: ``nees`` ``(T+1,)`` (NaN where the covariance is not positive
+    definite, e.g. a start known exactly), ``anees`` (the mean NEES over the ``used`` poses
+    divided by ``dof``), ``inside_50`` and ``inside_95`` (shares of the used poses), ``dof``
+    (3: pose; 2: positions only) and ``used``."""
+
+    nees: np.ndarray
+    anees: float
+    inside_50: float
+    inside_95: float
+    dof: int
+    used: int
+
+
+def consistency(
+    estimate: object, covariances: object, truth: object, positions_only: bool | None = None
+) -> Consistency:
+    """How honest the covariances ``(T+1, 3, 3)`` (over ``x, y, theta``) of ``estimate``
+    ``(T+1, 3)`` are against ``truth`` ``(T+1, 3)``: see the module. ``positions_only``
+    (default: when the truth has no headings, NaN, as GPS) compares x and y alone."""
+    poses = np.array(estimate, dtype=float)
+    reference = np.array(truth, dtype=float)
+    if positions_only is None:
+        positions_only = bool(np.isnan(reference[..., 2]).any()) if reference.ndim == 2 else False
+    if positions_only:  # the headings take no part
+        poses[..., 2] = reference[..., 2] = 0.0
+    estimate, truth = _check(poses, reference)
+    matrices = np.asarray(covariances, dtype=float)
+    if matrices.shape != (len(estimate), 3, 3):
+        raise ValueError(
+            f"covariances must have shape ({len(estimate)}, 3, 3), got {matrices.shape}"
+        )
+    if not np.all(np.isfinite(matrices)):
+        row = int(np.argmin(np.all(np.isfinite(matrices), axis=(1, 2))))
+        raise ValueError(f"covariances must be finite; covariance {row} is not")
+    axes = [0, 1] if positions_only else [0, 1, 2]
+    error = (truth - estimate)[:, axes]
+    if not positions_only:
+        error[:, 2] = np.remainder(error[:, 2] + np.pi, 2 * np.pi) - np.pi
+    block = matrices[:, axes][:, :, axes]
+    block = 0.5 * (block + np.swapaxes(block, 1, 2))
+    scale = np.maximum(np.abs(block).max(axis=(1, 2)), np.finfo(float).tiny)
+    usable = np.linalg.eigvalsh(block).min(axis=1) > 1e-12 * scale
+    if not usable.any():
+        raise ValueError(
+            "no pose has a positive definite covariance: the estimate carries none (zeros?)"
+        )
+    nees = np.full(len(estimate), np.nan)
+    solved = np.linalg.solve(block[usable], error[usable][..., None])[..., 0]
+    nees[usable] = np.einsum("ni,ni->n", error[usable], solved)
+    dof = len(axes)
+    used = nees[usable]
+    return Consistency(
+        nees,
+        float(used.mean() / dof),
+        float(np.mean(used <= chi2_quantile(0.5, dof))),
+        float(np.mean(used <= chi2_quantile(0.95, dof))),
+        dof,
+        int(usable.sum()),
+    )

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.cli.options import (
+    COVARIANCE_COLUMNS,
     TRAJECTORY_FILES,
     Command,
     Parents,
@@ -18,29 +19,56 @@ from diffdrive.demo import (
     example_log,
     example_robot,
 )
-from diffdrive.evaluation import RPE_PAIRS, associate, ate, interpolate, rpe, run_errors
-from diffdrive.io import TableError, read_trajectory
+from diffdrive.evaluation import (
+    RPE_PAIRS,
+    associate,
+    ate,
+    consistency,
+    interpolate,
+    rpe,
+    run_errors,
+)
+from diffdrive.io import TableError, is_bag, read_trajectory
 from diffdrive.simulation import dead_reckon
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
+    covariances = None
     if args.input is None:
         log, robot = example_log(), example_robot()
         times, truth = log.times, log.truth
+        if args.consistency:
+            raise TableError(
+                "--consistency needs an estimate that carries a covariance (diffdrive odometry "
+                "--covariance writes one) and its --truth; the built-in example has none"
+            )
         estimate = dead_reckon(robot, log.increments(), truth[0], "exact")
     else:
         if args.truth is None:
             raise TableError("evaluate needs --truth with a ground-truth trajectory or bag")
         _stage(args.input, "reading the trajectory")
         times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
+        if args.consistency:
+            covariances = _covariances(args, times)
         _stage(args.truth, "reading the truth")
         truth_times, truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
         _stage(args.input, f"pairing and measuring {len(times)} poses")
         for path, poses in ((args.input, estimate), (args.truth, truth)):
             if poses.ndim != 2:
                 raise TableError(f"{path}: evaluate takes one robot; the file has {len(poses)}")
-        times, estimate, truth = _paired(args, times, estimate, truth_times, truth)
+        times, estimate, truth, covariances = _paired(
+            args, times, estimate, truth_times, truth, covariances
+        )
     metrics = evaluation_metrics(args, times, estimate, truth)
+    if covariances is not None:
+        found = consistency(estimate, covariances, truth)
+        metrics.update(
+            consistency_poses=found.used,
+            consistency_dof=found.dof,
+            anees=found.anees,
+            inside_50_percent=found.inside_50,
+            inside_95_percent=found.inside_95,
+        )
     if args.json:
         print(json.dumps(metrics))
     else:
@@ -91,23 +119,54 @@ def evaluation_metrics(args, times, estimate, truth) -> dict:
     return metrics
 
 
-def _paired(args, times, estimate, truth_times, truth):
-    """The estimate and the truth at paired times: associated as evo does, or the estimate
-    interpolated along its arcs at the truth's times (--interpolate)."""
+def _covariances(args, times) -> np.ndarray:
+    """The estimate's pose covariances ``(T+1, 3, 3)``: a bag's Odometry topic, or a table's
+    covariance columns (``diffdrive odometry --covariance`` writes them)."""
+    if is_bag(args.input):
+        from diffdrive.io import ros
+
+        return ros.read_odometry(args.input, args.topic).covariances
+    from diffdrive.io.tables import read_table
+
+    try:
+        table = read_table(args.input, ["t", *COVARIANCE_COLUMNS], time_unit=args.time_unit)
+    except TableError as exc:
+        raise TableError(
+            f"{exc}: --consistency needs the estimate's covariance, columns "
+            f"{', '.join(COVARIANCE_COLUMNS)} (diffdrive odometry --covariance writes them)"
+        ) from None
+    flat = np.zeros((len(table["t"]), 9))
+    for name, index in COVARIANCE_COLUMNS.items():
+        flat[:, index] = table[name]
+        row, column = divmod(index, 3)
+        flat[:, 3 * column + row] = table[name]
+    if len(flat) != len(times):
+        raise TableError(f"{args.input}: {len(flat)} covariances for {len(times)} poses")
+    return flat.reshape(-1, 3, 3)
+
+
+def _paired(args, times, estimate, truth_times, truth, covariances=None):
+    """The estimate, the truth and the estimate's covariances (if any) at paired times:
+    associated as evo does, or the estimate interpolated along its arcs at the truth's times
+    (--interpolate; the covariances linearly, entry by entry)."""
     if args.interpolate:
         shifted = times + args.t_offset
         inside = (truth_times >= shifted[0]) & (truth_times <= shifted[-1])
         if not inside.any():
             raise TableError(f"{args.truth}: no ground-truth time lies within {args.input}'s")
         at = truth_times[inside]
-        return at, interpolate(shifted, estimate, at), truth[inside]
+        if covariances is not None:
+            flat = covariances.reshape(-1, 9)
+            columns = [np.interp(at, shifted, flat[:, k]) for k in range(9)]
+            covariances = np.stack(columns, axis=-1).reshape(-1, 3, 3)
+        return at, interpolate(shifted, estimate, at), truth[inside], covariances
     i, j = associate(times, truth_times, args.t_max_diff, args.t_offset)
     if len(i) < 2:
         raise TableError(
             f"{args.truth}: {len(i)} of its times are within --t-max-diff {args.t_max_diff} s of "
             f"{args.input}'s (after --t-offset {args.t_offset} s); 2 or more are needed"
         )
-    return truth_times[j], estimate[i], truth[j]
+    return truth_times[j], estimate[i], truth[j], None if covariances is None else covariances[i]
 
 
 EPILOGS = {
@@ -115,6 +174,7 @@ EPILOGS = {
   diffdrive evaluate                       the built-in example's odometry against its truth
   diffdrive evaluate odometry.tum --truth truth.csv --rpe 1.0 --json
   diffdrive evaluate est.tum --truth gt.tum --t-offset -0.003 --rpe 10 --rpe-unit poses
+  diffdrive evaluate odometry.csv --truth truth.csv --consistency
 
 {TRAJECTORY_FILES} Poses are paired by time as evo pairs them: the nearest
 stamp within --t-max-diff s, after adding --t-offset to the trajectory's times;
@@ -159,5 +219,12 @@ def add_to(command: Command, parents: Parents) -> None:
         choices=RPE_PAIRS,
         default="consecutive",
         help="consecutive (evo's default) or all (evo's --all_pairs)",
+    )
+    ev.add_argument(
+        "--consistency",
+        action="store_true",
+        help="also how honest the estimate's covariance is: ANEES (1: honest; below: too "
+        "wide; above: too narrow) and the shares inside the 50 %% and 95 %% ellipses; reads "
+        "the covariance columns (odometry --covariance) or a bag's Odometry covariances",
     )
     ev.add_argument("--json", action="store_true")
