@@ -154,3 +154,15 @@ def test_husky_fusion_example_prints_the_figures_the_readme_quotes(capsys):
     assert len(figures) >= 6
     for figure in figures:
         assert figure in readme, figure
+
+
+def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys):
+    from data import data_folder
+
+    script = load("noise_model")
+    script.main(["--data", str(data_folder("optiodom-diffdrive"))])
+    lines = [line for line in capsys.readouterr().out.splitlines() if "ANEES in [1/3, 3]" in line]
+    counts = [int(line.split(": ")[1].split()[0]) for line in lines]
+    readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
+    assert f"holds on {counts[0]} of the 10 experiments" in readme
+    assert f"and on {counts[1]} of 10 from all the other experiments" in readme

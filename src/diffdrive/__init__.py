@@ -31,6 +31,7 @@ _LAZY = (
     "io",
     "learn",
     "montecarlo",
+    "noise",
     "plot",
     "sensors",
 )

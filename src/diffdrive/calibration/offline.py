@@ -239,7 +239,11 @@ def checked_runs(runs: Sequence, names: list[str]) -> list[tuple[np.ndarray, np.
                 raise CalibrationError(f"{k}: the run has no ground truth to calibrate against")
             increments, truth = run.increments(), run.truth
         else:
-            increments, truth = run
+            try:
+                increments, truth = run
+            except (TypeError, ValueError):
+                kind = type(run).__name__
+                raise TypeError(f"{k}: a run is a Run or (increments, truth), got {kind}") from None
         increments, truth = np.asarray(increments, float), np.asarray(truth, float)
         if increments.ndim != 2 or increments.shape[1] != 2:
             raise CalibrationError(f"{k}: increments must be (T, 2), got {increments.shape}")

@@ -1,0 +1,122 @@
+"""The OptiOdom recordings: a noise model identified on other experiments, and how honest the
+covariance it predicts is on runs it never saw.
+
+For each experiment of ``../shared/data/optiodom-diffdrive``: the geometry calibrated
+(least squares) and the noise model identified (``diffdrive.noise.identify``) on the other
+experiments of the same kind of path (and, in a second table, on all the other experiments);
+then, on this experiment's runs, the odometry with the
+calibrated geometry, the covariance the model predicts (``noise.covariances``) and its
+consistency against the motion capture (``evaluation.consistency``): the share of poses inside
+the 95 % ellipse and ANEES, pooled over the experiment's runs. A term the training runs cannot
+identify is left out (and named); ``--seconds`` thins the runs to one pose every so often.
+
+    python examples/noise_model.py [--data ../shared/data/optiodom-diffdrive]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive import noise
+from diffdrive.calibration import calibrate
+from diffdrive.evaluation import consistency
+from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "optiodom-diffdrive"
+
+
+def load(folder: Path) -> dict[str, tuple[str, list]]:
+    """Each experiment's kind of path and its runs, ``(increments, truth)``."""
+    kinds: dict[str, str] = {}
+    with (folder / "runs_index.csv").open() as index:
+        for row in csv.DictReader(index):
+            kinds[row["experiment"]] = row["path_type"]
+    experiments = {}
+    for experiment, kind in sorted(kinds.items()):
+        paths = sorted((folder / kind / experiment).glob("*_run-*.csv"))
+        runs = [(run.increments(), run.truth) for run in map(read_optiodom_run, paths)]
+        experiments[experiment] = (kind, runs)
+    return experiments
+
+
+def identified(robot, runs) -> tuple[noise.NoiseModel, list[str]]:
+    """The model with every term the runs can identify, and the terms left out."""
+    terms, left_out = list(noise.TERMS), []
+    while True:
+        try:
+            return noise.identify(robot, runs, terms=tuple(terms)), left_out
+        except ValueError as refused:
+            term = next((t for t in terms if t in str(refused)), None)
+            if term is None or len(terms) == 1:
+                raise
+            terms.remove(term)
+            left_out.append(term)
+
+
+def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
+    table = {}
+    for experiment, (kind, runs) in experiments.items():
+        others = [
+            run
+            for name, (other, rs) in experiments.items()
+            if name != experiment and (other == kind or not same_kind)
+            for run in rs
+        ]
+        robot = calibrate(optiodom_robot(), others, "least_squares").robot
+        model, left_out = identified(robot, others)
+        estimates, predicted, truths = [], [], []
+        for increments, truth in runs:
+            poses, covariance = noise.covariances(robot, increments, truth[0], model)
+            estimates.append(poses[1:])
+            predicted.append(covariance[1:])
+            truths.append(truth[1:])
+        found = consistency(
+            np.concatenate(estimates), np.concatenate(predicted), np.concatenate(truths)
+        )
+        table[experiment] = {
+            "kind": kind,
+            "runs": len(runs),
+            "inside_95": found.inside_95,
+            "anees": found.anees,
+            "k": model.k,
+            "radius_sigma": model.radius_sigma,
+            "track_sigma": model.track_sigma,
+            "reference_sigma": model.reference_sigma,
+            "left_out": ", ".join(left_out) or "-",
+        }
+    return table
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DATA)
+    args = parser.parse_args(argv)
+    experiments = load(args.data)
+    for same_kind in (True, False):
+        table = held_out(experiments, same_kind)
+        trained = "the other experiments of its kind" if same_kind else "all other experiments"
+        print(f"\nidentified on {trained}:\n")
+        print(
+            "| experiment | kind | runs | inside 95 % | ANEES | k, m | radius sigma | track "
+            "sigma | reference sigma, m | left out |"
+        )
+        print("|---|---|---|---|---|---|---|---|---|---|")
+        for experiment, row in table.items():
+            print(
+                f"| {experiment} | {row['kind']} | {row['runs']} | {row['inside_95']:.2f} | "
+                f"{row['anees']:.2f} | {row['k']:.2g} | {row['radius_sigma']:.4f} | "
+                f"{row['track_sigma']:.4f} | {row['reference_sigma']:.4f} | {row['left_out']} |"
+            )
+        good = sum(r["inside_95"] >= 0.80 and 1 / 3 <= r["anees"] <= 3 for r in table.values())
+        print(
+            f"\n95 % coverage >= 0.80 and ANEES in [1/3, 3] ({trained}): {good} of "
+            f"{len(table)} experiments"
+        )
+
+
+if __name__ == "__main__":
+    main()
