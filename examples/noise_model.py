@@ -43,20 +43,6 @@ def load(folder: Path) -> dict[str, tuple[str, list]]:
     return experiments
 
 
-def identified(robot, runs) -> tuple[noise.NoiseModel, list[str]]:
-    """The model with every term the runs can identify, and the terms left out."""
-    terms, left_out = list(noise.TERMS), []
-    while True:
-        try:
-            return noise.identify(robot, runs, terms=tuple(terms)), left_out
-        except ValueError as refused:
-            term = next((t for t in terms if t in str(refused)), None)
-            if term is None or len(terms) == 1:
-                raise
-            terms.remove(term)
-            left_out.append(term)
-
-
 def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
     table = {}
     for experiment, (kind, runs) in experiments.items():
@@ -67,7 +53,7 @@ def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
             for run in rs
         ]
         robot = calibrate(optiodom_robot(), others, "least_squares").robot
-        model, left_out = identified(robot, others)
+        model, left_out = noise.identify_what_it_can(robot, others)
         estimates, predicted, truths = [], [], []
         for increments, truth in runs:
             poses, covariance = noise.covariances(robot, increments, truth[0], model)

@@ -48,7 +48,16 @@ from diffdrive.model import DiffDrive
 from diffdrive.simulation import dead_reckon
 from diffdrive.types import Pose
 
-__all__ = ["TERMS", "NoiseModel", "covariances", "identify"]
+__all__ = [
+    "TERMS",
+    "GyroFit",
+    "NoiseModel",
+    "allan_deviation",
+    "covariances",
+    "identify",
+    "identify_gyro",
+    "identify_what_it_can",
+]
 
 TERMS = ("k", "radius_sigma", "track_sigma", "reference_sigma", "reference_heading_sigma")
 _STEP = 1e-6  # relative: the geometry's finite differences
@@ -207,6 +216,23 @@ def identify(
     )
 
 
+def identify_what_it_can(robot: DiffDrive, runs, **options) -> tuple[NoiseModel, tuple[str, ...]]:
+    """``identify`` with every term the runs can identify: the terms it refuses are left
+    out one at a time (and returned) until the rest are identified."""
+    runs = list(runs)
+    terms: list[str] = list(options.pop("terms", TERMS))
+    left_out: list[str] = []
+    while True:
+        try:
+            return identify(robot, runs, terms=tuple(terms), **options), tuple(left_out)
+        except ValueError as refused:
+            term = next((t for t in terms if t in str(refused)), None)
+            if term is None or len(terms) == 1:
+                raise
+            terms.remove(term)
+            left_out.append(term)
+
+
 def _refuse_the_unidentified(information: np.ndarray, fitted: np.ndarray) -> None:
     """``ValueError`` naming a fitted term the runs carry no information on, or one they
     cannot tell from the others (the information, scaled to unit diagonal, nearly singular
@@ -332,3 +358,85 @@ def covariances(
         [model.reference_sigma**2, model.reference_sigma**2, model.reference_heading_sigma**2]
     )
     return poses, predicted + reference
+
+
+@dataclass(frozen=True, eq=False)
+class GyroFit:
+    """``identify_gyro``'s result: ``angle_random_walk`` (rad/s/sqrt(Hz)),
+    ``bias_instability`` (rad/s), ``rate_random_walk`` (rad/s/sqrt(s)), and the overlapping
+    Allan deviation they were fitted to: ``taus`` (s) and ``deviations`` (rad/s)."""
+
+    angle_random_walk: float
+    bias_instability: float
+    rate_random_walk: float
+    taus: np.ndarray
+    deviations: np.ndarray
+
+    def gyro_noise(self):
+        """As ``estimation.GyroNoise`` (the bias prior: its instability, or a small floor)."""
+        from diffdrive.estimation import GyroNoise
+
+        prior = max(self.bias_instability, 1e-6)
+        return GyroNoise(self.angle_random_walk, self.rate_random_walk, prior)
+
+
+# Allan variance of each term (IEEE Std 952-1997, annex C): N^2 / tau for white rate noise,
+# (2 ln 2 / pi) B^2 on the flat of a bias instability, K^2 tau / 3 for a rate random walk.
+_FLAT = 2.0 * np.log(2.0) / np.pi
+
+
+def allan_deviation(times: object, rates: object) -> tuple[np.ndarray, np.ndarray]:
+    """The overlapping Allan deviation (rad/s) of gyro ``rates`` sampled evenly at ``times``
+    (s), at cluster times ``tau`` (s) of 1, 2, 4, ... samples up to a quarter of the record:
+    ``(taus, deviations)``. ``ValueError`` if the samples are not evenly spaced (to 1 %) or
+    too few (100 or more)."""
+    times = np.asarray(times, dtype=float)
+    rates = np.asarray(rates, dtype=float)
+    if times.ndim != 1 or rates.shape != times.shape:
+        raise ValueError(f"times and rates must be (M,), got {times.shape} and {rates.shape}")
+    if len(times) < 100:
+        raise ValueError(
+            f"the stationary stretch is too short for the Allan deviation: {len(times)} "
+            "samples, 100 or more needed"
+        )
+    if not (np.all(np.isfinite(times)) and np.all(np.isfinite(rates))):
+        raise ValueError("times and rates must be finite")
+    steps = np.diff(times)
+    dt = float(np.median(steps))
+    if not dt > 0 or np.abs(steps - dt).max() > 0.01 * dt:
+        raise ValueError(
+            "the Allan deviation needs evenly spaced samples (to 1 %); resample the stretch"
+        )
+    # Each sample the mean rate over its period, as the Allan variance's clusters average.
+    angle = np.concatenate([[0.0], np.cumsum(rates * dt)])
+    clusters = 2 ** np.arange(int(np.log2(len(angle) / 4)) + 1)
+    taus, deviations = [], []
+    for m in clusters:
+        second = angle[2 * m :] - 2.0 * angle[m:-m] + angle[: -2 * m]
+        tau = m * dt
+        taus.append(tau)
+        deviations.append(np.sqrt(np.mean(second**2) / (2.0 * tau**2)))
+    return np.array(taus), np.array(deviations)
+
+
+def identify_gyro(times: object, rates: object) -> GyroFit:
+    """A gyro's angle random walk, bias instability and rate random walk from a stretch in
+    which it stands still: the three terms' Allan variances fitted to the measured one by
+    non-negative least squares, relative to it (each cluster time weighs alike)."""
+    taus, deviations = allan_deviation(times, rates)
+    design = np.column_stack([1.0 / taus, np.full(len(taus), _FLAT), taus / 3.0])
+    target = deviations**2
+    weighted = design / target[:, None]
+    best, best_cost = np.zeros(3), np.inf
+    for mask in range(1, 8):  # every subset of the three terms: the best non-negative fit
+        used = [i for i in range(3) if mask >> i & 1]
+        found, *_ = np.linalg.lstsq(weighted[:, used], np.ones(len(taus)), rcond=None)
+        if np.any(found < 0):
+            continue
+        trial = np.zeros(3)
+        trial[used] = found
+        cost = float(np.sum((weighted @ trial - 1.0) ** 2))
+        if cost < best_cost:
+            best, best_cost = trial, cost
+    n2, b2, k2 = best
+    return GyroFit(float(np.sqrt(n2)), float(np.sqrt(b2)), float(np.sqrt(k2)), taus, deviations)

@@ -14,6 +14,7 @@ from pathlib import Path
 from diffdrive.cli import (
     calibrate,
     evaluate,
+    export,
     info,
     kinematics,
     learn,
@@ -69,7 +70,19 @@ def build_parser() -> argparse.ArgumentParser:
         "input", nargs="?", type=Path, help="trajectory (CSV, JSON lines, TUM); none: built-in"
     )
     parents = Parents(robot=robot_options(), logs=log_options(), times=times, pictures=pictures)
-    for module in (simulate, odometry, plot, calibrate, evaluate, info, learn, kinematics, synth):
+    modules = (
+        simulate,
+        odometry,
+        plot,
+        calibrate,
+        evaluate,
+        export,
+        info,
+        learn,
+        kinematics,
+        synth,
+    )
+    for module in modules:
         module.add_to(command, parents)
     return parser
 
