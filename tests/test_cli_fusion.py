@@ -127,4 +127,19 @@ def test_evaluate_says_how_honest_the_written_covariance_is(log_and_fixes, capsy
         assert 0.0 < metrics["anees"] < 100.0
         assert 0.0 <= metrics["inside_50_percent"] <= metrics["inside_95_percent"] <= 1.0
     assert main(["evaluate", "truth.csv", "--truth", "truth.csv", "--consistency"]) != 0
-    assert "--consistency needs the estimate's covariance" in capsys.readouterr().err
+    assert "a covariance is needed here" in capsys.readouterr().err
+
+
+def test_plot_draws_the_errors_within_their_bands(log_and_fixes, capsys):
+    folder, log = log_and_fixes
+    write_table(folder / "truth.csv", {k: log[k] for k in ("t", "x", "y", "theta")})
+    fused = ["--measurements", "fixes.csv", "--smooth", "-o", "fused.csv"]
+    assert main(["odometry", "log.csv", *TICKS, *fused]) == 0
+    capsys.readouterr()
+    code = main(["plot", "fused.csv", "--truth", "truth.csv", "--errors", "-o", "bands.png"])
+    assert code == 0
+    share = float(capsys.readouterr().out.split(": ")[-1].split("%")[0])
+    assert 0.0 <= share <= 100.0
+    assert (folder / "bands.png").stat().st_size > 10_000
+    assert main(["plot", "truth.csv", "--truth", "truth.csv", "--errors", "-o", "x.png"]) != 0
+    assert "a covariance is needed here" in capsys.readouterr().err

@@ -15,7 +15,13 @@ from diffdrive import batch
 from diffdrive._progress import progress_bar
 from diffdrive.model import Robot
 
-__all__ = ["animate", "animation_writer", "plot_trajectory", "wheel_velocities_of"]
+__all__ = [
+    "animate",
+    "animation_writer",
+    "plot_error_bands",
+    "plot_trajectory",
+    "wheel_velocities_of",
+]
 
 _ROBOT_COLOUR = "0.25"
 
@@ -114,6 +120,44 @@ def plot_trajectory(
     for ax in (path, heading, wheels_ax):
         ax.grid(True, alpha=0.3)
     figure.savefig(output, dpi=100)
+
+
+def plot_error_bands(
+    times: np.ndarray,
+    estimate: np.ndarray,
+    covariances: np.ndarray,
+    truth: np.ndarray,
+    output: str | Path,
+) -> float:
+    """Each error of ``estimate`` ``(T+1, 3)`` against ``truth`` (x, y in m, heading in deg)
+    over ``times`` with the estimate's plus/minus 2-sigma band from ``covariances``
+    ``(T+1, 3, 3)``; returns the share of errors inside their bands (all three at once)."""
+    error = truth - estimate
+    error[:, 2] = np.degrees(np.remainder(error[:, 2] + np.pi, 2 * np.pi) - np.pi)
+    sigma = np.sqrt(np.maximum(np.einsum("tii->ti", covariances), 0.0))
+    sigma[:, 2] = np.degrees(sigma[:, 2])
+    figure = _figure(figsize=(10, 7), layout="constrained")
+    axes = figure.subplots(3, 1, sharex=True)
+    for ax, k, label in zip(
+        axes, range(3), ("x error, m", "y error, m", "heading error, deg"), strict=True
+    ):
+        ax.fill_between(
+            times,
+            -2 * sigma[:, k],
+            2 * sigma[:, k],
+            color="tab:blue",
+            alpha=0.2,
+            label="plus/minus 2 sigma",
+        )
+        ax.plot(times, error[:, k], color="tab:red", linewidth=1, label="error")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(loc="upper left")
+    axes[-1].set_xlabel("t, s")
+    inside = float(np.mean(np.all(np.abs(error) <= 2 * sigma, axis=1)))
+    axes[0].set_title(f"errors and their 2-sigma bands: {inside:.0%} of poses inside all three")
+    figure.savefig(output, dpi=100)
+    return inside
 
 
 def _plot_many(times: np.ndarray, poses: np.ndarray, output, truth) -> None:

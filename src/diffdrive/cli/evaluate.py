@@ -49,7 +49,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         _stage(args.input, "reading the trajectory")
         times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
         if args.consistency:
-            covariances = _covariances(args, times)
+            covariances = read_covariances(args, times)
         _stage(args.truth, "reading the truth")
         truth_times, truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
         _stage(args.input, f"pairing and measuring {len(times)} poses")
@@ -119,7 +119,7 @@ def evaluation_metrics(args, times, estimate, truth) -> dict:
     return metrics
 
 
-def _covariances(args, times) -> np.ndarray:
+def read_covariances(args, times) -> np.ndarray:
     """The estimate's pose covariances ``(T+1, 3, 3)``: a bag's Odometry topic, or a table's
     covariance columns (``diffdrive odometry --covariance`` writes them)."""
     if is_bag(args.input):
@@ -132,7 +132,7 @@ def _covariances(args, times) -> np.ndarray:
         table = read_table(args.input, ["t", *COVARIANCE_COLUMNS], time_unit=args.time_unit)
     except TableError as exc:
         raise TableError(
-            f"{exc}: --consistency needs the estimate's covariance, columns "
+            f"{exc}: a covariance is needed here (--consistency, --errors), columns "
             f"{', '.join(COVARIANCE_COLUMNS)} (diffdrive odometry --covariance writes them)"
         ) from None
     flat = np.zeros((len(table["t"]), 9))

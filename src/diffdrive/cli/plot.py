@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from diffdrive.cli.options import (
     ASSUMED_ROBOT,
     TRAJECTORY_FILES,
@@ -29,10 +31,39 @@ def run_plot(args: argparse.Namespace) -> int:
         truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
     # A file's path was driven by a robot the command was not told of: say which it assumed.
     assumed = None if robot_given(args) or args.input is None else ASSUMED_ROBOT
+    if args.errors:
+        return _plot_errors(args, times, poses, truth)
     with atomic_output(args.output) as temporary:
         plot_trajectory(robot, times, poses, temporary, truth, assumed=assumed)
     if not args.quiet:
         print(f"plotted {what} to {args.output}")
+    return 0
+
+
+def _plot_errors(args, times, poses, truth) -> int:
+    """The estimate's errors against the truth with its 2-sigma bands (--errors)."""
+    from diffdrive.cli.evaluate import read_covariances
+    from diffdrive.evaluation import interpolate
+    from diffdrive.plot import plot_error_bands
+
+    if args.input is None or truth is None or poses.ndim != 2:
+        raise TableError("--errors needs one estimate with a covariance and its --truth")
+    covariances = read_covariances(args, times)
+    truth_times, truth_poses = truth
+    inside = (times >= truth_times[0]) & (times <= truth_times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{args.truth}: its times do not cover {args.input}'s")
+    at = times[inside]
+    with atomic_output(args.output) as temporary:
+        share = plot_error_bands(
+            at,
+            poses[inside],
+            covariances[inside],
+            interpolate(truth_times, truth_poses, at),
+            temporary,
+        )
+    if not args.quiet:
+        print(f"plotted the errors of {args.input} to {args.output}: {share:.1%} inside 2 sigma")
     return 0
 
 
@@ -79,6 +110,12 @@ def add_to(command: Command, parents: Parents) -> None:
     )
     plot.add_argument("-o", "--output", type=Path, default=Path("trajectory.png"))
     plot.add_argument("--truth", type=Path, help="ground-truth trajectory, drawn underneath")
+    plot.add_argument(
+        "--errors",
+        action="store_true",
+        help="draw the errors against --truth with the estimate's plus/minus 2-sigma bands "
+        "(its covariance columns, as odometry --covariance writes them)",
+    )
     movie = command(
         "animate",
         "animate a trajectory",
