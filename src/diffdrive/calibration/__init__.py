@@ -3,10 +3,12 @@
 - ``offline``: ``calibrate`` on whole runs with ground truth (UMBmark, robust least squares,
   minimax, increments), and its refusals (``CalibrationError``);
 - ``cross_validation``: ``cross_validate``, held-out scores of a calibration;
-- ``online``: ``OnlineCalibrator``, recursive least squares while the robot drives.
+- ``online``: ``OnlineCalibrator``, recursive least squares while the robot drives;
+- ``gyro_track``: ``track_from_gyro``, the track width from a gyro, without a pose reference.
 """
 
 from diffdrive.calibration.cross_validation import CrossValidation, Fold, cross_validate
+from diffdrive.calibration.gyro_track import GyroTrack, track_from_gyro
 from diffdrive.calibration.offline import (
     CALIBRATION_METHODS,
     DEFAULT_EXTRA,
@@ -35,6 +37,7 @@ __all__ = [
     "CalibrationResult",
     "CrossValidation",
     "Fold",
+    "GyroTrack",
     "Increments",
     "LeastSquares",
     "MethodOptions",
@@ -44,4 +47,5 @@ __all__ = [
     "checked_runs",
     "cross_validate",
     "run_names",
+    "track_from_gyro",
 ]
