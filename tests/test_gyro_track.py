@@ -70,3 +70,21 @@ def test_a_log_that_never_turns_is_refused():
         track_from_gyro(NOMINAL, np.arange(101) * 0.02, straight, np.zeros(100))
     with pytest.raises(ValueError, match="must agree"):
         track_from_gyro(NOMINAL, np.arange(10) * 0.02, straight, np.zeros(100))
+
+
+def test_calibrate_finds_the_track_from_a_bag_imu(tmp_path, monkeypatch, capsys):
+    from data import data_folder
+    from diffdrive.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    bag = str(data_folder("ros-bags") / "turtlebot3_fuse.bag")
+    joints = ["--left-joint", "wheel_left_joint", "--right-joint", "wheel_right_joint"]
+    radii = ["--left-wheel-radius", "0.03256", "--right-wheel-radius", "0.03252"]
+    gyro = ["--track-from-gyro", "--gyro-topic", "/imu", "--track-width", "0.287"]
+    assert main(["calibrate", bag, *joints, *radii, *gyro, "-o", "robot.toml"]) == 0
+    written = dd.io.read_robot(tmp_path / "robot.toml")
+    assert written["track_width"] == pytest.approx(0.2955, rel=0.01)
+    assert written["left_wheel_radius"] == 0.03256
+    assert "track from the gyro: 0.2954" in capsys.readouterr().out
+    assert main(["calibrate", bag, bag, *joints, *radii, *gyro, "-o", "two.toml"]) != 0
+    assert "--track-from-gyro takes one log, got 2" in capsys.readouterr().err

@@ -23,7 +23,9 @@ from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
     Parents,
+    add_imu_options,
     at_least,
+    gyro_of,
     read_log_of,
     robot_from,
 )
@@ -67,8 +69,57 @@ def _calibration_run(args, path: Path, ticks: float | None):
     return (log.increments(ticks, args.counter_bits), log.truth), log.ticks_per_revolution
 
 
+def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
+    """--track-from-gyro: the track from one log's wheels and gyro, the radii the robot's."""
+    from diffdrive.calibration import track_from_gyro
+
+    if len(args.runs) != 1:
+        raise TableError(f"--track-from-gyro takes one log, got {len(args.runs)}")
+    if not isinstance(nominal, DiffDrive):
+        raise TableError("--track-from-gyro calibrates a DiffDrive's track; the robot is not one")
+    path = args.runs[0]
+    log = read_log_of(args, path)
+    gyro = gyro_of(args, log, path)
+    if gyro is None:
+        raise TableError(
+            f"{path}: --track-from-gyro needs a gyro: --gyro-topic, or a gyro_z column"
+        )
+    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{path}: the gyro does not cover the log's times")
+    log = log.rows(inside) if not inside.all() else log
+    ticks = ticks or log.ticks_per_revolution
+    found = track_from_gyro(
+        nominal,
+        log.times,
+        log.increments(ticks, args.counter_bits),
+        np.diff(gyro.angles(log.times)),
+        k=args.k,
+        ticks_per_revolution=ticks,
+        angle_random_walk=args.gyro_arw,
+    )
+    settings = nominal.with_geometry(
+        nominal.left_wheel_radius, nominal.right_wheel_radius, found.track
+    ).settings()
+    if ticks is not None:
+        settings["ticks_per_revolution"] = ticks
+    write_robot(args.output, settings, f"track from the gyro of {path} by diffdrive")
+    if not args.quiet:
+        low, high = sorted(found.bracket)
+        print(
+            f"track from the gyro: {found.track:.5f} m (standard error {found.standard_error:.5f} "
+            f"m; between {low:.5f} and {high:.5f} m whatever the noises; the plain ratio "
+            f"{found.plain_ratio:.5f} m); gyro bias {found.bias:.5f} rad/s; radii kept "
+            f"{nominal.left_wheel_radius:g} and {nominal.right_wheel_radius:g} m"
+        )
+        print(f"calibrate: wrote the robot to {args.output}")
+    return 0
+
+
 def run_calibrate(args: argparse.Namespace) -> int:
     nominal, ticks = robot_from(args)
+    if args.track_from_gyro:
+        return _track_from_gyro(args, nominal, ticks)
     if args.runs:
         read = [_calibration_run(args, path, ticks) for path in args.runs]
         runs = [run for run, _ in read]
@@ -224,6 +275,29 @@ def add_to(command: Command, parents: Parents) -> None:
         help="the odometry's method (default exact)",
     )
     cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
+    gyro = cal.add_argument_group(
+        "the track from a gyro, without ground truth (the radii: the robot's)"
+    )
+    gyro.add_argument(
+        "--track-from-gyro",
+        action="store_true",
+        help="one log's wheels against its gyro (calibration.track_from_gyro)",
+    )
+    add_imu_options(gyro)
+    gyro.add_argument(
+        "--gyro-arw",
+        type=float,
+        default=2e-3,
+        metavar="RAD_S_SQRT_HZ",
+        help="the gyro's angle random walk (default 2e-3)",
+    )
+    gyro.add_argument(
+        "--k",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="the wheels' noise, m (default 0: read exactly)",
+    )
     cal.add_argument(
         "--window",
         type=at_least(1),

@@ -15,6 +15,8 @@ from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
     Parents,
+    add_imu_options,
+    gyro_of,
     output_format,
     output_options,
     read_log_of,
@@ -23,7 +25,7 @@ from diffdrive.cli.options import (
 )
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation.odometry import odometry_of_run
-from diffdrive.io import RIM_SPEED_LIMIT, Run, TableError, is_bag
+from diffdrive.io import RIM_SPEED_LIMIT, Run, TableError
 from diffdrive.model import Robot
 
 # Past this share of intervals flagged, slip is not the explanation: robots slip on a few
@@ -37,7 +39,7 @@ def run_odometry(args: argparse.Namespace) -> int:
     log = read_log_of(args)
     ticks = ticks or log.ticks_per_revolution
     increments, note = log.checked_increments(robot, ticks, args.counter_bits, args.max_wheel_speed)
-    gyro = _gyro(args, log)
+    gyro = gyro_of(args, log)
     if wants_fusion(args):
         if gyro is not None:
             log, note = _within_gyro(log, gyro, note)
@@ -75,24 +77,6 @@ def run_odometry(args: argparse.Namespace) -> int:
         if log.truth is not None:
             print(error_summary(poses, log.truth))
     return 0
-
-
-def _gyro(args, log: Run):
-    """The gyro of the command: a bag's IMU topic (rotated by --imu-rpy), or the log's gyro_z
-    column; None without one."""
-    from diffdrive.estimation.gyro import Gyro, rotation_from_rpy
-
-    if args.gyro_topic is not None:
-        if args.input is None or not is_bag(args.input):
-            raise TableError("--gyro-topic needs a bag as the log")
-        from diffdrive.io import ros
-
-        imu = ros.read_imu(args.input, args.gyro_topic)
-        mounting = rotation_from_rpy(*np.radians(args.imu_rpy))
-        return Gyro.from_imu(imu.times, imu.angular_velocity, mounting)
-    if log.gyro_rates is not None:
-        return Gyro(log.times, log.gyro_rates)
-    return None
 
 
 def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
@@ -216,15 +200,7 @@ def add_to(command: Command, parents: Parents) -> None:
         help="right wheel-error constant, m (default 0; 1e-4 with a gyro)",
     )
     gyro = odo.add_argument_group("a gyro: a bag's IMU topic or a gyro_z column (rad/s)")
-    gyro.add_argument("--gyro-topic", metavar="TOPIC", help="sensor_msgs/Imu topic of the bag")
-    gyro.add_argument(
-        "--imu-rpy",
-        type=float,
-        nargs=3,
-        default=(0.0, 0.0, 0.0),
-        metavar=("ROLL", "PITCH", "YAW"),
-        help="the IMU's mounting in the body, degrees (default 0 0 0: z up)",
-    )
+    add_imu_options(gyro)
     gyro.add_argument(
         "--heading",
         choices=("wheels", "gyro", "fused"),

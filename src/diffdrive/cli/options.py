@@ -12,6 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
+
 from diffdrive.demo import (
     EXAMPLE_DURATION,
     example_log,
@@ -25,6 +27,8 @@ from diffdrive.io import (
     ROBOT_KEYS,
     TIME_UNITS,
     Run,
+    TableError,
+    is_bag,
     overridden,
     read_robot,
     read_run,
@@ -272,3 +276,36 @@ class Parents:
     logs: argparse.ArgumentParser
     times: argparse.ArgumentParser
     pictures: argparse.ArgumentParser
+
+
+def gyro_of(args: argparse.Namespace, log: Run, path: Path | None = None):
+    """The gyro of the command's log (``path``, default its input): a bag's IMU topic (rotated
+    by --imu-rpy), or the log's gyro_z column; None without one."""
+    from diffdrive.estimation.gyro import Gyro, rotation_from_rpy
+
+    source = args.input if path is None else path
+    if args.gyro_topic is not None:
+        if source is None or not is_bag(source):
+            raise TableError("--gyro-topic needs a bag as the log")
+        from diffdrive.io import ros
+
+        imu = ros.read_imu(source, args.gyro_topic)
+        mounting = rotation_from_rpy(*np.radians(args.imu_rpy))
+        return Gyro.from_imu(imu.times, imu.angular_velocity, mounting)
+    if log.gyro_rates is not None:
+        return Gyro(log.times, log.gyro_rates)
+    return None
+
+
+def add_imu_options(group, topic: bool = True) -> None:
+    """``--gyro-topic`` (unless ``topic`` is False) and ``--imu-rpy``, the IMU's mounting."""
+    if topic:
+        group.add_argument("--gyro-topic", metavar="TOPIC", help="sensor_msgs/Imu topic of the bag")
+    group.add_argument(
+        "--imu-rpy",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("ROLL", "PITCH", "YAW"),
+        help="the IMU's mounting in the body, degrees (default 0 0 0: z up)",
+    )

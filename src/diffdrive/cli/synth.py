@@ -10,7 +10,13 @@ from typing import Any
 import numpy as np
 
 from diffdrive import sensors
-from diffdrive.cli.options import Command, Parents, example_trajectory, robot_from
+from diffdrive.cli.options import (
+    Command,
+    Parents,
+    add_imu_options,
+    example_trajectory,
+    robot_from,
+)
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS
 from diffdrive.estimation.gyro import rotation_from_rpy
 from diffdrive.io import read_trajectory
@@ -174,14 +180,7 @@ def add_to(command: Command, parents: Parents) -> None:
     gyro.add_argument("--gyro-arw", type=float, default=0.0, help="angle random walk")
     gyro.add_argument("--gyro-rrw", type=float, default=0.0, help="rate random walk")
     gyro.add_argument("--gyro-scale", type=float, default=0.0, help="relative scale error")
-    gyro.add_argument(
-        "--imu-rpy",
-        type=float,
-        nargs=3,
-        default=(0.0, 0.0, 0.0),
-        metavar=("ROLL", "PITCH", "YAW"),
-        help="IMU mounting, deg",
-    )
+    add_imu_options(gyro, topic=False)
     pose = synth.add_argument_group("a pose sensor (or a GPS) in the bag")
     pose.add_argument("--pose-sigma", type=float, nargs=3, metavar=("X", "Y", "THETA"))
     pose.add_argument("--pose-period", type=float, help="s between poses (default: each sample)")

@@ -286,6 +286,7 @@ def write_trajectory(
     if robots:
         arrays.insert(0, np.broadcast_to(np.arange(robots)[:, None], times.shape))
     columns_flat = [np.ascontiguousarray(column).reshape(-1) for column in arrays]
+    _orjson()  # loaded before the file is begun: a SIGTERM inside its import crashes it
     # A block of rows at a time: the text of a whole log would take ten times its numbers.
     with atomic_write(path) as stream:
         if format == "csv":
@@ -310,15 +311,23 @@ def _float_texts(values: np.ndarray) -> list[str]:
     fast as ``repr``, in the same digits (``1e-5`` where repr writes ``1e-05``).
     """
     array = np.asarray(values)
-    if array.dtype == np.float64 and len(array) and np.isfinite(array).all():
-        try:
-            import orjson
-        except ModuleNotFoundError:
-            pass
-        else:
-            text = orjson.dumps(array, option=orjson.OPT_SERIALIZE_NUMPY)
-            return text[1:-1].decode("ascii").split(",")
+    orjson = _orjson()
+    plain = array.dtype == np.float64 and len(array) and bool(np.isfinite(array).all())
+    if orjson is not None and plain:
+        text = orjson.dumps(array, option=orjson.OPT_SERIALIZE_NUMPY)
+        return text[1:-1].decode("ascii").split(",")
     return list(map(repr, array.tolist()))
+
+
+def _orjson():
+    """orjson, or None where it is not installed. Its extension's import does not survive a
+    signal handler raising inside it (a segmentation fault), so the writer loads it before
+    it begins a file, not in the middle."""
+    try:
+        import orjson
+    except ModuleNotFoundError:
+        return None
+    return orjson
 
 
 def _record(names: list[str], row: list) -> dict:
