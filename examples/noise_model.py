@@ -19,11 +19,7 @@ import argparse
 import csv
 from pathlib import Path
 
-import numpy as np
-
 from diffdrive import noise
-from diffdrive.calibration import calibrate
-from diffdrive.evaluation import consistency
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "optiodom-diffdrive"
@@ -44,25 +40,15 @@ def load(folder: Path) -> dict[str, tuple[str, list]]:
 
 
 def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
+    """Each experiment scored by ``noise.cross_validate`` over its kind's experiments (or all
+    of them)."""
     table = {}
     for experiment, (kind, runs) in experiments.items():
-        others = [
-            run
-            for name, (other, rs) in experiments.items()
-            if name != experiment and (other == kind or not same_kind)
-            for run in rs
-        ]
-        robot = calibrate(optiodom_robot(), others, "least_squares").robot
-        model, left_out = noise.identify_what_it_can(robot, others)
-        estimates, predicted, truths = [], [], []
-        for increments, truth in runs:
-            poses, covariance = noise.covariances(robot, increments, truth[0], model)
-            estimates.append(poses[1:])
-            predicted.append(covariance[1:])
-            truths.append(truth[1:])
-        found = consistency(
-            np.concatenate(estimates), np.concatenate(predicted), np.concatenate(truths)
-        )
+        groups = {
+            name: rs for name, (other, rs) in experiments.items() if other == kind or not same_kind
+        }
+        score = noise.cross_validate(optiodom_robot(), groups)[experiment]
+        model, found = score.model, score.consistency
         table[experiment] = {
             "kind": kind,
             "runs": len(runs),
@@ -72,7 +58,7 @@ def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
             "radius_sigma": model.radius_sigma,
             "track_sigma": model.track_sigma,
             "reference_sigma": model.reference_sigma,
-            "left_out": ", ".join(left_out) or "-",
+            "left_out": ", ".join(score.left_out) or "-",
         }
     return table
 

@@ -28,6 +28,9 @@ reference_heading_sigma^2)``, runs independent. Fisher scoring on the likelihood
 non-negative, gives theta and its covariance (the inverse information, runs as the units).
 A term that the runs cannot identify, by itself or apart from the others, is refused by name.
 
+Held out (``cross_validate``): the whole procedure scored on groups of runs it did not see,
+each group in turn calibrated and identified on the others.
+
 Prediction (``covariances``): the pose covariance along a run that the model implies, as the
 error against that reference: ``Odometry``'s with ``k``, the geometry's through the unscented
 transform of its three relative errors (over a long run with much turning a track error turns
@@ -51,9 +54,11 @@ from diffdrive.types import Pose
 __all__ = [
     "TERMS",
     "GyroFit",
+    "HeldOut",
     "NoiseModel",
     "allan_deviation",
     "covariances",
+    "cross_validate",
     "identify",
     "identify_gyro",
     "identify_what_it_can",
@@ -440,3 +445,43 @@ def identify_gyro(times: object, rates: object) -> GyroFit:
             best, best_cost = trial, cost
     n2, b2, k2 = best
     return GyroFit(float(np.sqrt(n2)), float(np.sqrt(b2)), float(np.sqrt(k2)), taus, deviations)
+
+
+@dataclass(frozen=True, eq=False)
+class HeldOut:
+    """One group's score in ``cross_validate``: the ``model`` fitted without it (and the
+    ``left_out`` terms its runs could not identify), and the consistency of its predicted
+    covariance on the group's runs (``evaluation.Consistency``, all poses but the starts)."""
+
+    model: NoiseModel
+    left_out: tuple[str, ...]
+    consistency: object
+
+
+def cross_validate(nominal: DiffDrive, groups: dict, *, calibrate_with=None) -> dict:
+    """Each group of runs (``{name: [(increments, truth), ...]}``, e.g. an experiment's) scored
+    by a noise model that never saw it: the geometry calibrated (``calibrate_with(nominal,
+    runs)``, default least squares) and the model identified on the other groups, then the
+    consistency of the covariance it predicts on the group's runs. ``{name: HeldOut}``."""
+    from diffdrive.calibration import calibrate
+    from diffdrive.evaluation import consistency
+
+    if len(groups) < 2:
+        raise ValueError(f"cross_validate needs 2 groups of runs or more, got {len(groups)}")
+    fit = calibrate_with or (lambda robot, runs: calibrate(robot, runs, "least_squares").robot)
+    scores = {}
+    for name, runs in groups.items():
+        others = [run for other, rs in groups.items() if other != name for run in rs]
+        robot = fit(nominal, others).equivalent  # the calibrated model's drive
+        model, left_out = identify_what_it_can(robot, others)
+        estimates, predicted, truths = [], [], []
+        for increments, truth in checked_runs(list(runs), run_names(runs, None)):
+            poses, covariance = covariances(robot, increments, truth[0], model)
+            estimates.append(poses[1:])
+            predicted.append(covariance[1:])
+            truths.append(truth[1:])
+        found = consistency(
+            np.concatenate(estimates), np.concatenate(predicted), np.concatenate(truths)
+        )
+        scores[name] = HeldOut(model, left_out, found)
+    return scores
