@@ -42,12 +42,15 @@ def load(folder: Path) -> dict[str, tuple[str, list]]:
 def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
     """Each experiment scored by ``noise.cross_validate`` over its kind's experiments (or all
     of them)."""
+    pools: dict[str, dict[str, list]] = {}
+    for name, (kind, runs) in experiments.items():
+        pools.setdefault(kind if same_kind else "all", {})[name] = runs
+    scores = {}
+    for groups in pools.values():
+        scores.update(noise.cross_validate(optiodom_robot(), groups))
     table = {}
     for experiment, (kind, runs) in experiments.items():
-        groups = {
-            name: rs for name, (other, rs) in experiments.items() if other == kind or not same_kind
-        }
-        score = noise.cross_validate(optiodom_robot(), groups)[experiment]
+        score = scores[experiment]
         model, found = score.model, score.consistency
         table[experiment] = {
             "kind": kind,
