@@ -11,6 +11,9 @@ the 95 % ellipse and ANEES, pooled over the experiment's runs. A term the traini
 identify is left out (and named); ``--seconds`` thins the runs to one pose every so often.
 
     python examples/noise_model.py [--data ../shared/data/optiodom-diffdrive]
+        [--bags ../shared/data/ros-bags]
+
+Last, the TurtleBot3 bag against ``/odom`` (one run: what it can identify, in-sample).
 """
 
 from __future__ import annotations
@@ -66,9 +69,34 @@ def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
     return table
 
 
+def turtlebot3(bags: Path) -> str:
+    """The TurtleBot3 bag against ``/odom``, one run: what can be identified on it, and the
+    consistency of the covariance it then predicts on the same run."""
+    import diffdrive as dd
+    from diffdrive.evaluation import consistency, interpolate
+    from diffdrive.io import ros
+
+    bag = bags / "turtlebot3_fuse.bag"
+    run = ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
+    odom = ros.read_odometry(bag, "/odom")
+    run = run.rows((run.times >= odom.times[0]) & (run.times <= odom.times[-1]))
+    truth = interpolate(odom.times, odom.poses, run.times)
+    robot = dd.DiffDrive(left_wheel_radius=0.03256, right_wheel_radius=0.03252, track_width=0.2955)
+    increments = run.increments()
+    model, left_out = noise.identify_what_it_can(robot, [(increments, truth)])
+    poses, predicted = noise.covariances(robot, increments, truth[0], model)
+    found = consistency(poses[1:], predicted[1:], truth[1:])
+    return (
+        f"TurtleBot3 against /odom: k {model.k:.2g} m, reference {model.reference_sigma:.2f} m "
+        f"and {model.reference_heading_sigma:.2f} rad ({', '.join(left_out)} left out); "
+        f"{found.inside_95:.0%} inside the 95 % ellipse, ANEES {found.anees:.1f}"
+    )
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA)
+    parser.add_argument("--bags", type=Path, default=DATA.parent / "ros-bags")
     args = parser.parse_args(argv)
     experiments = load(args.data)
     for same_kind in (True, False):
@@ -91,6 +119,8 @@ def main(argv: list[str] | None = None) -> None:
             f"\n95 % coverage >= 0.80 and ANEES in [1/3, 3] ({trained}): {good} of "
             f"{len(table)} experiments"
         )
+    print()
+    print(turtlebot3(args.bags))
 
 
 if __name__ == "__main__":

@@ -160,9 +160,15 @@ def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys
     from data import data_folder
 
     script = load("noise_model")
-    script.main(["--data", str(data_folder("optiodom-diffdrive"))])
-    lines = [line for line in capsys.readouterr().out.splitlines() if "ANEES in [1/3, 3]" in line]
+    folders = ["--data", str(data_folder("optiodom-diffdrive"))]
+    script.main([*folders, "--bags", str(data_folder("ros-bags"))])
+    printed = capsys.readouterr().out
+    lines = [line for line in printed.splitlines() if "ANEES in [1/3, 3]" in line]
     counts = [int(line.split(": ")[1].split()[0]) for line in lines]
     readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
     assert f"holds on {counts[0]} of the 10 experiments" in readme
     assert f"and on {counts[1]} of 10 from all the other experiments" in readme
+    turtle = next(line for line in printed.splitlines() if line.startswith("TurtleBot3"))
+    share = turtle.split("% inside")[0].split()[-1]
+    assert f"95 % ellipse at {share} % of poses" in readme
+    assert turtle.split("reference ")[1].split(" m")[0] + " m" in readme
