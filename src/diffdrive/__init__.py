@@ -26,6 +26,7 @@ _LAZY = (
     "calibration",
     "demo",
     "distributed",
+    "dynamics",
     "encoders",
     "evaluation",
     "io",

@@ -1,0 +1,81 @@
+"""How the TurtleBot3's wheels answer its commands: a delay, a first-order lag and an
+acceleration limit identified from ``/cmd_vel`` and ``/joint_states``, scored on held-out time.
+
+The wheel velocities are the joint angles' differences over each interval; the commands are
+``/cmd_vel``'s twists through the robot's inverse kinematics (radii and track from the
+``increments`` calibration), each held until the next. The response is identified
+(``dynamics.identify_velocity_response``) on the first half of the log; on the second half,
+in 5 s segments each started from its measured velocity, its prediction is compared with the
+instant kinematic response (the wheels at their command at once).
+
+    pip install -e '.[ros]'
+    python examples/drive_response.py [--bags ../shared/data/ros-bags]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+
+import diffdrive as dd
+from diffdrive import batch
+from diffdrive.dynamics import identify_velocity_response
+from diffdrive.io import ros
+
+BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
+ROBOT = dd.DiffDrive(left_wheel_radius=0.03256, right_wheel_radius=0.03252, track_width=0.2955)
+
+
+def held_out(bags: Path) -> dict[str, float]:
+    bag = bags / "turtlebot3_fuse.bag"
+    run = ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
+    commands = ros.read_twists(bag, "/cmd_vel")
+    times = 0.5 * (run.times[1:] + run.times[:-1])
+    measured = np.diff(run.wheels, axis=0) / np.diff(run.times)[:, None]
+    v, omega = commands.twists.T
+    wheels = batch.to_wheel_velocities(ROBOT, np.column_stack([v, 0.0 * v, omega]))
+    half = len(times) // 2
+    limits = (math.inf, 20.0, 40.0, 60.0, 80.0, 120.0)
+    fit = identify_velocity_response(
+        times[:half], measured[:half], commands.times, wheels, accelerations=limits
+    )
+    segment = round(float(5.0 / np.mean(np.diff(times))))
+    model, instant = [], []
+    for start in range(half, len(times) - segment, segment):
+        part = slice(start, start + segment)
+        predicted = fit.predict(times[part], commands.times, wheels, measured[start])
+        index = np.searchsorted(commands.times, times[part], side="right") - 1
+        at_once = np.where((index >= 0)[:, None], wheels[np.maximum(index, 0)], 0.0)
+        model.append((predicted - measured[part]) ** 2)
+        instant.append((at_once - measured[part]) ** 2)
+    return {
+        "delay": fit.delay,
+        "time_constant": fit.time_constant,
+        "gain": fit.gain,
+        "acceleration": fit.acceleration,
+        "model": float(np.sqrt(np.concatenate(model).mean())),
+        "instant": float(np.sqrt(np.concatenate(instant).mean())),
+    }
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--bags", type=Path, default=BAGS)
+    args = parser.parse_args(argv)
+    found = held_out(args.bags)
+    print(
+        f"TurtleBot3 response: delay {found['delay'] * 1000:.0f} ms, time constant "
+        f"{found['time_constant'] * 1000:.0f} ms, gain {found['gain']:.3f}, acceleration "
+        f"limit {found['acceleration']:g} rad/s^2"
+    )
+    print(
+        f"held-out wheel-velocity RMSE: {found['model']:.3f} rad/s with the response, "
+        f"{found['instant']:.3f} rad/s at once ({found['model'] / found['instant']:.0%})"
+    )
+
+
+if __name__ == "__main__":
+    main()

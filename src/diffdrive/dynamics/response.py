@@ -1,0 +1,228 @@
+"""A velocity-commanded drive's response, identified from a log.
+
+The model, per wheel: the command ``u`` (rad/s, held from each of its stamps to the next) acts
+after a pure ``delay`` (s); the wheel's velocity ``v`` approaches ``gain * u`` as a first-order
+lag of ``time_constant`` (s), its change in a step at most ``acceleration`` (rad/s^2) times the
+step (``inf``: no limit). Sampled at the log's stamps ``t_k``::
+
+    v_{k+1} = v_k + clip((1 - a_k) (gain * u(t_{k+1} - delay) - v_k), +-acceleration dt_k),
+    a_k = exp(-dt_k / time_constant)
+
+``identify_velocity_response`` picks the delay on a grid (a tenth of the mean step, up to
+``max_delay``) by a first-order ARX fit's residual, then fits by output error around it: the
+gain and time constant that make the model, driven by the commands from the first measured
+velocity, closest to the measured velocities (Gauss-Newton from the ARX fit), the best of the
+neighbouring delays, then the acceleration limit among ``accelerations``. The measured
+velocities' own noise then does not bias the fit, as it would an ARX fit that takes them as
+inputs. The covariance of (gain, time constant) comes from the Gauss-Newton normal matrix and
+the residual variance.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["VelocityResponse", "identify_velocity_response"]
+
+_LOG_TAU = (math.log(1e-4), math.log(100.0))  # the time constants searched, s
+
+
+@dataclass(frozen=True, eq=False)
+class VelocityResponse:
+    """The fitted model (see the module): ``delay`` (s), ``time_constant`` (s), ``gain``,
+    ``acceleration`` (rad/s^2, ``inf`` for none), the ``covariance`` (2, 2) of (gain,
+    time constant), and the ``rmse`` (rad/s) of its prediction on the log it was fitted on."""
+
+    delay: float
+    time_constant: float
+    gain: float
+    acceleration: float
+    covariance: np.ndarray
+    rmse: float
+
+    def predict(self, times, command_times, commands, initial) -> np.ndarray:
+        """The wheel velocities ``(N, W)`` at ``times`` ``(N,)`` of the model driven by
+        ``commands`` ``(M, W)`` held from ``command_times`` ``(M,)``, from ``initial`` ``(W,)``
+        at ``times[0]``."""
+        times = np.asarray(times, dtype=float)
+        return _simulate(
+            times, command_times, commands, self.delay, np.asarray(initial, float), self.gain,
+            self.time_constant, self.acceleration,
+        )  # fmt: skip
+
+
+def _held(command_times, commands, at) -> np.ndarray:
+    """The commands ``(M, W)`` held from their stamps, at the times ``at``; 0 before the
+    first."""
+    command_times = np.asarray(command_times, dtype=float)
+    commands = np.asarray(commands, dtype=float)
+    index = np.searchsorted(command_times, at, side="right") - 1
+    values = commands[np.maximum(index, 0)]
+    return np.where((index >= 0)[:, None], values, 0.0)
+
+
+def _simulate(times, command_times, commands, delay, initial, gain, time_constant, acceleration):
+    """The model's wheel velocities ``(N, W)`` at ``times``: integrated exactly between the
+    samples and the (delayed) command changes, each piece's command held."""
+    changes = np.asarray(command_times, dtype=float) + delay
+    inside = (changes > times[0]) & (changes < times[-1])
+    events = np.union1d(times, changes[inside])
+    at_sample = np.isin(events, times)
+    held = _held(changes, commands, events)  # the command in force from each event on
+    pieces = np.diff(events)
+    keep = np.exp(-pieces / time_constant).tolist()
+    limits = (acceleration * pieces).tolist()
+    out = np.empty((len(times), held.shape[1]))
+    for w in range(held.shape[1]):
+        target = (gain * held[:-1, w]).tolist()
+        v = float(initial[w])
+        column = [v]
+        for decay, goal, limit in zip(keep, target, limits, strict=True):
+            change = (1.0 - decay) * (goal - v)
+            if change > limit:
+                change = limit
+            elif change < -limit:
+                change = -limit
+            v += change
+            column.append(v)
+        out[:, w] = np.array(column)[at_sample]
+    return out
+
+
+def _fit(times, command, measured, start, acceleration, iterations=30):
+    """Gauss-Newton on (gain, log time constant): the parameters, the residual sum and the
+    Jacobian at the end."""
+    params = np.array([start[0], min(max(math.log(start[1]), _LOG_TAU[0]), _LOG_TAU[1])])
+
+    def residual(p):
+        command_times, commands, delay = command
+        predicted = _simulate(
+            times, command_times, commands, delay, measured[0], p[0], math.exp(p[1]), acceleration
+        )
+        return (predicted - measured).ravel()
+
+    current = residual(params)
+    for _ in range(iterations):
+        jacobian = np.empty((len(current), 2))
+        for i, step in enumerate((1e-6 * max(abs(params[0]), 1.0), 1e-6)):
+            moved = params.copy()
+            moved[i] += step
+            jacobian[:, i] = (residual(moved) - current) / step
+        delta, *_ = np.linalg.lstsq(jacobian, -current, rcond=None)
+        scale = 1.0
+        while scale > 1e-4:
+            trial = params + scale * delta
+            trial[1] = min(max(trial[1], _LOG_TAU[0]), _LOG_TAU[1])  # 0.1 ms to 100 s
+            found = residual(trial)
+            if found @ found < current @ current:
+                break
+            scale *= 0.5
+        else:
+            break
+        converged = np.abs(trial - params).max() < 1e-9
+        params, current = trial, found
+        if converged:
+            break
+    return params, float(current @ current), jacobian
+
+
+def identify_velocity_response(
+    times: object,
+    measured: object,
+    command_times: object,
+    commands: object,
+    *,
+    max_delay: float = 0.3,
+    accelerations: tuple[float, ...] = (math.inf,),
+) -> VelocityResponse:
+    """The response of a velocity-commanded drive from wheel velocities ``measured``
+    ``(N, W)`` rad/s at ``times`` ``(N,)`` s and the ``commands`` ``(M, W)`` rad/s held from
+    ``command_times`` ``(M,)`` s (see the module); ``accelerations`` are the limits tried
+    (rad/s^2). ``ValueError`` names what the log lacks."""
+    times = np.asarray(times, dtype=float)
+    measured = np.asarray(measured, dtype=float)
+    command_times = np.asarray(command_times, dtype=float)
+    commands = np.asarray(commands, dtype=float)
+    if measured.ndim == 1:
+        measured = measured[:, None]
+    if commands.ndim == 1:
+        commands = commands[:, None]
+    if times.ndim != 1 or len(measured) != len(times) or len(times) < 20:
+        raise ValueError(
+            f"times (N,) and measured (N, W) must agree, with N >= 20; got {times.shape} and "
+            f"{measured.shape}"
+        )
+    if command_times.ndim != 1 or commands.shape != (len(command_times), measured.shape[1]):
+        raise ValueError(
+            f"command_times (M,) and commands (M, {measured.shape[1]}) must agree; got "
+            f"{command_times.shape} and {commands.shape}"
+        )
+    arrays = (times, measured, command_times, commands)
+    if not all(np.all(np.isfinite(a)) for a in arrays):
+        raise ValueError("times, measured, command_times and commands must be finite")
+    if np.any(np.diff(times) <= 0) or np.any(np.diff(command_times) < 0):
+        raise ValueError("times must increase strictly, and command_times must not go back")
+    if len(command_times) == 0 or command_times[0] >= times[-1] or command_times[-1] < times[0]:
+        raise ValueError(
+            "the commands and the wheels' stamps do not overlap: the log must hold commands "
+            "while the wheels are measured"
+        )
+    if np.ptp(commands, axis=0).max() <= 0.0:
+        raise ValueError(
+            "a constant command cannot show how the drive answers: the log must hold changes "
+            "of command"
+        )
+    step = float(np.mean(np.diff(times)))
+    delays = np.arange(0.0, max_delay + 1e-12, step / 10.0)
+    # The delay by the first-order ARX fit's residual (fast), then refined by output error
+    # over its neighbours.
+    residuals = [_arx(measured, _held(command_times, commands, times - d))[2] for d in delays]
+    centre = int(np.argmin(residuals))
+    # The sampled ARX sees the delay only to a step: output error over a step either side.
+    gain, keep, _ = _arx(measured, _held(command_times, commands, times - delays[centre]))
+    start = (gain, -step / math.log(keep))
+    best = None
+    for delay in delays[max(centre - 10, 0) : centre + 11]:
+        found = _fit(times, (command_times, commands, delay), measured, start, math.inf, 6)
+        if best is None or found[1] < best[1]:
+            best = (delay, found[1], found[0])
+    delay, _, params = best  # type: ignore[misc]
+    chosen = None
+    for acceleration in accelerations:
+        found = _fit(
+            times,
+            (command_times, commands, delay),
+            measured,
+            (params[0], math.exp(params[1])),
+            acceleration,
+        )
+        if chosen is None or found[1] < chosen[1][1]:
+            chosen = (acceleration, found)
+    acceleration, (params, cost, jacobian) = chosen  # type: ignore[misc]
+    count = measured.size
+    variance = cost / max(count - 3, 1)
+    normal = np.linalg.pinv(jacobian.T @ jacobian) * variance
+    tau = math.exp(params[1])
+    by = np.diag([1.0, tau])  # from (gain, log tau) to (gain, tau)
+    return VelocityResponse(
+        float(delay),
+        tau,
+        float(params[0]),
+        float(acceleration),
+        by @ normal @ by,
+        math.sqrt(cost / count),
+    )
+
+
+def _arx(measured, held) -> tuple[float, float, float]:
+    """The ARX fit ``v_{k+1} = a v_k + b u_{k+1}`` over every wheel: the gain ``b / (1 - a)``,
+    ``a`` (kept in (0, 1)) and the residual sum of squares."""
+    x = np.column_stack([measured[:-1].ravel(), held[1:].ravel()])
+    y = measured[1:].ravel()
+    (a, b), *_ = np.linalg.lstsq(x, y, rcond=None)
+    residual = float(np.sum((x @ np.array([a, b]) - y) ** 2))
+    a = min(max(float(a), 1e-3), 0.999)
+    return (float(b) / (1.0 - a) if b else 1.0), a, residual

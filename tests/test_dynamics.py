@@ -1,0 +1,73 @@
+"""diffdrive.dynamics: a velocity-commanded drive's delay, time constant, gain and
+acceleration limit found again on synthetic logs at three noise levels, the refusals, and the
+TurtleBot3 figures the README quotes."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from diffdrive.dynamics import VelocityResponse, identify_velocity_response
+
+T = np.arange(0.0, 60.0, 0.02)
+COMMAND_TIMES = np.arange(0.0, 60.0, 0.5)
+
+
+def logged(noise, seed=0, delay=0.037, tau=0.12, gain=0.95, acceleration=math.inf):
+    rng = np.random.default_rng(seed)
+    commands = rng.uniform(-10, 10, (len(COMMAND_TIMES), 2))
+    truth = VelocityResponse(delay, tau, gain, acceleration, np.zeros((2, 2)), 0.0)
+    velocities = truth.predict(T, COMMAND_TIMES, commands, np.zeros(2))
+    return commands, velocities + rng.normal(size=velocities.shape) * noise
+
+
+@pytest.mark.parametrize("noise", [0.01, 0.1, 0.5])
+def test_the_response_comes_back_at_three_noise_levels(noise):
+    """Gains within 2 %, the delay within 5 ms, the time constant within 5 %."""
+    commands, measured = logged(noise)
+    found = identify_velocity_response(T, measured, COMMAND_TIMES, commands)
+    assert found.gain == pytest.approx(0.95, rel=0.02)
+    assert found.delay == pytest.approx(0.037, abs=0.005)
+    assert found.time_constant == pytest.approx(0.12, rel=0.05)
+    assert found.rmse == pytest.approx(noise, rel=0.2, abs=0.02)
+    assert np.all(np.sqrt(np.diag(found.covariance)) < [0.01, 0.01])
+
+
+def test_an_acceleration_limit_is_chosen_among_those_tried():
+    commands, measured = logged(0.05, seed=1, acceleration=60.0)
+    found = identify_velocity_response(
+        T, measured, COMMAND_TIMES, commands, accelerations=(math.inf, 30.0, 60.0, 120.0)
+    )
+    assert found.acceleration == 60.0
+    assert found.gain == pytest.approx(0.95, rel=0.02)
+
+
+def test_logs_that_cannot_show_the_response_are_refused():
+    commands, measured = logged(0.01)
+    with pytest.raises(ValueError, match="constant command cannot show"):
+        identify_velocity_response(T, measured, COMMAND_TIMES, np.ones_like(commands))
+    with pytest.raises(ValueError, match="do not overlap"):
+        identify_velocity_response(T, measured, COMMAND_TIMES + 100.0, commands)
+    with pytest.raises(ValueError, match="must agree"):
+        identify_velocity_response(T[:10], measured[:10], COMMAND_TIMES, commands)
+    with pytest.raises(ValueError, match="must be finite"):
+        identify_velocity_response(T, measured * np.nan, COMMAND_TIMES, commands)
+
+
+def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys):
+    import importlib.util
+
+    from data import data_folder
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "drive_response.py"
+    spec = importlib.util.spec_from_file_location("drive_response", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    script.main(["--bags", str(data_folder("ros-bags"))])
+    lines = capsys.readouterr().out.splitlines()
+    readme = " ".join((path.parents[1] / "README.md").read_text().split())
+    share = lines[1].split("(")[1][:-1].replace("%", " %")  # the README's way with a percent
+    for figure in (lines[1].split(": ")[1].split(" rad/s")[0], share):
+        assert figure in readme, figure
+    assert "time constant 50 ms" in lines[0]
