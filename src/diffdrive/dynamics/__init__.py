@@ -4,9 +4,20 @@
   first-order time constant, gain and acceleration limit, fitted to a log of commands and
   measured wheel velocities; ``VelocityResponse.predict`` drives the model with commands.
 
-Next: voltage-driven drives (kS, kV, kA), feedforward, and simulation through the model.
+- ``voltage``: ``identify_voltage_response``, a voltage-driven wheel's kS, kV and kA (SysId's
+  regression) with the measurement's delay found from the data; ``Feedforward``.
+
+Next: the linear and angular (four-constant) drivetrain form, and simulation through the
+model.
 """
 
 from diffdrive.dynamics.response import VelocityResponse, identify_velocity_response
+from diffdrive.dynamics.voltage import Feedforward, VoltageResponse, identify_voltage_response
 
-__all__ = ["VelocityResponse", "identify_velocity_response"]
+__all__ = [
+    "Feedforward",
+    "VelocityResponse",
+    "VoltageResponse",
+    "identify_velocity_response",
+    "identify_voltage_response",
+]
