@@ -133,3 +133,16 @@ def test_a_log_driven_one_way_is_refused():
     times, volts, measured = sysid_routine(0.0)
     with pytest.raises(ValueError, match="driven both ways"):
         identify_voltage_response(times, np.abs(volts), np.abs(measured))
+
+
+def test_feedforward_drives_a_twist_through_inverse_kinematics():
+    import diffdrive as dd
+    from diffdrive.dynamics import Feedforward
+
+    robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    gains = Feedforward(0.5, 0.2, 0.05)
+    left, right = gains.wheel_voltages(robot, (1.0, 0.0, 2.0), (0.5, 0.0, -1.0))
+    # wheels: (1 -+ 0.3) / 0.05 = 14 and 26 rad/s; their rates (0.5 +- 0.15) / 0.05 = 13, 7
+    assert left == pytest.approx(0.5 + 0.2 * 14 + 0.05 * 13)
+    assert right == pytest.approx(0.5 + 0.2 * 26 + 0.05 * 7)
+    assert gains.wheel_voltages(robot, (0.0, 0.0, 0.0)) == (0.0, 0.0)

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive.model import Robot
+
 __all__ = ["Feedforward", "VoltageResponse", "identify_voltage_response"]
 
 
@@ -36,6 +38,20 @@ class Feedforward:
         """``kS sgn(v) + kV v + kA a`` for velocities and accelerations (arrays broadcast)."""
         v = np.asarray(velocity, dtype=float)
         return self.ks * np.sign(v) + self.kv * v + self.ka * np.asarray(acceleration, float)
+
+    def wheel_voltages(
+        self, robot: Robot, twist: object, twist_rate: object = (0.0, 0.0, 0.0)
+    ) -> tuple[float, float]:
+        """The two wheels' voltages ``(left, right)`` that drive ``robot`` at ``twist`` while
+        it changes at ``twist_rate`` (``(vx, vy, omega)`` per s), with these gains identified
+        on wheel velocities in rad/s: the wheels' velocities and accelerations by inverse
+        kinematics (linear, so the twist's rate maps as the twist does)."""
+        wheels = robot.to_wheel_velocities(twist)
+        rates = robot.to_wheel_velocities(twist_rate)
+        return (
+            float(self.voltage(wheels.left, rates.left)),
+            float(self.voltage(wheels.right, rates.right)),
+        )
 
 
 @dataclass(frozen=True, eq=False)
