@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive.model import Robot
+from diffdrive.types import TwistLike
 
 __all__ = ["Feedforward", "VoltageResponse", "identify_voltage_response"]
 
@@ -40,7 +41,7 @@ class Feedforward:
         return self.ks * np.sign(v) + self.kv * v + self.ka * np.asarray(acceleration, float)
 
     def wheel_voltages(
-        self, robot: Robot, twist: object, twist_rate: object = (0.0, 0.0, 0.0)
+        self, robot: Robot, twist: TwistLike, twist_rate: TwistLike = (0.0, 0.0, 0.0)
     ) -> tuple[float, float]:
         """The two wheels' voltages ``(left, right)`` that drive ``robot`` at ``twist`` while
         it changes at ``twist_rate`` (``(vx, vy, omega)`` per s), with these gains identified
