@@ -5,19 +5,28 @@
   measured wheel velocities; ``VelocityResponse.predict`` drives the model with commands.
 
 - ``voltage``: ``identify_voltage_response``, a voltage-driven wheel's kS, kV and kA (SysId's
-  regression) with the measurement's delay found from the data; ``Feedforward``.
+  regression) with the measurement's delay found from the data; ``identify_drivetrain``, the
+  same on a drivetrain's linear and angular channels (WPILib's four-constant form);
+  ``Feedforward``.
 
-Next: the linear and angular (four-constant) drivetrain form, and simulation through the
-model.
+Next: simulation through the model.
 """
 
 from diffdrive.dynamics.response import VelocityResponse, identify_velocity_response
-from diffdrive.dynamics.voltage import Feedforward, VoltageResponse, identify_voltage_response
+from diffdrive.dynamics.voltage import (
+    DrivetrainResponse,
+    Feedforward,
+    VoltageResponse,
+    identify_drivetrain,
+    identify_voltage_response,
+)
 
 __all__ = [
+    "DrivetrainResponse",
     "Feedforward",
     "VelocityResponse",
     "VoltageResponse",
+    "identify_drivetrain",
     "identify_velocity_response",
     "identify_voltage_response",
 ]

@@ -8,9 +8,11 @@ with the voltage held over each step of ``dt`` s, the velocity obeys exactly
 gives them back (SysId's regression; Rasmussen and Peters, "System Identification", WPILib
 docs). SysId takes the measurement's delay from hardware presets; here it comes from the data:
 the voltages are shifted by each delay on a grid (a tenth of a step, up to ``max_delay``) and
-the fit with the least residual kept. Samples where the wheel stands still or nearly
-(``|v|`` below ``still``, default 0.02: a few times the velocity's noise) are left out: the
-friction is not ``kS sgn v`` there, and a noisy sign there pulls kS down by a sixth.
+the fit with the least residual kept (``identify_drivetrain``: the same on a drivetrain's
+linear and angular channels, WPILib's four-constant form). Samples where the wheel stands
+still or nearly (``|v|`` below ``still``, default 0.02: a few times the velocity's noise) are
+left out: the friction is not ``kS sgn v`` there, and a noisy sign there pulls kS down by a
+sixth.
 """
 
 from __future__ import annotations
@@ -23,7 +25,13 @@ import numpy as np
 from diffdrive.model import Robot
 from diffdrive.types import TwistLike
 
-__all__ = ["Feedforward", "VoltageResponse", "identify_voltage_response"]
+__all__ = [
+    "DrivetrainResponse",
+    "Feedforward",
+    "VoltageResponse",
+    "identify_drivetrain",
+    "identify_voltage_response",
+]
 
 
 @dataclass(frozen=True)
@@ -139,3 +147,40 @@ def identify_voltage_response(
         jacobian @ covariance @ jacobian.T,
         math.sqrt(residual / count),
     )
+
+
+@dataclass(frozen=True, eq=False)
+class DrivetrainResponse:
+    """``identify_drivetrain``'s result: the ``linear`` and ``angular`` channels' responses
+    (WPILib's four-constant drivetrain form, plus each channel's kS): the linear in the wheels'
+    mean velocity and voltage, the angular in half their difference."""
+
+    linear: VoltageResponse
+    angular: VoltageResponse
+
+
+def identify_drivetrain(
+    times: object,
+    voltages: object,
+    velocities: object,
+    **options,
+) -> DrivetrainResponse:
+    """The linear and angular responses of a drivetrain from its wheels' ``voltages``
+    ``(N, 2)`` (left, right; V) and measured ``velocities`` ``(N, 2)`` (wheel surface speeds,
+    m/s, or rad/s) at evenly spaced ``times`` ``(N,)``: ``identify_voltage_response`` on the
+    mean of the two (the linear channel) and on half their difference, right less left (the
+    angular one, the wheels' speed from turning). ``options`` go to it. The log must drive
+    both channels both ways (straight runs and turns)."""
+    volts = np.asarray(voltages, dtype=float)
+    speeds = np.asarray(velocities, dtype=float)
+    if volts.ndim != 2 or volts.shape[1:] != (2,) or speeds.shape != volts.shape:
+        raise ValueError(
+            f"voltages and velocities must be (N, 2) alike, got {volts.shape} and {speeds.shape}"
+        )
+    channels = {}
+    for name, mix in (("linear", np.array([0.5, 0.5])), ("angular", np.array([-0.5, 0.5]))):
+        try:
+            channels[name] = identify_voltage_response(times, volts @ mix, speeds @ mix, **options)
+        except ValueError as exc:
+            raise ValueError(f"the {name} channel: {exc}") from None
+    return DrivetrainResponse(channels["linear"], channels["angular"])
