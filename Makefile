@@ -5,7 +5,8 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 SOURCES := pyproject.toml setup.py src/diffdrive/backends/_odometry.c \
-	src/diffdrive/backends/_estimator.c src/diffdrive/backends/_odometry.h
+	src/diffdrive/backends/_estimator.c src/diffdrive/backends/_odometry.h \
+	src/diffdrive/backends/_module.c
 
 .PHONY: demo test bench clean
 

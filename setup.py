@@ -1,10 +1,11 @@
 """The C cores of ``diffdrive.Odometry`` (one update in well under a microsecond) and of
-``diffdrive.estimation.PoseEstimator`` (one extension, two sources and the header they share).
+``diffdrive.estimation.PoseEstimator``: one extension, its module, two cores and the header
+they share.
 
 Everything else about the package is in pyproject.toml; setuptools' own table for extension
 modules there is still experimental, so the one extension is declared here. It is optional:
 where no C compiler is found the build goes on without it, and ``diffdrive.Odometry`` runs on
-its pure-Python twins (``backends/odometry_python.py``, ``backends/estimator_python.py``;
+its pure-Python twins (``backends/odometry_python.py``, ``estimation/estimator_python.py``;
 ``COMPILED`` in ``diffdrive.estimation.odometry`` and ``.fusion`` says which).
 """
 
@@ -12,7 +13,11 @@ from setuptools import Extension, setup
 
 CORE = Extension(
     "diffdrive.backends._odometry",
-    ["src/diffdrive/backends/_odometry.c", "src/diffdrive/backends/_estimator.c"],
+    [
+        "src/diffdrive/backends/_module.c",
+        "src/diffdrive/backends/_odometry.c",
+        "src/diffdrive/backends/_estimator.c",
+    ],
     depends=["src/diffdrive/backends/_odometry.h"],
     optional=True,
 )

@@ -1,6 +1,6 @@
 /* The state, history and updates of diffdrive.estimation.PoseEstimator, in C so that a wheel
  * and gyro update costs about a microsecond and a late measurement a few: the compiled twin
- * of backends/estimator_python.py, which it mirrors step for step (the tests hold the two
+ * of estimation/estimator_python.py, which it mirrors step for step (the tests hold the two
  * together), on the maths of diffdrive/estimation/filter.py.
  *
  * The wheels are read by an OdometryCore kept alongside (_odometry.c): its checks refuse a

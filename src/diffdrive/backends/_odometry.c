@@ -844,26 +844,12 @@ int odometry_restore(PyObject *core, PyObject *saved) {
     return done == NULL ? -1 : 0;
 }
 
-static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT,
-    .m_name = "diffdrive.backends._odometry",
-    .m_doc = "The compiled cores of diffdrive.Odometry and diffdrive.estimation.PoseEstimator.",
-    .m_size = -1,
-};
-
-PyMODINIT_FUNC PyInit__odometry(void) {
-    if (PyType_Ready(&CoreType) < 0) return NULL;
-    PyObject *m = PyModule_Create(&module);
-    if (m == NULL) return NULL;
+int odometry_add_type(PyObject *module) {
+    if (PyType_Ready(&CoreType) < 0) return -1;
     Py_INCREF(&CoreType);
-    if (PyModule_AddObject(m, "OdometryCore", (PyObject *)&CoreType) < 0) {
+    if (PyModule_AddObject(module, "OdometryCore", (PyObject *)&CoreType) < 0) {
         Py_DECREF(&CoreType);
-        Py_DECREF(m);
-        return NULL;
+        return -1;
     }
-    if (estimator_add_type(m) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    return 0;
 }

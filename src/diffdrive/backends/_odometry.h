@@ -1,6 +1,6 @@
-/* What the two compiled cores of diffdrive.backends._odometry share: _odometry.c (Odometry's
- * wheel readings and step) lends _estimator.c (PoseEstimator's filter) its readings, checks
- * and sinc, and the module's init adds the estimator's type. */
+/* What the sources of diffdrive.backends._odometry share: _odometry.c (Odometry's wheel
+ * readings and step) lends _estimator.c (PoseEstimator's filter) its readings, checks and
+ * sinc; _module.c's init adds both types. */
 #ifndef DIFFDRIVE_ODOMETRY_H
 #define DIFFDRIVE_ODOMETRY_H
 
@@ -19,6 +19,7 @@ void odometry_arcs(PyObject *core, double arcs[2]);
 PyObject *odometry_snapshot(PyObject *core);
 int odometry_restore(PyObject *core, PyObject *saved);
 
+int odometry_add_type(PyObject *module);
 int estimator_add_type(PyObject *module);
 
 #endif

@@ -53,7 +53,7 @@ class OdometryCore:
 
 class EstimatorCore:
     """The state, history and updates of PoseEstimator; use that class (its arguments are
-    those of ``diffdrive.backends.estimator_python.EstimatorCore``)."""
+    those of ``diffdrive.estimation.estimator_python.EstimatorCore``)."""
 
     def __init__(self, wheels: OdometryCore, *settings: Any) -> None: ...
     def update_ticks(

@@ -6,7 +6,8 @@
   measurements that arrive late (``measurements``: ``Measurement``), on ``filter``'s step;
 - ``smoother``: ``estimate_trajectory``, a whole log forward and a Rauch-Tung-Striebel smoother
   back;
-- ``gyro``: ``Gyro`` streams, ``gyro_odometry`` (the estimator over a log with a gyro, for slip
+- ``imu``: ``Gyro`` streams and an IMU's mounting;
+- ``gyro``: ``gyro_odometry`` (the estimator over a log with a gyro, for slip
   studies) and ``GyroOdometry`` (the estimator behind a per-interval ``update``).
 
 Every estimator runs the robot model's equivalent drive through ``diffdrive._step`` and keeps
@@ -14,13 +15,8 @@ the pose ``(x, y, theta)`` first in its state and covariance.
 """
 
 from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
-from diffdrive.estimation.gyro import (
-    Gyro,
-    GyroOdometry,
-    GyroTrajectory,
-    gyro_odometry,
-    rotation_from_rpy,
-)
+from diffdrive.estimation.gyro import GyroOdometry, GyroTrajectory, gyro_odometry
+from diffdrive.estimation.imu import Gyro, rotation_from_rpy
 from diffdrive.estimation.measurements import Measurement, chi2_quantile
 from diffdrive.estimation.odometry import (
     COMPILED,

@@ -26,7 +26,7 @@ inside the history.
 
 Cores. The readings, the history and the replay are in C (``backends/_estimator.c``, built
 with Odometry's core) where a C compiler was found, else in their pure-Python twin
-(``backends/estimator_python.py``, also ``PythonPoseEstimator``); ``COMPILED`` says which.
+(``estimation/estimator_python.py``, also ``PythonPoseEstimator``); ``COMPILED`` says which.
 Both run ``diffdrive.estimation.filter``'s maths, the C one mirroring it; the tests hold the
 two to each other.
 """
@@ -43,8 +43,9 @@ import numpy as np
 
 from diffdrive._step import METHODS
 from diffdrive._validate import finite, positive
-from diffdrive.backends import estimator_python
+from diffdrive.estimation import estimator_python
 from diffdrive.estimation import filter as ekf
+from diffdrive.estimation.imu import mounting_yaw_row
 from diffdrive.estimation.measurements import Measurement, chi2_quantile
 from diffdrive.estimation.odometry import Odometry, offset_jacobian
 from diffdrive.integrate import Method, check_method
@@ -340,19 +341,6 @@ class PoseEstimator(_EstimatorMethods, _Core):
 class PythonPoseEstimator(_EstimatorMethods, estimator_python.EstimatorCore):
     """``PoseEstimator`` on the pure-Python core, whether or not the C core was built: the
     same results, slower; ``estimate_trajectory`` runs it for the smoother's records."""
-
-
-def mounting_yaw_row(mounting: object) -> np.ndarray:
-    """The row of ``mounting`` (3x3, IMU frame to body frame; None: the identity) that turns
-    an IMU's three rates into the body's yaw rate; ``ValueError`` unless it is a rotation."""
-    rotation = np.eye(3) if mounting is None else np.asarray(mounting, dtype=float)
-    if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
-        raise ValueError(f"mounting must be a finite 3x3 rotation, got shape {rotation.shape}")
-    if not (
-        np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) and np.linalg.det(rotation) > 0
-    ):
-        raise ValueError("mounting is not a rotation (orthonormal, determinant +1)")
-    return rotation[2].copy()
 
 
 def _start_state(robot: Robot, pose: object, covariance: object, bias: float, scale: float):

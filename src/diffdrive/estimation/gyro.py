@@ -1,26 +1,26 @@
-"""Gyro streams and gyro-aided odometry of whole logs.
+"""Gyro-aided odometry of whole logs, and the per-interval interface it had before.
 
-``Gyro`` holds a gyro's own samples (yaw rates, or a yaw angle) and integrates them over any
-interval; ``Gyro.from_imu`` rotates an IMU's three rates by its mounting (IMU frame to body
-frame, which must be a rotation), ``Gyro.from_yaw`` takes a yaw angle.
-
-The filter is ``PoseEstimator`` (``diffdrive.estimation.fusion``: heading from the wheels, the
-gyro or both, slip tests, noise models). ``gyro_odometry`` runs it over a whole log, the
-gyro's own samples integrated over each wheel interval, and keeps what a slip study needs
-per interval; the bias, unless given, is the gyro's mean rate while the wheels stand still.
+The gyro's stream is ``diffdrive.estimation.imu``'s ``Gyro`` (kept importable from here, as
+``rotation_from_rpy``). The filter is ``PoseEstimator`` (``diffdrive.estimation.fusion``:
+heading from the wheels, the gyro or both, slip tests, noise models). ``gyro_odometry`` runs
+it over a whole log, the gyro's own samples integrated over each wheel interval, and keeps
+what a slip study needs per interval; the bias, unless given, is the gyro's mean rate while
+the wheels stand still.
 ``GyroOdometry`` is ``PoseEstimator`` behind the per-interval ``update`` it had before.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
 from diffdrive._validate import positive
-from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator, mounting_yaw_row
+from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
+from diffdrive.estimation.imu import Gyro, rotation_from_rpy
+from diffdrive.estimation.smoother import estimate_trajectory
 from diffdrive.model import Robot
 from diffdrive.types import Pose
 
@@ -35,113 +35,6 @@ __all__ = [
 ]
 
 Heading = Literal["wheels", "gyro", "fused"]
-
-
-def rotation_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """The rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (rad), e.g. an IMU's mounting in the body."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-@dataclass(frozen=True, eq=False)
-class Gyro:
-    """Body yaw rates ``rates`` ``(M,)`` rad/s at strictly increasing ``times`` ``(M,)`` s,
-    linear in between. ``max_gap`` (s) is the longest the stream may fall silent. ``yaw``
-    ``(M,)`` rad, unwrapped, is set by ``from_yaw``: the angles are then the yaw's own, exact at
-    its stamps and linear between them (each interval's rate held)."""
-
-    times: np.ndarray
-    rates: np.ndarray
-    max_gap: float = field(default=math.inf)
-    yaw: np.ndarray | None = field(default=None, repr=False)
-
-    def __post_init__(self) -> None:
-        gap = math.inf if self.max_gap == math.inf else positive("max_gap", self.max_gap)
-        times = np.asarray(self.times, dtype=float)
-        rates = np.asarray(self.rates, dtype=float)
-        if times.ndim != 1 or rates.shape != times.shape or len(times) < 2:
-            raise ValueError(
-                f"gyro times and rates must be (M,) with M >= 2, got {times.shape} "
-                f"and {rates.shape}"
-            )
-        if not np.all(np.isfinite(times)):
-            raise ValueError("gyro times and rates must be finite")
-        steps = np.diff(times)
-        if np.any(steps <= 0):
-            k = int(np.argmax(steps <= 0)) + 1
-            raise ValueError(f"gyro times must increase: {times[k]:g} after {times[k - 1]:g}")
-        if not np.all(np.isfinite(rates)):
-            raise ValueError("gyro times and rates must be finite")
-        if np.any(steps > gap):
-            k = int(np.argmax(steps > gap))
-            raise ValueError(
-                f"the gyro stream stops for {steps[k]:.3g} s after t = "
-                f"{times[k]:g} s (max_gap {self.max_gap:g} s)"
-            )
-        if self.yaw is not None:
-            yaw = np.asarray(self.yaw, dtype=float)
-            if yaw.shape != times.shape or not np.all(np.isfinite(yaw)):
-                raise ValueError(f"gyro yaw must be finite and {times.shape}, got {yaw.shape}")
-            object.__setattr__(self, "yaw", yaw)
-        object.__setattr__(self, "times", times)
-        object.__setattr__(self, "rates", rates)
-        object.__setattr__(self, "max_gap", gap)
-
-    @classmethod
-    def from_imu(cls, times, angular_velocity, mounting=None, max_gap: float = math.inf) -> Gyro:
-        """From an IMU's rates ``(M, 3)`` in its own frame and ``mounting``, the 3x3 rotation
-        from the IMU frame to the body frame (default: the identity, z up)."""
-        yaw_row = mounting_yaw_row(mounting)
-        rates = np.asarray(angular_velocity, dtype=float)
-        if rates.ndim != 2 or rates.shape[1] != 3:
-            raise ValueError(f"angular_velocity must be (M, 3), got {rates.shape}")
-        return cls(times, rates @ yaw_row, max_gap)
-
-    @classmethod
-    def from_yaw(cls, times, yaw, max_gap: float = math.inf) -> Gyro:
-        """From yaw angles ``(M,)`` rad (unwrapped here): ``angles`` gives the yaw back at its
-        own stamps, and between them the rate of each interval, held."""
-        times, yaw = np.asarray(times, dtype=float), np.asarray(yaw, dtype=float)
-        if yaw.ndim != 1 or yaw.shape != times.shape or len(yaw) < 2:
-            raise ValueError(
-                f"gyro times and yaw must be (M,) with M >= 2, got {times.shape} and {yaw.shape}"
-            )
-        if not np.all(np.isfinite(yaw)):
-            raise ValueError("gyro yaw must be finite")
-        yaw = np.unwrap(yaw)
-        with np.errstate(divide="ignore", invalid="ignore"):  # times are checked when built
-            rates = np.diff(yaw) / np.diff(times)
-        return cls(times, np.concatenate([rates, rates[-1:]]), max_gap, yaw)
-
-    def angles(self, at: np.ndarray) -> np.ndarray:
-        """The angle turned (rad) from ``times[0]`` to each time ``at`` ``(N,)``, the rate linear
-        between samples; every time must lie within the gyro's span."""
-        at = np.asarray(at, dtype=float)
-        if at.size == 0:
-            return np.zeros(at.shape)
-        if at.min() < self.times[0] or at.max() > self.times[-1]:
-            raise ValueError(
-                f"the wheel log spans [{at.min():g}, {at.max():g}] s, the gyro only "
-                f"[{self.times[0]:g}, {self.times[-1]:g}] s"
-            )
-        if self.yaw is not None:  # the yaw itself: exact at its stamps, linear between
-            return np.interp(at, self.times, self.yaw) - self.yaw[0]
-        steps = np.diff(self.times)
-        cumulative = np.concatenate(
-            [[0.0], np.cumsum(0.5 * (self.rates[1:] + self.rates[:-1]) * steps)]
-        )
-        k = np.clip(np.searchsorted(self.times, at, side="right") - 1, 0, len(steps) - 1)
-        into = at - self.times[k]
-        slope = (self.rates[k + 1] - self.rates[k]) / steps[k]
-        return cumulative[k] + self.rates[k] * into + 0.5 * slope * into**2
 
 
 class GyroOdometry(PoseEstimator):
@@ -238,8 +131,6 @@ def gyro_odometry(
                     "log in which the wheels stand still for a while"
                 )
             bias = 0.0
-    from diffdrive.estimation.smoother import estimate_trajectory
-
     estimate = estimate_trajectory(
         robot,
         times,

@@ -17,7 +17,7 @@ import numpy as np
 
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.fusion import PythonPoseEstimator, _body_covariance, _body_pose
-from diffdrive.estimation.gyro import Gyro
+from diffdrive.estimation.imu import Gyro
 from diffdrive.estimation.measurements import Measurement
 from diffdrive.model import Robot
 
