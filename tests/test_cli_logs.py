@@ -221,8 +221,11 @@ def test_simulate_and_odometry_agree_on_a_velocity_log(tmp_path, capsys):
     log = tmp_path / "v.csv"
     log.write_text("t,left_velocity,right_velocity\n0,10,10\n0.5,5,12\n1.0,7,3\n")
     for command in ("simulate", "odometry"):
-        code, _, err = run([command, log, "-o", tmp_path / f"{command}.csv"], capsys)
+        code, out, err = run([command, log, "-o", tmp_path / f"{command}.csv"], capsys)
         assert code == 0, err
+        assert "robot: the built-in robot (42 mm wheels, track 0.2 m; assumed" in out
+        _, out, _ = run([command, log, *ROBOT, "-o", tmp_path / "told.csv"], capsys)
+        assert "robot:" not in out
     simulated = read_trajectory(tmp_path / "simulate.csv")[1]
     odometry = read_trajectory(tmp_path / "odometry.csv")[1]
     np.testing.assert_allclose(simulated, odometry, atol=1e-12)

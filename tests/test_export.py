@@ -112,3 +112,7 @@ def test_calibrate_then_export_from_logs(tmp_path, monkeypatch, capsys):
     assert main(["export", "--to", "amcl", "-o", "none.yaml"]) != 0
     assert "export needs a noise model" in capsys.readouterr().err
     assert not (tmp_path / "none.yaml").exists()
+    # Without a robot, the built-in one's geometry would land in a controller's configuration.
+    assert main(["export", "--to", "ros2", "--k", "0.01", "-o", "none.yaml"]) != 0
+    assert "writes the robot's geometry" in capsys.readouterr().err
+    assert not (tmp_path / "none.yaml").exists()

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.cli.calibrate import _calibration_run
-from diffdrive.cli.options import Command, Parents, robot_from
+from diffdrive.cli.options import Command, Parents, robot_from, robot_given
 from diffdrive.export import TARGETS, Reference, export
 from diffdrive.io import read_robot, robot_from_settings
 from diffdrive.noise import TERMS, NoiseModel, identify_what_it_can
@@ -22,6 +22,19 @@ FILES = {
 
 
 def run_export(args: argparse.Namespace) -> int:
+    if not args.runs and args.k is None:
+        raise ValueError(
+            "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
+            "with --radius-sigma and --track-sigma"
+        )
+    if not robot_given(args):
+        # The file is a controller's or a filter's configuration: the built-in robot's
+        # geometry in it would be a wrong answer that nothing downstream questions.
+        raise ValueError(
+            f"export --to {args.to} writes the robot's geometry and the noise it implies: give "
+            "--robot FILE, or --wheel-radius and --track-width (the built-in robot is not "
+            "assumed here)"
+        )
     model_robot, ticks = robot_from(args)
     robot = nominal = model_robot.equivalent  # a SkidSteer's equivalent drive: what ROS takes
     if args.nominal is not None:
@@ -33,7 +46,7 @@ def run_export(args: argparse.Namespace) -> int:
         source = f"identified on {len(runs)} runs" + (
             f" ({', '.join(left_out)} left out: the runs cannot identify them)" if left_out else ""
         )
-    elif args.k is not None:
+    else:
         model = NoiseModel(
             args.k,
             args.radius_sigma or 0.0,
@@ -45,11 +58,6 @@ def run_export(args: argparse.Namespace) -> int:
             TERMS[:3],
         )
         source = "given"
-    else:
-        raise ValueError(
-            "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
-            "with --radius-sigma and --track-sigma"
-        )
     at = Reference(args.distance, args.turn, args.speed, args.rate)
     output = args.output or Path(FILES[args.to])
     note = f"written by diffdrive export; noise model {source}"

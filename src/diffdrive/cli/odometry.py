@@ -21,6 +21,7 @@ from diffdrive.cli.options import (
     output_options,
     read_log_of,
     robot_from,
+    robot_note,
     write_output,
 )
 from diffdrive.cli.report import error_summary
@@ -39,6 +40,7 @@ def run_odometry(args: argparse.Namespace) -> int:
     log = read_log_of(args)
     ticks = ticks or log.ticks_per_revolution
     increments, note = log.checked_increments(robot, ticks, args.counter_bits, args.max_wheel_speed)
+    note += robot_note(args)
     gyro = gyro_of(args, log)
     if wants_fusion(args):
         if gyro is not None:
@@ -161,7 +163,7 @@ EPILOGS = {
   diffdrive odometry                      a built-in 20 Hz log of the example -> odometry.csv
   diffdrive odometry log.csv --ticks-per-revolution 4096 --counter-bits 12 -o odometry.csv
   diffdrive odometry log.csv --time-unit ns --max-wheel-speed 30 --twist --covariance
-  diffdrive odometry run.mcap --left-joint left_wheel_joint --right-joint right_wheel_joint \
+  diffdrive odometry run.mcap --left-joint left_wheel_joint --right-joint right_wheel_joint \\
       --gyro-topic /imu/data --pose-topic /pose --smooth -o estimate.csv
 
 {LOG_COLUMNS}

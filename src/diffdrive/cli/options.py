@@ -132,6 +132,20 @@ def robot_given(args: argparse.Namespace) -> bool:
     return args.robot is not None or any(getattr(args, k) is not None for k in ROBOT_KEYS)
 
 
+def assumed_robot(args: argparse.Namespace) -> str | None:
+    """What the command assumed of a robot it was not told of, for a file's log; else None.
+
+    A file was driven by some real robot: the built-in one's geometry is only a guess there,
+    and a report must say so (the built-in example needs no such word)."""
+    return None if robot_given(args) or args.input is None else ASSUMED_ROBOT
+
+
+def robot_note(args: argparse.Namespace) -> str:
+    """A report's line on the robot it assumed (with its newline), or nothing."""
+    assumed = assumed_robot(args)
+    return "" if assumed is None else f"\nrobot: {assumed}"
+
+
 def robot_from(args: argparse.Namespace) -> tuple[Robot, float | None]:
     """The robot of the command's options, and its ticks per revolution if known."""
     flags = {name: getattr(args, name) for name in ROBOT_KEYS if getattr(args, name) is not None}

@@ -9,13 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.cli.options import (
-    ASSUMED_ROBOT,
     TRAJECTORY_FILES,
     Command,
     Parents,
+    assumed_robot,
     at_least,
     robot_from,
-    robot_given,
     trajectory_or_example,
 )
 from diffdrive.io import TableError, atomic_output, read_trajectory
@@ -29,8 +28,7 @@ def run_plot(args: argparse.Namespace) -> int:
     truth = None
     if args.truth is not None:
         truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
-    # A file's path was driven by a robot the command was not told of: say which it assumed.
-    assumed = None if robot_given(args) or args.input is None else ASSUMED_ROBOT
+    assumed = assumed_robot(args)
     if args.errors:
         return _plot_errors(args, times, poses, truth)
     with atomic_output(args.output) as temporary:

@@ -13,6 +13,7 @@ from diffdrive.cli.options import (
     output_options,
     read_log_of,
     robot_from,
+    robot_note,
     write_output,
 )
 from diffdrive.demo import EXAMPLE_DURATION
@@ -32,6 +33,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         return 0
     log = read_log_of(args)
     increments, note = log.checked_increments(robot, ticks, args.counter_bits)
+    note += robot_note(args)
     poses = simulate_run(robot, log, increments, args.method)
     write_output(args, log.times, poses, f"simulated {args.input}")
     if not args.quiet:
