@@ -172,3 +172,18 @@ def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys
     share = turtle.split("% inside")[0].split()[-1]
     assert f"95 % ellipse at {share} % of poses" in readme
     assert turtle.split("reference ")[1].split(" m")[0] + " m" in readme
+
+
+def test_follow_path_plans_within_the_limits_and_draws(tmp_path, capsys):
+    script = load("follow_path")
+    output = tmp_path / "follow.png"
+    script.main(["--output", str(output)])
+    printed = capsys.readouterr().out
+    assert "voltage: at most" in printed
+    assert f"figure: {output}" in printed
+    planned, followed = script.run()
+    from diffdrive.control import limit_ratios
+
+    for ratio in limit_ratios(planned.times, planned.twists, script.ROBOT, script.LIMITS).values():
+        assert ratio.max() <= 1 + 1e-9
+    assert followed.poses.shape[0] == script.ROBOTS

@@ -19,6 +19,10 @@
   1 for a covariance that matches the errors, below 1 too wide, above too narrow; Bar-Shalom,
   Li and Kirubarajan, *Estimation with Applications to Tracking and Navigation*, 2001, sec.
   5.4.2), and the shares of poses whose truth lies inside the 50 % and 95 % ellipses.
+- ``path_errors``: how far robots are from a planned path: the cross-track error (signed
+  distance from the path, positive to the left of the plan's heading at the nearest state),
+  the along-track error (ahead of the reference pose of the same time, along its heading) and
+  the heading error against the reference of the same time.
 - ``associate`` pairs the poses of two trajectories by time, as evo does (nearest stamp
   within ``max_diff``, after shifting one by ``offset``); ``interpolate`` samples a trajectory
   at given times along the arc between its poses (the SE(2) geodesic).
@@ -40,12 +44,14 @@ from diffdrive._stats import chi2_quantile
 
 __all__ = [
     "Consistency",
+    "PathErrors",
     "RunErrors",
     "align",
     "associate",
     "ate",
     "consistency",
     "interpolate",
+    "path_errors",
     "rpe",
     "run_errors",
     "worst",
@@ -310,3 +316,71 @@ def consistency(
         dof,
         int(usable.sum()),
     )
+
+
+@dataclass(frozen=True, eq=False)
+class PathErrors:
+    """``cross_track``, ``along_track`` (m) and ``heading`` (rad), each ``(..., T+1)``;
+    ``position``: the distance to the reference position of the same time (m)."""
+
+    cross_track: np.ndarray
+    along_track: np.ndarray
+    heading: np.ndarray
+    position: np.ndarray
+
+    def summary(self) -> dict[str, float]:
+        """Mean and maximum of the position error and of the absolute cross-track error (m),
+        and the maximum absolute along-track (m) and heading (rad) errors, over everything."""
+        cross = np.abs(self.cross_track)
+        return {
+            "mean_position": float(self.position.mean()),
+            "max_position": float(self.position.max()),
+            "mean_cross_track": float(cross.mean()),
+            "max_cross_track": float(cross.max()),
+            "max_along_track": float(np.abs(self.along_track).max()),
+            "max_heading": float(np.abs(self.heading).max()),
+        }
+
+
+def path_errors(
+    plan_times: object,
+    plan_poses: object,
+    times: object,
+    poses: object,
+    reference: object,
+    window: float = 2.0,
+) -> PathErrors:
+    """Errors of ``poses`` ``(..., T+1, 3)`` at ``times`` ``(T+1,)`` against a densely sampled
+    path, its states' ``plan_times`` ``(M,)`` and ``plan_poses`` ``(M, 3)``, and against the
+    ``reference`` poses ``(T+1, 3)`` of the same times. The nearest state is sought among
+    those within ``window`` s of each time; the cross-track error is measured across that
+    state's heading."""
+    path_t = np.asarray(plan_times, dtype=float)
+    path = np.asarray(plan_poses, dtype=float)
+    t = np.asarray(times, dtype=float)
+    robots = np.asarray(poses, dtype=float)
+    reference = np.asarray(reference, dtype=float)
+    if path.ndim != 2 or path.shape[1] != 3 or path_t.shape != (len(path),) or len(path) < 2:
+        raise ValueError(f"the plan must be (M,) times and (M, 3) poses, got {path.shape}")
+    if robots.shape[-2:] != (len(t), 3) or reference.shape != (len(t), 3):
+        raise ValueError(
+            f"poses must be (..., {len(t)}, 3) and reference ({len(t)}, 3) for {len(t)} times, "
+            f"got {robots.shape} and {reference.shape}"
+        )
+    dx, dy = robots[..., 0] - reference[:, 0], robots[..., 1] - reference[:, 1]
+    along = np.cos(reference[:, 2]) * dx + np.sin(reference[:, 2]) * dy
+    heading = np.remainder(robots[..., 2] - reference[:, 2] + np.pi, 2.0 * np.pi) - np.pi
+    cross = np.empty(robots.shape[:-1])
+    starts = np.searchsorted(path_t, t - window)
+    ends = np.searchsorted(path_t, t + window, side="right")
+    for k in range(len(t)):
+        lo, hi = min(starts[k], len(path) - 1), max(ends[k], starts[k] + 1)
+        near = path[lo:hi]
+        gx = robots[..., k, 0, None] - near[:, 0]
+        gy = robots[..., k, 1, None] - near[:, 1]
+        index = np.argmin(gx * gx + gy * gy, axis=-1)
+        theta = near[index, 2]
+        picked_x = np.take_along_axis(gx, index[..., None], axis=-1)[..., 0]
+        picked_y = np.take_along_axis(gy, index[..., None], axis=-1)[..., 0]
+        cross[..., k] = -np.sin(theta) * picked_x + np.cos(theta) * picked_y
+    return PathErrors(cross, along, heading, np.hypot(dx, dy))

@@ -19,6 +19,7 @@ __all__ = [
     "animate",
     "animation_writer",
     "plot_error_bands",
+    "plot_plan",
     "plot_trajectory",
     "wheel_velocities_of",
 ]
@@ -40,6 +41,50 @@ def _three_panels():
     grid = figure.add_gridspec(2, 2, width_ratios=[1.2, 1])
     panels = [figure.add_subplot(grid[:, 0]), figure.add_subplot(grid[0, 1])]
     return figure, (*panels, figure.add_subplot(grid[1, 1]))
+
+
+def plot_plan(plan, output: str | Path, followed=None) -> None:
+    """Draw a ``control.Plan`` to ``output``: the path (and the true paths of a
+    ``control.FollowResult``'s robots), each wheel's velocity and each wheel's voltage (or
+    acceleration, without a feedforward) over time, with the limits dashed."""
+    figure, (path, wheels_ax, effort) = _three_panels()
+    if followed is not None:
+        for n, poses in enumerate(followed.poses[:20]):
+            label = f"followed ({len(followed.poses)} robots)" if n == 0 else None
+            path.plot(poses[:, 0], poses[:, 1], color="tab:orange", alpha=0.5, label=label)
+    path.plot(plan.poses[:, 0], plan.poses[:, 1], color="tab:blue", label="plan")
+    path.plot(*plan.poses[0, :2], "o", color="tab:green", label="start")
+    path.plot(*plan.poses[-1, :2], "s", color="tab:red", label="end")
+    path.set_aspect("equal", adjustable="datalim")
+    path.set(xlabel="x, m", ylabel="y, m", title="planned path")
+    path.legend(loc="best")
+    limits = plan.limits
+    wheels = plan.wheel_velocities
+    volts = plan.voltages
+    second, name, bound = (
+        (volts, "wheel voltage, V", limits.max_voltage)
+        if volts is not None
+        else (
+            plan.wheel_accelerations,
+            "wheel acceleration, rad/s^2",
+            limits.max_wheel_acceleration,
+        )
+    )
+    for panel, values, top in (
+        (wheels_ax, wheels, limits.max_wheel_velocity),
+        (effort, second, bound),
+    ):
+        panel.plot(plan.times, values[:, 0], label="left")
+        panel.plot(plan.times, values[:, 1], label="right")
+        if top is not None:
+            for sign in (1, -1):
+                panel.axhline(sign * top, color="0.4", linestyle="--", linewidth=1)
+        panel.legend(loc="best")
+    wheels_ax.set(ylabel="wheel velocity, rad/s", title="each wheel within its limits (dashed)")
+    effort.set(xlabel="t, s", ylabel=name)
+    for ax in (path, wheels_ax, effort):
+        ax.grid(True, alpha=0.3)
+    figure.savefig(output, dpi=100)
 
 
 def wheel_velocities_of(robot: Robot, times: np.ndarray, poses: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ from diffdrive.cli import (
     kinematics,
     learn,
     odometry,
+    plan,
     plot,
     simulate,
     synth,
@@ -81,6 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
         learn,
         kinematics,
         synth,
+        plan,
     )
     for module in modules:
         module.add_to(command, parents)

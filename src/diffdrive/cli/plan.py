@@ -1,0 +1,216 @@
+"""``diffdrive plan`` and ``diffdrive follow``: a path timed within every wheel's limits, and
+trackers driving robots along it."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive.cli.options import Command, Parents, output_options, robot_from, robot_given
+from diffdrive.cli.options import write_output as write_poses
+from diffdrive.control import (
+    LTVUnicycle,
+    PathLimits,
+    Predictive,
+    PurePursuit,
+    Ramsete,
+    delay_margin,
+    follow,
+    limit_ratios,
+    plan,
+)
+from diffdrive.dynamics import Feedforward
+from diffdrive.io import read_table
+
+LIMIT_FLAGS = {
+    "max_velocity": "m/s",
+    "max_acceleration": "m/s^2",
+    "max_angular_velocity": "rad/s",
+    "max_angular_acceleration": "rad/s^2",
+    "max_centripetal_acceleration": "m/s^2",
+    "max_wheel_velocity": "rad/s",
+    "max_wheel_acceleration": "rad/s^2",
+    "max_voltage": "V",
+}
+TRACKERS = ("ramsete", "ltv", "pure-pursuit")
+
+
+def _plan_of(args: argparse.Namespace):
+    if not robot_given(args):
+        # The wheels' limits and the spline's curvature meet through the track and radii:
+        # the built-in robot's would give a plan for another robot.
+        raise ValueError(
+            f"{args.command} needs the robot: give --robot FILE, or --wheel-radius and "
+            "--track-width (the built-in robot is not assumed here)"
+        )
+    robot, _ = robot_from(args)
+    table = read_table(args.waypoints, ["x", "y"], ["theta"], increasing=None)
+    columns = ["x", "y"] + (["theta"] if "theta" in table else [])
+    waypoints = np.column_stack([table[name] for name in columns])
+    gains = [args.ks, args.kv, args.ka]
+    if any(g is not None for g in gains) and not all(g is not None for g in gains):
+        raise ValueError("--ks, --kv and --ka go together (V, V s/rad, V s^2/rad of the wheel)")
+    feedforward = Feedforward(*gains) if all(g is not None for g in gains) else None
+    limits = PathLimits(
+        **{name: getattr(args, name) for name in LIMIT_FLAGS}, feedforward=feedforward
+    )
+    stops = [int(i) for i in args.stops.split(",")] if args.stops else []
+    try:
+        return robot, plan(waypoints, robot, limits, reverse=args.reverse, stops=stops)
+    except ValueError as error:
+        raise ValueError(f"{args.waypoints}: {error}") from None
+
+
+def run_plan(args: argparse.Namespace) -> int:
+    robot, result = _plan_of(args)
+    trajectory = result.to_trajectory(args.dt)
+    sampled = result.sample(trajectory.times)
+    columns = {
+        "v": sampled["twist"][:, 0],
+        "omega": sampled["twist"][:, 1],
+        "left": sampled["wheel_velocities"][:, 0],
+        "right": sampled["wheel_velocities"][:, 1],
+    }
+    # Judged on the rows written, as whoever drives them will step through them.
+    ratios = limit_ratios(trajectory.times, sampled["twist"], robot, result.limits)
+    write_poses(args, trajectory.times, trajectory.poses, "plan", columns)
+    if args.plot:
+        from diffdrive.plot import plot_plan
+
+        plot_plan(result, args.plot)
+    if not args.quiet:
+        print(
+            f"plan: {result.duration:.3f} s over {result.length:.3f} m, "
+            f"{len(result.times)} states, written every {args.dt} s"
+        )
+        for name, ratio in ratios.items():
+            print(f"  {name}: at most {100 * ratio.max():.1f} % of its limit")
+        if args.plot:
+            print(f"plan: drew {args.plot}")
+    return 0
+
+
+def _tracker(args: argparse.Namespace):
+    tracker = {"ramsete": Ramsete, "ltv": LTVUnicycle, "pure-pursuit": PurePursuit}[args.tracker]
+    made = tracker(dt=args.dt) if args.tracker == "ltv" else tracker()
+    if args.predict:
+        return Predictive(made, delay=args.delay, dt=args.dt, lag=args.lag)
+    return made
+
+
+def run_follow(args: argparse.Namespace) -> int:
+    _robot, result = _plan_of(args)
+    tracker = _tracker(args)
+    noise = (args.wheel_noise, args.wheel_noise)
+    run = follow(
+        result,
+        tracker,
+        dt=args.dt,
+        delay=args.delay,
+        lag=args.lag,
+        wheel_noise=noise,
+        robots=args.robots,
+        seed=args.seed,
+    )
+    errors = run.errors()
+    known = args.delay if args.predict else 0.0
+    margin = delay_margin(result, tracker, dt=args.dt, lag=args.lag, known=known)
+    columns = {
+        "cross_track": errors.cross_track[0],
+        "along_track": errors.along_track[0],
+        "heading_error": errors.heading[0],
+    }
+    write_poses(args, run.times, run.poses[0], "follow", columns)
+    if args.plot:
+        from diffdrive.plot import plot_plan
+
+        plot_plan(result, args.plot, followed=run)
+    if not args.quiet:
+        name = f"{args.tracker}{' (predictive)' if args.predict else ''}"
+        print(
+            f"follow: {name}, delay {args.delay} s, lag {args.lag} s, wheel noise "
+            f"{args.wheel_noise} m, {args.robots} robot(s)"
+        )
+        for label, part in (("robot 0 (written)", slice(0, 1)), ("all robots", slice(None))):
+            summary = {
+                "mean position": float(errors.position[part].mean()),
+                "max position": float(errors.position[part].max()),
+                "max cross-track": float(np.abs(errors.cross_track[part]).max()),
+                "max heading": float(np.degrees(np.abs(errors.heading[part]).max())),
+            }
+            print(
+                f"  {label}: error mean {1e3 * summary['mean position']:.1f} mm, max "
+                f"{1e3 * summary['max position']:.1f} mm; cross-track max "
+                f"{1e3 * summary['max cross-track']:.1f} mm; heading max "
+                f"{summary['max heading']:.2f} deg"
+            )
+            if args.robots == 1:
+                break
+        beyond = " beyond the known delay" if args.predict else ""
+        print(
+            f"  delay margin{beyond}: {margin:.2f} s (by simulation along this plan, with this lag)"
+        )
+    return 0
+
+
+EPILOGS = {
+    "plan": """examples:
+  diffdrive plan waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
+      --max-wheel-velocity 20 -o plan.csv --plot plan.png
+  diffdrive plan waypoints.csv --robot robot.toml --max-velocity 3 --max-acceleration 2 \\
+      --max-voltage 10 --ks 1.34 --kv 0.24 --ka 0.07 -o plan.csv
+
+waypoints.csv has columns x, y (m) and optionally theta (rad, the robot's heading); two rows at
+one place with different headings make a turn in place. Written: t, x, y, theta, v, omega and
+the wheel velocities left, right (rad/s) every --dt s; printed: how much of each limit the
+written rows use.""",
+    "follow": """examples:
+  diffdrive follow waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
+      --tracker ltv --delay 0.1 --lag 0.1 --predict --plot follow.png
+  diffdrive follow waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
+      --robots 200 --wheel-noise 1e-4 --seed 1 -o follow.csv
+
+Written: robot 0's true poses with its cross-track, along-track and heading errors.""",
+}
+
+
+def _planning_options(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("waypoints", type=Path, help="CSV of waypoints: x, y[, theta]")
+    for name, unit in LIMIT_FLAGS.items():
+        sub.add_argument("--" + name.replace("_", "-"), type=float, metavar=unit.upper())
+    sub.add_argument("--ks", type=float, metavar="V", help="wheel feedforward kS")
+    sub.add_argument("--kv", type=float, metavar="V_S/RAD", help="wheel feedforward kV")
+    sub.add_argument("--ka", type=float, metavar="V_S2/RAD", help="wheel feedforward kA")
+    sub.add_argument("--reverse", action="store_true", help="drive the path backward")
+    sub.add_argument("--stops", metavar="I,J", help="interior waypoints to halt at")
+    sub.add_argument("--dt", type=float, default=0.02, help="period, s (0.02)")
+    sub.add_argument("--plot", type=Path, metavar="PNG", help="draw the plan (and the runs)")
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive plan`` and ``diffdrive follow``."""
+    planned = command(
+        "plan",
+        "the fastest timing of a path through waypoints within every wheel's limits",
+        [parents.robot, output_options("plan.csv")],
+        run_plan,
+        EPILOGS["plan"],
+    )
+    _planning_options(planned)
+    followed = command(
+        "follow",
+        "simulate a tracker driving robots along a plan, with delay, lag and noisy odometry",
+        [parents.robot, output_options("follow.csv")],
+        run_follow,
+        EPILOGS["follow"],
+    )
+    _planning_options(followed)
+    followed.add_argument("--tracker", choices=TRACKERS, default="ramsete")
+    followed.add_argument("--delay", type=float, default=0.0, help="actuation delay, s (0)")
+    followed.add_argument("--lag", type=float, default=0.0, help="wheels' time constant, s (0)")
+    followed.add_argument("--predict", action="store_true", help="predict over the delay and lag")
+    followed.add_argument("--robots", type=int, default=1, help="robots in the batch (1)")
+    followed.add_argument("--wheel-noise", type=float, default=0.0, metavar="M", help="k, m (0)")
+    followed.add_argument("--seed", type=int, help="for the wheel noise")

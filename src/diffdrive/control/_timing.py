@@ -1,0 +1,235 @@
+"""The time-optimal speed along a sampled path: the forward-backward pass, on scalars.
+
+Along a path sampled at ``N`` states, the robot's speed is ``u >= 0`` (m/s of path, or rad/s
+through a turn in place) with acceleration ``a`` held from one state to the next. State ``i``
+maps them to the chassis and the wheels by coefficients of its geometry:
+
+    v = lin u,   omega = ang u,   dv/dt = lin a,   domega/dt = ang a + dang u^2,
+    wheel j: velocity wc_j u, acceleration wc_j a + wd_j u^2.
+
+A drive leg has ``lin = +-1``, ``ang = kappa``, ``dang = dkappa``; the ``u^2`` terms are the
+``v^2 dkappa/ds`` part of each wheel's acceleration that a constant-curvature constraint
+misses. Every acceleration limit is ``|p a + q(u)| <= L``, so at a speed ``u`` the allowed
+``a`` is an interval (``bounds``); a voltage limit ``|kS sgn(w) + kV w + kA dw/dt| <= V`` is
+one more. The speed limit of a state is the largest ``u`` whose interval is not empty (found
+by bisection under the velocity caps).
+
+``parameterise`` runs the passes: forward, each state reached with the largest acceleration
+the state before allows and the state reached accepts; backward, each state lowered until the
+deceleration into the next is allowed at both ends. The segment's acceleration must hold at
+both its states. The plan is then checked as a controller stepping from state to state would
+drive it (``_segment_outside``: the differences between states over the time between them);
+a state outside its limits by either measure (rare: where the intervals of neighbouring states
+barely overlap, or the curvature's rate jumps) has its cap lowered and the passes run again.
+
+Written in plain Python on floats and NumPy arrays; ``kernel()`` compiles it with numba when
+numba is installed (``diffdrive[fast]``), and otherwise runs it as it is.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+INF = math.inf
+BIG = 1e4  # a speed no limit caps (m/s or rad/s): the path has no speed bound there
+# Indices into the limits array.
+VMAX, AMAX, WMAX, ALPHA, CENTRIPETAL, WHEEL_V, WHEEL_A, VOLTAGE = range(8)
+# Statuses ``parameterise`` returns with the index of the state concerned.
+OK, UNBOUNDED, STUCK, UNSETTLED = range(4)
+_BISECTIONS = 60
+_ROUNDS = 200
+
+
+def _narrow(lo: float, hi: float, p: float, q: float, limit: float) -> tuple[float, float]:
+    """``[lo, hi]`` cut to where ``|p a + q| <= limit``."""
+    if limit == INF:
+        return lo, hi
+    if limit < 0.0:
+        return INF, -INF
+    if abs(p) < 1e-12:
+        return (lo, hi) if abs(q) <= limit else (INF, -INF)
+    first, second = (-limit - q) / p, (limit - q) / p
+    if first > second:
+        first, second = second, first
+    return max(lo, first), min(hi, second)
+
+
+def bounds(i, u, lin, ang, dang, wc, wd, lim, ff):
+    """The accelerations ``(lo, hi)`` state ``i`` allows at speed ``u`` (empty: lo > hi)."""
+    lo, hi = -INF, INF
+    uu = u * u
+    lo, hi = _narrow(lo, hi, lin[i], 0.0, lim[AMAX])
+    lo, hi = _narrow(lo, hi, ang[i], uu * dang[i], lim[ALPHA])
+    for j in range(2):
+        c, d = wc[i, j], wd[i, j]
+        lo, hi = _narrow(lo, hi, c, uu * d, lim[WHEEL_A])
+        if lim[VOLTAGE] < INF:
+            ks, kv, ka = ff[j, 0], ff[j, 1], ff[j, 2]
+            w = u * c
+            if w == 0.0:  # a wheel at rest: static friction against any acceleration
+                lo, hi = _narrow(lo, hi, ka * c, ka * uu * d, lim[VOLTAGE] - ks)
+            else:
+                sign = 1.0 if w > 0.0 else -1.0
+                q = ks * sign + kv * w + ka * uu * d
+                lo, hi = _narrow(lo, hi, ka * c, q, lim[VOLTAGE])
+    return lo, hi
+
+
+def cap(i, lin, ang, wc, lim):
+    """The speed state ``i``'s velocity limits allow (BIG where none applies)."""
+    top = BIG
+    if lin[i] != 0.0:
+        top = min(top, lim[VMAX] / abs(lin[i]))
+    if ang[i] != 0.0:
+        top = min(top, lim[WMAX] / abs(ang[i]))
+    product = abs(lin[i] * ang[i])
+    if product > 0.0:
+        top = min(top, math.sqrt(lim[CENTRIPETAL] / product))
+    for j in range(2):
+        if wc[i, j] != 0.0:
+            top = min(top, lim[WHEEL_V] / abs(wc[i, j]))
+    return top
+
+
+def _feasible(i, u, lin, ang, dang, wc, wd, lim, ff):
+    lo, hi = bounds(i, u, lin, ang, dang, wc, wd, lim, ff)
+    return lo <= hi
+
+
+def speed_limit(i, lin, ang, dang, wc, wd, lim, ff):
+    """The largest speed at state ``i`` within its caps and with some acceleration allowed."""
+    top = cap(i, lin, ang, wc, lim)
+    if _feasible(i, top, lin, ang, dang, wc, wd, lim, ff):
+        return top
+    low, high = 0.0, top
+    for _ in range(_BISECTIONS):
+        middle = 0.5 * (low + high)
+        if _feasible(i, middle, lin, ang, dang, wc, wd, lim, ff):
+            low = middle
+        else:
+            high = middle
+    return low
+
+
+def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
+    n = len(top)
+    u[0] = 0.0
+    for i in range(n - 1):
+        lo, hi = bounds(i, u[i], lin, ang, dang, wc, wd, lim, ff)
+        reach = math.sqrt(max(u[i] * u[i] + 2.0 * hi * ds[i], 0.0))
+        nxt = min(reach, top[i + 1])
+        # The state reached must accept the acceleration that reached it.
+        a = (nxt * nxt - u[i] * u[i]) / (2.0 * ds[i])
+        lo1, hi1 = bounds(i + 1, nxt, lin, ang, dang, wc, wd, lim, ff)
+        if a > hi1:
+            low, high = 0.0, nxt
+            for _ in range(_BISECTIONS):
+                middle = 0.5 * (low + high)
+                a = (middle * middle - u[i] * u[i]) / (2.0 * ds[i])
+                lo1, hi1 = bounds(i + 1, middle, lin, ang, dang, wc, wd, lim, ff)
+                if a <= hi1:
+                    low = middle
+                else:
+                    high = middle
+            nxt = low
+        u[i + 1] = nxt
+    u[n - 1] = 0.0
+    for i in range(n - 2, -1, -1):
+        lo1, hi1 = bounds(i + 1, u[i + 1], lin, ang, dang, wc, wd, lim, ff)
+        u[i] = min(u[i], math.sqrt(max(u[i + 1] * u[i + 1] - 2.0 * lo1 * ds[i], 0.0)))
+        a = (u[i + 1] * u[i + 1] - u[i] * u[i]) / (2.0 * ds[i])
+        lo, hi = bounds(i, u[i], lin, ang, dang, wc, wd, lim, ff)
+        if a < lo:
+            low, high = 0.0, u[i]
+            for _ in range(_BISECTIONS):
+                middle = 0.5 * (low + high)
+                a = (u[i + 1] * u[i + 1] - middle * middle) / (2.0 * ds[i])
+                lo, hi = bounds(i, middle, lin, ang, dang, wc, wd, lim, ff)
+                if a >= lo:
+                    low = middle
+                else:
+                    high = middle
+            u[i] = low
+
+
+def _outside(i, a, u, lin, ang, dang, wc, wd, lim, ff):
+    lo, hi = bounds(i, u, lin, ang, dang, wc, wd, lim, ff)
+    slack = 1e-9 * (1.0 + abs(a))
+    return a < lo - slack or a > hi + slack
+
+
+def _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+    """Whether the changes from state ``k`` to ``k + 1``, over the time between them, break a
+    limit: the accelerations a controller stepping from state to state asks for (the same
+    measure as ``planning.limit_ratios``)."""
+    dt = 2.0 * ds[k] / (u[k] + u[k + 1])
+    bad = abs(u[k + 1] * lin[k + 1] - u[k] * lin[k]) / dt > lim[AMAX] * (1.0 + 1e-9)
+    bad = bad or abs(u[k + 1] * ang[k + 1] - u[k] * ang[k]) / dt > lim[ALPHA] * (1.0 + 1e-9)
+    for j in range(2):
+        w = u[k] * wc[k, j]
+        rate = (u[k + 1] * wc[k + 1, j] - w) / dt
+        bad = bad or abs(rate) > lim[WHEEL_A] * (1.0 + 1e-9)
+        if lim[VOLTAGE] < INF:
+            sign = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
+            volts = ff[j, 0] * sign + ff[j, 1] * w + ff[j, 2] * rate
+            bad = bad or abs(volts) > lim[VOLTAGE] * (1.0 + 1e-9)
+    return bad
+
+
+def parameterise(ds, lin, ang, dang, wc, wd, lim, ff, u):
+    """Fill ``u`` (N,) with the fastest speeds from rest to rest; ``(status, state)``."""
+    n = len(lin)
+    top = np.empty(n)
+    for i in range(n):
+        top[i] = speed_limit(i, lin, ang, dang, wc, wd, lim, ff)
+        if top[i] >= BIG:
+            return UNBOUNDED, i
+    for _ in range(_ROUNDS):
+        _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u)
+        for i in range(n - 1):
+            if u[i] + u[i + 1] <= 0.0:
+                return STUCK, i
+        settled = True
+        for k in range(n - 1):
+            if _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+                settled = False
+                top[k] = 0.98 * u[k]
+                top[k + 1] = 0.98 * u[k + 1]
+        for i in range(n):
+            for k in (i - 1, i):
+                if 0 <= k < n - 1:
+                    a = (u[k + 1] * u[k + 1] - u[k] * u[k]) / (2.0 * ds[k])
+                    if _outside(i, a, u[i], lin, ang, dang, wc, wd, lim, ff):
+                        settled = False
+                        top[i] = 0.98 * u[i]
+        if settled:
+            return OK, 0
+    return UNSETTLED, 0
+
+
+@cache
+def kernel() -> Callable[..., Any]:
+    """``parameterise``, compiled by numba where it is installed (cached on disk)."""
+    try:
+        import numba
+    except ImportError:
+        return parameterise
+    jit = numba.njit(cache=True)
+    module = globals()
+    for name in (
+        "_narrow",
+        "bounds",
+        "cap",
+        "_feasible",
+        "speed_limit",
+        "_passes",
+        "_outside",
+        "_segment_outside",
+    ):
+        module[name] = jit(module[name])
+    return jit(parameterise)

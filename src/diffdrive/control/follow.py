@@ -1,0 +1,168 @@
+"""Closed-loop simulation: trackers driving robots along a plan, through a real drive.
+
+Every period ``dt`` each robot's tracker turns the pose its wheel odometry believes into a
+twist, the twist becomes wheel commands (inverse kinematics), a ``Limiter`` (one per robot)
+may limit them, they take effect ``delay`` s later (a pure delay, per robot), and the wheels
+follow them through a first-order ``lag``. The robot moves with the wheels' mean velocity over
+the period (the lag's exact response to a held command) by the library's integration step;
+the odometry integrates the same wheel travel plus random-walk noise of variance ``k |travel|``
+per wheel (``Odometry``'s ``k_left``, ``k_right``), so the tracker sees what a robot would.
+
+``delay_margin`` runs the same loop for a range of delays at once and reports the largest the
+tracker stays on the path with: the margin *by simulation* along this plan.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive.control.limiter import Limiter
+from diffdrive.control.planning import Plan
+from diffdrive.control.tracking import Tracker
+from diffdrive.evaluation import PathErrors, path_errors
+from diffdrive.integrate import Method
+
+__all__ = ["FollowResult", "delay_margin", "follow"]
+
+
+@dataclass(frozen=True, eq=False)
+class FollowResult:
+    """``times`` ``(T+1,)`` s; ``poses`` (true) and ``estimates`` (odometry) ``(N, T+1, 3)``;
+    ``commands`` (sent) and ``wheel_velocities`` (the wheels' mean over each period)
+    ``(N, T, 2)`` rad/s; ``delays`` ``(N,)`` s."""
+
+    plan: Plan
+    times: np.ndarray
+    poses: np.ndarray
+    estimates: np.ndarray
+    commands: np.ndarray
+    wheel_velocities: np.ndarray
+    delays: np.ndarray
+
+    def errors(self) -> PathErrors:
+        """Cross-track, along-track and heading errors of the true poses against the plan."""
+        reference = self.plan.sample(self.times)["pose"]
+        return path_errors(self.plan.times, self.plan.poses, self.times, self.poses, reference)
+
+
+def _per_robot(name: str, value: object, robots: int) -> np.ndarray:
+    array = np.broadcast_to(np.asarray(value, dtype=float), (robots,)).copy()
+    if not np.all(np.isfinite(array)) or np.any(array < 0.0):
+        raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+    return array
+
+
+def follow(
+    plan: Plan,
+    tracker: Tracker,
+    *,
+    dt: float = 0.02,
+    delay: object = 0.0,
+    lag: float = 0.0,
+    limiter: Limiter | None = None,
+    wheel_noise: tuple[float, float] = (0.0, 0.0),
+    robots: int = 1,
+    start: object = None,
+    settle: float = 1.0,
+    seed: int | None = None,
+    method: Method = "exact",
+) -> FollowResult:
+    """Simulate ``robots`` robots following ``plan`` with ``tracker`` (see the module).
+
+    ``delay``: s, one or one per robot, rounded to whole periods; ``lag``: the wheels' time
+    constant (s; 0 for none); ``limiter``: a wheel ``Limiter`` (rad/s), copied per robot;
+    ``wheel_noise``: ``(k_left, k_right)`` (m); ``start``: the start poses ``(3,)`` or
+    ``(N, 3)`` (default the plan's); ``settle``: s simulated after the plan ends.
+    """
+    if not isinstance(plan, Plan):
+        raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
+    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    if not (isinstance(robots, int) and robots >= 1):
+        raise ValueError(f"robots must be a whole number >= 1, got {robots!r}")
+    delays = _per_robot("delay", delay, robots)
+    lag = float(_per_robot("lag", lag, 1)[0])
+    noise = np.asarray(wheel_noise, dtype=float)
+    if noise.shape != (2,) or not np.all(np.isfinite(noise)) or np.any(noise < 0.0):
+        raise ValueError(f"wheel_noise must be (k_left, k_right), finite and >= 0: {wheel_noise!r}")
+    if not (math.isfinite(settle) and settle >= 0.0):
+        raise ValueError(f"settle must be finite and >= 0, got {settle!r}")
+    robot = plan.robot
+    lags = np.rint(delays / dt).astype(int)
+    steps = max(math.ceil((plan.duration + settle) / dt), 1)
+    times = plan.times[0] + dt * np.arange(steps + 1)
+    poses = np.empty((robots, steps + 1, 3))
+    poses[:, 0] = plan.poses[0] if start is None else np.asarray(start, dtype=float)
+    if not np.all(np.isfinite(poses[:, 0])):
+        raise ValueError(f"start must be finite (3,) or ({robots}, 3) poses, got {start!r}")
+    estimates = poses.copy()
+    commands = np.zeros((robots, steps, 2))
+    applied = np.zeros((robots, steps, 2))
+    limiters = [copy.deepcopy(limiter) for _ in range(robots)] if limiter is not None else []
+    reset = getattr(tracker, "reset", None)
+    if callable(reset):
+        reset()  # a stateful tracker (``Predictive``) starts with nothing in flight
+    rng = np.random.default_rng(seed)
+    radii = np.array(
+        [robot.to_wheel_velocities((1.0, 0.0, 0.0)).to_array()]
+    )  # rad per metre of forward travel
+    wheels = np.zeros((robots, 2))  # the wheels' velocities now (rad/s)
+    decay = math.exp(-dt / lag) if lag > 0.0 else 0.0
+    spread = lag / dt * (1.0 - decay) if lag > 0.0 else 0.0
+    rows = np.arange(robots)
+    for k in range(steps):
+        twist = np.asarray(tracker.command(plan, float(times[k]), estimates[:, k]), dtype=float)
+        body = np.column_stack([twist[:, 0], np.zeros(robots), twist[:, 1]])
+        sent = batch.to_wheel_velocities(robot, body)
+        if limiters:
+            sent = np.array([lim.step(row, dt) for lim, row in zip(limiters, sent, strict=True)])
+        commands[:, k] = sent
+        source = k - lags
+        target = np.where((source >= 0)[:, None], commands[rows, np.maximum(source, 0)], 0.0)
+        mean = target + (wheels - target) * spread
+        wheels = target + (wheels - target) * decay
+        applied[:, k] = mean
+        moved = batch.to_twist(robot, mean)
+        poses[:, k + 1] = batch.integrate.step(poses[:, k], moved, dt, method)
+        travel = mean * dt
+        if noise.any():
+            metres = np.abs(travel) / np.abs(radii)
+            travel = travel + rng.standard_normal((robots, 2)) * np.sqrt(noise * metres) * np.abs(
+                radii
+            )
+        believed = batch.to_twist(robot, travel / dt)
+        estimates[:, k + 1] = batch.integrate.step(estimates[:, k], believed, dt, method)
+    return FollowResult(plan, times, poses, estimates, commands, applied, lags * dt)
+
+
+def delay_margin(
+    plan: Plan,
+    tracker: Tracker,
+    *,
+    dt: float = 0.02,
+    lag: float = 0.0,
+    known: float = 0.0,
+    max_delay: float = 0.5,
+    bound: float = 0.25,
+) -> float:
+    """The largest pure actuation delay (s, a multiple of ``dt`` up to ``max_delay``) beyond
+    the ``known`` one (what a ``Predictive`` tracker assumes) with which ``tracker`` keeps every
+    robot within ``bound`` m of the path and within 90 degrees of its heading, along this
+    ``plan`` with this ``lag``: by simulation, every delay at once; a delay counts only if
+    every smaller one passes too. -1 if the tracker fails even at the known delay."""
+    delays = known + dt * np.arange(round(max_delay / dt) + 1)
+    result = follow(plan, tracker, dt=dt, delay=delays, lag=lag, robots=len(delays))
+    errors = result.errors()
+    with np.errstate(invalid="ignore"):
+        fine = np.all(np.abs(errors.cross_track) <= bound, axis=1) & np.all(
+            np.abs(errors.heading) <= math.pi / 2, axis=1
+        )
+    if not fine[0]:
+        return -1.0
+    failing = np.flatnonzero(~fine)
+    return float((delays[failing[0] - 1] if len(failing) else delays[-1]) - known)

@@ -1,0 +1,391 @@
+"""Paths: the geometry a robot is asked to drive, before any timing.
+
+A path is a list of *legs*. A drive leg is a curve the robot's reference point follows,
+forward or in reverse; a turn leg is a turn in place. Each leg is sampled densely into
+``Leg`` arrays: the path parameter ``s`` (m along a drive leg, rad through a turn), the
+position, the heading of the robot, the path's curvature ``kappa`` (rad/m, the tangent's turn
+per metre) and its rate ``dkappa`` (rad/m^2, per metre), and the leg's direction.
+``diffdrive.control.planning`` times them.
+
+``from_waypoints`` joins waypoints ``(x, y)`` or ``(x, y, theta)`` by quintic Hermite splines
+with zero second derivatives at the waypoints and tangents 1.2 times the chord long (WPILib's
+choice, ``SplineHelper``, so that both libraries drive the same curve from the same poses);
+headings not given are the direction from the waypoint before to the one after
+(Catmull-Rom's). Two waypoints at one position with different headings make a turn in
+place. ``from_segments`` chains straight lines and circular arcs from a start pose.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from diffdrive._validate import finite, positive
+
+__all__ = ["TANGENT_SCALE", "Leg", "from_segments", "from_waypoints"]
+
+TANGENT_SCALE = 1.2  # tangent length over chord length at each waypoint (WPILib's)
+_STEP = 0.02  # m (drive) or rad (turn): the default spacing of samples along a leg
+
+# Coefficients of t^0..t^5 of the quintic Hermite basis, in the order
+# p0, p0', p0'', p1'', p1', p1.
+_HERMITE = np.array(
+    [
+        [1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
+        [0.0, 1.0, 0.0, -6.0, 8.0, -3.0],
+        [0.0, 0.0, 0.5, -1.5, 1.5, -0.5],
+        [0.0, 0.0, 0.0, 0.5, -1.0, 0.5],
+        [0.0, 0.0, 0.0, -4.0, 7.0, -3.0],
+        [0.0, 0.0, 0.0, 10.0, -15.0, 6.0],
+    ]
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Leg:
+    """One leg, sampled: ``s``, ``x``, ``y``, ``heading``, ``kappa``, ``dkappa`` are ``(N,)``.
+
+    ``kind`` is ``"drive"`` or ``"turn"``; ``direction`` is +1 (forward, or a left turn) or -1
+    (reverse, or a right turn). ``heading`` is the robot's (rad, unwrapped): the tangent's for
+    a forward leg, the tangent's plus pi in reverse. ``kappa`` and ``dkappa`` are the path's
+    (the tangent's turn per metre and its rate), zero on a turn leg.
+    """
+
+    kind: str
+    direction: int
+    s: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray
+    kappa: np.ndarray
+    dkappa: np.ndarray
+
+    @property
+    def length(self) -> float:
+        """m along a drive leg, rad through a turn."""
+        return float(self.s[-1])
+
+
+def _waypoint_array(waypoints: object) -> np.ndarray:
+    try:
+        array = np.asarray(waypoints, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError("waypoints must be numbers, rows of (x, y) or (x, y, theta)") from None
+    if array.ndim != 2 or array.shape[1] not in (2, 3) or len(array) < 2:
+        raise ValueError(
+            f"waypoints must be at least 2 rows of (x, y) or (x, y, theta), got shape {array.shape}"
+        )
+    bad = np.argwhere(~np.isfinite(array))
+    if len(bad):
+        row, column = bad[0]
+        raise ValueError(f"waypoint {row} has a non-finite value in column {column}")
+    return array
+
+
+def _headings(points: np.ndarray) -> np.ndarray:
+    """Catmull-Rom tangent directions for waypoints that have no heading."""
+    before = np.concatenate([points[:1], points[:-1]])
+    after = np.concatenate([points[1:], points[-1:]])
+    chord = after - before
+    return np.arctan2(chord[:, 1], chord[:, 0])
+
+
+def _basis(t: np.ndarray) -> np.ndarray:
+    """``(4, M, 6)``: the rows that turn Hermite controls into the value and its first three
+    derivatives at ``t``."""
+    exponents = np.arange(6)
+    rows = np.zeros((4, len(t), 6))
+    for order in range(4):
+        factor = np.ones(6)
+        for k in range(order):
+            factor = factor * np.maximum(exponents - k, 0)
+        shifted = np.maximum(exponents - order, 0)
+        rows[order] = factor * t[:, None] ** shifted
+    return rows @ _HERMITE.T
+
+
+def _controls(points: np.ndarray, bend: np.ndarray) -> np.ndarray:
+    """``(..., S, 6, 2)`` Hermite controls of the segments between poses ``points`` ``(K, 3)``.
+
+    ``bend`` ``(..., K, 2)`` (1/m) sets the second derivative at each waypoint: ``lambda^2
+    bend`` on each side, ``lambda`` being that side's tangent length. The curvature at a
+    waypoint, ``T x bend``, is then the same on both sides (the curve is G2), so no wheel is
+    asked for a step in velocity there.
+    """
+    chord = np.hypot(*np.diff(points[:, :2], axis=0).T)
+    direction = np.column_stack([np.cos(points[:, 2]), np.sin(points[:, 2])])
+    scale = (TANGENT_SCALE * chord)[:, None]
+    fixed = np.stack(
+        [points[:-1, :2], scale * direction[:-1], scale * direction[1:], points[1:, :2]], axis=1
+    )
+    fixed = np.broadcast_to(fixed, bend.shape[:-2] + fixed.shape)
+    square = (scale * scale)[:, None, :]
+    second = np.concatenate([bend[..., :-1, None, :], bend[..., 1:, None, :]], axis=-2) * square
+    return np.concatenate([fixed[..., :2, :], second, fixed[..., 2:, :]], axis=-2)
+
+
+def _derivatives(controls: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """``(4, ..., S, M, 2)``: position and first three derivatives at the sample rows of
+    ``basis`` (``_basis``)."""
+    shaped = basis.reshape((4,) + (1,) * (controls.ndim - 2) + basis.shape[1:])
+    return np.matmul(shaped, controls)
+
+
+def _geometry(d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Speed ``|p'|``, curvature and its rate per metre from the derivatives ``d``."""
+    d1, d2, d3 = d[1], d[2], d[3]
+    speed = np.hypot(d1[..., 0], d1[..., 1])
+    cross = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
+    dot = (d1 * d2).sum(axis=-1)
+    cross3 = d1[..., 0] * d3[..., 1] - d1[..., 1] * d3[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kappa = cross / speed**3
+        dkappa = (cross3 / speed**3 - 3.0 * cross * dot / speed**5) / speed
+    return speed, kappa, dkappa
+
+
+_COARSE = np.linspace(0.0, 1.0, 33)
+_COARSE_BASIS = _basis(_COARSE)
+
+
+def _smoothest(points: np.ndarray) -> np.ndarray:
+    """The bends (see ``_controls``) at the interior waypoints that make the curvature change
+    least, ``min sum over segments of the integral of (dkappa/ds)^2 ds``, by a few damped
+    Gauss-Newton steps with the Jacobian by differences (all perturbations in one pass).
+    The rate of curvature is what the ``v^2 dkappa/ds`` part of a wheel's acceleration
+    grows with, so the smoother curve is also the faster one to drive."""
+    count = len(points)
+    second = np.zeros((count, 2))
+    if count < 3:
+        return second
+    size = 2 * (count - 2)
+    h = 1e-7
+    weights = np.sqrt(np.gradient(_COARSE))
+
+    def residuals(candidates: np.ndarray) -> np.ndarray:
+        d = _derivatives(_controls(points, candidates), _COARSE_BASIS)
+        speed, _, dkappa = _geometry(d)
+        return (dkappa * speed * weights).reshape(len(candidates), -1)
+
+    damping = 1e-3
+    for _ in range(8):
+        steps = np.zeros((size + 1, count, 2))
+        steps[1:, 1:-1, :].reshape(size, size)[np.arange(size), np.arange(size)] = h
+        values = residuals(second + steps)
+        r = values[0]
+        if not np.all(np.isfinite(values)):
+            break
+        jacobian = ((values[1:] - r) / h).T
+        normal = jacobian.T @ jacobian
+        gradient = jacobian.T @ r
+        change = np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), -gradient)
+        trial = second.copy()
+        trial[1:-1] += change.reshape(count - 2, 2)
+        better = residuals(trial[None])[0]
+        if np.all(np.isfinite(better)) and better @ better < r @ r:
+            second, damping = trial, damping * 0.3
+            if r @ r - better @ better < 1e-9 * (r @ r):
+                break
+        else:
+            damping *= 10.0
+    return second
+
+
+def _quintics(points: np.ndarray, step: float, first: int, smooth: bool) -> list[Leg]:
+    """The quintic Hermite splines through poses ``points`` ``(K, 3)`` (tangent headings)."""
+    second = _smoothest(points) if smooth else np.zeros((len(points), 2))
+    controls = _controls(points, second)
+    coarse_speed = _geometry(_derivatives(controls, _COARSE_BASIS))[0]
+    lengths = np.trapezoid(coarse_speed, _COARSE, axis=-1)
+    legs = []
+    for index, length in enumerate(lengths):
+        where = f"the spline from waypoint {first + index} to {first + index + 1}"
+        count = max(math.ceil(length / step), 8) * 2
+        t = np.linspace(0.0, 1.0, count + 1)
+        d = _derivatives(controls[index], _basis(t))
+        speed, kappa, dkappa = _geometry(d)
+        chord = float(np.hypot(*(points[index + 1, :2] - points[index, :2])))
+        # A cusp: the tangent vanishes, or flips between neighbouring samples.
+        flips = np.sum(d[1][1:] * d[1][:-1], axis=-1) <= 0.0
+        if not speed.min() > 1e-9 * max(chord, 1.0) or flips.any():
+            raise ValueError(
+                f"{where} has a cusp (its tangent vanishes): move the waypoints apart or "
+                "change their headings"
+            )
+        # Arc length by Simpson's rule on pairs of intervals; every other sample kept.
+        pieces = (t[2::2] - t[:-2:2]) / 6.0 * (speed[:-2:2] + 4.0 * speed[1:-1:2] + speed[2::2])
+        s = np.concatenate([[0.0], np.cumsum(pieces)])
+        keep = slice(None, None, 2)
+        kappa, dkappa = kappa[keep], dkappa[keep]
+        turned = float(np.sum(np.abs(kappa[1:] + kappa[:-1]) * np.diff(s))) / 2.0
+        net = abs(math.remainder(points[index + 1, 2] - points[index, 2], 2.0 * math.pi))
+        if turned > net + 1.5 * math.pi:  # three quarters of a circle more than asked: a loop
+            raise ValueError(
+                f"{where} loops (its tangent turns {math.degrees(turned):.0f} degrees to change "
+                f"heading by {math.degrees(net):.0f}): change the headings or add a waypoint"
+            )
+        tangent = np.unwrap(np.arctan2(d[1][keep, 1], d[1][keep, 0]))
+        tangent += points[index, 2] - tangent[0]
+        position = d[0][keep]
+        legs.append(Leg("drive", 1, s, position[:, 0], position[:, 1], tangent, kappa, dkappa))
+    return legs
+
+
+def _turn(x: float, y: float, start: float, end: float, step: float) -> Leg:
+    """A turn in place from heading ``start`` to ``end`` (rad, the short way round)."""
+    angle = math.remainder(end - start, 2.0 * math.pi)
+    count = max(math.ceil(abs(angle) / step), 8)
+    s = np.linspace(0.0, abs(angle), count + 1)
+    zeros = np.zeros(count + 1)
+    heading = start + math.copysign(1.0, angle) * s
+    return Leg("turn", 1 if angle > 0 else -1, s, zeros + x, zeros + y, heading, zeros, zeros)
+
+
+def _reversed(leg: Leg) -> Leg:
+    """The same curve driven backward: the robot faces away from the tangent."""
+    return Leg("drive", -1, leg.s, leg.x, leg.y, leg.heading - math.pi, leg.kappa, leg.dkappa)
+
+
+def _directions(reverse: bool | Sequence[bool], count: int) -> list[bool]:
+    if isinstance(reverse, bool | np.bool_):
+        return [bool(reverse)] * count
+    flags = list(reverse)
+    if len(flags) != count or not all(isinstance(f, bool | np.bool_) for f in flags):
+        raise ValueError(
+            f"reverse must be one bool or one per waypoint pair ({count}), got {reverse!r}"
+        )
+    return [bool(f) for f in flags]
+
+
+def from_waypoints(
+    waypoints: object,
+    *,
+    reverse: bool | Sequence[bool] = False,
+    stops: Sequence[int] = (),
+    step: float = _STEP,
+    smooth: bool = True,
+) -> list[list[Leg]]:
+    """The path through ``waypoints`` ``(K, 2)`` or ``(K, 3)`` (m, m, rad), as runs of legs.
+
+    A heading is the robot's: in reverse the curve leaves against it. ``reverse`` is one flag
+    or one per waypoint pair; a change of direction, a turn in place (two waypoints at one
+    position) and an index in ``stops`` halt the robot. Returns the runs between halts, each
+    a list of legs that the robot drives without stopping. ``step``: sample spacing (m, rad).
+    ``smooth``: choose the second derivatives at interior waypoints for the least change of
+    curvature (as WPILib's ``OptimizeCurvature`` does, by its own measure); otherwise zero.
+    """
+    points = _waypoint_array(waypoints)
+    step = positive("step", step)
+    count = len(points) - 1
+    backward = _directions(reverse, count)
+    halts = {int(i) for i in stops}
+    for index in halts:
+        if not 0 < index < count:
+            raise ValueError(f"stops: {index} is not an interior waypoint (1 to {count - 1})")
+    gaps = np.hypot(*np.diff(points[:, :2], axis=0).T)
+    scale = max(float(np.abs(points[:, :2]).max()), 1.0)
+    same_place = gaps <= 1e-9 * scale
+    if points.shape[1] == 2:
+        if same_place.any():
+            first = int(np.argmax(same_place))
+            raise ValueError(f"waypoints {first} and {first + 1} repeat: every pair must differ")
+        headings = _headings(points[:, :2])
+        headings += np.pi * np.array(backward + backward[-1:])  # the robot faces backward
+        points = np.column_stack([points, headings])
+    # Runs of waypoints driven without halting: split at turns, stops and reversals.
+    runs: list[list[Leg]] = []
+    first = 0
+    for index in range(count + 1):
+        last = index == count
+        continues = not last and not same_place[index] and index > first
+        if continues and index not in halts and backward[index] == backward[index - 1]:
+            continue
+        if index > first:
+            runs.append(_drive(points[first : index + 1], backward[first], step, first, smooth))
+        if not last and same_place[index]:
+            start, end = points[index], points[index + 1]
+            if abs(math.remainder(end[2] - start[2], 2.0 * math.pi)) <= 1e-12:
+                raise ValueError(
+                    f"waypoints {index} and {index + 1} repeat: every pair must differ"
+                )
+            runs.append([_turn(start[0], start[1], start[2], end[2], step)])
+            first = index + 1
+        else:
+            first = index
+    return runs
+
+
+def _drive(points: np.ndarray, backward: bool, step: float, first: int, smooth: bool) -> list[Leg]:
+    """The legs through ``points`` driven one way without halting."""
+    if not backward:
+        return _quintics(points, step, first, smooth)
+    flipped = points + np.array([0.0, 0.0, math.pi])
+    return [_reversed(leg) for leg in _quintics(flipped, step, first, smooth)]
+
+
+def from_segments(
+    start: object, segments: Sequence[Sequence[object]], step: float = _STEP
+) -> list[list[Leg]]:
+    """Lines and arcs from pose ``start`` ``(x, y, theta)``, driven without stopping.
+
+    ``segments``: ``("line", length)`` (m; negative drives backward) or
+    ``("arc", radius, angle)`` (m, rad; a positive angle turns left, a negative length
+    radius drives the arc backward) or ``("turn", angle)`` (rad, in place; halts the robot).
+    """
+    pose = np.asarray(start, dtype=float)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"start must be a finite (x, y, theta), got {start!r}")
+    step = positive("step", step)
+    x, y, heading = (float(value) for value in pose)
+    runs: list[list[Leg]] = [[]]
+    for index, segment in enumerate(segments):
+        kind, *values = segment
+        where = f"segment {index} ({kind!r})"
+        if kind == "turn" and len(values) == 1:
+            angle = finite(f"{where}: angle", values[0])
+            if angle == 0.0:
+                raise ValueError(f"{where}: a turn of 0 rad")
+            runs += [[_turn(x, y, heading, heading + angle, step)], []]
+            heading += angle
+            continue
+        if kind == "line" and len(values) == 1:
+            length, curvature = finite(f"{where}: length", values[0]), 0.0
+        elif kind == "arc" and len(values) == 2:
+            radius = finite(f"{where}: radius", values[0])
+            angle = finite(f"{where}: angle", values[1])
+            if radius == 0.0 or angle == 0.0:
+                raise ValueError(f"{where}: radius and angle must be non-zero")
+            length, curvature = (
+                math.copysign(abs(radius * angle), radius),
+                angle / abs(radius * angle),
+            )
+        else:
+            raise ValueError(
+                f"{where}: expected ('line', length), ('arc', radius, angle) or ('turn', angle)"
+            )
+        if length == 0.0:
+            raise ValueError(f"{where}: a length of 0 m")
+        direction = 1 if length > 0 else -1
+        count = max(math.ceil(abs(length) / step), 8)
+        s = np.linspace(0.0, abs(length), count + 1)
+        tangent0 = heading if direction > 0 else heading + math.pi
+        tangent = tangent0 + curvature * s
+        if curvature == 0.0:
+            px, py = x + s * math.cos(tangent0), y + s * math.sin(tangent0)
+        else:
+            px = x + (np.sin(tangent) - math.sin(tangent0)) / curvature
+            py = y - (np.cos(tangent) - math.cos(tangent0)) / curvature
+        zeros = np.zeros(count + 1)
+        robot_heading = tangent if direction > 0 else tangent - math.pi
+        leg = Leg("drive", direction, s, px, py, robot_heading, zeros + curvature, zeros)
+        if runs[-1] and runs[-1][-1].direction != direction:
+            runs.append([])
+        runs[-1].append(leg)
+        x, y, heading = float(px[-1]), float(py[-1]), float(robot_heading[-1])
+    runs = [run for run in runs if run]
+    if not runs:
+        raise ValueError("segments is empty")
+    return runs

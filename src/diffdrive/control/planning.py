@@ -1,0 +1,354 @@
+"""Time-parameterised paths: the fastest timing of a path within every wheel's limits.
+
+``plan(waypoints, robot, limits)`` samples the path (``diffdrive.control.path``) and times it
+by a forward-backward pass (``diffdrive.control._timing``) so that at every state the chassis
+speed and acceleration, the angular velocity and acceleration, the centripetal acceleration,
+and **each wheel's** velocity, acceleration (with its ``v^2 dkappa/ds`` part) and, given a
+feedforward, voltage stay within ``PathLimits``. The robot starts and ends at rest, and halts
+wherever the path says (a stop, a change of direction, a turn in place).
+
+``Plan`` holds the states; ``Plan.sample(t)`` gives pose, twist, curvature, wheel velocities
+and accelerations at any time (constant acceleration between states, as the pass assumed);
+``limit_ratios`` measures any timed path (ours or another library's) against limits, with
+wheel accelerations by finite differences between states, so both are judged alike.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from diffdrive.control import _timing
+from diffdrive.control.path import Leg, from_waypoints
+from diffdrive.dynamics.voltage import Feedforward
+from diffdrive.model import Robot, check_robot
+from diffdrive.trajectory import Trajectory
+
+__all__ = ["PathLimits", "Plan", "limit_ratios", "plan"]
+
+
+@dataclass(frozen=True)
+class PathLimits:
+    """Limits a plan keeps at every state; None: no limit.
+
+    Chassis: ``max_velocity`` (m/s), ``max_acceleration`` (m/s^2), ``max_angular_velocity``
+    (rad/s), ``max_angular_acceleration`` (rad/s^2), ``max_centripetal_acceleration``
+    (m/s^2). Each wheel: ``max_wheel_velocity`` (rad/s), ``max_wheel_acceleration``
+    (rad/s^2), and ``max_voltage`` (V) through ``feedforward`` (one ``Feedforward`` for both
+    wheels or ``(left, right)``, on wheel velocities in rad/s).
+    """
+
+    max_velocity: float | None = None
+    max_acceleration: float | None = None
+    max_angular_velocity: float | None = None
+    max_angular_acceleration: float | None = None
+    max_centripetal_acceleration: float | None = None
+    max_wheel_velocity: float | None = None
+    max_wheel_acceleration: float | None = None
+    max_voltage: float | None = None
+    feedforward: Feedforward | tuple[Feedforward, Feedforward] | None = None
+
+    def __post_init__(self) -> None:
+        for field in fields(self)[:-1]:
+            value = getattr(self, field.name)
+            if value is not None and (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not math.isfinite(value)
+                or value <= 0.0
+            ):
+                raise ValueError(f"{field.name} must be a finite number > 0 or None, got {value!r}")
+        if (self.max_voltage is None) != (self.feedforward is None):
+            raise ValueError("max_voltage and feedforward go together: give both or neither")
+        for side, ff in zip(("left", "right"), self.feedforwards(), strict=True):
+            if ff is not None and not (ff.ks >= 0.0 and ff.kv > 0.0 and ff.ka > 0.0):
+                raise ValueError(f"the {side} feedforward needs kS >= 0, kV > 0, kA > 0: {ff}")
+            if ff is not None and self.max_voltage is not None and ff.ks >= self.max_voltage:
+                raise ValueError(
+                    f"max_voltage {self.max_voltage} V does not exceed the {side} wheel's kS "
+                    f"{ff.ks} V: the wheel could never start"
+                )
+        if (
+            self.max_velocity is None
+            and self.max_wheel_velocity is None
+            and self.max_voltage is None
+        ):
+            raise ValueError(
+                "no limit bounds the speed: give max_velocity, max_wheel_velocity or max_voltage"
+            )
+
+    def feedforwards(self) -> tuple[Feedforward | None, Feedforward | None]:
+        """``(left, right)``."""
+        ff = self.feedforward
+        return ff if isinstance(ff, tuple) else (ff, ff)
+
+    def array(self) -> np.ndarray:
+        """The kernel's limits, inf for none."""
+        values = [getattr(self, field.name) for field in fields(self)[:-1]]
+        return np.array([math.inf if value is None else float(value) for value in values])
+
+
+def _wheel_map(robot: Robot) -> np.ndarray:
+    """``(2, 2)``: wheel velocities (rad/s) per unit ``v`` and per unit ``omega``."""
+    forward = robot.to_wheel_velocities((1.0, 0.0, 0.0)).to_array()
+    turning = robot.to_wheel_velocities((0.0, 0.0, 1.0)).to_array()
+    return np.column_stack([forward, turning])
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A timed path: ``N`` states.
+
+    ``times`` (s), ``poses`` ``(N, 3)`` (heading unwrapped), ``speed`` ``u`` (m/s along a drive,
+    rad/s through a turn; >= 0), ``accelerations`` (the path acceleration held from each state to
+    the next; the last state repeats the one before), ``lin``, ``ang``, ``dang`` (the state's map
+    from ``u`` to the twist: ``v = lin u``, ``omega = ang u``, ``domega/dt = ang a + dang u^2``),
+    ``kappa`` (rad/m, of the path; 0 in a turn) and ``dkappa`` (rad/m^2).
+    """
+
+    robot: Robot
+    limits: PathLimits
+    times: np.ndarray
+    poses: np.ndarray
+    speed: np.ndarray
+    accelerations: np.ndarray
+    lin: np.ndarray
+    ang: np.ndarray
+    dang: np.ndarray
+    kappa: np.ndarray
+    dkappa: np.ndarray
+
+    def __repr__(self) -> str:
+        return f"Plan({len(self.times)} states, {self.duration:.3f} s, {self.length:.3f} m)"
+
+    @property
+    def duration(self) -> float:
+        """s."""
+        return float(self.times[-1] - self.times[0])
+
+    @property
+    def length(self) -> float:
+        """m driven (turns in place add nothing)."""
+        return float(np.sum(np.hypot(*np.diff(self.poses[:, :2], axis=0).T)))
+
+    @property
+    def twists(self) -> np.ndarray:
+        """``(N, 2)``: ``(v, omega)`` in m/s and rad/s."""
+        return np.column_stack([self.lin * self.speed, self.ang * self.speed])
+
+    @property
+    def twist_rates(self) -> np.ndarray:
+        """``(N, 2)``: ``(dv/dt, domega/dt)``, with each state's acceleration toward the next."""
+        a, u = self.accelerations, self.speed
+        return np.column_stack([self.lin * a, self.ang * a + self.dang * u * u])
+
+    @property
+    def wheel_velocities(self) -> np.ndarray:
+        """``(N, 2)`` rad/s."""
+        return self.twists @ _wheel_map(self.robot).T
+
+    @property
+    def wheel_accelerations(self) -> np.ndarray:
+        """``(N, 2)`` rad/s^2, each state's (toward the next)."""
+        return self.twist_rates @ _wheel_map(self.robot).T
+
+    @property
+    def voltages(self) -> np.ndarray | None:
+        """``(N, 2)`` V through the limits' feedforward, or None without one."""
+        left, right = self.limits.feedforwards()
+        if left is None or right is None:
+            return None
+        w, dw = self.wheel_velocities, self.wheel_accelerations
+        return np.column_stack([left.voltage(w[:, 0], dw[:, 0]), right.voltage(w[:, 1], dw[:, 1])])
+
+    def sample(self, t: object) -> dict[str, np.ndarray]:
+        """The plan at times ``t`` (s; any shape, clamped to the plan): ``pose`` (..., 3),
+        ``twist`` (..., 2) ``(v, omega)``, ``twist_rate`` (..., 2), ``kappa`` (robot curvature
+        ``omega / v``, rad/m; NaN in a turn in place), ``wheel_velocities`` and
+        ``wheel_accelerations`` (..., 2) in rad/s and rad/s^2."""
+        t = np.asarray(np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1]))
+        i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
+        tau = t - self.times[i]
+        a, u0 = self.accelerations[i], self.speed[i]
+        u = np.maximum(u0 + a * tau, 0.0)
+        gap = self.times[i + 1] - self.times[i]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            travelled = u0 * tau + 0.5 * a * tau * tau
+            whole = 0.5 * (u0 + self.speed[i + 1]) * gap
+            f = np.where(whole > 0.0, np.clip(travelled / whole, 0.0, 1.0), 0.0)
+
+        def along(values: np.ndarray) -> np.ndarray:
+            start = values[i]
+            return start + (values[i + 1] - start) * (f if values.ndim == 1 else f[..., None])
+
+        lin, ang, dang = along(self.lin), along(self.ang), along(self.dang)
+        twist = np.stack([lin * u, ang * u], axis=-1)
+        rate = np.stack([lin * a, ang * a + dang * u * u], axis=-1)
+        wheels = _wheel_map(self.robot)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            kappa = np.where(lin != 0.0, ang / np.where(lin != 0.0, lin, 1.0), np.nan)
+        return {
+            "pose": along(self.poses),
+            "twist": twist,
+            "twist_rate": rate,
+            "kappa": kappa,
+            "wheel_velocities": twist @ wheels.T,
+            "wheel_accelerations": rate @ wheels.T,
+        }
+
+    def to_trajectory(self, dt: float) -> Trajectory:
+        """The plan sampled every ``dt`` s as a ``Trajectory`` (poses at the samples, each
+        interval's wheel velocities those at its middle), for the writers and plots."""
+        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+        count = max(math.ceil(self.duration / dt), 1)
+        times = self.times[0] + np.arange(count + 1) * dt
+        middle = self.sample(times[:-1] + 0.5 * dt)["wheel_velocities"]
+        robot: Any = self.robot  # a Trajectory takes any robot model
+        return Trajectory(robot, times, self.sample(times)["pose"], middle, "exact")
+
+
+def _join(run: list[Leg]) -> dict[str, np.ndarray]:
+    """One run's legs as one sampled curve (the shared states kept once)."""
+    parts: dict[str, list[np.ndarray]] = {
+        key: [] for key in ("s", "x", "y", "heading", "kappa", "dkappa", "lin", "ang")
+    }
+    offset, heading_end = 0.0, None
+    for number, leg in enumerate(run):
+        keep = slice(0 if number == 0 else 1, None)
+        heading = leg.heading
+        if heading_end is not None:
+            heading = heading + 2.0 * math.pi * round((heading_end - heading[0]) / (2 * math.pi))
+        turn = leg.kind == "turn"
+        parts["s"].append(offset + leg.s[keep])
+        for key, values in (("x", leg.x), ("y", leg.y), ("heading", heading)):
+            parts[key].append(values[keep])
+        parts["kappa"].append(leg.kappa[keep])
+        parts["dkappa"].append(leg.dkappa[keep])
+        size = len(leg.s[keep])
+        parts["lin"].append(np.zeros(size) if turn else np.full(size, float(leg.direction)))
+        parts["ang"].append(np.full(size, float(leg.direction)) if turn else leg.kappa[keep])
+        offset += leg.length
+        heading_end = float(heading[-1])
+    return {key: np.concatenate(values) for key, values in parts.items()}
+
+
+_PROBLEMS = {
+    _timing.UNBOUNDED: "no limit bounds the speed there (a turn in place needs "
+    "max_angular_velocity, max_wheel_velocity or max_voltage)",
+    _timing.STUCK: "the limits leave no acceleration to move on from rest",
+    _timing.UNSETTLED: "the passes did not settle within the limits",
+}
+
+
+def _time_run(curve: dict[str, np.ndarray], robot: Robot, limits: PathLimits, where: str):
+    wheels = _wheel_map(robot)
+    lin, ang = curve["lin"], curve["ang"]
+    dang = curve["dkappa"]
+    wc = np.column_stack([lin, ang]) @ wheels.T
+    wd = dang[:, None] * wheels[:, 1][None, :]
+    ff = np.array(
+        [[f.ks, f.kv, f.ka] if f is not None else [0.0, 1.0, 1.0] for f in limits.feedforwards()]
+    )
+    ds = np.diff(curve["s"])
+    u = np.zeros(len(lin))
+    status, state = _timing.kernel()(ds, lin, ang, dang, wc, wd, limits.array(), ff, u)
+    if status != _timing.OK:
+        x, y = curve["x"][state], curve["y"][state]
+        raise ValueError(
+            f"the path cannot be driven within the limits: {_PROBLEMS[status]} "
+            f"({where}, at ({x:.3f}, {y:.3f}))"
+        )
+    accelerations = (u[1:] ** 2 - u[:-1] ** 2) / (2.0 * ds)
+    durations = 2.0 * ds / (u[1:] + u[:-1])
+    return (
+        u,
+        np.append(accelerations, accelerations[-1]),
+        np.concatenate([[0.0], np.cumsum(durations)]),
+    )
+
+
+def plan(
+    waypoints: object,
+    robot: Robot,
+    limits: PathLimits,
+    *,
+    reverse: bool | Sequence[bool] = False,
+    stops: Sequence[int] = (),
+    step: float = 0.02,
+) -> Plan:
+    """The fastest timing of the path through ``waypoints`` within ``limits``, from rest to rest.
+
+    ``waypoints``: ``(K, 2)`` or ``(K, 3)`` ``(x, y[, theta])`` (m, rad; see
+    ``diffdrive.control.path.from_waypoints`` for the spline, ``reverse`` and ``stops``), or
+    the runs of legs ``path.from_segments`` returns. ``step``: sample spacing (m or rad).
+    """
+    check_robot(robot)
+    if not isinstance(limits, PathLimits):
+        raise TypeError(f"limits must be PathLimits, got {type(limits).__name__}")
+    if isinstance(waypoints, list) and waypoints and isinstance(waypoints[0], list):
+        runs = waypoints
+    else:
+        runs = from_waypoints(waypoints, reverse=reverse, stops=stops, step=step)
+    keys = ("times", "poses", "speed", "accelerations", "lin", "ang", "dang", "kappa", "dkappa")
+    parts: dict[str, list[np.ndarray]] = {key: [] for key in keys}
+    start, heading_end = 0.0, None
+    for number, run in enumerate(runs):
+        curve = _join(run)
+        if heading_end is not None:
+            curve["heading"] += (
+                2.0 * math.pi * round((heading_end - curve["heading"][0]) / (2.0 * math.pi))
+            )
+        u, a, times = _time_run(curve, robot, limits, f"run {number} of the path")
+        parts["times"].append(start + times)
+        parts["poses"].append(np.column_stack([curve["x"], curve["y"], curve["heading"]]))
+        parts["speed"].append(u)
+        parts["accelerations"].append(a)
+        for key in ("lin", "ang", "kappa", "dkappa"):
+            parts[key].append(curve[key])
+        parts["dang"].append(curve["dkappa"])
+        start += float(times[-1])
+        heading_end = float(curve["heading"][-1])
+    joined = {key: np.concatenate(values) for key, values in parts.items()}
+    return Plan(robot, limits, **joined)
+
+
+def limit_ratios(
+    times: object, twists: object, robot: Robot, limits: PathLimits
+) -> dict[str, np.ndarray]:
+    """How far each state of a timed path uses each limit: value over limit, ``(N,)`` each
+    (1 is at the limit), for the limits given. ``twists`` ``(N, 2)`` ``(v, omega)``;
+    accelerations are finite differences to the next state (the last repeats), so any
+    library's states are judged alike. Keys: ``velocity``, ``acceleration``,
+    ``angular_velocity``, ``angular_acceleration``, ``centripetal``, ``wheel_velocity``,
+    ``wheel_acceleration``, ``voltage`` (the worse wheel)."""
+    t = np.asarray(times, dtype=float)
+    twist = np.asarray(twists, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rates = np.diff(twist, axis=0) / np.diff(t)[:, None]
+    rates = np.nan_to_num(np.vstack([rates, rates[-1:]]), nan=0.0, posinf=0.0, neginf=0.0)
+    wheels_map = _wheel_map(robot)
+    wheels, wheel_rates = twist @ wheels_map.T, rates @ wheels_map.T
+    values = {
+        "velocity": (np.abs(twist[:, 0]), limits.max_velocity),
+        "acceleration": (np.abs(rates[:, 0]), limits.max_acceleration),
+        "angular_velocity": (np.abs(twist[:, 1]), limits.max_angular_velocity),
+        "angular_acceleration": (np.abs(rates[:, 1]), limits.max_angular_acceleration),
+        "centripetal": (np.abs(twist[:, 0] * twist[:, 1]), limits.max_centripetal_acceleration),
+        "wheel_velocity": (np.abs(wheels).max(axis=1), limits.max_wheel_velocity),
+        "wheel_acceleration": (np.abs(wheel_rates).max(axis=1), limits.max_wheel_acceleration),
+    }
+    left, right = limits.feedforwards()
+    if left is not None and right is not None:
+        volts = np.column_stack(
+            [
+                left.voltage(wheels[:, 0], wheel_rates[:, 0]),
+                right.voltage(wheels[:, 1], wheel_rates[:, 1]),
+            ]
+        )
+        values["voltage"] = (np.abs(volts).max(axis=1), limits.max_voltage)
+    return {key: value / limit for key, (value, limit) in values.items() if limit is not None}

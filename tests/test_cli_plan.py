@@ -1,0 +1,59 @@
+"""``diffdrive plan`` and ``diffdrive follow``: what they write is what they report."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from diffdrive.cli import main
+from diffdrive.io import read_table
+
+ROBOT = "left_wheel_radius = 0.1\nright_wheel_radius = 0.1\ntrack_width = 0.6\n"
+LIMITS = ["--max-velocity", "1", "--max-acceleration", "1", "--max-wheel-velocity", "12"]
+
+
+@pytest.fixture
+def files(tmp_path):
+    (tmp_path / "wp.csv").write_text("x,y,theta\n0,0,0\n3,1,0.5\n5,3,1.5\n")
+    (tmp_path / "robot.toml").write_text(ROBOT)
+    return tmp_path
+
+
+def test_plan_writes_rows_within_the_limits_it_reports(files, capsys) -> None:
+    out = files / "plan.csv"
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    assert main(["plan", *args, "-o", str(out), "--plot", str(files / "p.png")]) == 0
+    printed = capsys.readouterr().out
+    assert "wheel_velocity: at most 100.0 % of its limit" in printed
+    table = read_table(out, ["t", "x", "y", "theta", "v", "omega", "left", "right"])
+    # Rows between states interpolate them: within the limit to 1e-4 (the report rounds).
+    assert np.abs(np.column_stack([table["left"], table["right"]])).max() <= 12 * (1 + 1e-4)
+    assert table["v"].max() <= 1 + 1e-9
+    assert (files / "p.png").stat().st_size > 0
+
+
+def test_follow_reports_robot_zero_as_written(files, capsys) -> None:
+    out = files / "follow.csv"
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    extra = ["--tracker", "ltv", "--delay", "0.1", "--lag", "0.1", "--predict"]
+    assert main(["follow", *args, *extra, "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    table = read_table(out, ["t", "x", "y", "theta", "cross_track"])
+    written = 1e3 * np.abs(table["cross_track"]).max()
+    assert f"cross-track max {written:.1f} mm" in printed
+    assert "delay margin beyond the known delay" in printed
+
+
+def test_plan_refuses_without_a_robot_and_writes_nothing(files, capsys) -> None:
+    out = files / "plan.csv"
+    assert main(["plan", str(files / "wp.csv"), *LIMITS, "-o", str(out)]) == 1
+    assert "plan needs the robot" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_plan_names_the_file_of_a_bad_path(files, capsys) -> None:
+    (files / "bad.csv").write_text("x,y\n0,0\n0,0\n1,1\n")
+    args = [str(files / "bad.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    assert main(["plan", *args, "-o", str(files / "x.csv")]) == 1
+    assert "bad.csv: waypoints 0 and 1 repeat" in capsys.readouterr().err
+    assert not (files / "x.csv").exists()

@@ -1,0 +1,200 @@
+"""Paths and their timing: hand-worked profiles, limits held at every state, bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import diffdrive as dd
+from diffdrive.control import PathLimits, from_segments, limit_ratios, plan
+from diffdrive.dynamics import Feedforward
+
+ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
+B = 0.3
+
+
+def test_a_straight_line_is_the_trapezoid_worked_by_hand() -> None:
+    # 4 m at 1 m/s with 0.5 m/s^2: 2 s up, 2 s down (2 m), 2 m cruising: 6 s.
+    result = plan([(0, 0, 0), (4, 0, 0)], ROBOT, PathLimits(max_velocity=1, max_acceleration=0.5))
+    assert result.duration == pytest.approx(6.0, abs=2e-3)
+    assert result.twists[:, 0].max() == pytest.approx(1.0)
+    assert np.allclose(result.poses[:, 1:], 0.0, atol=1e-12)
+    # Too short to cruise: a triangle, sqrt(4 L / a).
+    short = plan([(0, 0, 0), (1, 0, 0)], ROBOT, PathLimits(max_velocity=5, max_acceleration=0.5))
+    assert short.duration == pytest.approx(math.sqrt(4 * 1 / 0.5), abs=2e-3)
+
+
+def test_on_an_arc_the_outer_wheel_sets_the_speed() -> None:
+    radius, wheel_limit = 1.0, 10.0  # rad/s
+    runs = from_segments((0, 0, 0), [("arc", radius, math.pi)])
+    result = plan(runs, ROBOT, PathLimits(max_wheel_velocity=wheel_limit, max_acceleration=0.2))
+    # Outer wheel: v (1 + b kappa) / r <= limit.
+    expected = wheel_limit * 0.1 / (1 + B / radius)
+    assert result.twists[:, 0].max() == pytest.approx(expected, rel=1e-9)
+    assert np.abs(result.wheel_velocities).max() == pytest.approx(wheel_limit, rel=1e-9)
+    assert result.poses[-1, :2] == pytest.approx([0.0, 2.0], abs=1e-9)
+    assert result.poses[-1, 2] == pytest.approx(math.pi)
+
+
+def test_a_turn_in_place_between_two_waypoints_at_one_place() -> None:
+    limits = PathLimits(max_velocity=1, max_angular_velocity=1.0, max_angular_acceleration=1.0)
+    result = plan([(0, 0, 0), (0, 0, math.pi / 2)], ROBOT, limits)
+    # A trapezoid in omega (the triangle would peak at sqrt(pi/2) > 1 rad/s): pi/2 / 1 + 1 / 1.
+    assert result.duration == pytest.approx(math.pi / 2 + 1.0, abs=2e-3)
+    assert np.all(result.twists[:, 0] == 0.0)
+    assert result.poses[-1, 2] == pytest.approx(math.pi / 2)
+
+
+def test_reverse_drives_backward_facing_the_waypoints_heading() -> None:
+    result = plan(
+        [(0, 0, 0), (-2, 0, 0)], ROBOT, PathLimits(max_velocity=1, max_acceleration=1), reverse=True
+    )
+    assert np.all(result.twists[:, 0] <= 0.0)
+    assert result.twists[:, 0].min() == pytest.approx(-1.0)
+    assert np.allclose(np.remainder(result.poses[:, 2] + np.pi, 2 * np.pi) - np.pi, 0.0, atol=1e-9)
+    sampled = result.sample(result.duration / 2)
+    assert sampled["twist"][0] < 0
+    assert sampled["pose"][0] == pytest.approx(-1.0, abs=1e-3)
+
+
+def test_a_stop_halts_the_robot_at_its_waypoint() -> None:
+    waypoints = [(0, 0), (2, 0), (4, 1)]
+    limits = PathLimits(max_velocity=1, max_acceleration=1)
+    through, halted = plan(waypoints, ROBOT, limits), plan(waypoints, ROBOT, limits, stops=[1])
+    at = np.flatnonzero(np.hypot(halted.poses[:, 0] - 2, halted.poses[:, 1]) < 1e-9)
+    assert len(at)
+    assert np.all(halted.speed[at] == 0.0)
+    assert halted.duration > through.duration
+
+
+LIMITS = PathLimits(
+    max_velocity=3.0,
+    max_acceleration=2.0,
+    max_angular_acceleration=12.0,
+    max_centripetal_acceleration=2.5,
+    max_wheel_velocity=25.0,
+    max_wheel_acceleration=30.0,
+    max_voltage=10.0,
+    feedforward=Feedforward(1.34, 3.13 * 0.1, 0.926 * 0.1),
+)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.floats(0, 6), st.floats(0, 6), st.floats(-math.pi, math.pi)),
+        min_size=2,
+        max_size=4,
+    )
+)
+def test_a_plan_never_exceeds_a_limit(waypoints: list[tuple[float, float, float]]) -> None:
+    points = np.array(waypoints)
+    if np.hypot(*np.diff(points[:, :2], axis=0).T).min() < 0.5:
+        return
+    try:
+        result = plan(points, ROBOT, LIMITS)
+    except ValueError as error:  # a spline that loops or has a cusp is refused, by name
+        if "spline" not in str(error):
+            raise
+        return
+    # Between states (what a controller stepping through them asks for) ...
+    for name, ratio in limit_ratios(result.times, result.twists, ROBOT, LIMITS).items():
+        assert ratio.max() <= 1 + 1e-9, name
+    # ... and at each state, with the v^2 dkappa/ds part of the wheels' acceleration.
+    assert np.abs(result.wheel_accelerations).max() <= 30.0 * (1 + 1e-6)
+    assert np.abs(result.voltages).max() <= 10.0 * (1 + 1e-6)
+    assert np.all(np.diff(result.times) >= 0)
+
+
+def test_sample_matches_the_states_and_the_trajectory_holds_them() -> None:
+    result = plan([(0, 0, 0), (3, 2, 1.0)], ROBOT, LIMITS)
+    middle = len(result.times) // 2
+    sampled = result.sample(result.times[middle])
+    assert sampled["pose"] == pytest.approx(result.poses[middle])
+    assert sampled["twist"] == pytest.approx(result.twists[middle])
+    trajectory = result.to_trajectory(0.02)
+    assert trajectory.poses[-1] == pytest.approx(result.poses[-1], abs=1e-9)
+    # The wheels the trajectory holds drive it where the plan goes.
+    replayed = dd.simulate(
+        ROBOT, trajectory.wheel_velocities, dt=0.02, initial_pose=result.poses[0]
+    )
+    assert np.abs(replayed.poses[-1, :2] - result.poses[-1, :2]).max() < 5e-3
+
+
+@pytest.mark.parametrize(
+    ("waypoints", "message"),
+    [
+        ([(0, 0), (0, 0), (1, 1)], "waypoints 0 and 1 repeat"),
+        ([(0, 0, 0), (0, 0, 0)], "waypoints 0 and 1 repeat"),
+        ([(0, 0, math.pi), (1, 0, math.pi)], "from waypoint 0 to 1 (has a cusp|loops)"),
+        ([(0, 0), (1, float("nan"))], "waypoint 1 has a non-finite value"),
+        ([(0, 0)], "at least 2 rows"),
+    ],
+)
+def test_bad_waypoints_are_refused_by_name(waypoints, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        plan(waypoints, ROBOT, LIMITS)
+
+
+@pytest.mark.parametrize(
+    ("settings_", "message"),
+    [
+        ({"max_velocity": 0.0}, "max_velocity must be a finite number > 0"),
+        ({"max_velocity": -1.0}, "max_velocity must be a finite number > 0"),
+        ({"max_acceleration": 1.0}, "no limit bounds the speed"),
+        ({"max_velocity": 1.0, "max_voltage": 10.0}, "go together"),
+        (
+            {"max_voltage": 1.0, "feedforward": Feedforward(1.34, 0.3, 0.1)},
+            "does not exceed the left wheel's kS",
+        ),
+    ],
+)
+def test_bad_limits_are_refused_by_name(settings_, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        PathLimits(**settings_)
+
+
+def test_a_turn_with_no_limit_on_turning_cannot_be_planned() -> None:
+    with pytest.raises(ValueError, match="no limit bounds the speed there"):
+        plan([(0, 0, 0), (0, 0, 1.0)], ROBOT, PathLimits(max_velocity=1.0))
+
+
+def test_wpimath_breaks_the_wheel_limits_where_the_plan_keeps_them() -> None:
+    """The peer's voltage constraint assumes constant curvature (allwpilib#2296's robot):
+    judged alike, its states exceed the wheels' voltage, ours do not."""
+    from wpimath.controller import SimpleMotorFeedforwardMeters
+    from wpimath.geometry import Pose2d, Rotation2d
+    from wpimath.kinematics import DifferentialDriveKinematics
+    from wpimath.trajectory import TrajectoryConfig, TrajectoryGenerator
+    from wpimath.trajectory.constraint import DifferentialDriveVoltageConstraint
+
+    radius, track = 0.0762, 0.6889
+    robot = dd.DiffDrive(wheel_radius=radius, track_width=track)
+    limits = PathLimits(
+        max_velocity=3.0,
+        max_acceleration=2.0,
+        max_voltage=10.0,
+        feedforward=Feedforward(1.34, 3.13 * radius, 0.926 * radius),
+    )
+    kinematics = DifferentialDriveKinematics(track)
+    config = TrajectoryConfig(3.0, 2.0)
+    config.addConstraint(
+        DifferentialDriveVoltageConstraint(
+            SimpleMotorFeedforwardMeters(1.34, 3.13, 0.926), kinematics, 10
+        )
+    )
+    waypoints = [(0.0, 0.0, 0.0), (2.0, 1.5, 1.2), (0.5, 3.0, 2.8)]
+    theirs = TrajectoryGenerator.generateTrajectory(
+        [Pose2d(x, y, Rotation2d(h)) for x, y, h in waypoints], config
+    )
+    states = theirs.states()
+    times = np.array([s.t for s in states])
+    twists = np.array([(s.velocity, s.velocity * s.curvature) for s in states])
+    assert limit_ratios(times, twists, robot, limits)["voltage"].max() > 1.01
+    ours = plan(waypoints, robot, limits)
+    assert limit_ratios(ours.times, ours.twists, robot, limits)["voltage"].max() <= 1 + 1e-9
+    assert ours.duration <= 1.1 * theirs.totalTime()
