@@ -23,7 +23,7 @@ import numpy as np
 from diffdrive import batch
 from diffdrive.control.limiter import Limiter
 from diffdrive.control.planning import Plan
-from diffdrive.control.tracking import Tracker
+from diffdrive.control.tracking import Tracker, first_order
 from diffdrive.evaluation import PathErrors, path_errors
 from diffdrive.integrate import Method
 
@@ -108,12 +108,8 @@ def follow(
     if callable(reset):
         reset()  # a stateful tracker (``Predictive``) starts with nothing in flight
     rng = np.random.default_rng(seed)
-    radii = np.array(
-        [robot.to_wheel_velocities((1.0, 0.0, 0.0)).to_array()]
-    )  # rad per metre of forward travel
+    per_metre = robot.to_wheel_velocities((1.0, 0.0, 0.0)).to_array()  # wheel rad per m
     wheels = np.zeros((robots, 2))  # the wheels' velocities now (rad/s)
-    decay = math.exp(-dt / lag) if lag > 0.0 else 0.0
-    spread = lag / dt * (1.0 - decay) if lag > 0.0 else 0.0
     rows = np.arange(robots)
     for k in range(steps):
         twist = np.asarray(tracker.command(plan, float(times[k]), estimates[:, k]), dtype=float)
@@ -124,17 +120,15 @@ def follow(
         commands[:, k] = sent
         source = k - lags
         target = np.where((source >= 0)[:, None], commands[rows, np.maximum(source, 0)], 0.0)
-        mean = target + (wheels - target) * spread
-        wheels = target + (wheels - target) * decay
+        wheels, mean = first_order(wheels, target, dt, lag)
         applied[:, k] = mean
         moved = batch.to_twist(robot, mean)
         poses[:, k + 1] = batch.integrate.step(poses[:, k], moved, dt, method)
         travel = mean * dt
         if noise.any():
-            metres = np.abs(travel) / np.abs(radii)
-            travel = travel + rng.standard_normal((robots, 2)) * np.sqrt(noise * metres) * np.abs(
-                radii
-            )
+            metres = np.abs(travel) / np.abs(per_metre)
+            sigma = np.sqrt(noise * metres) * np.abs(per_metre)
+            travel = travel + rng.standard_normal((robots, 2)) * sigma
         believed = batch.to_twist(robot, travel / dt)
         estimates[:, k + 1] = batch.integrate.step(estimates[:, k], believed, dt, method)
     return FollowResult(plan, times, poses, estimates, commands, applied, lags * dt)

@@ -53,15 +53,15 @@ class PathLimits:
     feedforward: Feedforward | tuple[Feedforward, Feedforward] | None = None
 
     def __post_init__(self) -> None:
-        for field in fields(self)[:-1]:
-            value = getattr(self, field.name)
+        for name in _NUMBERS:
+            value = getattr(self, name)
             if value is not None and (
                 isinstance(value, bool)
                 or not isinstance(value, int | float)
                 or not math.isfinite(value)
                 or value <= 0.0
             ):
-                raise ValueError(f"{field.name} must be a finite number > 0 or None, got {value!r}")
+                raise ValueError(f"{name} must be a finite number > 0 or None, got {value!r}")
         if (self.max_voltage is None) != (self.feedforward is None):
             raise ValueError("max_voltage and feedforward go together: give both or neither")
         for side, ff in zip(("left", "right"), self.feedforwards(), strict=True):
@@ -88,8 +88,13 @@ class PathLimits:
 
     def array(self) -> np.ndarray:
         """The kernel's limits, inf for none."""
-        values = [getattr(self, field.name) for field in fields(self)[:-1]]
+        values = [getattr(self, name) for name in _NUMBERS]
         return np.array([math.inf if value is None else float(value) for value in values])
+
+
+# The numeric limits in the order of the kernel's indices (``_timing.VMAX`` ... ``VOLTAGE``).
+_NUMBERS = tuple(field.name for field in fields(PathLimits) if field.name != "feedforward")
+assert len(_NUMBERS) == _timing.VOLTAGE + 1
 
 
 def _wheel_map(robot: Robot) -> np.ndarray:

@@ -32,7 +32,15 @@ from diffdrive import batch
 from diffdrive._validate import positive
 from diffdrive.control.planning import Plan
 
-__all__ = ["LTVUnicycle", "Predictive", "PurePursuit", "Ramsete", "Tracker", "errors_in_robot"]
+__all__ = [
+    "LTVUnicycle",
+    "Predictive",
+    "PurePursuit",
+    "Ramsete",
+    "Tracker",
+    "errors_in_robot",
+    "first_order",
+]
 
 
 class Tracker(Protocol):
@@ -48,6 +56,19 @@ def errors_in_robot(poses: np.ndarray, reference: np.ndarray) -> np.ndarray:
     c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
     heading = np.remainder(reference[..., 2] - poses[..., 2] + np.pi, 2.0 * np.pi) - np.pi
     return np.stack([c * dx + s * dy, -s * dx + c * dy, heading], axis=-1)
+
+
+def first_order(
+    state: np.ndarray, target: np.ndarray, dt: float, lag: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A first-order lag of time constant ``lag`` (s; 0: none) after ``dt`` s toward a held
+    ``target``: the state at the end of the period, and its mean over the period (what the
+    robot moves with). Exact for a held target."""
+    if lag == 0.0:
+        return target, target
+    decay = math.exp(-dt / lag)
+    mean = target + (state - target) * lag / dt * (1.0 - decay)
+    return target + (state - target) * decay, mean
 
 
 def _poses(poses: object) -> np.ndarray:
@@ -220,14 +241,6 @@ class Predictive:
         self._sent = np.zeros((0, self.steps, 2))
         self._applied = np.zeros((0, 2))  # the twist the lag has reached
 
-    def _lagged(self, twist: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The twist after one period toward ``target``, and its mean over the period."""
-        if self.lag == 0.0:
-            return target, target
-        decay = math.exp(-self.dt / self.lag)
-        mean = target + (twist - target) * self.lag / self.dt * (1.0 - decay)
-        return target + (twist - target) * decay, mean
-
     def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:
         poses = _poses(poses)
         if len(self._applied) == 0:
@@ -239,7 +252,7 @@ class Predictive:
             )
         predicted, twist = poses.copy(), self._applied.copy()
         for k in range(self.steps):  # the commands in flight, in the order they take effect
-            twist, mean = self._lagged(twist, self._sent[:, k])
+            twist, mean = first_order(twist, self._sent[:, k], self.dt, self.lag)
             body = np.column_stack([mean[:, 0], np.zeros(len(mean)), mean[:, 1]])
             predicted = batch.integrate.step(predicted, body, self.dt)
         ahead = t + self.delay
@@ -248,7 +261,7 @@ class Predictive:
         rate = plan.sample(ahead)["twist_rate"]
         command = wanted + self.lag * rate[None, :]
         oldest = self._sent[:, 0] if self.steps else command
-        self._applied = self._lagged(self._applied, oldest)[0]
+        self._applied = first_order(self._applied, oldest, self.dt, self.lag)[0]
         if self.steps:
             self._sent = np.concatenate([self._sent[:, 1:], command[:, None]], axis=1)
         return command
