@@ -57,3 +57,32 @@ def test_plan_names_the_file_of_a_bad_path(files, capsys) -> None:
     assert main(["plan", *args, "-o", str(files / "x.csv")]) == 1
     assert "bad.csv: waypoints 0 and 1 repeat" in capsys.readouterr().err
     assert not (files / "x.csv").exists()
+
+
+def test_evaluate_against_the_plan_agrees_with_follow(files, capsys) -> None:
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    assert main(["plan", *args, "-o", str(files / "plan.csv"), "-q"]) == 0
+    extra = ["--delay", "0.1", "--lag", "0.1", "-q"]
+    assert main(["follow", *args, *extra, "-o", str(files / "follow.csv")]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(files / "follow.csv"), "--plan", str(files / "plan.csv")]) == 0
+    printed = dict(line.split() for line in capsys.readouterr().out.splitlines())
+    written = read_table(files / "follow.csv", ["t", "cross_track"])
+    # The plan's rows every 0.02 s hold the path to well under a millimetre.
+    assert float(printed["max_cross_track_m"]) == pytest.approx(
+        np.abs(written["cross_track"]).max(), abs=2e-4
+    )
+    assert (
+        main(
+            [
+                "evaluate",
+                str(files / "follow.csv"),
+                "--plan",
+                str(files / "plan.csv"),
+                "--truth",
+                "x",
+            ]
+        )
+        == 1
+    )
+    assert "neither --truth" in capsys.readouterr().err

@@ -104,6 +104,39 @@ def test_whole_logs_agree_row_by_row_with_the_same_refusal():
     np.testing.assert_allclose(results[0][2], results[1][2], rtol=1e-13)
 
 
+_TWIN: dict[str, subprocess.Popen] = {}
+
+
+def start_twin_run() -> subprocess.Popen:
+    """Start the twin's run of the odometry tests in a process of its own (once): conftest
+    starts it as the session begins when the test below is selected, so that it runs on the
+    second core beside the rest of the suite instead of after it."""
+    if "run" not in _TWIN:
+        tests = Path(__file__).resolve().parent
+        environment = os.environ | {"DIFFDRIVE_PURE_PYTHON": "1"}
+        names = ("odometry", "stateful", "estimator", "edges")
+        modules = [str(tests / f"test_{name}.py") for name in names]
+        _TWIN["run"] = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "pytest",
+                "-q",
+                "-p",
+                "no:cacheprovider",
+                *modules,
+                "-k",
+                "not bounded_memory and not long_streaming_run and not reading_subcommand_crash",
+            ],
+            env=environment,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            cwd=tests.parent,
+        )
+    return _TWIN["run"]
+
+
 @pytest.mark.slow
 def test_the_odometry_tests_pass_on_the_twin():
     """test_odometry, test_stateful, test_estimator and test_edges with DIFFDRIVE_PURE_PYTHON=1
@@ -111,32 +144,12 @@ def test_the_odometry_tests_pass_on_the_twin():
     Python; the C core runs them) and the fuzzing of the command line's file reading (about
     files, not the core; it failed here once, in a run whose report was cut off, and never
     again in dozens of runs: kept out until it can be read)."""
-    tests = Path(__file__).resolve().parent
     environment = os.environ | {"DIFFDRIVE_PURE_PYTHON": "1"}
     check = (
         "import diffdrive.estimation.odometry as o, diffdrive.estimation.fusion as f; "
         "assert not o.COMPILED and not f.COMPILED"
     )
     subprocess.run([sys.executable, "-c", check], env=environment, check=True)
-    modules = [
-        str(tests / f"test_{name}.py") for name in ("odometry", "stateful", "estimator", "edges")
-    ]
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pytest",
-            "-q",
-            "-p",
-            "no:cacheprovider",
-            *modules,
-            "-k",
-            "not bounded_memory and not long_streaming_run and not reading_subcommand_crash",
-        ],
-        env=environment,
-        capture_output=True,
-        text=True,
-        cwd=tests.parent,
-    )
-    report = done.stdout
+    done = start_twin_run()
+    report, _ = done.communicate()
     assert done.returncode == 0, report[report.find("= FAILURES =") :][:6000] or report[-3000:]

@@ -25,6 +25,7 @@ from diffdrive.evaluation import (
     ate,
     consistency,
     interpolate,
+    path_errors,
     rpe,
     run_errors,
 )
@@ -34,7 +35,9 @@ from diffdrive.simulation import dead_reckon
 
 def run_evaluate(args: argparse.Namespace) -> int:
     covariances = None
-    if args.input is None:
+    if args.plan is not None:
+        metrics = plan_metrics(args)
+    elif args.input is None:
         log, robot = example_log(), example_robot()
         times, truth = log.times, log.truth
         if args.consistency:
@@ -59,7 +62,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         times, estimate, truth, covariances = _paired(
             args, times, estimate, truth_times, truth, covariances
         )
-    metrics = evaluation_metrics(args, times, estimate, truth)
+    if args.plan is None:
+        metrics = evaluation_metrics(args, times, estimate, truth)
     if covariances is not None:
         found = consistency(estimate, covariances, truth)
         metrics.update(
@@ -91,6 +95,41 @@ def _stage(path: Path, doing: str) -> None:
     if not sys.stderr.isatty() or not path.is_file() or path.stat().st_size < _LARGE_FILE:
         return
     print(f"evaluate: {doing} ({path}, {path.stat().st_size / 1e6:.0f} MB)", file=sys.stderr)
+
+
+def plan_metrics(args) -> dict:
+    """A trajectory against a plan (``diffdrive plan`` writes one): cross-track, along-track,
+    heading and position errors, the reference at each pose's time (after --t-offset) along
+    the arcs between the plan's rows, held at its end once it has ended."""
+    if args.input is None or args.truth is not None or args.consistency:
+        raise TableError(
+            "evaluate --plan measures one trajectory against the plan: give the trajectory, and "
+            "neither --truth nor --consistency"
+        )
+    plan_times, plan_poses = read_trajectory(args.plan, args.time_unit)
+    times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
+    for path, poses in ((args.input, estimate), (args.plan, plan_poses)):
+        if poses.ndim != 2:
+            raise TableError(f"{path}: evaluate takes one robot; the file has {len(poses)}")
+    shifted = times + args.t_offset
+    if shifted[-1] < plan_times[0] or shifted[0] > plan_times[-1]:
+        raise TableError(
+            f"{args.input}: its times ({shifted[0]:g} to {shifted[-1]:g} s after --t-offset) "
+            f"do not meet the plan's ({plan_times[0]:g} to {plan_times[-1]:g} s)"
+        )
+    at = np.clip(shifted, plan_times[0], plan_times[-1])
+    reference = interpolate(plan_times, plan_poses, at)
+    errors = path_errors(plan_times, plan_poses, at, estimate, reference)
+    cross = np.abs(errors.cross_track)
+    return {
+        "poses_compared": len(times),
+        "mean_cross_track_m": float(cross.mean()),
+        "max_cross_track_m": float(cross.max()),
+        "max_along_track_m": float(np.abs(errors.along_track).max()),
+        "max_heading_error_deg": float(np.degrees(np.abs(errors.heading).max())),
+        "mean_position_error_m": float(errors.position.mean()),
+        "max_position_error_m": float(errors.position.max()),
+    }
 
 
 def evaluation_metrics(args, times, estimate, truth) -> dict:
@@ -175,6 +214,7 @@ EPILOGS = {
   diffdrive evaluate odometry.tum --truth truth.csv --rpe 1.0 --json
   diffdrive evaluate est.tum --truth gt.tum --t-offset -0.003 --rpe 10 --rpe-unit poses
   diffdrive evaluate odometry.csv --truth truth.csv --consistency
+  diffdrive evaluate follow.csv --plan plan.csv    against a plan: cross-track, along-track
 
 {TRAJECTORY_FILES} Poses are paired by time as evo pairs them: the nearest
 stamp within --t-max-diff s, after adding --t-offset to the trajectory's times;
@@ -193,6 +233,12 @@ def add_to(command: Command, parents: Parents) -> None:
     )
     ev.add_argument("input", nargs="?", type=Path, help="trajectory; none: built-in")
     ev.add_argument("--truth", type=Path, help="ground-truth trajectory")
+    ev.add_argument(
+        "--plan",
+        type=Path,
+        help="a plan (diffdrive plan writes one) to measure the trajectory against instead: "
+        "cross-track, along-track, heading and position errors",
+    )
     ev.add_argument(
         "--t-max-diff",
         type=float,

@@ -42,6 +42,7 @@ VMAX, AMAX, WMAX, ALPHA, CENTRIPETAL, WHEEL_V, WHEEL_A, VOLTAGE = range(8)
 # Statuses ``parameterise`` returns with the index of the state concerned.
 OK, UNBOUNDED, STUCK, UNSETTLED = range(4)
 _BISECTIONS = 60
+_RESOLUTION = 1e-12  # bisections stop when the bracket is this narrow, relative
 _ROUNDS = 200
 
 
@@ -108,6 +109,8 @@ def speed_limit(i, lin, ang, dang, wc, wd, lim, ff):
         return top
     low, high = 0.0, top
     for _ in range(_BISECTIONS):
+        if high - low <= _RESOLUTION * high:
+            break
         middle = 0.5 * (low + high)
         if _feasible(i, middle, lin, ang, dang, wc, wd, lim, ff):
             low = middle
@@ -127,8 +130,16 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
         a = (nxt * nxt - u[i] * u[i]) / (2.0 * ds[i])
         lo1, hi1 = bounds(i + 1, nxt, lin, ang, dang, wc, wd, lim, ff)
         if a > hi1:
-            low, high = 0.0, nxt
+            # Reached with the acceleration the state reached allows at ``nxt``: a speed that
+            # usually passes, and brackets the answer closely.
+            low = math.sqrt(max(u[i] * u[i] + 2.0 * hi1 * ds[i], 0.0))
+            lo1, hi1 = bounds(i + 1, low, lin, ang, dang, wc, wd, lim, ff)
+            if (low * low - u[i] * u[i]) / (2.0 * ds[i]) > hi1:
+                low = 0.0
+            high = nxt
             for _ in range(_BISECTIONS):
+                if high - low <= _RESOLUTION * high:
+                    break
                 middle = 0.5 * (low + high)
                 a = (middle * middle - u[i] * u[i]) / (2.0 * ds[i])
                 lo1, hi1 = bounds(i + 1, middle, lin, ang, dang, wc, wd, lim, ff)
@@ -145,8 +156,14 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
         a = (u[i + 1] * u[i + 1] - u[i] * u[i]) / (2.0 * ds[i])
         lo, hi = bounds(i, u[i], lin, ang, dang, wc, wd, lim, ff)
         if a < lo:
-            low, high = 0.0, u[i]
+            low = math.sqrt(max(u[i + 1] * u[i + 1] - 2.0 * lo * ds[i], 0.0))
+            lo, hi = bounds(i, low, lin, ang, dang, wc, wd, lim, ff)
+            if (u[i + 1] * u[i + 1] - low * low) / (2.0 * ds[i]) < lo:
+                low = 0.0
+            high = u[i]
             for _ in range(_BISECTIONS):
+                if high - low <= _RESOLUTION * high:
+                    break
                 middle = 0.5 * (low + high)
                 a = (u[i + 1] * u[i + 1] - middle * middle) / (2.0 * ds[i])
                 lo, hi = bounds(i, middle, lin, ang, dang, wc, wd, lim, ff)
@@ -221,15 +238,9 @@ def kernel() -> Callable[..., Any]:
         return parameterise
     jit = numba.njit(cache=True)
     module = globals()
-    for name in (
-        "_narrow",
-        "bounds",
-        "cap",
-        "_feasible",
-        "speed_limit",
-        "_passes",
-        "_outside",
-        "_segment_outside",
-    ):
+    # The small ones inlined into their callers: each is called several times a state.
+    for name in ("_narrow", "bounds", "cap", "_feasible"):
+        module[name] = numba.njit(cache=True, inline="always")(module[name])
+    for name in ("speed_limit", "_passes", "_outside", "_segment_outside"):
         module[name] = jit(module[name])
     return jit(parameterise)

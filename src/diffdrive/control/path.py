@@ -93,18 +93,25 @@ def _headings(points: np.ndarray) -> np.ndarray:
     return np.arctan2(chord[:, 1], chord[:, 0])
 
 
+def _derivative_of_powers() -> np.ndarray:
+    """``(4, 6, 6)``: for each order, the matrix taking the powers ``t^0..t^5`` to that
+    derivative of each power, written in the same powers (d/dt t^p = p t^(p-1))."""
+    step = np.diag(np.arange(1.0, 6.0), k=1).T  # the derivative, as a map on coefficients
+    orders = [np.eye(6)]
+    for _ in range(3):
+        orders.append(orders[-1] @ step.T)
+    return np.stack(orders)
+
+
+# Per order, the powers of t to the Hermite controls' weights: ``powers @ _BY_ORDER[order]``.
+_BY_ORDER = np.einsum("oqp,kp->oqk", _derivative_of_powers(), _HERMITE)
+
+
 def _basis(t: np.ndarray) -> np.ndarray:
     """``(4, M, 6)``: the rows that turn Hermite controls into the value and its first three
     derivatives at ``t``."""
-    exponents = np.arange(6)
-    rows = np.zeros((4, len(t), 6))
-    for order in range(4):
-        factor = np.ones(6)
-        for k in range(order):
-            factor = factor * np.maximum(exponents - k, 0)
-        shifted = np.maximum(exponents - order, 0)
-        rows[order] = factor * t[:, None] ** shifted
-    return rows @ _HERMITE.T
+    powers = np.vander(t, 6, increasing=True)
+    return np.matmul(powers[None], _BY_ORDER)
 
 
 def _controls(points: np.ndarray, bend: np.ndarray) -> np.ndarray:
@@ -152,86 +159,101 @@ _COARSE_BASIS = _basis(_COARSE)
 
 
 def _smoothest(points: np.ndarray) -> np.ndarray:
-    """The bends (see ``_controls``) at the interior waypoints that make the curvature change
-    least, ``min sum over segments of the integral of (dkappa/ds)^2 ds``, by a few damped
-    Gauss-Newton steps with the Jacobian by differences (all perturbations in one pass).
-    The rate of curvature is what the ``v^2 dkappa/ds`` part of a wheel's acceleration
-    grows with, so the smoother curve is also the faster one to drive."""
+    """The bends (see ``_controls``) at the interior waypoints that make the curve smoothest:
+    least ``sum over segments of lambda^2 times the integral of |d^3p/ds^3|^2 ds``, ``lambda``
+    a segment's tangent length. For a curve at unit speed ``|d^3p/ds^3|^2`` is
+    ``(dkappa/ds)^2 + kappa^4``: the rate of curvature (what the ``v^2 dkappa/ds`` part of a
+    wheel's acceleration grows with) and the curvature itself; the weight ``lambda^2`` favours
+    the long segments, which are driven fast. With the parameter standing in for arc length
+    (``ds = lambda dt``) the third derivative is linear in the bends, so the fit is one linear
+    least-squares solve. (On the 300 paths of ``benchmarks/bench_planning.py`` its plans are as
+    fast on average as those of an iterative fit of ``(dkappa/ds)^2`` alone.)"""
     count = len(points)
-    second = np.zeros((count, 2))
+    bends = np.zeros((count, 2))
     if count < 3:
-        return second
+        return bends
     size = 2 * (count - 2)
-    h = 1e-7
-    weights = np.sqrt(np.gradient(_COARSE))
-
-    def residuals(candidates: np.ndarray) -> np.ndarray:
-        d = _derivatives(_controls(points, candidates), _COARSE_BASIS)
-        speed, _, dkappa = _geometry(d)
-        return (dkappa * speed * weights).reshape(len(candidates), -1)
-
-    damping = 1e-3
-    for _ in range(8):
-        steps = np.zeros((size + 1, count, 2))
-        steps[1:, 1:-1, :].reshape(size, size)[np.arange(size), np.arange(size)] = h
-        values = residuals(second + steps)
-        r = values[0]
-        if not np.all(np.isfinite(values)):
-            break
-        jacobian = ((values[1:] - r) / h).T
-        normal = jacobian.T @ jacobian
-        gradient = jacobian.T @ r
-        change = np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), -gradient)
-        trial = second.copy()
-        trial[1:-1] += change.reshape(count - 2, 2)
-        better = residuals(trial[None])[0]
-        if np.all(np.isfinite(better)) and better @ better < r @ r:
-            second, damping = trial, damping * 0.3
-            if r @ r - better @ better < 1e-9 * (r @ r):
-                break
-        else:
-            damping *= 10.0
-    return second
+    unit = np.zeros((size + 1, count, 2))
+    unit[1:, 1:-1, :].reshape(size, size)[np.arange(size), np.arange(size)] = 1.0
+    third = _derivatives(_controls(points, unit), _COARSE_BASIS)[3]  # (size+1, S, M, 2)
+    tangent = TANGENT_SCALE * np.hypot(*np.diff(points[:, :2], axis=0).T)
+    # The third derivative squared, dt over lambda^5, is |d^3p/ds^3|^2 ds; times lambda^2.
+    weights = np.sqrt(np.gradient(_COARSE)[None, :, None] / tangent[:, None, None] ** 3)
+    rows = (third * weights).reshape(size + 1, -1)
+    base, columns = rows[0], (rows[1:] - rows[0]).T
+    solution = np.linalg.lstsq(columns, -base, rcond=None)[0]
+    bends[1:-1] = solution.reshape(count - 2, 2)
+    return bends
 
 
 def _quintics(points: np.ndarray, step: float, first: int, smooth: bool) -> list[Leg]:
-    """The quintic Hermite splines through poses ``points`` ``(K, 3)`` (tangent headings)."""
-    second = _smoothest(points) if smooth else np.zeros((len(points), 2))
-    controls = _controls(points, second)
+    """The quintic Hermite splines through poses ``points`` ``(K, 3)`` (tangent headings),
+    every segment sampled in one pass at ``step`` or closer."""
+    bends = _smoothest(points) if smooth else np.zeros((len(points), 2))
+    controls = _controls(points, bends)
     coarse_speed = _geometry(_derivatives(controls, _COARSE_BASIS))[0]
     lengths = np.trapezoid(coarse_speed, _COARSE, axis=-1)
-    legs = []
-    for index, length in enumerate(lengths):
+    intervals = np.maximum(np.ceil(lengths / step).astype(int), 16)
+    counts = intervals + 1  # samples per segment
+    segment = np.repeat(np.arange(len(intervals)), counts)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    local = np.arange(len(segment)) - starts[segment]
+    t = local / intervals[segment]
+    basis = _basis(t)
+    d = np.concatenate(
+        [
+            basis[:, a : a + n] @ controls[k]
+            for k, (a, n) in enumerate(zip(starts, counts, strict=True))
+        ],
+        axis=1,
+    )
+    speed, kappa, dkappa = _geometry(d)
+    chords = np.hypot(*np.diff(points[:, :2], axis=0).T)
+    # A cusp: the tangent vanishes, or flips between neighbouring samples of a segment.
+    inside = segment[1:] == segment[:-1]
+    flips = inside & (np.sum(d[1][1:] * d[1][:-1], axis=-1) <= 0.0)
+    cusp = np.minimum.reduceat(speed, starts) <= 1e-9 * np.maximum(chords, 1.0)
+    cusp[segment[1:][flips]] = True
+    # Arc length: the trapezoid with its end correction, from the speed and its rate
+    # (d|p'|/dt = p'.p''/|p'|); its error is of the order of Simpson's rule's.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rate = np.sum(d[1] * d[2], axis=-1) / speed
+    h = 1.0 / intervals[segment[1:]]
+    pieces = h / 2.0 * (speed[1:] + speed[:-1]) + h * h / 12.0 * (rate[:-1] - rate[1:])
+    total = np.concatenate([[0.0], np.cumsum(np.where(inside, pieces, 0.0))])
+    s = total - total[starts][segment]
+    steps = np.where(inside, np.abs(kappa[1:] + kappa[:-1]) * np.diff(s) / 2.0, 0.0)
+    turned = np.bincount(segment[1:], steps, len(intervals))
+    net = np.abs(np.remainder(np.diff(points[:, 2]) + np.pi, 2.0 * np.pi) - np.pi)
+    loops = turned > net + 1.5 * math.pi  # three quarters of a circle more than asked
+    for index in range(len(intervals)):
         where = f"the spline from waypoint {first + index} to {first + index + 1}"
-        count = max(math.ceil(length / step), 8) * 2
-        t = np.linspace(0.0, 1.0, count + 1)
-        d = _derivatives(controls[index], _basis(t))
-        speed, kappa, dkappa = _geometry(d)
-        chord = float(np.hypot(*(points[index + 1, :2] - points[index, :2])))
-        # A cusp: the tangent vanishes, or flips between neighbouring samples.
-        flips = np.sum(d[1][1:] * d[1][:-1], axis=-1) <= 0.0
-        if not speed.min() > 1e-9 * max(chord, 1.0) or flips.any():
+        if cusp[index]:
             raise ValueError(
                 f"{where} has a cusp (its tangent vanishes): move the waypoints apart or "
                 "change their headings"
             )
-        # Arc length by Simpson's rule on pairs of intervals; every other sample kept.
-        pieces = (t[2::2] - t[:-2:2]) / 6.0 * (speed[:-2:2] + 4.0 * speed[1:-1:2] + speed[2::2])
-        s = np.concatenate([[0.0], np.cumsum(pieces)])
-        keep = slice(None, None, 2)
-        kappa, dkappa = kappa[keep], dkappa[keep]
-        turned = float(np.sum(np.abs(kappa[1:] + kappa[:-1]) * np.diff(s))) / 2.0
-        net = abs(math.remainder(points[index + 1, 2] - points[index, 2], 2.0 * math.pi))
-        if turned > net + 1.5 * math.pi:  # three quarters of a circle more than asked: a loop
+        if loops[index]:
             raise ValueError(
-                f"{where} loops (its tangent turns {math.degrees(turned):.0f} degrees to change "
-                f"heading by {math.degrees(net):.0f}): change the headings or add a waypoint"
+                f"{where} loops (its tangent turns {math.degrees(turned[index]):.0f} degrees to "
+                f"change heading by {math.degrees(net[index]):.0f}): change the headings or add "
+                "a waypoint"
             )
-        tangent = np.unwrap(np.arctan2(d[1][keep, 1], d[1][keep, 0]))
-        tangent += points[index, 2] - tangent[0]
-        position = d[0][keep]
-        legs.append(Leg("drive", 1, s, position[:, 0], position[:, 1], tangent, kappa, dkappa))
-    return legs
+    tangent = np.unwrap(np.arctan2(d[1][:, 1], d[1][:, 0]))
+    tangent += (points[:-1, 2] - tangent[starts])[segment]
+    return [
+        Leg(
+            "drive",
+            1,
+            s[part],
+            d[0][part, 0],
+            d[0][part, 1],
+            tangent[part],
+            kappa[part],
+            dkappa[part],
+        )
+        for part in np.split(np.arange(len(segment)), starts[1:])
+    ]
 
 
 def _turn(x: float, y: float, start: float, end: float, step: float) -> Leg:
@@ -274,8 +296,9 @@ def from_waypoints(
     or one per waypoint pair; a change of direction, a turn in place (two waypoints at one
     position) and an index in ``stops`` halt the robot. Returns the runs between halts, each
     a list of legs that the robot drives without stopping. ``step``: sample spacing (m, rad).
-    ``smooth``: choose the second derivatives at interior waypoints for the least change of
-    curvature (as WPILib's ``OptimizeCurvature`` does, by its own measure); otherwise zero.
+    ``smooth``: choose the second derivatives at interior waypoints for the smoothest curve
+    (``_smoothest``; WPILib's ``OptimizeCurvature`` does the like by its own measure);
+    otherwise zero.
     """
     points = _waypoint_array(waypoints)
     step = positive("step", step)

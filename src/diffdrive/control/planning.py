@@ -16,9 +16,10 @@ wheel accelerations by finite differences between states, so both are judged ali
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, fields
-from typing import Any
+from functools import lru_cache
+from typing import Any, cast
 
 import numpy as np
 
@@ -98,10 +99,18 @@ assert len(_NUMBERS) == _timing.VOLTAGE + 1
 
 
 def _wheel_map(robot: Robot) -> np.ndarray:
-    """``(2, 2)``: wheel velocities (rad/s) per unit ``v`` and per unit ``omega``."""
+    """``(2, 2)``: wheel velocities (rad/s) per unit ``v`` and per unit ``omega`` (kept per
+    robot model, which is immutable and hashable: sampling a plan asks for it every call)."""
+    return _wheel_map_of(cast(Hashable, robot))
+
+
+@lru_cache(maxsize=64)
+def _wheel_map_of(robot: Any) -> np.ndarray:
     forward = robot.to_wheel_velocities((1.0, 0.0, 0.0)).to_array()
     turning = robot.to_wheel_velocities((0.0, 0.0, 1.0)).to_array()
-    return np.column_stack([forward, turning])
+    wheels = np.column_stack([forward, turning])
+    wheels.flags.writeable = False
+    return wheels
 
 
 @dataclass(frozen=True, eq=False)
