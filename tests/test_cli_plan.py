@@ -86,3 +86,21 @@ def test_evaluate_against_the_plan_agrees_with_follow(files, capsys) -> None:
         == 1
     )
     assert "neither --truth" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("x;y;yaw\n0;0;0\n3;1;0.5\n", "column 'yaw' is not read"),
+        (
+            "x,y,theta\n0,0,0\n3,1,30\n5,3,90\n",
+            "waypoint 2 has a heading of 90: headings are radians",
+        ),
+    ],
+)
+def test_plan_refuses_headings_it_would_misread(files, capsys, text, message) -> None:
+    (files / "odd.csv").write_text(text)
+    args = [str(files / "odd.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    assert main(["plan", *args, "-o", str(files / "x.csv")]) == 1
+    assert message in capsys.readouterr().err
+    assert not (files / "x.csv").exists()

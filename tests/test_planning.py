@@ -133,6 +133,7 @@ def test_sample_matches_the_states_and_the_trajectory_holds_them() -> None:
         ([(0, 0, math.pi), (1, 0, math.pi)], "from waypoint 0 to 1 (has a cusp|loops)"),
         ([(0, 0), (1, float("nan"))], "waypoint 1 has a non-finite value"),
         ([(0, 0)], "at least 2 rows"),
+        ([(0, 0, 0), (1, 0, 90.0)], "waypoint 1 has a heading of 90: headings are radians"),
     ],
 )
 def test_bad_waypoints_are_refused_by_name(waypoints, message) -> None:

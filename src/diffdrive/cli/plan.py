@@ -23,6 +23,7 @@ from diffdrive.control import (
 )
 from diffdrive.dynamics import Feedforward
 from diffdrive.io import read_table
+from diffdrive.io.tables import read_header
 
 LIMIT_FLAGS = {
     "max_velocity": "m/s",
@@ -46,6 +47,13 @@ def _plan_of(args: argparse.Namespace):
             "--track-width (the built-in robot is not assumed here)"
         )
     robot, _ = robot_from(args)
+    unused = [name for name in read_header(args.waypoints) if name not in ("x", "y", "theta")]
+    if unused:
+        # A heading under another name would be dropped and the spline's own taken instead.
+        raise ValueError(
+            f"{args.waypoints}: column {', '.join(map(repr, unused))} is not read; waypoints are "
+            "x, y (m) and optionally theta (rad, the robot's heading)"
+        )
     table = read_table(args.waypoints, ["x", "y"], ["theta"], increasing=None)
     columns = ["x", "y"] + (["theta"] if "theta" in table else [])
     waypoints = np.column_stack([table[name] for name in columns])
@@ -60,7 +68,10 @@ def _plan_of(args: argparse.Namespace):
     try:
         return robot, plan(waypoints, robot, limits, reverse=args.reverse, stops=stops)
     except ValueError as error:
-        raise ValueError(f"{args.waypoints}: {error}") from None
+        raise ValueError(
+            f"{args.waypoints}: {error} (waypoints count from 0: waypoint n is on the (n + 2)th "
+            "line, after the header)"
+        ) from None
 
 
 def run_plan(args: argparse.Namespace) -> int:

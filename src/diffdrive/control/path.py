@@ -82,6 +82,12 @@ def _waypoint_array(waypoints: object) -> np.ndarray:
     if len(bad):
         row, column = bad[0]
         raise ValueError(f"waypoint {row} has a non-finite value in column {column}")
+    if array.shape[1] == 3 and np.abs(array[:, 2]).max() > 2.0 * math.pi:
+        row = int(np.argmax(np.abs(array[:, 2])))
+        raise ValueError(
+            f"waypoint {row} has a heading of {array[row, 2]:g}: headings are radians, within "
+            "[-2 pi, 2 pi]; this looks like degrees (multiply by pi/180)"
+        )
     return array
 
 
