@@ -161,3 +161,10 @@ def test_rollouts_one_table_through_every_backend(case, backend) -> None:
             assert applied[n, k] == pytest.approx(twist, abs=1e-12)
             pose = dd.batch.integrate.step(pose, np.array([twist[0], 0.0, twist[1]]), 0.05)
             assert poses[n, k + 1] == pytest.approx(pose, abs=1e-9)
+
+
+def test_a_delay_between_periods_is_refused_not_rounded() -> None:
+    with pytest.raises(
+        ValueError, match=r"delay must be a whole number of periods dt \(0.02 s\): got 0.05"
+    ):
+        follow(SHORT, Ramsete(), delay=0.05)

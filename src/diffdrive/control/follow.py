@@ -74,7 +74,7 @@ def follow(
 ) -> FollowResult:
     """Simulate ``robots`` robots following ``plan`` with ``tracker`` (see the module).
 
-    ``delay``: s, one or one per robot, rounded to whole periods; ``lag``: the wheels' time
+    ``delay``: s, one or one per robot, each a whole number of periods; ``lag``: the wheels' time
     constant (s; 0 for none); ``limiter``: a wheel ``Limiter`` (rad/s), copied per robot;
     ``wheel_noise``: ``(k_left, k_right)`` (m); ``start``: the start poses ``(3,)`` or
     ``(N, 3)`` (default the plan's); ``settle``: s simulated after the plan ends.
@@ -94,6 +94,12 @@ def follow(
         raise ValueError(f"settle must be finite and >= 0, got {settle!r}")
     robot = plan.robot
     lags = np.rint(delays / dt).astype(int)
+    off = np.flatnonzero(np.abs(delays / dt - lags) > 1e-9)
+    if len(off):
+        # Rounded, it would simulate another delay than the one asked for.
+        raise ValueError(
+            f"delay must be a whole number of periods dt ({dt} s): got {float(delays[off[0]])} s"
+        )
     steps = max(math.ceil((plan.duration + settle) / dt), 1)
     times = plan.times[0] + dt * np.arange(steps + 1)
     poses = np.empty((robots, steps + 1, 3))
