@@ -162,6 +162,7 @@ def _geometry(d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 _COARSE = np.linspace(0.0, 1.0, 33)
 _COARSE_BASIS = _basis(_COARSE)
+_COARSE_WEIGHTS = np.gradient(_COARSE)  # quadrature weights along a segment
 
 
 def _smoothest(points: np.ndarray) -> np.ndarray:
@@ -178,17 +179,19 @@ def _smoothest(points: np.ndarray) -> np.ndarray:
     bends = np.zeros((count, 2))
     if count < 3:
         return bends
-    size = 2 * (count - 2)
-    unit = np.zeros((size + 1, count, 2))
-    unit[1:, 1:-1, :].reshape(size, size)[np.arange(size), np.arange(size)] = 1.0
-    third = _derivatives(_controls(points, unit), _COARSE_BASIS)[3]  # (size+1, S, M, 2)
+    third = _COARSE_BASIS[3]  # (M, 6): controls to the third derivative
     tangent = TANGENT_SCALE * np.hypot(*np.diff(points[:, :2], axis=0).T)
     # The third derivative squared, dt over lambda^5, is |d^3p/ds^3|^2 ds; times lambda^2.
-    weights = np.sqrt(np.gradient(_COARSE)[None, :, None] / tangent[:, None, None] ** 3)
-    rows = (third * weights).reshape(size + 1, -1)
-    base, columns = rows[0], (rows[1:] - rows[0]).T
-    solution = np.linalg.lstsq(columns, -base, rcond=None)[0]
-    bends[1:-1] = solution.reshape(count - 2, 2)
+    weights = np.sqrt(_COARSE_WEIGHTS[None, :] / tangent[:, None] ** 3)  # (S, M)
+    base = (third @ _controls(points, bends)) * weights[..., None]  # (S, M, 2), bends zero
+    # A bend enters the segment before its waypoint as p1'' and the one after as p0'', each
+    # times that segment's lambda^2; x and y do not mix, so both solve with one matrix.
+    inner = np.arange(count - 2)
+    design = np.zeros((count - 1, len(_COARSE), count - 2))
+    design[inner, :, inner] = tangent[:-1, None] ** 2 * third[:, 3] * weights[:-1]
+    design[inner + 1, :, inner] = tangent[1:, None] ** 2 * third[:, 2] * weights[1:]
+    flat = design.reshape(-1, count - 2)
+    bends[1:-1] = np.linalg.lstsq(flat, -base.reshape(-1, 2), rcond=None)[0]
     return bends
 
 
