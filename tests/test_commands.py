@@ -293,3 +293,26 @@ def test_a_refused_open_loop_update_changes_neither_the_limiter_nor_the_pose():
 def test_limits_name_the_parameter_of_a_bad_number(make, message):
     with pytest.raises((ValueError, TypeError), match=message):
         make()
+
+
+@pytest.mark.parametrize(
+    "limits",
+    [
+        dd.Limits(max_velocity=1.0, max_acceleration=2.0, max_deceleration=3.0),
+        dd.Limits(max_velocity=1.0, max_reverse_velocity=0.5, max_acceleration=2.0, max_jerk=8.0),
+    ],
+    ids=["acceleration", "jerk"],
+)
+def test_a_batched_limiter_limits_each_row_as_its_own_would(limits) -> None:
+    rng = np.random.default_rng(7)
+    template = dd.Limiter.for_wheels(limits, timeout=0.1)
+    many = template.batched(5)
+    singles = [dd.Limiter.for_wheels(limits, timeout=0.1) for _ in range(5)]
+    for k in range(120):
+        targets = None if k % 17 == 16 else rng.uniform(-1.5, 1.5, (5, 2))
+        out = many.step(targets, 0.02)
+        for n, single in enumerate(singles):
+            expected = single.step(None if targets is None else targets[n], 0.02)
+            np.testing.assert_allclose(out[n], expected, rtol=0, atol=1e-15)
+    with pytest.raises(ValueError, match=r"target must have shape \(5, 2\)"):
+        many.step([0.1, 0.2], 0.02)

@@ -1,12 +1,13 @@
 """Closed-loop simulation: trackers driving robots along a plan, through a real drive.
 
 Every period ``dt`` each robot's tracker turns the pose its wheel odometry believes into a
-twist, the twist becomes wheel commands (inverse kinematics), a ``Limiter`` (one per robot)
-may limit them, they take effect ``delay`` s later (a pure delay, per robot), and the wheels
-follow them through a first-order ``lag``. The robot moves with the wheels' mean velocity over
-the period (the lag's exact response to a held command) by the library's integration step;
-the odometry integrates the same wheel travel plus random-walk noise of variance ``k |travel|``
-per wheel (``Odometry``'s ``k_left``, ``k_right``), so the tracker sees what a robot would.
+twist, the twist becomes wheel commands (inverse kinematics), a ``Limiter`` (batched over
+the robots) may limit them, they take effect ``delay`` s later (a pure delay, per robot),
+and the wheels follow them through a first-order ``lag``. The robot moves with the wheels'
+mean velocity over the period (the lag's exact response to a held command) by the library's
+integration step; the odometry integrates the same wheel travel plus random-walk noise of
+variance ``k |travel|`` per wheel (``Odometry``'s ``k_left``, ``k_right``), so the tracker
+sees what a robot would.
 
 ``delay_margin`` runs the same loop for a range of delays at once and reports the largest the
 tracker stays on the path with: the margin *by simulation* along this plan.
@@ -14,7 +15,6 @@ tracker stays on the path with: the margin *by simulation* along this plan.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
 
@@ -74,8 +74,9 @@ def follow(
 ) -> FollowResult:
     """Simulate ``robots`` robots following ``plan`` with ``tracker`` (see the module).
 
-    ``delay``: s, one or one per robot, each a whole number of periods; ``lag``: the wheels' time
-    constant (s; 0 for none); ``limiter``: a wheel ``Limiter`` (rad/s), copied per robot;
+    ``delay``: s, one or one per robot, each a whole number of periods; ``lag``: the wheels'
+    time constant (s; 0 for none); ``limiter``: a wheel ``Limiter`` (rad/s), its limits
+    applied to every robot (``Limiter.batched``), from rest;
     ``wheel_noise``: ``(k_left, k_right)`` (m); ``start``: the start poses ``(3,)`` or
     ``(N, 3)`` (default the plan's); ``settle``: s simulated after the plan ends.
     """
@@ -109,7 +110,7 @@ def follow(
     estimates = poses.copy()
     commands = np.zeros((robots, steps, 2))
     applied = np.zeros((robots, steps, 2))
-    limiters = [copy.deepcopy(limiter) for _ in range(robots)] if limiter is not None else []
+    limited = limiter.batched(robots) if limiter is not None else None
     reset = getattr(tracker, "reset", None)
     if callable(reset):
         reset()  # a stateful tracker (``Predictive``) starts with nothing in flight
@@ -121,8 +122,8 @@ def follow(
         twist = np.asarray(tracker.command(plan, float(times[k]), estimates[:, k]), dtype=float)
         body = np.column_stack([twist[:, 0], np.zeros(robots), twist[:, 1]])
         sent = batch.to_wheel_velocities(robot, body)
-        if limiters:
-            sent = np.array([lim.step(row, dt) for lim, row in zip(limiters, sent, strict=True)])
+        if limited is not None:
+            sent = limited.step(sent, dt)
         commands[:, k] = sent
         source = k - lags
         target = np.where((source >= 0)[:, None], commands[rows, np.maximum(source, 0)], 0.0)

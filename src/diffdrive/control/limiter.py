@@ -118,6 +118,8 @@ class Limiter:
 
     ``timeout`` (s, default none) stops the robot when targets stop coming: ``step(None, dt)``
     means no new target this cycle. The state (``value``, ``acceleration``) starts at rest.
+    ``batched(n)`` gives a limiter for ``n`` robots at once: its state, targets and outputs
+    are ``(n, channels)``, each row limited as its own limiter would limit it.
     """
 
     def __init__(self, limits: tuple[Limits, ...], timeout: float | None = None) -> None:
@@ -130,6 +132,15 @@ class Limiter:
         self.acceleration = np.zeros(len(limits))
         self._target = np.zeros(len(limits))
         self._since_target = 0.0
+
+    def batched(self, robots: int) -> Limiter:
+        """A limiter with these limits and timeout for ``robots`` robots, at rest."""
+        if isinstance(robots, bool) or not isinstance(robots, int) or robots < 1:
+            raise ValueError(f"robots must be a whole number >= 1, got {robots!r}")
+        many = Limiter(self.limits, None if math.isinf(self.timeout) else self.timeout)
+        many.value = np.zeros((robots, len(self.limits)))
+        many.reset()
+        return many
 
     @classmethod
     def for_twist(cls, v: Limits, omega: Limits, timeout: float | None = None) -> Limiter:
@@ -163,7 +174,7 @@ class Limiter:
                 gap = goal - self.value
                 with np.errstate(divide="ignore"):
                     fractions = np.where(gap != 0.0, (new - self.value) / gap, 1.0)
-                fraction = float(np.clip(fractions.min(), 0.0, 1.0))
+                fraction = np.clip(fractions.min(axis=-1, keepdims=True), 0.0, 1.0)
                 new = np.where(gap != 0.0, self.value + fraction * gap, goal)
             # A jerk profile may run past the goal; never past a velocity limit.
             new = np.clip(new, -self._bounds[1], self._bounds[0])
@@ -211,12 +222,21 @@ class Limiter:
         limit = np.where(target >= 0.0, v_fwd, v_rev)
         with np.errstate(divide="ignore", over="ignore"):
             scale = np.where(np.abs(target) > limit, limit / np.abs(target), 1.0)
-        return target * scale.min()
+        return target * scale.min(axis=-1, keepdims=True)
 
     def _reachable(self, goal: np.ndarray, dt: float) -> np.ndarray:
         """Per channel, the value it can reach toward ``goal`` in ``dt`` under its limits."""
-        acc_fwd, dec_fwd, acc_rev, dec_rev, jerk = self._bounds[2:]
         v, a = self.value, self.acceleration
+        if goal.ndim == 1 or not np.isfinite(self._bounds[6]).any():  # elementwise: at once
+            return self._reachable_one(goal, v, a, dt)
+        return np.array([self._reachable_one(goal[n], v[n], a[n], dt) for n in range(len(goal))])
+
+    def _reachable_one(
+        self, goal: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float
+    ) -> np.ndarray:
+        """``_reachable`` from the state ``v``, ``a``: one robot's, or (without jerk limits,
+        where every step is elementwise) a batch's."""
+        acc_fwd, dec_fwd, acc_rev, dec_rev, jerk = self._bounds[2:]
         gap = goal - v
         up = gap > 0.0
         # Accelerating upward: slowing down a reverse motion, or speeding up a forward one.
@@ -234,7 +254,7 @@ class Limiter:
         has_jerk = np.isfinite(jerk)
         if not has_jerk.any():
             return value
-        rate = self._rate_along(gap) if has_jerk.all() else None
+        rate = _rate_along(a, gap) if has_jerk.all() else None
         if rate is not None:
             # Every channel moves the same fraction of its gap, by one jerk-limited profile
             # of that fraction: the limits in fractions of the gap are the tightest channel's.
@@ -262,18 +282,18 @@ class Limiter:
         lands = np.abs(gap - a_new * dt) <= 1e-12 * np.maximum(1.0, np.abs(goal))
         return np.where(has_jerk, np.where(lands, goal, v + a_new * dt), value)
 
-    def _rate_along(self, gap: np.ndarray) -> float | None:
-        """The acceleration as a rate of fractions of ``gap`` per s^2, if it points along the
-        gap (or is zero), so that moving by fractions of the gap keeps the jerk limits; else
-        None."""
-        length = float(gap @ gap)
-        if length < 1e-200:  # no gap, or one too small to divide by
-            return None
-        a = self.acceleration
-        rate = float(a @ gap) / length
-        if np.linalg.norm(a - rate * gap) > 1e-9 * np.linalg.norm(a):
-            return None
-        return rate
+
+def _rate_along(a: np.ndarray, gap: np.ndarray) -> float | None:
+    """The acceleration ``a`` as a rate of fractions of ``gap`` per s^2, if it points along the
+    gap (or is zero), so that moving by fractions of the gap keeps the jerk limits; else
+    None."""
+    length = float(gap @ gap)
+    if length < 1e-200:  # no gap, or one too small to divide by
+        return None
+    rate = float(a @ gap) / length
+    if np.linalg.norm(a - rate * gap) > 1e-9 * np.linalg.norm(a):
+        return None
+    return rate
 
 
 def _jerk_limited(gap, a, bound, falling, rising, jerk, dt):
