@@ -199,3 +199,12 @@ def test_wpimath_breaks_the_wheel_limits_where_the_plan_keeps_them() -> None:
     ours = plan(waypoints, robot, limits)
     assert limit_ratios(ours.times, ours.twists, robot, limits)["voltage"].max() <= 1 + 1e-9
     assert ours.duration <= 1.1 * theirs.totalTime()
+
+
+def test_a_turn_segment_turns_as_far_as_asked_the_long_way_too() -> None:
+    runs = from_segments((0, 0, 0), [("turn", 1.5 * math.pi), ("line", 1.0)])
+    limits = PathLimits(max_velocity=1.0, max_acceleration=1.0, max_wheel_velocity=5.0)
+    result = plan(runs, ROBOT, limits)
+    assert result.poses[-1, 2] == pytest.approx(1.5 * math.pi)
+    assert result.poses[-1, :2] == pytest.approx([0.0, -1.0], abs=1e-9)  # facing -y
+    assert np.all(result.twists[:, 1] >= 0.0)  # to the left all the way

@@ -8,11 +8,14 @@ per metre) and its rate ``dkappa`` (rad/m^2, per metre), and the leg's direction
 ``diffdrive.control.planning`` times them.
 
 ``from_waypoints`` joins waypoints ``(x, y)`` or ``(x, y, theta)`` by quintic Hermite splines
-with zero second derivatives at the waypoints and tangents 1.2 times the chord long (WPILib's
-choice, ``SplineHelper``, so that both libraries drive the same curve from the same poses);
-headings not given are the direction from the waypoint before to the one after
-(Catmull-Rom's). Two waypoints at one position with different headings make a turn in
-place. ``from_segments`` chains straight lines and circular arcs from a start pose.
+with tangents 1.2 times the chord long (WPILib's choice, ``SplineHelper``: between two
+waypoints both libraries drive the same curve). At the first and last waypoint the second
+derivative is zero; at an interior one it is chosen for the smoothest curve (``_smoothest``)
+and scaled on each side so that the curvature is continuous there (WPILib's is not, so its
+wheels are asked for a step in velocity). Headings not given are the direction from the
+waypoint before to the one after (Catmull-Rom's). Two waypoints at one position with
+different headings make a turn in place, the short way round. ``from_segments`` chains
+straight lines, circular arcs and turns in place (by any angle) from a start pose.
 """
 
 from __future__ import annotations
@@ -265,9 +268,8 @@ def _quintics(points: np.ndarray, step: float, first: int, smooth: bool) -> list
     ]
 
 
-def _turn(x: float, y: float, start: float, end: float, step: float) -> Leg:
-    """A turn in place from heading ``start`` to ``end`` (rad, the short way round)."""
-    angle = math.remainder(end - start, 2.0 * math.pi)
+def _turn(x: float, y: float, start: float, angle: float, step: float) -> Leg:
+    """A turn in place from heading ``start`` by ``angle`` (rad; positive to the left)."""
     count = max(math.ceil(abs(angle) / step), 8)
     s = np.linspace(0.0, abs(angle), count + 1)
     zeros = np.zeros(count + 1)
@@ -343,7 +345,9 @@ def from_waypoints(
                 raise ValueError(
                     f"waypoints {index} and {index + 1} repeat: every pair must differ"
                 )
-            runs.append([_turn(start[0], start[1], start[2], end[2], step)])
+            # Between two waypoints' headings: the short way round.
+            angle = math.remainder(end[2] - start[2], 2.0 * math.pi)
+            runs.append([_turn(start[0], start[1], start[2], angle, step)])
             first = index + 1
         else:
             first = index
@@ -380,7 +384,7 @@ def from_segments(
             angle = finite(f"{where}: angle", values[0])
             if angle == 0.0:
                 raise ValueError(f"{where}: a turn of 0 rad")
-            runs += [[_turn(x, y, heading, heading + angle, step)], []]
+            runs += [[_turn(x, y, heading, angle, step)], []]
             heading += angle
             continue
         if kind == "line" and len(values) == 1:
