@@ -328,6 +328,7 @@ def from_waypoints(
             raise ValueError(f"waypoints {first} and {first + 1} repeat: every pair must differ")
         headings = _headings(points[:, :2])
         headings += np.pi * np.array(backward + backward[-1:])  # the robot faces backward
+        headings = np.remainder(headings + np.pi, 2.0 * np.pi) - np.pi
         points = np.column_stack([points, headings])
     # Runs of waypoints driven without halting: split at turns, stops and reversals.
     runs: list[list[Leg]] = []
