@@ -17,6 +17,10 @@ voltages through the feedforward. Printed: the states over any limit by more tha
 worst voltage, and the total time against wpimath's on the paths where wpimath stays within
 1 % (so a fast plan that breaks the limits is not counted as fast).
 
+Jerk: the first 100 of those paths again with a jerk limit of 20 and of 5 m/s^3: plans
+refused, states over any limit (jerk included) by more than 1e-9, and the total time against
+the plan without the jerk limit.
+
 Tracking: the trajectory of WPILib's LTVUnicycleControllerTest (2 waypoints, 8.8 m/s,
 0.1 m/s^2, about 30 s) followed with commands 0.1 s late through a 0.1 s first-order lag
 (``follow``, no noise, from the plan's start), by wpimath's RamseteController and
@@ -191,6 +195,42 @@ class _Peer:
         return np.array(out)
 
 
+def jerk(paths: int = 100, seed: int = 1) -> None:
+    from dataclasses import replace
+
+    config = wpimath_config()
+    for limit in (20.0, 5.0):
+        limits = replace(LIMITS, max_jerk=limit)
+        rng = np.random.default_rng(seed)
+        done = refused = over = 0
+        ratios = []
+        while done < paths:
+            waypoints = random_waypoints(rng)
+            try:
+                wpimath_plan(waypoints, config)
+            except Exception:  # the same paths as above
+                continue
+            done += 1
+            try:
+                fastest = plan(waypoints, ROBOT, LIMITS)
+            except ValueError:
+                continue
+            try:
+                smooth = plan(waypoints, ROBOT, limits)
+            except ValueError:
+                refused += 1
+                continue
+            over += int(
+                (worst(limit_ratios(smooth.times, smooth.twists, ROBOT, limits)) > 1 + 1e-9).sum()
+            )
+            ratios.append(smooth.duration / fastest.duration)
+        print(
+            f"jerk {limit:g} m/s^3 on {paths} paths: {refused} refused, {over} states over a "
+            f"limit; time against no jerk limit: median {np.median(ratios):.3f}, "
+            f"max {np.max(ratios):.3f}"
+        )
+
+
 def tracking() -> None:
     from wpimath.controller import LTVUnicycleController, RamseteController
 
@@ -276,6 +316,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}")
     compare(args.paths)
+    jerk()
     tracking()
     speed(args.repeats)
     rollout_speed(args.repeats)

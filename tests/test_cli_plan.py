@@ -104,3 +104,19 @@ def test_plan_refuses_headings_it_would_misread(files, capsys, text, message) ->
     assert main(["plan", *args, "-o", str(files / "x.csv")]) == 1
     assert message in capsys.readouterr().err
     assert not (files / "x.csv").exists()
+
+
+def test_plan_with_a_jerk_limit_reports_what_its_rows_hold(files, capsys) -> None:
+    out = files / "plan.csv"
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    assert main(["plan", *args, "--max-jerk", "3", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    table = read_table(out, ["t", "v", "omega"])
+    from diffdrive import DiffDrive
+    from diffdrive.control import PathLimits, limit_ratios
+
+    robot = DiffDrive(wheel_radius=0.1, track_width=0.6)
+    twists = np.column_stack([table["v"], table["omega"]])
+    ratio = limit_ratios(table["t"], twists, robot, PathLimits(max_velocity=1, max_jerk=3))
+    assert f"jerk: at most {100 * ratio['jerk'].max():.1f} % of its limit" in printed
+    assert ratio["jerk"].max() <= 1.0

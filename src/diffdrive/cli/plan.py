@@ -34,6 +34,7 @@ LIMIT_FLAGS = {
     "max_wheel_velocity": "rad/s",
     "max_wheel_acceleration": "rad/s^2",
     "max_voltage": "V",
+    "max_jerk": "m/s^3",
 }
 TRACKERS = ("ramsete", "ltv", "pure-pursuit")
 

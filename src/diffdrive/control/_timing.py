@@ -198,12 +198,39 @@ def _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
     return bad
 
 
-def parameterise(ds, lin, ang, dang, wc, wd, lim, ff, u):
-    """Fill ``u`` (N,) with the fastest speeds from rest to rest; ``(status, state)``."""
+def lower_where_outside(ds, lin, ang, dang, wc, wd, lim, ff, u, top):
+    """Check the profile ``u`` as a controller stepping from state to state would see it (the
+    changes over the time between states, ``_segment_outside``) and at each state (its speed
+    against the velocity caps, the accelerations leaving and reaching it, ``_outside``);
+    lower ``top`` to 0.98 of the speed at every state outside a limit. Returns how many states
+    were outside."""
+    n = len(lin)
+    count = 0
+    for k in range(n - 1):
+        if _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+            count += 1
+            top[k] = min(top[k], 0.98 * u[k])
+            top[k + 1] = min(top[k + 1], 0.98 * u[k + 1])
+    for i in range(n):
+        if u[i] > cap(i, lin, ang, wc, lim) * (1.0 + 1e-9):  # kept by the passes, not by others
+            count += 1
+            top[i] = min(top[i], 0.98 * u[i])
+        for k in (i - 1, i):
+            if 0 <= k < n - 1:
+                a = (u[k + 1] * u[k + 1] - u[k] * u[k]) / (2.0 * ds[k])
+                if _outside(i, a, u[i], lin, ang, dang, wc, wd, lim, ff):
+                    count += 1
+                    top[i] = min(top[i], 0.98 * u[i])
+    return count
+
+
+def parameterise(ds, lin, ang, dang, wc, wd, lim, ff, ceiling, u):
+    """Fill ``u`` (N,) with the fastest speeds from rest to rest, at most ``ceiling`` (N,);
+    ``(status, state)``."""
     n = len(lin)
     top = np.empty(n)
     for i in range(n):
-        top[i] = speed_limit(i, lin, ang, dang, wc, wd, lim, ff)
+        top[i] = min(speed_limit(i, lin, ang, dang, wc, wd, lim, ff), ceiling[i])
         if top[i] >= BIG:
             return UNBOUNDED, i
     for _ in range(_ROUNDS):
@@ -211,20 +238,7 @@ def parameterise(ds, lin, ang, dang, wc, wd, lim, ff, u):
         for i in range(n - 1):
             if u[i] + u[i + 1] <= 0.0:
                 return STUCK, i
-        settled = True
-        for k in range(n - 1):
-            if _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
-                settled = False
-                top[k] = 0.98 * u[k]
-                top[k + 1] = 0.98 * u[k + 1]
-        for i in range(n):
-            for k in (i - 1, i):
-                if 0 <= k < n - 1:
-                    a = (u[k + 1] * u[k + 1] - u[k] * u[k]) / (2.0 * ds[k])
-                    if _outside(i, a, u[i], lin, ang, dang, wc, wd, lim, ff):
-                        settled = False
-                        top[i] = 0.98 * u[i]
-        if settled:
+        if lower_where_outside(ds, lin, ang, dang, wc, wd, lim, ff, u, top) == 0:
             return OK, 0
     return UNSETTLED, 0
 
@@ -232,15 +246,26 @@ def parameterise(ds, lin, ang, dang, wc, wd, lim, ff, u):
 @cache
 def kernel() -> Callable[..., Any]:
     """``parameterise``, compiled by numba where it is installed (cached on disk)."""
+    return _compiled()["parameterise"]
+
+
+@cache
+def checker() -> Callable[..., Any]:
+    """``lower_where_outside``, compiled alike."""
+    return _compiled()["lower_where_outside"]
+
+
+@cache
+def _compiled() -> dict[str, Callable[..., Any]]:
     try:
         import numba
     except ImportError:
-        return parameterise
+        return {"parameterise": parameterise, "lower_where_outside": lower_where_outside}
     jit = numba.njit(cache=True)
     module = globals()
     # The small ones inlined into their callers: each is called several times a state.
     for name in ("_narrow", "bounds", "cap", "_feasible"):
         module[name] = numba.njit(cache=True, inline="always")(module[name])
-    for name in ("speed_limit", "_passes", "_outside", "_segment_outside"):
+    for name in ("speed_limit", "_passes", "_outside", "_segment_outside", "lower_where_outside"):
         module[name] = jit(module[name])
-    return jit(parameterise)
+    return {"parameterise": jit(parameterise), "lower_where_outside": module["lower_where_outside"]}

@@ -40,7 +40,8 @@ class PathLimits:
     (rad/s), ``max_angular_acceleration`` (rad/s^2), ``max_centripetal_acceleration``
     (m/s^2). Each wheel: ``max_wheel_velocity`` (rad/s), ``max_wheel_acceleration``
     (rad/s^2), and ``max_voltage`` (V) through ``feedforward`` (one ``Feedforward`` for both
-    wheels or ``(left, right)``, on wheel velocities in rad/s).
+    wheels or ``(left, right)``, on wheel velocities in rad/s). ``max_jerk``: the rate of the
+    acceleration along the path (m/s^3; rad/s^3 through a turn in place), from rest to rest.
     """
 
     max_velocity: float | None = None
@@ -51,10 +52,11 @@ class PathLimits:
     max_wheel_velocity: float | None = None
     max_wheel_acceleration: float | None = None
     max_voltage: float | None = None
+    max_jerk: float | None = None
     feedforward: Feedforward | tuple[Feedforward, Feedforward] | None = None
 
     def __post_init__(self) -> None:
-        for name in _NUMBERS:
+        for name in (*_NUMBERS, "max_jerk"):
             value = getattr(self, name)
             if value is not None and (
                 isinstance(value, bool)
@@ -94,8 +96,11 @@ class PathLimits:
 
 
 # The numeric limits in the order of the kernel's indices (``_timing.VMAX`` ... ``VOLTAGE``).
-_NUMBERS = tuple(field.name for field in fields(PathLimits) if field.name != "feedforward")
+_NUMBERS = tuple(
+    field.name for field in fields(PathLimits) if field.name not in ("feedforward", "max_jerk")
+)
 assert len(_NUMBERS) == _timing.VOLTAGE + 1
+_JERK_ROUNDS = 60
 
 
 def _wheel_map(robot: Robot) -> np.ndarray:
@@ -259,30 +264,117 @@ _PROBLEMS = {
 }
 
 
-def _time_run(curve: dict[str, np.ndarray], robot: Robot, limits: PathLimits, where: str):
+def _coefficients(curve: dict[str, np.ndarray], robot: Robot, limits: PathLimits) -> tuple:
+    """The kernel's arrays for a sampled curve: ``(ds, lin, ang, dang, wc, wd, lim, ff)``."""
     wheels = _wheel_map(robot)
-    lin, ang = curve["lin"], curve["ang"]
-    dang = curve["dkappa"]
+    lin, ang, dang = curve["lin"], curve["ang"], curve["dkappa"]
     wc = np.column_stack([lin, ang]) @ wheels.T
     wd = dang[:, None] * wheels[:, 1][None, :]
     ff = np.array(
         [[f.ks, f.kv, f.ka] if f is not None else [0.0, 1.0, 1.0] for f in limits.feedforwards()]
     )
-    ds = np.diff(curve["s"])
-    u = np.zeros(len(lin))
-    status, state = _timing.kernel()(ds, lin, ang, dang, wc, wd, limits.array(), ff, u)
+    return np.diff(curve["s"]), lin, ang, dang, wc, wd, limits.array(), ff
+
+
+def _fastest(arrays: tuple, ceiling: np.ndarray, curve: dict[str, np.ndarray], where: str):
+    """The fastest speeds from rest to rest under the limits and ``ceiling``."""
+    u = np.zeros(len(ceiling))
+    status, state = _timing.kernel()(*arrays, ceiling, u)
     if status != _timing.OK:
         x, y = curve["x"][state], curve["y"][state]
         raise ValueError(
             f"the path cannot be driven within the limits: {_PROBLEMS[status]} "
             f"({where}, at ({x:.3f}, {y:.3f}))"
         )
+    return u
+
+
+def _profile(ds: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each segment's acceleration ``(N-1,)`` and the states' times ``(N,)`` of speeds ``u``."""
     accelerations = (u[1:] ** 2 - u[:-1] ** 2) / (2.0 * ds)
-    durations = 2.0 * ds / (u[1:] + u[:-1])
-    return (
-        u,
-        np.append(accelerations, accelerations[-1]),
-        np.concatenate([[0.0], np.cumsum(durations)]),
+    return accelerations, np.concatenate([[0.0], np.cumsum(2.0 * ds / (u[1:] + u[:-1]))])
+
+
+def _jerks(times: np.ndarray, rates: np.ndarray) -> np.ndarray:
+    """``(N,)``: at each state, how fast the rate of each interval ``rates`` ``(N-1, ...)``
+    changes to the next: over the time between their middles, from rest before the first
+    interval and to rest after the last."""
+    middles = 0.5 * (times[1:] + times[:-1])
+    spans = np.diff(np.concatenate([[times[0]], middles, [times[-1]]]))
+    rest = np.zeros((1, *rates.shape[1:]))
+    change = np.abs(np.diff(np.concatenate([rest, rates, rest]), axis=0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        jerks = change / spans.reshape(-1, *([1] * (rates.ndim - 1)))
+    return np.nan_to_num(jerks, nan=0.0, posinf=0.0)
+
+
+def _smoothed(curve, u, window: float):
+    """The speed profile ``u`` along ``curve`` averaged over ``window`` s in time, from rest
+    to rest: a moving average changes the acceleration by at most its swing over the window,
+    so a window of swing/jerk keeps the jerk limit. Returns the curve resampled at the
+    averaged profile's instants (every ``window / 20`` s, at most 5 ms) and the speeds there."""
+    ds = np.diff(curve["s"])
+    a, times = _profile(ds, u)
+    step = min(window / 20.0, 0.005)  # fine enough for rows a controller steps through
+    t = np.arange(0.0, times[-1] + step, step)
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(ds) - 1)
+    tau = np.minimum(t - times[i], times[i + 1] - times[i])
+    speed = np.maximum(u[i] + a[i] * tau, 0.0)
+    box = round(window / step)
+    padded = np.concatenate([np.zeros(box), speed, np.zeros(box)])
+    total = np.concatenate([[0.0], np.cumsum(padded)])
+    average = (total[box:] - total[:-box]) / box
+    moving = np.flatnonzero(average > 0.0)
+    average = average[moving[0] - 1 : moving[-1] + 2]
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (average[1:] + average[:-1]) * step)])
+    s *= curve["s"][-1] / s[-1]  # the same length to rounding: the average keeps the integral
+    resampled = {key: np.interp(s, curve["s"], values) for key, values in curve.items()}
+    resampled["s"] = s
+    return resampled, average
+
+
+def _time_run(curve: dict[str, np.ndarray], robot: Robot, limits: PathLimits, where: str):
+    """One run's curve (resampled in time with a jerk limit), its speeds, accelerations (held
+    from each state to the next) and times.
+
+    With ``max_jerk`` the fastest profile is averaged over a window in time of its
+    acceleration's swing over the jerk limit (a trapezoid of acceleration wherever the
+    fastest profile switches). The averaged profile is checked against every limit; where it
+    breaks one the fastest profile is capped below it there and averaged again, and where the
+    jerk is still too high (between samples) the window widens."""
+    arrays = _coefficients(curve, robot, limits)
+    ceiling = np.full(len(curve["s"]), np.inf)
+    u = _fastest(arrays, ceiling, curve, where)
+    if limits.max_jerk is None:
+        a, times = _profile(arrays[0], u)
+        return curve, u, np.append(a, a[-1]), times
+    widen = 1.0
+    for _ in range(_JERK_ROUNDS):
+        a = _profile(arrays[0], u)[0]
+        swing = max(float(a.max()), 0.0) - min(float(a.min()), 0.0)
+        window = widen * swing / limits.max_jerk
+        smooth, speed = _smoothed(curve, u, window)
+        checked = _coefficients(smooth, robot, limits)
+        top = np.full(len(speed), np.inf)
+        outside = _timing.checker()(*checked, speed, top)
+        a_new, times = _profile(checked[0], speed)
+        if outside:
+            # Cap the fastest profile below the averaged one where it broke a limit.
+            # The average reaches over a window: lower the fastest profile across it.
+            broken = np.flatnonzero(np.isfinite(top))
+            reach = speed[broken] * window
+            low = np.searchsorted(curve["s"], smooth["s"][broken] - reach)
+            high = np.searchsorted(curve["s"], smooth["s"][broken] + reach, side="right")
+            for start, stop in zip(low, high, strict=True):
+                ceiling[start:stop] = np.minimum(ceiling[start:stop], 0.97 * u[start:stop])
+            u = _fastest(arrays, ceiling, curve, where)
+        elif np.any(_jerks(times, a_new) > limits.max_jerk * (1.0 + 1e-9)):
+            widen *= 1.1
+        else:
+            return smooth, speed, np.append(a_new, a_new[-1]), times
+    raise ValueError(
+        f"the path cannot be driven within the limits: the jerk limit was not met after "
+        f"{_JERK_ROUNDS} rounds ({where})"
     )
 
 
@@ -317,7 +409,7 @@ def plan(
             curve["heading"] += (
                 2.0 * math.pi * round((heading_end - curve["heading"][0]) / (2.0 * math.pi))
             )
-        u, a, times = _time_run(curve, robot, limits, f"run {number} of the path")
+        curve, u, a, times = _time_run(curve, robot, limits, f"run {number} of the path")
         parts["times"].append(start + times)
         parts["poses"].append(np.column_stack([curve["x"], curve["y"], curve["heading"]]))
         parts["speed"].append(u)
@@ -339,7 +431,9 @@ def limit_ratios(
     accelerations are finite differences to the next state (the last repeats), so any
     library's states are judged alike. Keys: ``velocity``, ``acceleration``,
     ``angular_velocity``, ``angular_acceleration``, ``centripetal``, ``wheel_velocity``,
-    ``wheel_acceleration``, ``voltage`` (the worse wheel)."""
+    ``wheel_acceleration``, ``voltage`` (the worse wheel), ``jerk`` (the change of the
+    acceleration along the path, or of a turn in place, over the time between neighbouring
+    intervals, from rest to rest)."""
     t = np.asarray(times, dtype=float)
     twist = np.asarray(twists, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -347,6 +441,12 @@ def limit_ratios(
     rates = np.nan_to_num(np.vstack([rates, rates[-1:]]), nan=0.0, posinf=0.0, neginf=0.0)
     wheels_map = _wheel_map(robot)
     wheels, wheel_rates = twist @ wheels_map.T, rates @ wheels_map.T
+    # Jerk: the change of the acceleration between neighbouring intervals over the time
+    # between their middles; along the path, or of the turn rate where the robot turns in
+    # place (at rest at both ends of an interval).
+    jerks = _jerks(t, rates[:-1])
+    in_place = np.concatenate([[True], (twist[1:, 0] == 0.0) & (twist[:-1, 0] == 0.0)])
+    jerk = np.where(in_place, jerks[:, 1], jerks[:, 0])
     values = {
         "velocity": (np.abs(twist[:, 0]), limits.max_velocity),
         "acceleration": (np.abs(rates[:, 0]), limits.max_acceleration),
@@ -355,6 +455,7 @@ def limit_ratios(
         "centripetal": (np.abs(twist[:, 0] * twist[:, 1]), limits.max_centripetal_acceleration),
         "wheel_velocity": (np.abs(wheels).max(axis=1), limits.max_wheel_velocity),
         "wheel_acceleration": (np.abs(wheel_rates).max(axis=1), limits.max_wheel_acceleration),
+        "jerk": (jerk, limits.max_jerk),
     }
     left, right = limits.feedforwards()
     if left is not None and right is not None:
