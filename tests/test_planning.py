@@ -98,8 +98,8 @@ def test_a_plan_never_exceeds_a_limit(waypoints: list[tuple[float, float, float]
         return
     try:
         result = plan(points, ROBOT, LIMITS)
-    except ValueError as error:  # a spline that loops or has a cusp is refused, by name
-        if "spline" not in str(error):
+    except ValueError as error:  # a spline that loops, has a cusp or all but one: by name
+        if "spline" not in str(error) and "the path's radius there is" not in str(error):
             raise
         return
     # Between states (what a controller stepping through them asks for) ...
@@ -256,7 +256,7 @@ def test_a_jerk_limited_plan_keeps_every_limit_and_the_jerk(waypoints, jerk) -> 
     try:
         result = plan(points, ROBOT, limits)
     except ValueError as error:
-        if "spline" not in str(error):
+        if "spline" not in str(error) and "the path's radius there is" not in str(error):
             raise
         return
     for name, ratio in limit_ratios(result.times, result.twists, ROBOT, limits).items():
@@ -282,3 +282,25 @@ def test_jerk_through_turns_in_place_reverse_and_stops() -> None:
         for ratio in limit_ratios(result.times, result.twists, ROBOT, limits).values():
             assert ratio.max() <= 1 + 1e-9
         assert result.poses[-1, :2] == pytest.approx(np.array(waypoints[-1], float)[:2], abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: plan([(0, 0), (1e12, 0)], ROBOT, LIMITS), "are the waypoints in metres"),
+        (
+            lambda: plan([(0, 0), (5, 5)], ROBOT, PathLimits(max_velocity=1e-9)).to_trajectory(
+                0.02
+            ),
+            "a larger dt",
+        ),
+        (
+            lambda: plan([(0, 0), (5, 5)], ROBOT, dataclasses.replace(LIMITS, max_jerk=1e-6)),
+            "is the jerk limit in m/s",
+        ),
+        (lambda: from_segments((0, 0, 0), [("turn", 1e9)]), "is the angle in radians"),
+    ],
+)
+def test_sizes_that_would_fill_the_memory_are_refused_by_name(make, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        make()

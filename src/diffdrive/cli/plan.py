@@ -69,10 +69,12 @@ def _plan_of(args: argparse.Namespace):
     try:
         return robot, plan(waypoints, robot, limits, reverse=args.reverse, stops=stops)
     except ValueError as error:
-        raise ValueError(
-            f"{args.waypoints}: {error} (waypoints count from 0: waypoint n is on the (n + 2)th "
-            "line, after the header)"
-        ) from None
+        where = (
+            " (waypoints count from 0: waypoint n is on the (n + 2)th line, after the header)"
+            if "waypoint" in str(error)
+            else ""
+        )
+        raise ValueError(f"{args.waypoints}: {error}{where}") from None
 
 
 def run_plan(args: argparse.Namespace) -> int:

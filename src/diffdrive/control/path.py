@@ -32,6 +32,17 @@ __all__ = ["TANGENT_SCALE", "Leg", "from_segments", "from_waypoints"]
 
 TANGENT_SCALE = 1.2  # tangent length over chord length at each waypoint (WPILib's)
 _STEP = 0.02  # m (drive) or rad (turn): the default spacing of samples along a leg
+MOST_SAMPLES = 10_000_000  # samples of one path, or rows of one plan: beyond, refused
+
+
+def check_samples(count: float, what: str, advice: str) -> None:
+    """Refuse ``count`` samples (or rows) of ``what`` beyond ``MOST_SAMPLES``, with ``advice``
+    (the arrays would take gigabytes, and the size is usually a unit gone wrong)."""
+    if not count <= MOST_SAMPLES:
+        raise ValueError(
+            f"{what} would take {count:.3g} samples (at most {MOST_SAMPLES:,}): {advice}"
+        )
+
 
 # Coefficients of t^0..t^5 of the quintic Hermite basis, in the order
 # p0, p0', p0'', p1'', p1', p1.
@@ -205,6 +216,11 @@ def _quintics(points: np.ndarray, step: float, first: int, smooth: bool) -> list
     controls = _controls(points, bends)
     coarse_speed = _geometry(_derivatives(controls, _COARSE_BASIS))[0]
     lengths = np.trapezoid(coarse_speed, _COARSE, axis=-1)
+    check_samples(
+        float(np.sum(lengths)) / step,
+        f"the splines from waypoint {first} ({float(np.sum(lengths)):.4g} m long)",
+        "are the waypoints in metres? A larger step samples fewer",
+    )
     intervals = np.maximum(np.ceil(lengths / step).astype(int), 16)
     counts = intervals + 1  # samples per segment
     segment = np.repeat(np.arange(len(intervals)), counts)
@@ -270,6 +286,7 @@ def _quintics(points: np.ndarray, step: float, first: int, smooth: bool) -> list
 
 def _turn(x: float, y: float, start: float, angle: float, step: float) -> Leg:
     """A turn in place from heading ``start`` by ``angle`` (rad; positive to the left)."""
+    check_samples(abs(angle) / step, f"a turn of {angle:g} rad", "is the angle in radians?")
     count = max(math.ceil(abs(angle) / step), 8)
     s = np.linspace(0.0, abs(angle), count + 1)
     zeros = np.zeros(count + 1)
@@ -406,6 +423,7 @@ def from_segments(
         if length == 0.0:
             raise ValueError(f"{where}: a length of 0 m")
         direction = 1 if length > 0 else -1
+        check_samples(abs(length) / step, where, "is the length in metres?")
         count = max(math.ceil(abs(length) / step), 8)
         s = np.linspace(0.0, abs(length), count + 1)
         tangent0 = heading if direction > 0 else heading + math.pi

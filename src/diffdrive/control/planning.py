@@ -24,7 +24,7 @@ from typing import Any, cast
 import numpy as np
 
 from diffdrive.control import _timing
-from diffdrive.control.path import Leg, from_waypoints
+from diffdrive.control.path import Leg, check_samples, from_waypoints
 from diffdrive.dynamics.voltage import Feedforward
 from diffdrive.model import Robot, check_robot
 from diffdrive.trajectory import Trajectory
@@ -224,6 +224,9 @@ class Plan:
         interval's wheel velocities those at its middle), for the writers and plots."""
         if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+        check_samples(
+            self.duration / dt, f"a plan of {self.duration:.4g} s every {dt} s", "a larger dt"
+        )
         count = max(math.ceil(self.duration / dt), 1)
         times = self.times[0] + np.arange(count + 1) * dt
         middle = self.sample(times[:-1] + 0.5 * dt)["wheel_velocities"]
@@ -281,10 +284,11 @@ def _fastest(arrays: tuple, ceiling: np.ndarray, curve: dict[str, np.ndarray], w
     u = np.zeros(len(ceiling))
     status, state = _timing.kernel()(*arrays, ceiling, u)
     if status != _timing.OK:
-        x, y = curve["x"][state], curve["y"][state]
+        x, y, kappa = curve["x"][state], curve["y"][state], abs(curve["kappa"][state])
+        bend = f"; the path's radius there is {1.0 / kappa:.3g} m" if kappa > 0.0 else ""
         raise ValueError(
             f"the path cannot be driven within the limits: {_PROBLEMS[status]} "
-            f"({where}, at ({x:.3f}, {y:.3f}))"
+            f"({where}, at ({x:.3f}, {y:.3f}){bend})"
         )
     return u
 
@@ -316,6 +320,11 @@ def _smoothed(curve, u, window: float):
     ds = np.diff(curve["s"])
     a, times = _profile(ds, u)
     step = min(window / 20.0, 0.005)  # fine enough for rows a controller steps through
+    check_samples(
+        (times[-1] + 2.0 * window) / step,
+        f"the jerk-limited profile (a window of {window:.4g} s over {times[-1]:.4g} s)",
+        "is the jerk limit in m/s^3?",
+    )
     t = np.arange(0.0, times[-1] + step, step)
     i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(ds) - 1)
     tau = np.minimum(t - times[i], times[i + 1] - times[i])
