@@ -168,3 +168,8 @@ def test_a_delay_between_periods_is_refused_not_rounded() -> None:
         ValueError, match=r"delay must be a whole number of periods dt \(0.02 s\): got 0.05"
     ):
         follow(SHORT, Ramsete(), delay=0.05)
+
+
+def test_a_batch_that_would_fill_the_memory_is_refused() -> None:
+    with pytest.raises(ValueError, match="fewer robots, or a larger dt"):
+        follow(SHORT, Ramsete(), robots=10**6)

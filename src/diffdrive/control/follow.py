@@ -22,6 +22,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive.control.limiter import Limiter
+from diffdrive.control.path import check_samples
 from diffdrive.control.planning import Plan
 from diffdrive.control.tracking import Tracker, first_order
 from diffdrive.evaluation import PathErrors, path_errors
@@ -101,6 +102,11 @@ def follow(
         raise ValueError(
             f"delay must be a whole number of periods dt ({dt} s): got {float(delays[off[0]])} s"
         )
+    check_samples(
+        robots * (plan.duration + settle) / dt,
+        f"{robots} robots over {plan.duration + settle:.4g} s every {dt} s",
+        "fewer robots, or a larger dt",
+    )
     steps = max(math.ceil((plan.duration + settle) / dt), 1)
     times = plan.times[0] + dt * np.arange(steps + 1)
     poses = np.empty((robots, steps + 1, 3))
