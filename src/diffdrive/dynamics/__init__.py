@@ -9,9 +9,11 @@
   same on a drivetrain's linear and angular channels (WPILib's four-constant form);
   ``Feedforward``.
 
-Next: simulation through the model.
+- ``drive``: ``DriveModel`` (either model, or what an identification found) and
+  ``simulate_commands``: commands through the drive to wheel velocities to poses, batched.
 """
 
+from diffdrive.dynamics.drive import DriveModel, simulate_commands
 from diffdrive.dynamics.response import VelocityResponse, identify_velocity_response
 from diffdrive.dynamics.voltage import (
     DrivetrainResponse,
@@ -22,6 +24,7 @@ from diffdrive.dynamics.voltage import (
 )
 
 __all__ = [
+    "DriveModel",
     "DrivetrainResponse",
     "Feedforward",
     "VelocityResponse",
@@ -29,4 +32,5 @@ __all__ = [
     "identify_drivetrain",
     "identify_velocity_response",
     "identify_voltage_response",
+    "simulate_commands",
 ]

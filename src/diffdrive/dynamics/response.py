@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["VelocityResponse", "identify_velocity_response"]
+__all__ = ["VelocityResponse", "held_commands", "identify_velocity_response", "simulate_response"]
 
 _LOG_TAU = (math.log(1e-4), math.log(100.0))  # the time constants searched, s
 
@@ -48,13 +48,13 @@ class VelocityResponse:
         ``commands`` ``(M, W)`` held from ``command_times`` ``(M,)``, from ``initial`` ``(W,)``
         at ``times[0]``."""
         times = np.asarray(times, dtype=float)
-        return _simulate(
+        return simulate_response(
             times, command_times, commands, self.delay, np.asarray(initial, float), self.gain,
             self.time_constant, self.acceleration,
         )  # fmt: skip
 
 
-def _held(command_times, commands, at) -> np.ndarray:
+def held_commands(command_times, commands, at) -> np.ndarray:
     """The commands ``(M, W)`` held from their stamps, at the times ``at``; 0 before the
     first."""
     command_times = np.asarray(command_times, dtype=float)
@@ -64,16 +64,19 @@ def _held(command_times, commands, at) -> np.ndarray:
     return np.where((index >= 0)[:, None], values, 0.0)
 
 
-def _simulate(times, command_times, commands, delay, initial, gain, time_constant, acceleration):
+def simulate_response(
+    times, command_times, commands, delay, initial, gain, time_constant, acceleration
+):
     """The model's wheel velocities ``(N, W)`` at ``times``: integrated exactly between the
     samples and the (delayed) command changes, each piece's command held."""
     changes = np.asarray(command_times, dtype=float) + delay
     inside = (changes > times[0]) & (changes < times[-1])
     events = np.union1d(times, changes[inside])
     at_sample = np.isin(events, times)
-    held = _held(changes, commands, events)  # the command in force from each event on
+    held = held_commands(changes, commands, events)  # the command in force from each event on
     pieces = np.diff(events)
-    keep = np.exp(-pieces / time_constant).tolist()
+    # A time constant of 0: the wheel is at the command at once (as fast as its limit lets).
+    keep = (np.exp(-pieces / time_constant) if time_constant > 0.0 else 0.0 * pieces).tolist()
     limits = (acceleration * pieces).tolist()
     out = np.empty((len(times), held.shape[1]))
     for w in range(held.shape[1]):
@@ -99,7 +102,7 @@ def _fit(times, command, measured, start, acceleration, iterations=30):
 
     def residual(p):
         command_times, commands, delay = command
-        predicted = _simulate(
+        predicted = simulate_response(
             times, command_times, commands, delay, measured[0], p[0], math.exp(p[1]), acceleration
         )
         return (predicted - measured).ravel()
@@ -179,10 +182,12 @@ def identify_velocity_response(
     delays = np.arange(0.0, max_delay + 1e-12, step / 10.0)
     # The delay by the first-order ARX fit's residual (fast), then refined by output error
     # over its neighbours.
-    residuals = [_arx(measured, _held(command_times, commands, times - d))[2] for d in delays]
+    residuals = [
+        _arx(measured, held_commands(command_times, commands, times - d))[2] for d in delays
+    ]
     centre = int(np.argmin(residuals))
     # The sampled ARX sees the delay only to a step: output error over a step either side.
-    gain, keep, _ = _arx(measured, _held(command_times, commands, times - delays[centre]))
+    gain, keep, _ = _arx(measured, held_commands(command_times, commands, times - delays[centre]))
     start = (gain, -step / math.log(keep))
     best = None
     for delay in delays[max(centre - 10, 0) : centre + 11]:

@@ -1,0 +1,162 @@
+"""Dynamic simulation: commands through a drive model to wheel velocities to poses.
+
+``DriveModel`` says how each wheel's velocity (rad/s) answers its command:
+
+- velocity-commanded (no ``feedforward``): the command acts after ``delay`` s, the wheel
+  approaches ``gain`` times it as a first-order lag of ``time_constant`` s (0: at once), its
+  acceleration at most ``max_acceleration`` rad/s^2 (``identify_velocity_response``'s model,
+  integrated by its own exact step between samples and command changes);
+- voltage-driven (a ``Feedforward``): the command is a voltage acting after ``delay`` s, and
+  ``kA dw/dt = V - kS sgn(w) - kV w``, exact within each piece of constant sign; a wheel at
+  rest stays at rest while ``|V| <= kS``, and one whose velocity would cross zero within a
+  step stops there (static friction holds it, or the next step starts it the other way).
+
+``simulate_commands`` drives robots with command histories through the model and integrates
+the wheel velocities (each step's the mean of its ends) by ``diffdrive.simulate``, with its
+backends and methods. Commands ``(..., M, 2)`` give a batch of robots.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from diffdrive._validate import finite
+from diffdrive.dynamics.response import VelocityResponse, held_commands, simulate_response
+from diffdrive.dynamics.voltage import Feedforward, VoltageResponse
+from diffdrive.integrate import Method
+from diffdrive.model import Robot
+from diffdrive.simulation import simulate
+from diffdrive.trajectory import Trajectory
+
+__all__ = ["DriveModel", "simulate_commands"]
+
+
+@dataclass(frozen=True)
+class DriveModel:
+    """How the wheels answer commands (see the module)."""
+
+    delay: float = 0.0
+    time_constant: float = 0.0
+    gain: float = 1.0
+    max_acceleration: float = math.inf
+    feedforward: Feedforward | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("delay", "time_constant"):
+            value = finite(name, getattr(self, name))
+            if value < 0.0:
+                raise ValueError(f"{name} must be >= 0 s, got {value}")
+        finite("gain", self.gain)
+        if not self.max_acceleration > 0.0:
+            raise ValueError(
+                f"max_acceleration must be > 0 (inf: none), got {self.max_acceleration}"
+            )
+        ff = self.feedforward
+        if ff is not None and not (ff.ks >= 0.0 and ff.kv > 0.0 and ff.ka > 0.0):
+            raise ValueError(f"the feedforward needs kS >= 0, kV > 0 and kA > 0, got {ff}")
+
+    @classmethod
+    def from_response(cls, response: VelocityResponse | VoltageResponse) -> DriveModel:
+        """The model an identification found."""
+        if isinstance(response, VoltageResponse):
+            return cls(delay=response.delay, feedforward=response.feedforward)
+        return cls(response.delay, response.time_constant, response.gain, response.acceleration)
+
+    def wheel_velocities(
+        self, times: object, command_times: object, commands: object, initial: object = None
+    ) -> np.ndarray:
+        """The wheels' velocities ``(..., N, 2)`` at ``times`` ``(N,)`` (s, increasing) of
+        robots driven by ``commands`` ``(..., M, 2)`` held from ``command_times`` ``(M,)``
+        (zero before the first), from ``initial`` ``(..., 2)`` (default rest) at
+        ``times[0]``."""
+        t = np.asarray(times, dtype=float)
+        stamps = np.asarray(command_times, dtype=float)
+        values = np.asarray(commands, dtype=float)
+        if t.ndim != 1 or len(t) < 2 or not np.all(np.diff(t) > 0):
+            raise ValueError("times must be 2 or more increasing stamps (s)")
+        if stamps.ndim != 1 or len(stamps) < 1 or np.any(np.diff(stamps) <= 0):
+            raise ValueError("command_times must be increasing stamps (s)")
+        if values.shape[-2:] != (len(stamps), 2):
+            raise ValueError(
+                f"commands must be (..., {len(stamps)}, 2) for {len(stamps)} stamps, got "
+                f"{values.shape}"
+            )
+        if not (
+            np.all(np.isfinite(t)) and np.all(np.isfinite(stamps)) and np.all(np.isfinite(values))
+        ):
+            raise ValueError("times, command_times and commands must be finite")
+        batch = values.shape[:-2]
+        start = (
+            np.zeros((*batch, 2))
+            if initial is None
+            else np.broadcast_to(np.asarray(initial, dtype=float), (*batch, 2))
+        )
+        # Every wheel of every robot is a channel: (M, channels).
+        channels = np.moveaxis(values.reshape(-1, len(stamps), 2), 1, 0).reshape(len(stamps), -1)
+        first = start.reshape(-1)
+        if self.feedforward is None:
+            out = simulate_response(
+                t, stamps, channels, self.delay, first, self.gain, self.time_constant,
+                self.max_acceleration,
+            )  # fmt: skip
+        else:
+            out = self._voltage_driven(t, stamps, channels, first)
+        return np.moveaxis(out.reshape(len(t), -1, 2), 0, 1).reshape((*batch, len(t), 2))
+
+    def _voltage_driven(self, t, stamps, volts, first) -> np.ndarray:
+        ff = self.feedforward
+        assert ff is not None
+        tau = ff.ka / ff.kv
+        out = np.empty((len(t), volts.shape[1]))
+        out[0] = w = first.copy()
+        applied = held_commands(stamps + self.delay, volts, t[:-1])
+        for k, (step, voltage) in enumerate(zip(np.diff(t), applied, strict=True)):
+            direction = np.where(w != 0.0, np.sign(w), np.sign(voltage))
+            stuck = (w == 0.0) & (np.abs(voltage) <= ff.ks)
+            target = (voltage - ff.ks * direction) / ff.kv
+            moved = target + (w - target) * math.exp(-step / tau)
+            # Crossing zero within the step: static friction stops the wheel there.
+            crossed = (w != 0.0) & (np.sign(moved) != direction)
+            w = np.where(stuck | crossed, 0.0, moved)
+            out[k + 1] = w
+        return out
+
+
+def simulate_commands(
+    robot: Robot,
+    model: DriveModel,
+    command_times: object,
+    commands: object,
+    *,
+    dt: float,
+    duration: float | None = None,
+    initial_pose: object = None,
+    initial_wheels: object = None,
+    method: Method = "exact",
+) -> Trajectory:
+    """Robots driven by wheel ``commands`` ``(..., M, 2)`` (rad/s, or V through a voltage
+    model) held from ``command_times`` ``(M,)`` through ``model``, sampled every ``dt`` s for
+    ``duration`` s (default: to the last command plus the delay and five time constants)
+    from the first command's stamp; a ``Trajectory`` whose wheel velocities are each step's
+    mean."""
+    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    stamps = np.asarray(command_times, dtype=float)
+    if stamps.ndim != 1 or len(stamps) < 1:
+        raise ValueError("command_times must be one or more stamps (s)")
+    if duration is None:
+        settle = (
+            model.time_constant
+            if model.feedforward is None
+            else (model.feedforward.ka / model.feedforward.kv)
+        )
+        duration = float(stamps[-1] - stamps[0]) + model.delay + 5.0 * settle + dt
+    steps = max(math.ceil(finite("duration", duration) / dt), 1)
+    times = stamps[0] + dt * np.arange(steps + 1)
+    wheels = model.wheel_velocities(times, stamps, commands, initial_wheels)
+    means = 0.5 * (wheels[..., 1:, :] + wheels[..., :-1, :])
+    trajectory = simulate(robot, means, dt=dt, initial_pose=initial_pose, method=method)
+    return Trajectory(robot, times, trajectory.poses, means, method)  # type: ignore[arg-type]
