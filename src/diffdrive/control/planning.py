@@ -5,7 +5,9 @@ by a forward-backward pass (``diffdrive.control._timing``) so that at every stat
 speed and acceleration, the angular velocity and acceleration, the centripetal acceleration,
 and **each wheel's** velocity, acceleration (with its ``v^2 dkappa/ds`` part) and, given a
 feedforward, voltage stay within ``PathLimits``. The robot starts and ends at rest, and halts
-wherever the path says (a stop, a change of direction, a turn in place).
+wherever the path says (a stop, a change of direction, a turn in place). With ``max_jerk``
+the fastest profile is averaged over a window in time (``_time_run``) and the plan's states
+are then instants a few milliseconds apart rather than the path's samples.
 
 ``Plan`` holds the states; ``Plan.sample(t)`` gives pose, twist, curvature, wheel velocities
 and accelerations at any time (constant acceleration between states, as the pass assumed);
