@@ -244,6 +244,10 @@ def test_the_command_line_takes_a_gyro_column_and_writes_slip_columns(tmp_path, 
     table = np.genfromtxt(out, delimiter=",", names=True)
     assert set(table.dtype.names) >= {"slip", "slip_score", "gyro_bias"}
     assert table["slip"][1:][slip].mean() > 0.9
+    alone = tmp_path / "alone.csv"
+    assert main([*argv[:-1], str(alone), "--slip-test", "interval", "-q"]) == 0
+    flags = np.genfromtxt(alone, delimiter=",", names=True)["slip"].astype(bool)
+    assert not np.any(flags & ~table["slip"].astype(bool))  # the episodes add, never take
     plain = tmp_path / "plain.csv"
     plain.write_text("t,left_angle,right_angle\n0,0,0\n1,1,1\n")
     assert main(["odometry", str(plain), "--heading", "fused", "-o", str(out)]) == 1

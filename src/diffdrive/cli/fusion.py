@@ -129,6 +129,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str) -> int
         "turn_scale_sigma": args.turn_scale_sigma or 0.0,
         "gate": args.gate,
         "method": args.method,
+        "slip_test": args.slip_test,
     }
     if args.gyro_bias is not None:
         options["bias"] = args.gyro_bias

@@ -89,6 +89,7 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     options = {
         "k_left": 1e-4 if args.k_left is None else args.k_left,
         "k_right": 1e-4 if args.k_right is None else args.k_right,
+        "slip_test": args.slip_test,
     }
     result = gyro_odometry(
         robot,
@@ -214,6 +215,13 @@ def add_to(command: Command, parents: Parents) -> None:
         type=float,
         metavar="RAD_S",
         help="the gyro's bias (default: its mean while the wheels stand still)",
+    )
+    gyro.add_argument(
+        "--slip-test",
+        choices=("episodes", "interval"),
+        default="episodes",
+        help="flag each interval whose wheel and gyro turns disagree (interval), and also "
+        "the runs of intervals one slipping wheel explains (episodes, the default)",
     )
     gyro.add_argument(
         "--command-topic",

@@ -5,7 +5,7 @@
 - ``fusion``: ``PoseEstimator``, one extended Kalman filter for wheels, a gyro and absolute
   measurements that arrive late (``measurements``: ``Measurement``), on ``filter``'s step;
 - ``smoother``: ``estimate_trajectory``, a whole log forward and a Rauch-Tung-Striebel smoother
-  back;
+  back, with the slip ``episodes`` a whole log shows;
 - ``imu``: ``Gyro`` streams and an IMU's mounting;
 - ``gyro``: ``gyro_odometry`` (the estimator over a log with a gyro, for slip
   studies) and ``GyroOdometry`` (the estimator behind a per-interval ``update``).

@@ -103,6 +103,7 @@ class EstimatorCore:
         self._settled = [0, 0]  # accepted, rejected: measurements that left the history
         self._last = (False, 0.0, 0.0)  # slip, slip score, command score
         self._smoother = False  # keep each interval's smoother steps (estimate_trajectory)
+        self._forced = False  # flag the next interval as slipping (estimate_trajectory)
 
     # -- what the Python class reads ------------------------------------------------------
 
@@ -234,7 +235,7 @@ class EstimatorCore:
             miss = (dl / dt - wanted.left, dr / dt - wanted.right)
             sigma2 = self._command_sigma * self._command_sigma
             command_score = (miss[0] * miss[0] + miss[1] * miss[1]) / sigma2
-        forced = command_score > ekf.COMMAND_THRESHOLD
+        forced = command_score > ekf.COMMAND_THRESHOLD or self._forced
         interval = Interval(previous, now, (dl, dr), gyro, forced, (self._state, self._P))
         due = [m for m in self._pending if m.t <= now]
         interval.measurements = sorted(due, key=lambda m: m.order)

@@ -71,9 +71,12 @@ class Step:
     gain: np.ndarray
 
 
-def slip_score(c: Config, x: np.ndarray, P: np.ndarray, dl: float, dr: float, g: float, dt: float):
-    """The wheels' turn against the gyro's over one interval, squared over its variance:
-    chi-square with one degree of freedom while neither slips."""
+def slip_innovation(
+    c: Config, x: np.ndarray, P: np.ndarray, dl: float, dr: float, g: float, dt: float
+) -> tuple[float, float, float, float]:
+    """The wheels' turn less the gyro's over one interval (rad), its variance while neither
+    wheel slips (rad^2), and how far it moves per unit of the left and the right wheel's slip
+    fraction (``ratio / (1 + ratio)``: the share of the measured turn the ground did not make)."""
     r_l, r_r, track, offset = c.drive
     wheel_turn = wheel_move(r_l, r_r, track, offset, dl, dr)[2]
     scale = x[SCALE]
@@ -86,6 +89,13 @@ def slip_score(c: Config, x: np.ndarray, P: np.ndarray, dl: float, dr: float, g:
         + wheel_turn * wheel_turn * P[SCALE, SCALE]
         + 1e-18
     )
+    return innovation, variance, -scale * r_l * dl / track, scale * r_r * dr / track
+
+
+def slip_score(c: Config, x: np.ndarray, P: np.ndarray, dl: float, dr: float, g: float, dt: float):
+    """The wheels' turn against the gyro's over one interval, squared over its variance:
+    chi-square with one degree of freedom while neither slips."""
+    innovation, variance, _, _ = slip_innovation(c, x, P, dl, dr, g, dt)
     return innovation * innovation / variance
 
 

@@ -106,7 +106,8 @@ def gyro_odometry(
     and the ``gyro``, integrated over each interval. ``bias`` (rad/s) defaults to the gyro's
     mean rate while the wheels stand still (refused for ``"gyro"`` when they never do; 0 for
     ``"fused"``, which estimates it). ``commanded`` ``(N-1, 2)`` rad/s, if given, are the
-    wheel velocities commanded over each interval. ``options`` go to ``GyroOdometry``."""
+    wheel velocities commanded over each interval. ``options`` go to ``GyroOdometry``, but
+    ``slip_test`` (``"episodes"``, the default, or ``"interval"``) to ``estimate_trajectory``."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     if times.ndim != 1:

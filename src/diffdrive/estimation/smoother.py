@@ -6,6 +6,9 @@ the Rauch-Tung-Striebel smoother (Rauch, Tung and Striebel, AIAA Journal 3(8), 1
 filter's linearisation, the state before each interval moved by the gain ``C`` times the
 smoothed correction after it (``diffdrive.estimation.filter.Step``). Every estimate then uses
 every measurement, before and after it.
+
+With a gyro, the whole log also finds slip episodes the per-interval test misses
+(``diffdrive.estimation.episodes``) and runs forward again with them flagged as slipping.
 """
 
 from __future__ import annotations
@@ -16,10 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive.estimation import filter as ekf
+from diffdrive.estimation.episodes import steady_episodes
 from diffdrive.estimation.fusion import PythonPoseEstimator, _body_covariance, _body_pose
 from diffdrive.estimation.imu import Gyro
 from diffdrive.estimation.measurements import Measurement
 from diffdrive.model import Robot
+
+SLIP_TESTS = ("episodes", "interval")
 
 __all__ = ["Estimate", "estimate_trajectory", "measurements_of"]
 
@@ -104,13 +110,17 @@ def estimate_trajectory(
     initial_covariance: object = None,
     smooth: bool = True,
     commanded: object = None,
+    slip_test: str = "episodes",
     **options,
 ) -> Estimate:
     """A whole log: wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s,
     the ``gyro`` (needed unless ``heading`` is ``"wheels"``), absolute ``measurements``
     stamped inside ``[times[0], times[-1]]``, and ``commanded`` wheel velocities ``(N-1, 2)``
     rad/s if known. ``options`` go to ``PoseEstimator``. With ``smooth``, the smoothed
-    estimate; else the filter's."""
+    estimate; else the filter's. ``slip_test``: ``"episodes"`` flags, besides the intervals
+    the streaming test flags, the runs of intervals that one slipping wheel explains
+    (``diffdrive.estimation.episodes``; the log then runs again with them flagged);
+    ``"interval"`` only the streaming test's."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     if times.ndim != 1 or len(times) < 2:
@@ -136,7 +146,60 @@ def estimate_trajectory(
                 f"{m.kind} measurement at t = {m.t!r} s lies outside the log "
                 f"[{times[0]!r}, {times[-1]!r}] s"
             )
+    if slip_test not in SLIP_TESTS:
+        raise ValueError(f"slip_test must be one of {SLIP_TESTS}, got {slip_test!r}")
     options.setdefault("history", float("inf"))
+    log = (robot, heading, initial_pose, initial_covariance, times, increments, turned, wanted)
+    estimator, states, covariances, slips, scores = _forward(log, ordered, smooth, options)
+    forced = None
+    # Again with the episodes' wheel turns left out, and once more if what they had pulled
+    # into the estimate (the bias, in a fused heading) moved the episodes found.
+    for _ in range(2 if slip_test == "episodes" and turned is not None else 0):
+        found = _episodes(estimator)
+        if forced is None and not np.any(found & ~slips[1:]):
+            break
+        if forced is not None and np.array_equal(found, forced):
+            break
+        forced = found
+        estimator, states, covariances, slips, scores = _forward(
+            log, ordered, smooth, options, forced
+        )
+    intervals = estimator._intervals
+    outcomes = [o for i in intervals for o in i.outcomes]
+    accepted = np.array([ok for ok, _ in outcomes], dtype=bool)
+    distances = np.array([score for _, score in outcomes])
+    head = ordered[: len(ordered) - len(outcomes)]  # applied at the start
+    if head:
+        accepted = np.concatenate([np.ones(len(head), dtype=bool), accepted])
+        distances = np.concatenate([np.zeros(len(head)), distances])
+    if smooth:
+        states, covariances = _smooth(intervals, states[-1], covariances[-1], len(times))
+    offset = robot.reference_offset
+    poses = np.array([_body_pose(x, offset).to_array() for x in states])
+    pose_covariances = np.array(
+        [_body_covariance(x, P, offset) for x, P in zip(states, covariances, strict=True)]
+    )
+    return Estimate(
+        times,
+        poses,
+        pose_covariances,
+        states,
+        covariances,
+        slips,
+        scores,
+        tuple(ordered),
+        accepted,
+        distances,
+        smooth,
+        heading,
+    )
+
+
+def _forward(log, ordered: list[Measurement], smooth: bool, options: dict, forced=None):
+    """One pass forward: the estimator (its history whole) and per row the state, covariance,
+    slip flag and score; ``forced`` ``(N-1,)`` flags intervals as slipping whatever their
+    score."""
+    robot, heading, initial_pose, initial_covariance, times, increments, turned, wanted = log
     estimator = PythonPoseEstimator(  # the Python core keeps the smoother's records
         robot,
         heading,
@@ -159,6 +222,7 @@ def estimate_trajectory(
         last = first
         while last < len(ordered) and ordered[last].t <= times[k]:
             last += 1
+        estimator._forced = forced is not None and bool(forced[k - 1])
         estimator._pending = ordered[first:last]  # applied inside this interval, at their stamps
         first = last
         try:
@@ -174,34 +238,33 @@ def estimate_trajectory(
             raise ValueError(f"{where}: {exc}") from None
         states[k], covariances[k] = estimator.state, estimator.state_covariance
         slips[k], scores[k] = estimator.slip, estimator.slip_score
-    intervals = estimator._intervals
-    outcomes = [o for i in intervals for o in i.outcomes]
-    accepted = np.array([ok for ok, _ in outcomes], dtype=bool)
-    distances = np.array([score for _, score in outcomes])
-    head = ordered[: len(ordered) - len(outcomes)]  # applied at the start
-    if head:
-        accepted = np.concatenate([np.ones(len(head), dtype=bool), accepted])
-        distances = np.concatenate([np.zeros(len(head)), distances])
-    if smooth:
-        states, covariances = _smooth(intervals, states[-1], covariances[-1], n)
-    offset = robot.reference_offset
-    poses = np.array([_body_pose(x, offset).to_array() for x in states])
-    pose_covariances = np.array(
-        [_body_covariance(x, P, offset) for x, P in zip(states, covariances, strict=True)]
-    )
-    return Estimate(
-        times,
-        poses,
-        pose_covariances,
-        states,
-        covariances,
-        slips,
-        scores,
-        tuple(ordered),
-        accepted,
-        distances,
-        smooth,
-        heading,
+    return estimator, states, covariances, slips, scores
+
+
+def _episodes(estimator: PythonPoseEstimator) -> np.ndarray:
+    """``steady_episodes`` over the forward pass's intervals, each from its start state."""
+    c = estimator.config
+    r_l, r_r, track, _ = c.drive
+    rows = []
+    for i in estimator._intervals:
+        innovation, variance, by_left, by_right = ekf.slip_innovation(
+            c, *i.start, *i.wheels, i.gyro, i.t1 - i.t0
+        )
+        scale = i.start[0][ekf.SCALE]
+        wheel_noise = (c.k[0] * abs(r_l * i.wheels[0]), c.k[1] * abs(r_r * i.wheels[1]))
+        rows.append(
+            (innovation, by_left, by_right, i.t1 - i.t0, *wheel_noise, scale * scale, variance)
+        )
+    table = np.array(rows)
+    deviation = np.sqrt(table[:, -1])
+    shared = table[:, 4:6] * (table[:, 6] / (track * track * table[:, -1]))[:, None]
+    flagged = np.array([i.slip for i in estimator._intervals], dtype=bool)
+    return steady_episodes(
+        table[:, 0] / deviation,
+        table[:, 1:3] / deviation[:, None],
+        flagged,
+        table[:, 3] / deviation,
+        shared,
     )
 
 

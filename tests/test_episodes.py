@@ -1,0 +1,90 @@
+"""Slip episodes: the optimal partition against exhaustive search, and what it finds."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import diffdrive as dd
+from diffdrive.estimation import Gyro, estimate_trajectory
+from diffdrive.estimation.episodes import (
+    EDGE_COST,
+    EPISODE_PENALTY,
+    episode_ratio,
+    partition,
+    slip_episodes,
+)
+
+
+def gain(scaled, directions, episodes, penalty, cost):
+    return sum(
+        episode_ratio(scaled[a:b], directions[a:b]) - penalty - cost * (b - a) for a, b in episodes
+    )
+
+
+def exhaustive(scaled, directions, penalty, cost, longest):
+    """The best summed gain over every set of disjoint runs of at most ``longest``."""
+    n = len(scaled)
+    runs = [(a, b) for a in range(n) for b in range(a + 1, min(n, a + longest) + 1)]
+    best = 0.0
+    for count in range(1, n + 1):
+        for chosen in itertools.combinations(runs, count):
+            ends = sorted(chosen)
+            if all(ends[i][1] <= ends[i + 1][0] for i in range(len(ends) - 1)):
+                best = max(best, gain(scaled, directions, ends, penalty, cost))
+    return best
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-6, 6), min_size=1, max_size=6),
+    st.lists(st.floats(-2, 2), min_size=12, max_size=12),
+    st.floats(0.5, 12),
+    st.floats(0.0, 2.0),
+    st.integers(1, 6),
+)
+def test_the_partition_is_the_best_of_all(values, weights, penalty, cost, longest):
+    scaled = np.array(values)
+    directions = np.array(weights[: 2 * len(values)]).reshape(-1, 2)
+    found = partition(scaled, directions, penalty, cost, longest)
+    assert all(0 < b - a <= longest for a, b in found)
+    assert all(found[i][1] <= found[i + 1][0] for i in range(len(found) - 1))
+    best = exhaustive(scaled, directions, penalty, cost, longest)
+    assert gain(scaled, directions, found, penalty, cost) == pytest.approx(best, rel=1e-9, abs=1e-9)
+
+
+def test_one_interval_alone_is_flagged_when_its_square_passes_the_penalty():
+    directions = np.array([[1.0, -1.0]])
+    root = (EPISODE_PENALTY + EDGE_COST) ** 0.5
+    assert not slip_episodes(np.array([root - 0.1]), directions).any()
+    assert slip_episodes(np.array([-(root + 0.1)]), directions).all()
+
+
+def test_a_weak_persistent_slip_is_found_whole_and_noise_is_not():
+    rng = np.random.default_rng(5)
+    n = 4000
+    directions = np.tile([-1.0, 0.8], (n, 1))
+    scaled = rng.standard_normal(n)
+    assert not slip_episodes(scaled, directions).any()
+    # 20 intervals whose left wheel turns 3 standard deviations too far: each interval alone
+    # passes the streaming test (3.29 standard deviations) about half the time
+    scaled[1000:1020] += -3.0
+    flagged = slip_episodes(scaled, directions)
+    assert flagged[1000:1020].all()
+    assert np.count_nonzero(flagged) <= 22
+
+
+def test_a_slip_test_that_does_not_exist_is_refused_by_name():
+    t = np.arange(4) * 0.1
+    with pytest.raises(ValueError, match="slip_test must be one of"):
+        estimate_trajectory(
+            dd.DiffDrive(0.05, 0.3),
+            t,
+            np.ones((3, 2)),
+            gyro=Gyro(t, np.zeros(4)),
+            slip_test="window",
+        )
