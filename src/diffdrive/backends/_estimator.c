@@ -49,8 +49,8 @@ typedef struct {
     /* configuration */
     double r_l, r_r, track, axle, weight;
     int chord, heading, est_bias, est_scale;
-    int active; /* the states estimated: x, y, theta, then bias and scale as configured */
     double k_l, k_r, arw2, rrw2, slip_thr, slip_infl, command_sigma;
+    double k_per_r_l, k_per_r_r; /* k / r of each wheel: its angle noise's variance per rad */
     double gate[4], offset, history, ahead, mount[3];
     /* state */
     double x[N], P[NN];
@@ -66,6 +66,13 @@ typedef struct {
     double slip_score, command_score;
 } Est;
 
+/* Inlined wherever called: advance_n then has a constant n in each of its callers. */
+#if defined(__GNUC__) || defined(__clang__)
+#define ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE inline
+#endif
+
 /* -- the maths of filter.py ------------------------------------------------------------- */
 
 static double wrap(double a) {
@@ -74,8 +81,9 @@ static double wrap(double a) {
 }
 
 /* _step.move_jacobians */
-static void move_jacobians(double forward, double offset, double turn, double weight, int chord,
-                           double heading, double *dx, double *dy, double bf[2], double bt[2]) {
+static ALWAYS_INLINE void
+move_jacobians(double forward, double offset, double turn, double weight, int chord, double heading,
+               double *dx, double *dy, double bf[2], double bt[2]) {
     double angle = heading + weight * turn, ca = cos(angle), sa = sin(angle);
     double sideways = offset * turn;
     double gx = ca * forward - sa * sideways, gy = sa * forward + ca * sideways;
@@ -103,14 +111,18 @@ static double slip_score(const Est *e, const double *x, const double *P, double 
     return innovation * innovation / variance;
 }
 
-/* filter.advance without the smoother's record: x, P (in) to xo, Po (out). */
-static void advance(const Est *e, const double *x, const double *P, double dl, double dr, double g,
-                    double dt, int slip, double *xo, double *Po) {
+/* filter.advance without the smoother's record, in place on x and P, for n estimated states
+ * (3: the pose; 4: and the bias; 5: and the scale). The states that are not estimated have
+ * zero rows and columns in P and keep them, untouched. Always inlined into advance with n a
+ * constant, so every loop has fixed bounds the compiler unrolls. */
+static ALWAYS_INLINE void
+advance_n(const Est *e, double *x, double *P, double dl, double dr, double g, double dt, int slip,
+          const int n) {
     double left = e->r_l * dl, right = e->r_r * dr;
     double wheel_turn = (right - left) / e->track, forward = 0.5 * (left + right);
     double scale = x[SCALE], inflation = slip ? e->slip_infl : 1.0;
-    double noise[3] = {inflation * e->k_l * fabs(e->r_l * dl) / (e->r_l * e->r_l),
-                       inflation * e->k_r * fabs(e->r_r * dr) / (e->r_r * e->r_r),
+    /* k |r dl| / r^2 = (k / r) |dl|: the radii are positive (checked in __init__) */
+    double noise[3] = {inflation * e->k_per_r_l * fabs(dl), inflation * e->k_per_r_r * fabs(dr),
                        e->heading != WHEELS ? e->arw2 * dt : 0.0};
     double bnf[3] = {0.5 * e->r_l, 0.5 * e->r_r, 0.0}, bnt[3], bst[N] = {0};
     double turn;
@@ -128,101 +140,85 @@ static void advance(const Est *e, const double *x, const double *P, double dl, d
     }
     double dx, dy, bf[2], bt[2];
     move_jacobians(forward, e->axle, turn, e->weight, e->chord, x[2], &dx, &dy, bf, bt);
-    double F[NN] = {0}, G[N * 3] = {0};
-    for (int i = 0; i < N; ++i) F[i * N + i] = 1.0;
-    F[0 * N + 2] = -dy;
-    F[1 * N + 2] = dx;
-    for (int j = 0; j < N; ++j) {
-        F[0 * N + j] += bt[0] * bst[j];
-        F[1 * N + j] += bt[1] * bst[j];
-        F[2 * N + j] += bst[j];
-    }
+    /* A = F - I is zero but for columns 2 to 4 of rows 0 to 2, and G is zero below row 2:
+     * FP = P + A P and moved = FP F^T + G Q G^T over those entries only (a column of A past n
+     * meets a zero row of P: it adds an exact zero). */
+    double A[3][3] = {{-dy, bt[0] * bst[BIAS], bt[0] * bst[SCALE]},
+                      {dx, bt[1] * bst[BIAS], bt[1] * bst[SCALE]},
+                      {0.0, bst[BIAS], bst[SCALE]}}; /* columns 2, 3, 4 */
+    double G[3][3], GQ[3][3];
     for (int i = 0; i < 3; ++i) {
-        G[0 * 3 + i] = bf[0] * bnf[i] + bt[0] * bnt[i];
-        G[1 * 3 + i] = bf[1] * bnf[i] + bt[1] * bnt[i];
-        G[2 * 3 + i] = bnt[i];
+        G[0][i] = bf[0] * bnf[i] + bt[0] * bnt[i];
+        G[1][i] = bf[1] * bnf[i] + bt[1] * bnt[i];
+        G[2][i] = bnt[i];
     }
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) GQ[i][k] = G[i][k] * noise[k];
     double after[N];
     memcpy(after, x, sizeof after);
     after[0] += dx;
     after[1] += dy;
     after[2] += turn;
-    /* F is the identity but for columns 2 to 4 of rows 0 to 2, and G is zero below row 2:
-     * FP = P + A P and moved = FP F^T + G Q G^T over those entries only. The states that are
-     * not estimated (n and on) have zero rows and columns in P, and keep them: the loops stop
-     * at n, which changes no sum (what they leave out is exactly zero). */
-    const int n = e->active;
-    double FP[NN], moved[NN] = {0}, GQ[N * 3];
-    int cols[3] = {2}, ncols = 1; /* the columns of A = F - I that are not all zero */
-    for (int k = 3; k < n; ++k)
-        if (bst[k] != 0.0) cols[ncols++] = k;
+    double FP[NN], moved[NN];
     memcpy(FP, P, sizeof FP);
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < n; ++j) {
-            double sum = 0.0;
-            for (int c = 0; c < ncols; ++c) {
-                int k = cols[c];
-                sum += (F[i * N + k] - (i == k)) * P[k * N + j];
-            }
-            FP[i * N + j] += sum;
-        }
-    for (int i = 0; i < 3; ++i)
-        for (int k = 0; k < 3; ++k) GQ[i * 3 + k] = G[i * 3 + k] * noise[k];
-    for (int i = 3; i < N; ++i) GQ[i * 3] = GQ[i * 3 + 1] = GQ[i * 3 + 2] = 0.0;
+        for (int j = 0; j < n; ++j)
+            FP[i * N + j] += A[i][0] * P[2 * N + j] + A[i][1] * P[3 * N + j] +
+                             A[i][2] * P[4 * N + j];
     /* moved is symmetric: its upper triangle, mirrored */
     for (int i = 0; i < n; ++i)
         for (int j = i; j < n; ++j) {
             double sum = FP[i * N + j];
             if (j < 3) {
-                for (int c = 0; c < ncols; ++c) {
-                    int k = cols[c];
-                    sum += FP[i * N + k] * (F[j * N + k] - (j == k));
-                }
-                if (i < 3)
-                    for (int k = 0; k < 3; ++k) sum += GQ[i * 3 + k] * G[j * 3 + k];
+                sum += FP[i * N + 2] * A[j][0] + FP[i * N + 3] * A[j][1] + FP[i * N + 4] * A[j][2];
+                if (i < 3) sum += GQ[i][0] * G[j][0] + GQ[i][1] * G[j][1] + GQ[i][2] * G[j][2];
             }
             moved[i * N + j] = moved[j * N + i] = sum;
         }
     if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
     if (!(e->heading == FUSED && !slip)) {
-        memcpy(xo, after, sizeof after);
-        memcpy(Po, moved, sizeof moved);
+        memcpy(x, after, sizeof after);
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) P[i * N + j] = moved[i * N + j];
         return;
     }
     /* The wheels measure the turn over the scale, less their own noise. On the joint of
      * (state after, state before, noises), [[moved, FP, GQ], [FP^T, P, 0], [GQ^T, 0, Q]], with
-     * H = (h_after, h_before, h_noise): its spread along H, block by block. */
-    double h1[N] = {0}, h0[N] = {0}, hn[3] = {e->r_l / e->track, -e->r_r / e->track, 0.0};
-    h1[2] = 1.0 / scale;
-    h1[SCALE] = -turn / (scale * scale);
-    h0[2] = -1.0 / scale;
+     * H = (h_after, h_before, h_noise): its spread along H, block by block. h_after is zero
+     * but at the heading and the scale, h_before but at the heading. */
+    const double h2 = 1.0 / scale, h4 = e->est_scale ? -turn / (scale * scale) : 0.0;
+    const double hn[3] = {e->r_l / e->track, -e->r_r / e->track, 0.0};
     double spread[N] = {0}, before[N] = {0}, s = 0.0;
     for (int i = 0; i < n; ++i) {
-        double sum = 0.0, back = 0.0;
-        for (int k = 0; k < n; ++k) {
-            sum += moved[i * N + k] * h1[k] + FP[i * N + k] * h0[k];
-            back += FP[k * N + i] * h1[k] + P[i * N + k] * h0[k];
-        }
-        for (int k = 0; k < 3; ++k) sum += GQ[i * 3 + k] * hn[k];
+        double sum = moved[i * N + 2] * h2 - FP[i * N + 2] * h2;
+        if (n == 5) sum += moved[i * N + 4] * h4; /* moved is only filled up to n */
+        if (i < 3) sum += GQ[i][0] * hn[0] + GQ[i][1] * hn[1];
         spread[i] = sum;
-        before[i] = back;
+        before[i] = FP[2 * N + i] * h2 + FP[4 * N + i] * h4 - P[i * N + 2] * h2;
     }
-    for (int i = 0; i < n; ++i) s += h1[i] * spread[i] + h0[i] * before[i];
-    for (int k = 0; k < 3; ++k) {
-        double sum = noise[k] * hn[k];
-        for (int i = 0; i < 3; ++i) sum += GQ[i * 3 + k] * h1[i];
-        s += hn[k] * sum;
-    }
+    s = h2 * spread[2] + h4 * spread[4] - h2 * before[2];
+    for (int k = 0; k < 2; ++k)
+        s += hn[k] * (noise[k] * hn[k] + GQ[2][k] * h2);
     s += 1e-18;
-    double innovation = wheel_turn - turn / scale;
-    for (int i = 0; i < N; ++i) xo[i] = after[i] + spread[i] / s * innovation;
-    memset(Po, 0, sizeof(double) * NN);
+    /* one division: the gains spread / s (moved is exactly symmetric, so Po is too) */
+    double innovation = wheel_turn - turn * h2, inverse = 1.0 / s, gains[N];
+    for (int i = 0; i < N; ++i) {
+        gains[i] = spread[i] * inverse;
+        x[i] = after[i] + gains[i] * innovation;
+    }
     for (int i = 0; i < n; ++i)
-        for (int j = i; j < n; ++j) {
-            double a = moved[i * N + j] - spread[i] / s * spread[j];
-            double b = moved[j * N + i] - spread[j] / s * spread[i];
-            Po[i * N + j] = Po[j * N + i] = 0.5 * (a + b);
-        }
+        for (int j = i; j < n; ++j)
+            P[i * N + j] = P[j * N + i] = moved[i * N + j] - gains[i] * spread[j];
+}
+
+static void advance(const Est *e, double *x, double *P, double dl, double dr, double g, double dt,
+                    int slip) {
+    if (e->est_scale)
+        advance_n(e, x, P, dl, dr, g, dt, slip, 5);
+    else if (e->est_bias)
+        advance_n(e, x, P, dl, dr, g, dt, slip, 4);
+    else
+        advance_n(e, x, P, dl, dr, g, dt, slip, 3);
 }
 
 /* Cholesky of a k x k (k <= 3) matrix into L (lower); -1 unless positive definite. */
@@ -384,12 +380,11 @@ static void slice_of(const Est *e, Py_ssize_t i, Py_ssize_t *lo, Py_ssize_t *hi)
     *hi = first_after(e, e->iv[i].t1, 0);
 }
 
-/* Run interval iv from its start over the measurements m[0..nm) (sorted), to its end (record:
- * the slip test and the outcomes kept) or to stop (recording nothing). */
+/* Run interval iv over the measurements m[0..nm) (sorted), to its end (record: the slip test
+ * and the outcomes kept) or to stop (recording nothing): x, P hold its start state (iv->x,
+ * iv->P) on the way in, the state at the end on the way out. */
 static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int record,
                          double stop, double *x, double *P) {
-    memcpy(x, iv->x, sizeof iv->x);
-    memcpy(P, iv->P, sizeof iv->P);
     double duration = iv->t1 - iv->t0;
     if (record) {
         if (isnan(iv->g)) {
@@ -404,14 +399,11 @@ static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int
     Py_ssize_t j = 0;
     for (;;) {
         double cut = (j < nm && m[j].t <= end) ? m[j].t : end;
-        double share = duration > 0.0 ? (cut - iv->t0) / duration : 1.0, part = share - done;
-        if (cut > t) {
-            double xn[N], Pn[NN];
-            advance(e, x, P, part * iv->dl, part * iv->dr, part * iv->g, cut - t, iv->slip, xn,
-                    Pn);
-            memcpy(x, xn, sizeof xn);
-            memcpy(P, Pn, sizeof Pn);
-        }
+        /* at the end, the share is 1 (what the division gives there too, exactly) */
+        double share = cut == iv->t1 || !(duration > 0.0) ? 1.0 : (cut - iv->t0) / duration;
+        double part = share - done;
+        if (cut > t)
+            advance(e, x, P, part * iv->dl, part * iv->dr, part * iv->g, cut - t, iv->slip);
         done = share;
         t = cut;
         while (j < nm && m[j].t <= cut) {
@@ -734,6 +726,8 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
             tail[at] = e->pend[i];
         }
     double x[N], P[NN];
+    memcpy(x, iv.x, sizeof x);
+    memcpy(P, iv.P, sizeof P);
     run_interval(e, &iv, tail, due, 1, 0.0, x, P);
     if (!finite_state(x, P)) {
         int restored = odometry_restore(e->wheels, saved);
@@ -1045,6 +1039,8 @@ static PyObject *pose_at(Est *e, PyObject *arg) {
         Py_ssize_t a, b;
         slice_of(e, lo, &a, &b);
         Interval copy = e->iv[lo];
+        memcpy(x, copy.x, sizeof x);
+        memcpy(P, copy.P, sizeof P);
         run_interval(e, &copy, e->ms + a, b - a, 0, t, x, P);
     }
     return Py_BuildValue("(NN)", tuple_of(x, N), tuple_of(P, NN));
@@ -1079,7 +1075,8 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
         return -1;
     }
     /* METHODS: euler, rk2, exact (_step.METHOD_FLAGS) */
-    e->active = e->est_scale ? 5 : (e->est_bias ? 4 : 3);
+    e->k_per_r_l = e->k_l / e->r_l; /* the Python class has checked the radii are > 0 */
+    e->k_per_r_r = e->k_r / e->r_r;
     e->weight = method == 0 ? 0.0 : 0.5;
     e->chord = method == 2;
     if (sequence_into(mount, e->mount, 3, "mounting") < 0 ||
