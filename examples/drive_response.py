@@ -6,10 +6,11 @@ The wheel velocities are the joint angles' differences over each interval; the c
 ``increments`` calibration), each held until the next. The response is identified
 (``dynamics.identify_velocity_response``) on the first half of the log; on the second half,
 in 5 s segments each started from its measured velocity, its prediction is compared with the
-instant kinematic response (the wheels at their command at once).
+instant kinematic response (the wheels at their command at once). The figure: a held-out
+segment, each wheel's measured velocity, the response's prediction and the command.
 
-    pip install -e '.[ros]'
-    python examples/drive_response.py [--bags ../shared/data/ros-bags]
+    pip install -e '.[ros,examples]'
+    python examples/drive_response.py [--bags ../shared/data/ros-bags] [--output FIGURE.png]
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ def held_out(bags: Path) -> dict[str, float]:
         times[:half], measured[:half], commands.times, wheels, accelerations=limits
     )
     segment = round(float(5.0 / np.mean(np.diff(times))))
-    model, instant = [], []
+    model, instant, segments = [], [], []
     for start in range(half, len(times) - segment, segment):
         part = slice(start, start + segment)
         predicted = fit.predict(times[part], commands.times, wheels, measured[start])
@@ -51,7 +52,9 @@ def held_out(bags: Path) -> dict[str, float]:
         at_once = np.where((index >= 0)[:, None], wheels[np.maximum(index, 0)], 0.0)
         model.append((predicted - measured[part]) ** 2)
         instant.append((at_once - measured[part]) ** 2)
+        segments.append((times[part], measured[part], predicted, at_once))
     return {
+        "segments": segments,
         "delay": fit.delay,
         "time_constant": fit.time_constant,
         "gain": fit.gain,
@@ -61,9 +64,28 @@ def held_out(bags: Path) -> dict[str, float]:
     }
 
 
+def draw(segment: tuple, output: Path) -> None:
+    """One held-out segment: each wheel's measured velocity, prediction and command."""
+    from matplotlib.figure import Figure
+
+    times, measured, predicted, at_once = segment
+    figure = Figure(figsize=(10, 5), layout="constrained")
+    axes = figure.subplots(2, 1, sharex=True)
+    for wheel, ax in enumerate(axes):
+        ax.plot(times, measured[:, wheel], ".", ms=3, color="0.4", label="measured")
+        ax.step(times, at_once[:, wheel], where="post", color="tab:orange", label="command")
+        ax.plot(times, predicted[:, wheel], color="tab:blue", label="identified response")
+        ax.set_ylabel(f"{('left', 'right')[wheel]} wheel, rad/s")
+    axes[0].legend(loc="upper right")
+    axes[0].set_title("TurtleBot3, held out: wheel velocity from /cmd_vel")
+    axes[1].set_xlabel("bag time, s")
+    figure.savefig(output, dpi=100)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bags", type=Path, default=BAGS)
+    parser.add_argument("--output", type=Path, default=Path("docs/figures/drive_response.png"))
     args = parser.parse_args(argv)
     found = held_out(args.bags)
     print(
@@ -75,6 +97,9 @@ def main(argv: list[str] | None = None) -> None:
         f"held-out wheel-velocity RMSE: {found['model']:.3f} rad/s with the response, "
         f"{found['instant']:.3f} rad/s at once ({found['model'] / found['instant']:.0%})"
     )
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    draw(found["segments"][2], args.output)
+    print(f"figure: {args.output}")
 
 
 if __name__ == "__main__":

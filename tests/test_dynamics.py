@@ -34,13 +34,15 @@ def test_the_response_comes_back_at_three_noise_levels(noise):
     assert np.all(np.sqrt(np.diag(found.covariance)) < [0.01, 0.01])
 
 
-def test_an_acceleration_limit_is_chosen_among_those_tried():
+def test_an_acceleration_limit_is_found_between_those_tried():
     commands, measured = logged(0.05, seed=1, acceleration=60.0)
     found = identify_velocity_response(
-        T, measured, COMMAND_TIMES, commands, accelerations=(math.inf, 30.0, 60.0, 120.0)
+        T, measured, COMMAND_TIMES, commands, accelerations=(math.inf, 20.0, 40.0, 80.0, 160.0)
     )
-    assert found.acceleration == 60.0
+    assert found.acceleration == pytest.approx(60.0, rel=0.1)  # 64: refined between 40 and 80
     assert found.gain == pytest.approx(0.95, rel=0.02)
+    unlimited = identify_velocity_response(T, measured, COMMAND_TIMES, commands)
+    assert unlimited.acceleration == math.inf  # none tried, none fitted
 
 
 def test_logs_that_cannot_show_the_response_are_refused():
@@ -70,7 +72,7 @@ def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys):
     share = lines[1].split("(")[1][:-1].replace("%", " %")  # the README's way with a percent
     for figure in (lines[1].split(": ")[1].split(" rad/s")[0], share):
         assert figure in readme, figure
-    assert "time constant 50 ms" in lines[0]
+    assert "time constant 35 ms" in lines[0]
 
 
 KS, KV, KA, DT = 1.0, 3.0, 0.5, 0.005

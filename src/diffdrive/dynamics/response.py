@@ -12,7 +12,8 @@ step (``inf``: no limit). Sampled at the log's stamps ``t_k``::
 ``max_delay``) by a first-order ARX fit's residual, then fits by output error around it: the
 gain and time constant that make the model, driven by the commands from the first measured
 velocity, closest to the measured velocities (Gauss-Newton from the ARX fit), the best of the
-neighbouring delays, then the acceleration limit among ``accelerations``. The measured
+neighbouring delays, then the acceleration limit: the best of ``accelerations``, refined
+between its neighbours there (scipy's bounded Brent on its logarithm). The measured
 velocities' own noise then does not bias the fit, as it would an ARX fit that takes them as
 inputs. The covariance of (gain, time constant) comes from the Gauss-Newton normal matrix and
 the residual variance.
@@ -144,7 +145,8 @@ def identify_velocity_response(
     """The response of a velocity-commanded drive from wheel velocities ``measured``
     ``(N, W)`` rad/s at ``times`` ``(N,)`` s and the ``commands`` ``(M, W)`` rad/s held from
     ``command_times`` ``(M,)`` s (see the module); ``accelerations`` are the limits tried
-    (rad/s^2). ``ValueError`` names what the log lacks."""
+    (rad/s^2; ``inf``: none), the best refined between its neighbours (needs scipy).
+    ``ValueError`` names what the log lacks."""
     times = np.asarray(times, dtype=float)
     measured = np.asarray(measured, dtype=float)
     command_times = np.asarray(command_times, dtype=float)
@@ -195,18 +197,17 @@ def identify_velocity_response(
         if best is None or found[1] < best[1]:
             best = (delay, found[1], found[0])
     delay, _, params = best  # type: ignore[misc]
-    chosen = None
-    for acceleration in accelerations:
-        found = _fit(
-            times,
-            (command_times, commands, delay),
-            measured,
-            (params[0], math.exp(params[1])),
-            acceleration,
-        )
-        if chosen is None or found[1] < chosen[1][1]:
-            chosen = (acceleration, found)
-    acceleration, (params, cost, jacobian) = chosen  # type: ignore[misc]
+    start = (params[0], math.exp(params[1]))
+
+    def fitted(acceleration: float):
+        return _fit(times, (command_times, commands, delay), measured, start, acceleration)
+
+    tried = sorted(set(accelerations))
+    fits = [fitted(a) for a in tried]
+    chosen = int(np.argmin([f[1] for f in fits]))
+    acceleration, (params, cost, jacobian) = tried[chosen], fits[chosen]
+    if math.isfinite(acceleration) and len(tried) > 1:
+        acceleration, (params, cost, jacobian) = _refined(tried, chosen, fitted, fits[chosen])
     count = measured.size
     variance = cost / max(count - 3, 1)
     normal = np.linalg.pinv(jacobian.T @ jacobian) * variance
@@ -220,6 +221,28 @@ def identify_velocity_response(
         by @ normal @ by,
         math.sqrt(cost / count),
     )
+
+
+def _refined(tried: list[float], best: int, fitted, at_best):
+    """The acceleration limit between the grid's neighbours of the best one tried (half and
+    twice it at an end), by bounded Brent on its logarithm: the limit and its fit."""
+    from scipy.optimize import minimize_scalar  # the examples' and tests' extra
+
+    low = tried[best - 1] if best > 0 else tried[best] / 2.0
+    high = tried[best + 1] if best + 1 < len(tried) else 2.0 * tried[best]
+    high = min(high, 2.0 * tried[best])  # the next one tried may be inf: no limit
+    fits: dict[float, tuple] = {}
+
+    def cost(log_acceleration: float) -> float:
+        fits[log_acceleration] = fitted(math.exp(log_acceleration))
+        return fits[log_acceleration][1]
+
+    found = minimize_scalar(
+        cost, bounds=(math.log(low), math.log(high)), method="bounded", options={"xatol": 1e-3}
+    )
+    if found.fun >= at_best[1]:
+        return tried[best], at_best
+    return math.exp(found.x), fits[found.x]
 
 
 def _arx(measured, held) -> tuple[float, float, float]:
