@@ -109,8 +109,8 @@ _TWIN: dict[str, subprocess.Popen] = {}
 
 def start_twin_run() -> subprocess.Popen:
     """Start the twin's run of the odometry tests in a process of its own (once): conftest
-    starts it as the session begins when the test below is selected, so that it runs on the
-    second core beside the rest of the suite instead of after it."""
+    puts the test below first and, in a run of one process, starts this as the session begins,
+    so that it runs on the second core beside the rest of the suite instead of after it."""
     if "run" not in _TWIN:
         tests = Path(__file__).resolve().parent
         environment = os.environ | {"DIFFDRIVE_PURE_PYTHON": "1"}

@@ -72,8 +72,10 @@ def _client(client: Any) -> Iterator[Any]:
         raise RuntimeError(_GUARD)
     workers = os.cpu_count() or 1
     try:
+        # ":0", a free port: None means Dask's fixed 8787, which a second cluster on the
+        # machine finds taken.
         cluster = LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
         )
     except RuntimeError:
         raise RuntimeError(_GUARD) from None
