@@ -4,7 +4,8 @@
   the gyro fused, and fused with the wheels' turn scale as a state (this skid-steer robot's
   wheels turn less than it does), the bias from the gyro's mean while the wheels stand still.
 - GPS: every other fix fused (the smoother, the start pose fitted to the fixes used) against
-  the fixes left out, beside interpolating the fixes used in time.
+  the fixes left out, beside interpolating the fixes used in time, and the wheels' and gyro's
+  dead reckoning plus the used fixes' residuals interpolated (the bound of fusing here).
 
 The wheel travel and turn of each interval come from the drive controller's odometry, the gyro
 from ``/imu/data`` (mounted with its y axis up: roll 90 degrees), the fixes from ``/fix``.
@@ -133,8 +134,15 @@ def every_other_fix(data: dict, k: float = 0.3, sigma: float = 0.2) -> dict:
         **options,
     )
     at = interpolate(data["times"], smoothed.poses, stamps[left])
+    # The most a fused estimate could take from the wheels here: between fixes, their motion;
+    # the fixes' own error, interpolated (a GPS error state with no white noise of its own).
+    carried = interpolate(data["times"], dead.poses, stamps)[:, :2]
+    residual = np.column_stack(
+        [np.interp(stamps[left], stamps[used], (fixes - carried)[used, i]) for i in (0, 1)]
+    )
     return {
         "interpolated": float(np.mean(np.hypot(*(between - fixes[left]).T))),
+        "residuals": float(np.mean(np.hypot(*(carried[left] + residual - fixes[left]).T))),
         "smoothed": float(np.mean(np.hypot(*(at[:, :2] - fixes[left]).T))),
         "refused": smoothed.rejected,
         "used": int(used.sum()),
@@ -155,8 +163,9 @@ def main(argv: list[str] | None = None) -> None:
     gps = every_other_fix(data)
     print(
         f"every other fix ({gps['used']} used, reported sigma {data['sigma']:.2f} m): mean "
-        f"distance to the fixes left out {gps['interpolated']:.2f} m interpolating the used "
-        f"ones, {gps['smoothed']:.2f} m smoothed ({gps['refused']} refused by the gate)"
+        f"distance to the fixes left out {gps['interpolated']:.3f} m interpolating the used "
+        f"ones, {gps['smoothed']:.2f} m smoothed ({gps['refused']} refused by the gate), "
+        f"{gps['residuals']:.3f} m dead reckoning plus the used fixes' residuals interpolated"
     )
 
 
