@@ -85,6 +85,12 @@ def test_a_bag_pose_topic_is_fused(tmp_path, monkeypatch, capsys):
         (["--pose-topic", "/pose"], "--pose-topic and --gps-topic need a bag"),
         (["--measurements", "bad.csv"], "bad.csv:3"),
         (["--measurements", "nosigma.csv"], "give --gps-sigma M"),
+        (["--measurements", "negative.csv"], "negative.csv:2: position measurement at t = 0"),
+        (["--measurements", "halfsigma.csv"], "gives all of sigma_x, sigma_y, sigma_theta or"),
+        (
+            ["--measurements", "unix.csv", "--gps-sigma", "0.1"],
+            "none of the 2 measurements lies inside the log's",
+        ),
     ],
 )
 def test_bad_measurements_are_refused_by_name_and_nothing_is_written(
@@ -93,9 +99,30 @@ def test_bad_measurements_are_refused_by_name_and_nothing_is_written(
     folder, _ = log_and_fixes
     (folder / "bad.csv").write_text("t,x,y,sigma_x,sigma_y\n0,0,0,1,1\n1,0,nan,1,1\n")
     (folder / "nosigma.csv").write_text("t,x,y\n0,0,0\n1,0,0\n")
+    (folder / "negative.csv").write_text("t,x,y,sigma_x,sigma_y\n0,0,0,-0.1,0.1\n")
+    (folder / "halfsigma.csv").write_text("t,x,y,theta,sigma_x,sigma_y\n0,0,0,0,1,1\n")
+    (folder / "unix.csv").write_text("t,x,y\n1764630000,0,0\n1764630001,0,0\n")
     assert main(["odometry", "log.csv", *TICKS, *extra, "-o", "out.csv"]) != 0
     assert message in capsys.readouterr().err
     assert not (folder / "out.csv").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--gate", "0.99"], "--gate acts only on absolute measurements"),
+        (["--lever-arm", "0.1", "0", "--gps-sigma", "1"], "--gps-sigma, --lever-arm act only"),
+        (["--imu-rpy", "0", "0", "90"], "--imu-rpy turns a bag's IMU (--gyro-topic)"),
+        (["--imu-rpy", "0", "nan", "0"], "--imu-rpy must be three finite angles"),
+    ],
+)
+def test_options_that_would_change_nothing_are_refused(log_and_fixes, capsys, extra, message):
+    log = example_encoder_log()
+    gyro = np.gradient(np.unwrap(log["theta"]), log["t"])
+    write_table(log_and_fixes[0] / "gyro.csv", {**log, "gyro_z": gyro})
+    assert main(["odometry", "gyro.csv", *TICKS, *extra, "-o", "out.csv"]) != 0
+    assert message in capsys.readouterr().err
+    assert not (log_and_fixes[0] / "out.csv").exists()
 
 
 def test_the_turn_scale_option_reports_its_estimate(log_and_fixes, capsys):

@@ -261,6 +261,8 @@ def test_pose_at_a_stamp_inside_the_history():
     assert seen[120][0].x < middle.x < seen[121][0].x or seen[121][0].x < middle.x < seen[120][0].x
     with pytest.raises(ValueError, match="outside the history"):
         estimator.pose_at(0.1)
+    with pytest.raises(ValueError, match="has had no wheel reading"):
+        PoseEstimator(ROBOT, "wheels").pose_at(0.0)
 
 
 def test_a_lever_arm_is_where_the_sensor_sits():

@@ -29,12 +29,37 @@ from diffdrive.evaluation import align, interpolate
 from diffdrive.io import Run, TableError, is_bag
 from diffdrive.model import Robot
 
+GATE = 0.999  # --gate's default
+
 
 def wants_fusion(args) -> bool:
     """Whether the command runs the estimator with measurements or a smoother."""
     return bool(args.pose_topic or args.gps_topic or args.measurements or args.smooth) or bool(
         args.turn_scale_sigma
     )
+
+
+def refuse_idle_options(args) -> None:
+    """Options about measurements given without any: a user who set them would believe
+    they shaped the estimate."""
+    if args.pose_topic or args.gps_topic or args.measurements:
+        return
+    idle = [
+        name
+        for name, given in (
+            ("--pose-sigma", args.pose_sigma is not None),
+            ("--gps-sigma", args.gps_sigma is not None),
+            ("--lever-arm", args.lever_arm is not None),
+            ("--gate", args.gate != GATE),
+        )
+        if given
+    ]
+    if idle:
+        raise ValueError(
+            f"{', '.join(idle)} {'acts' if len(idle) == 1 else 'act'} only on absolute "
+            "measurements: give --pose-topic, "
+            "--gps-topic or --measurements, or leave them out"
+        )
 
 
 def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:
@@ -76,8 +101,8 @@ def _made(kind, t, value, covariance, args, where) -> Measurement:
         if sigma is None:
             option = "--pose-sigma SX SY STHETA" if kind == "pose" else "--gps-sigma M"
             raise TableError(
-                f"{where}: the {kind} at t = {t!r} s has no positive definite covariance: "
-                f"give {option}"
+                f"{where}: the {kind} at t = {float(t):g} s has no positive definite "
+                f"covariance: give {option}"
             )
         given = np.asarray(sigma, dtype=float) if kind == "pose" else np.full(2, sigma)
     value = np.asarray(value, dtype=float)[:size]
@@ -98,18 +123,25 @@ def _table_measurements(args) -> list[Measurement]:
     table = read_table(path, ["t", "x", "y"], optional, time_unit=args.time_unit)
     columns = ["x", "y", "theta"] if kind == "pose" else ["x", "y"]
     values = np.column_stack([table[name] for name in columns])
-    sigmas = (
-        np.column_stack([table[name] for name in names])
-        if all(name in table for name in names)
-        else None
-    )
+    given = [name for name in names if name in table]
+    if given and len(given) < len(names):
+        # Some standard deviations and not others: none may be guessed for the rest.
+        raise TableError(
+            f"{path}:1: a {kind} table gives all of {', '.join(names)} or none; the header "
+            f"has only {', '.join(given)}"
+        )
     made = []
     for k, t in enumerate(table["t"]):
         where = f"{path}:{table.lines[k]}"
-        covariance = np.full((len(columns), len(columns)), np.nan)
-        if sigmas is not None:
-            covariance = np.diag(sigmas[k] * sigmas[k])
-        made.append(_made(kind, t, values[k], covariance, args, where))
+        if not given:
+            covariance = np.full((len(columns), len(columns)), np.nan)
+            made.append(_made(kind, t, values[k], covariance, args, where))
+            continue
+        sigmas = [table[name][k] for name in names]
+        try:  # Measurement.make refuses a standard deviation that is not > 0
+            made.append(Measurement.make(kind, t, values[k], sigmas, args.lever_arm))
+        except ValueError as exc:
+            raise TableError(f"{where}: {exc}") from None
     return made
 
 
@@ -118,6 +150,15 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str) -> int
     covariance and the filter's own columns written."""
     measurements, notes = measurements_of_args(args)
     inside = [m for m in measurements if log.times[0] <= m.t <= log.times[-1]]
+    if measurements and not inside:
+        # Not one inside: the two clocks differ (Unix time against a log from 0, units), and
+        # an estimate without them would pass for a fused one.
+        stamps = [m.t for m in measurements]
+        raise TableError(
+            f"none of the {len(measurements)} measurements lies inside the log's time span "
+            f"[{log.times[0]:g}, {log.times[-1]:g}] s (theirs: [{min(stamps):g}, "
+            f"{max(stamps):g}] s): are they on the same clock, in the same unit?"
+        )
     if len(inside) < len(measurements):
         notes.append(f"{len(measurements) - len(inside)} measurements outside the log left out")
     heading = args.heading or ("fused" if gyro is not None else "wheels")

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch
-from diffdrive.cli.fusion import run_fusion, wants_fusion
+from diffdrive.cli.fusion import GATE, refuse_idle_options, run_fusion, wants_fusion
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
     LOG_COLUMNS,
@@ -36,6 +36,7 @@ SUSPICIOUS_SLIP_SHARE = 0.25
 
 
 def run_odometry(args: argparse.Namespace) -> int:
+    refuse_idle_options(args)
     robot, ticks = robot_from(args)
     log = read_log_of(args)
     ticks = ticks or log.ticks_per_revolution
@@ -266,9 +267,9 @@ def add_to(command: Command, parents: Parents) -> None:
     fused.add_argument(
         "--gate",
         type=float,
-        default=0.999,
+        default=GATE,
         metavar="P",
-        help="chi-square gate: refuse a measurement outside this probability (default 0.999)",
+        help=f"chi-square gate: refuse a measurement outside this probability (default {GATE})",
     )
     fused.add_argument(
         "--turn-scale-sigma",

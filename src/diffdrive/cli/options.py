@@ -298,6 +298,11 @@ def gyro_of(args: argparse.Namespace, log: Run, path: Path | None = None):
     from diffdrive.estimation.gyro import Gyro, rotation_from_rpy
 
     source = args.input if path is None else path
+    if not np.all(np.isfinite(args.imu_rpy)):
+        raise ValueError(f"--imu-rpy must be three finite angles (degrees), got {args.imu_rpy}")
+    if args.gyro_topic is None and any(args.imu_rpy):
+        # A gyro_z column is the body's yaw rate already: no mounting is applied to it.
+        raise ValueError("--imu-rpy turns a bag's IMU (--gyro-topic); a gyro_z column has none")
     if args.gyro_topic is not None:
         if source is None or not is_bag(source):
             raise TableError("--gyro-topic needs a bag as the log")

@@ -291,7 +291,9 @@ class _EstimatorMethods(_Base):
         with every measurement stamped up to ``t``."""
         t = finite("t", t)
         start, now = self.history_start, self.time
-        if start is None or now is None or not start <= t <= now:
+        if start is None or now is None:
+            raise ValueError(f"no pose at t = {t!r} s: the estimator has had no wheel reading")
+        if not start <= t <= now:
             raise ValueError(f"t = {t!r} s lies outside the history [{start!r}, {now!r}] s")
         x, P = self._pose_at(t)
         state, covariance = np.array(x), np.array(P).reshape(ekf.N, ekf.N)
