@@ -348,3 +348,14 @@ def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, c
     assert code == 1
     assert "a pose or GPS sensor needs a bag" in capsys.readouterr().err
     assert not (tmp_path / "x.csv").exists()
+    refused = [
+        (["--time-offset", "5", "-o", "x.csv"], "--time-offset shifts a bag's stamps"),
+        (["--time-offset", "nan", "-o", "x.mcap"], "time_offset must be finite"),
+        (["--time-offset", "3e9", "-o", "x.mcap"], "/joint_states: times must lie in [0, 2^31)"),
+        (["--gps", "100", "0", "0", "-o", "x.mcap"], "latitude must lie in [-90, 90]"),
+    ]
+    for extra, message in refused:
+        *options, _, name = extra
+        assert main(["synth", *options, "-o", str(tmp_path / name)]) == 1
+        assert message in capsys.readouterr().err
+        assert not (tmp_path / name).exists()

@@ -44,6 +44,8 @@ def run_synth(args: argparse.Namespace) -> int:
     if format == "csv":
         if absolute is not None:
             raise ValueError("a pose or GPS sensor needs a bag (-o NAME.mcap, or --format ros2)")
+        if args.time_offset is not None:
+            raise ValueError("--time-offset shifts a bag's stamps; a table keeps the trajectory's")
         sensors.write_table(args.output, encoders, gyro=gyro, commands=commands)
         written = "wheels, gyro_z, commands and truth as a table"
     else:

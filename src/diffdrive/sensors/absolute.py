@@ -77,6 +77,11 @@ class AbsoluteReadings:
         except ImportError:
             raise ImportError("geodetic needs pymap3d: pip install 'diffdrive[ros]'") from None
         lat0, lon0, h0 = (finite("origin", value) for value in origin)
+        if not (-90.0 <= lat0 <= 90.0 and -180.0 <= lon0 <= 180.0):
+            raise ValueError(
+                f"origin: latitude must lie in [-90, 90] and longitude in [-180, 180] degrees, "
+                f"got {lat0:g}, {lon0:g}"
+            )
         east, north = self.poses[..., 0], self.poses[..., 1]
         lat, lon, height = pymap3d.enu2geodetic(east, north, np.zeros_like(east), lat0, lon0, h0)
         return np.stack([lat, lon, height], axis=-1)

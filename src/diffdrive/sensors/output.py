@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from diffdrive._validate import finite
 from diffdrive.atomic import atomic_write
 from diffdrive.sensors.absolute import AbsoluteReadings
 from diffdrive.sensors.commands import Commands
@@ -53,6 +54,7 @@ def streams_of(
 
 def _shifted(streams: list, offset: float) -> list:
     """``streams`` with ``offset`` s added to every stamp and record time."""
+    offset = finite("time_offset", offset)
     if not offset:
         return streams
     return [

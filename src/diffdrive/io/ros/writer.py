@@ -135,8 +135,9 @@ def write_streams(path: str | Path, streams: list[Stream], format: BagFormat | N
                 f"{stream.topic}: times (M,) and values (M, {width}) must match, got "
                 f"{times.shape} and {values.shape}"
             )
-        if len(times) and (times.min() < 0 or np.any(np.diff(times) <= 0)):
-            raise ValueError(f"{stream.topic}: times must be >= 0 (ROS time) and increase")
+        _check_ros_times(times, f"{stream.topic}: times")
+        if stream.recorded is not None:
+            _check_ros_times(np.asarray(stream.recorded, float), f"{stream.topic}: record times")
         if stream.kind != "twist" and len(times) and times[0] == 0.0:
             raise ValueError(
                 f"{stream.topic}: a stamp of 0 s reads as unset in ROS; start the times after "
@@ -257,9 +258,23 @@ def _checked(
     for name, array in (("times", times), ("poses", poses), ("covariances", covariances)):
         if not np.all(np.isfinite(array)):
             raise ValueError(f"{name} must be finite")
-    if times.min() < 0 or np.any(np.diff(times) <= 0):
-        raise ValueError("times must be >= 0 (ROS time) and increase")
+    _check_ros_times(times, "times")
     return times, poses, covariances, np.nan_to_num(twists)
+
+
+def _check_ros_times(times: np.ndarray, what: str) -> None:
+    """Refuse stamps a ROS 2 ``Time`` (int32 seconds) cannot hold, or that do not increase."""
+    if not len(times):
+        return
+    if not np.all(np.isfinite(times)):
+        raise ValueError(f"{what} must be finite")
+    if times.min() < 0 or times.max() >= 2.0**31:
+        raise ValueError(
+            f"{what} must lie in [0, 2^31) s, what a ROS 2 stamp's signed 32-bit seconds hold; "
+            f"got {times.min():.3f} to {times.max():.3f} s"
+        )
+    if np.any(np.diff(times) <= 0):
+        raise ValueError(f"{what} must increase")
 
 
 def _stamp(store, seconds: float):
