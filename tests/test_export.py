@@ -79,6 +79,24 @@ def test_the_figures_follow_their_stated_derivation():
         export.Reference(speed=0.0)
 
 
+@pytest.mark.parametrize(
+    ("terms", "message"),
+    [
+        ((0.0, 0.0, 0.0), "no wheel noise .k, radius_sigma and track_sigma all 0"),
+        ((1e-4, -0.01, 0.0), "noise model radius_sigma must be >= 0, got -0.01"),
+        ((float("nan"), 0.0, 0.0), "noise model k must be finite"),
+    ],
+)
+def test_a_noise_model_that_would_write_zero_or_wrong_covariances_is_refused(
+    terms, message, tmp_path
+):
+    model = noise.NoiseModel(*terms, 0.0, 0.0, np.zeros((5, 5)), 0, noise.TERMS[:3])
+    path = tmp_path / "params.yaml"
+    with pytest.raises(ValueError, match=message):
+        export.export("ros2", NOMINAL, NOMINAL, model, path)
+    assert not path.exists()
+
+
 def test_calibrate_then_export_from_logs(tmp_path, monkeypatch, capsys):
     """Two logs with ground truth: calibrate writes the robot, export identifies the noise
     on the same logs and writes a ROS 2 file with non-zero covariances."""

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive._validate import positive
+from diffdrive._validate import finite, positive
 from diffdrive.atomic import atomic_write
 from diffdrive.model import DiffDrive
 from diffdrive.noise import NoiseModel, covariances
@@ -83,6 +83,17 @@ def parameters(
     base values ROS multiplies), as a dict."""
     if target not in TARGETS:
         raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
+    terms = {"k": model.k, "radius_sigma": model.radius_sigma, "track_sigma": model.track_sigma}
+    for name, value in terms.items():
+        if not finite(f"noise model {name}", value) >= 0.0:
+            raise ValueError(f"noise model {name} must be >= 0, got {value!r}")
+    if not any(terms.values()):
+        # Zero covariances read as perfectly known (a filter then ignores every other sensor)
+        # or as unset: the mistake these files are written to end (turtlebot3#1069).
+        raise ValueError(
+            "the noise model has no wheel noise (k, radius_sigma and track_sigma all 0): every "
+            "covariance would be zero; identify it from runs or give a term > 0"
+        )
     r_l, r_r, track = robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width
     straight = _motion_covariance(robot, model, at.distance / r_l, at.distance / r_r)
     half = 0.5 * track * at.turn
