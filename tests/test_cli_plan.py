@@ -59,6 +59,20 @@ def test_plan_names_the_file_of_a_bad_path(files, capsys) -> None:
     assert not (files / "x.csv").exists()
 
 
+@pytest.mark.parametrize(
+    ("command", "extra", "message"),
+    [
+        ("plan", ["--dt", "100"], "dt 100 s exceeds the plan's"),
+        ("follow", ["--seed", "-1"], "seed must be a whole number from 0 or None, got -1"),
+    ],
+)
+def test_a_sampling_or_seed_that_cannot_be_used_is_named(files, capsys, command, extra, message):
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS, *extra]
+    assert main([command, *args, "-o", str(files / "x.csv")]) == 1
+    assert message in capsys.readouterr().err
+    assert not (files / "x.csv").exists()
+
+
 def test_evaluate_against_the_plan_agrees_with_follow(files, capsys) -> None:
     args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
     assert main(["plan", *args, "-o", str(files / "plan.csv"), "-q"]) == 0

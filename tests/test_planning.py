@@ -295,6 +295,10 @@ def test_jerk_through_turns_in_place_reverse_and_stops() -> None:
             "a larger dt",
         ),
         (
+            lambda: plan([(0, 0), (1, 0)], ROBOT, LIMITS).to_trajectory(100.0),
+            "dt 100 s exceeds the plan's",
+        ),
+        (
             lambda: plan([(0, 0), (5, 5)], ROBOT, dataclasses.replace(LIMITS, max_jerk=1e-6)),
             "is the jerk limit in m/s",
         ),

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 
 def finite(name: str, value: object) -> float:
     """``value`` as a float; ``ValueError`` naming ``name`` if it is NaN or infinite (or an
@@ -40,3 +42,12 @@ def whole(name: str, value: object, smallest: int = 0) -> int:
     if not number.is_integer() or number < smallest:
         raise ValueError(f"{name} must be a whole number from {smallest}, got {value!r}")
     return int(number)
+
+
+def rng_of(seed: object) -> np.random.Generator:
+    """NumPy's generator for ``seed`` (an int >= 0, kept exactly; None: from the system)."""
+    if seed is not None and (
+        isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0
+    ):
+        raise ValueError(f"seed must be a whole number from 0 or None, got {seed!r}")
+    return np.random.default_rng(None if seed is None else int(seed))

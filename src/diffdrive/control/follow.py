@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._validate import rng_of
 from diffdrive.control.limiter import Limiter
 from diffdrive.control.path import check_samples
 from diffdrive.control.planning import Plan
@@ -120,7 +121,7 @@ def follow(
     reset = getattr(tracker, "reset", None)
     if callable(reset):
         reset()  # a stateful tracker (``Predictive``) starts with nothing in flight
-    rng = np.random.default_rng(seed)
+    rng = rng_of(seed)
     per_metre = robot.to_wheel_velocities((1.0, 0.0, 0.0)).to_array()  # wheel rad per m
     wheels = np.zeros((robots, 2))  # the wheels' velocities now (rad/s)
     rows = np.arange(robots)

@@ -226,6 +226,12 @@ class Plan:
         interval's wheel velocities those at its middle), for the writers and plots."""
         if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+        if dt > self.duration:
+            # One interval's wheel velocities (those at its middle) cannot carry the motion.
+            raise ValueError(
+                f"dt {dt:g} s exceeds the plan's {self.duration:.4g} s: its samples would not "
+                "describe the motion; give a dt well below the duration"
+            )
         check_samples(
             self.duration / dt, f"a plan of {self.duration:.4g} s every {dt} s", "a larger dt"
         )

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import finite, positive
+from diffdrive._validate import finite, positive, rng_of
 from diffdrive.model import Robot
-from diffdrive.sensors.motion import motion_of, rng_of
+from diffdrive.sensors.motion import motion_of
 
 __all__ = ["AbsoluteModel", "AbsoluteReadings", "absolute_readings"]
 

@@ -26,11 +26,11 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive._validate import finite
+from diffdrive._validate import finite, rng_of
 from diffdrive.encoders import check_counter_bits
 from diffdrive.io.run import Run
 from diffdrive.model import Robot
-from diffdrive.sensors.motion import Motion, motion_of, rng_of, robot_geometry
+from diffdrive.sensors.motion import Motion, motion_of, robot_geometry
 
 __all__ = ["EncoderModel", "EncoderReadings", "Slip", "encoder_readings"]
 

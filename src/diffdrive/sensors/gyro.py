@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from diffdrive._validate import finite, positive
+from diffdrive._validate import finite, positive, rng_of
 from diffdrive.model import Robot
-from diffdrive.sensors.motion import motion_of, rng_of
+from diffdrive.sensors.motion import motion_of
 
 __all__ = ["GyroModel", "GyroReadings", "gyro_readings"]
 

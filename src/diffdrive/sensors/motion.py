@@ -16,7 +16,7 @@ import numpy as np
 from diffdrive import batch
 from diffdrive.model import Robot
 
-__all__ = ["Motion", "motion_of", "rng_of", "robot_geometry"]
+__all__ = ["Motion", "motion_of", "robot_geometry"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,12 +98,3 @@ def robot_geometry(
     if np.any(drawn <= 0):
         raise ValueError("geometry_sigma draws a radius or track <= 0: make it smaller")
     return drawn
-
-
-def rng_of(seed: object) -> np.random.Generator:
-    """NumPy's generator for ``seed`` (an int >= 0, kept exactly; None: from the system)."""
-    if seed is not None and (
-        isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0
-    ):
-        raise ValueError(f"seed must be a whole number from 0 or None, got {seed!r}")
-    return np.random.default_rng(None if seed is None else int(seed))
