@@ -346,6 +346,24 @@ def test_calibrate_the_built_in_runs_to_a_robot_file_that_reads_back(tmp_path, c
     assert settings["track_width"] == pytest.approx(0.2019, abs=1e-6)
 
 
+@pytest.mark.parametrize(
+    ("folds", "code", "message"),
+    [("3", 1, "--cv 3: more folds than the 2 runs"), ("1", 2, "number of folds >= 2, got 1")],
+)
+@pytest.mark.parametrize("quiet", [[], ["-q"]])
+def test_calibrate_refuses_folds_it_cannot_make_and_writes_nothing(
+    tmp_path, capsys, folds, code, message, quiet
+):
+    output = tmp_path / "robot.toml"
+    try:
+        got = main(["calibrate", "--cv", folds, *quiet, "-o", str(output)])
+    except SystemExit as refused:  # argparse's refusal of the option itself
+        got = refused.code
+    assert got == code
+    assert message in capsys.readouterr().err
+    assert not output.exists()
+
+
 def test_calibrate_real_square_runs_with_umbmark(tmp_path, capsys):
     from data import data_folder
     from diffdrive.io import read_robot

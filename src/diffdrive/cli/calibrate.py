@@ -128,6 +128,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     else:
         runs, what = _example_runs(), "the built-in example runs"
     names = [str(path) for path in args.runs] or ["example", "mirrored example"]
+    if args.cv not in ("loo", "none") and int(args.cv) > len(runs):
+        raise ValueError(f"--cv {args.cv}: more folds than the {len(runs)} runs")
     fixed = tuple(args.fix or ())
     options = method_options(args)
     result = calibrate(
@@ -143,15 +145,31 @@ def run_calibrate(args: argparse.Namespace) -> int:
     settings = result.robot.settings()
     if ticks is not None:
         settings["ticks_per_revolution"] = ticks
+    reports = []  # before the file is written: a fold that fails leaves nothing behind
+    if not args.quiet:
+        reports.append(calibration_report(nominal, result, runs, args.integration))
+        if args.cv != "none" and args.method != "umbmark":
+            reports.append(held_out_report(nominal, runs, names, args, fixed, options))
     write_robot(args.output, settings, f"calibrated by diffdrive ({args.method}) on {what}")
     for finding in result.implausible:  # said even with -q: the robot file may be wrong
         print(f"diffdrive calibrate: warning: {finding}", file=sys.stderr)
     if not args.quiet:
-        print(calibration_report(nominal, result, runs, args.integration))
-        if args.cv != "none" and args.method != "umbmark":
-            print(held_out_report(nominal, runs, names, args, fixed, options))
+        print("\n".join(reports))
         print(f"calibrate: wrote the robot to {args.output}")
     return 0
+
+
+def _folds(text: str) -> str:
+    """``--cv``: ``loo``, ``none`` or a whole number of folds >= 2."""
+    if text in ("loo", "none"):
+        return text
+    try:
+        folds = int(text)
+    except ValueError:
+        folds = 0
+    if folds < 2:
+        raise argparse.ArgumentTypeError(f"must be loo, none or a number of folds >= 2, got {text}")
+    return str(folds)
 
 
 def method_options(args: argparse.Namespace) -> MethodOptions:
@@ -307,6 +325,7 @@ def add_to(command: Command, parents: Parents) -> None:
     )
     cal.add_argument(
         "--cv",
+        type=_folds,
         default="loo",
         metavar="loo|K|none",
         help="held-out errors by cross-validation over the runs: leave one run "
