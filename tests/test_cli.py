@@ -436,6 +436,22 @@ def test_evaluate_needs_times_that_pair(tmp_path, capsys):
     assert "truth.csv: 1 of its times are within --t-max-diff 0.01 s" in err
 
 
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (["--t-max-diff", "-1"], "--t-max-diff must be finite and >= 0, got -1.0"),
+        (["--t-offset", "nan"], "--t-offset must be finite, got nan"),
+        (["--rpe", "0"], "--rpe must be finite and > 0, got 0.0"),
+    ],
+)
+def test_evaluate_names_the_option_it_refuses(tmp_path, capsys, option, message):
+    truth = tmp_path / "truth.csv"
+    truth.write_text("t,x,y,theta\n0,0,0,0\n1,1,0,0\n")
+    code, _, err = run(["evaluate", truth, "--truth", truth, *option], capsys)
+    assert code == 1
+    assert message in err
+
+
 def test_calibrate_and_evaluate_run_as_subprocesses(tmp_path):
     for argv in (["calibrate", "-q"], ["evaluate"]):
         result = subprocess.run(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -33,7 +34,19 @@ from diffdrive.io import TableError, is_bag, read_trajectory
 from diffdrive.simulation import dead_reckon
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """The pairing and window options, refused by their own names before any file is read."""
+    for option, value, allowed, rule in (
+        ("--t-max-diff", args.t_max_diff, args.t_max_diff >= 0, "finite and >= 0"),
+        ("--t-offset", args.t_offset, True, "finite"),
+        ("--rpe", args.rpe, args.rpe > 0, "finite and > 0"),
+    ):
+        if not (math.isfinite(value) and allowed):
+            raise ValueError(f"{option} must be {rule}, got {value}")
+
+
 def run_evaluate(args: argparse.Namespace) -> int:
+    _check_options(args)
     covariances = None
     if args.plan is not None:
         metrics = plan_metrics(args)
