@@ -90,6 +90,8 @@ def test_from_an_identified_response() -> None:
     [
         (lambda: DriveModel(delay=-0.1), "delay must be >= 0"),
         (lambda: DriveModel(feedforward=Feedforward(1.0, 0.0, 0.1)), "kV > 0"),
+        (lambda: DriveModel(gain=0.0), "gain must be > 0"),
+        (lambda: Feedforward(1.0, np.nan, 0.1), "kv must be finite"),
         (
             lambda: DriveModel().wheel_velocities(T, [0.0, 1.0], [[1.0, 1.0]]),
             r"commands must be \(\.\.\., 2, 2\)",

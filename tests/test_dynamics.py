@@ -55,6 +55,10 @@ def test_logs_that_cannot_show_the_response_are_refused():
         identify_velocity_response(T[:10], measured[:10], COMMAND_TIMES, commands)
     with pytest.raises(ValueError, match="must be finite"):
         identify_velocity_response(T, measured * np.nan, COMMAND_TIMES, commands)
+    with pytest.raises(ValueError, match="max_delay must be finite and >= 0 s, got -1"):
+        identify_velocity_response(T, measured, COMMAND_TIMES, commands, max_delay=-1)
+    with pytest.raises(ValueError, match="accelerations must be limits > 0"):
+        identify_velocity_response(T, measured, COMMAND_TIMES, commands, accelerations=(0.0,))
 
 
 def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys):

@@ -49,7 +49,10 @@ class DriveModel:
             value = finite(name, getattr(self, name))
             if value < 0.0:
                 raise ValueError(f"{name} must be >= 0 s, got {value}")
-        finite("gain", self.gain)
+        if finite("gain", self.gain) <= 0.0:
+            raise ValueError(
+                f"gain must be > 0 (the wheel's velocity per commanded), got {self.gain}"
+            )
         if not self.max_acceleration > 0.0:
             raise ValueError(
                 f"max_acceleration must be > 0 (inf: none), got {self.max_acceleration}"

@@ -175,6 +175,10 @@ def identify_velocity_response(
             "the commands and the wheels' stamps do not overlap: the log must hold commands "
             "while the wheels are measured"
         )
+    if not (math.isfinite(max_delay) and max_delay >= 0.0):
+        raise ValueError(f"max_delay must be finite and >= 0 s, got {max_delay}")
+    if not accelerations or not all(a > 0.0 for a in accelerations):
+        raise ValueError(f"accelerations must be limits > 0 (inf: none), got {accelerations}")
     if np.ptp(commands, axis=0).max() <= 0.0:
         raise ValueError(
             "a constant command cannot show how the drive answers: the log must hold changes "

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive._validate import finite
 from diffdrive.model import Robot
 from diffdrive.types import TwistLike
 
@@ -42,6 +43,12 @@ class Feedforward:
     ks: float
     kv: float
     ka: float
+
+    def __post_init__(self) -> None:
+        # The signs are checked where they matter (a DriveModel, a plan's voltage limit): an
+        # identification on noisy data may find a small negative kS and must report it.
+        for name in ("ks", "kv", "ka"):
+            finite(name, getattr(self, name))
 
     def voltage(self, velocity: object, acceleration: object = 0.0) -> np.ndarray:
         """``kS sgn(v) + kV v + kA a`` for velocities and accelerations (arrays broadcast)."""
@@ -116,6 +123,8 @@ def identify_voltage_response(
     step = float(np.mean(steps))
     if np.any(steps <= 0) or np.abs(steps - step).max() > 0.01 * step:
         raise ValueError("the samples must be evenly spaced (to 1 %): resample the log")
+    if not (math.isfinite(max_delay) and max_delay >= 0.0):
+        raise ValueError(f"max_delay must be finite and >= 0 s, got {max_delay}")
     if not (np.any(velocities > still) and np.any(velocities < -still)):
         raise ValueError(
             "kS needs the wheel driven both ways: the log must hold forward and backward motion"

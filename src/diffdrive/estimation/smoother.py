@@ -234,7 +234,7 @@ def _forward(log, ordered: list[Measurement], smooth: bool, options: dict, force
                 commanded=None if wanted is None else wanted[k - 1],
             )
         except ValueError as exc:
-            where = f"interval {k - 1} ({times[k - 1]!r} to {times[k]!r} s)"
+            where = f"interval {k - 1} ({times[k - 1]:g} to {times[k]:g} s)"
             raise ValueError(f"{where}: {exc}") from None
         states[k], covariances[k] = estimator.state, estimator.state_covariance
         slips[k], scores[k] = estimator.slip, estimator.slip_score
