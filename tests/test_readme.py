@@ -64,6 +64,17 @@ def test_the_readme_has_each_section_once_and_speaks_to_users():
     assert "a C compiler" in text.split("```sh", 1)[0]
 
 
+def test_every_link_inside_the_readme_lands_on_a_heading():
+    text = re.sub(r"```.*?```", "", README.read_text(), flags=re.S)  # a code comment is no heading
+    # GitHub's anchors: the heading in lower case, punctuation but hyphens dropped, spaces
+    # to hyphens.
+    headings = re.findall(r"^#+ (.+)$", text, flags=re.M)
+    anchors = {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-") for h in headings}
+    links = re.findall(r"\]\(#([^)]+)\)", text)
+    assert links, "the README links none of its sections"
+    assert sorted(set(links) - anchors) == []
+
+
 def test_the_bag_walkthrough_runs_as_written(tmp_path, monkeypatch, capsys):
     import shlex
 
