@@ -86,6 +86,7 @@ def test_a_bag_pose_topic_is_fused(tmp_path, monkeypatch, capsys):
         (["--measurements", "bad.csv"], "bad.csv:3"),
         (["--measurements", "nosigma.csv"], "give --gps-sigma M"),
         (["--measurements", "negative.csv"], "negative.csv:2: position measurement at t = 0"),
+        (["--command-topic", "/cmd_vel"], "--command-topic flags wheels that spin beyond"),
         (["--measurements", "halfsigma.csv"], "gives all of sigma_x, sigma_y, sigma_theta or"),
         (
             ["--measurements", "unix.csv", "--gps-sigma", "0.1"],

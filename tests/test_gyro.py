@@ -313,6 +313,13 @@ def test_the_command_line_reads_command_columns(tmp_path, capsys):
         == 0
     )
     assert "slip: 20 of 300 intervals flagged" in capsys.readouterr().out
+    # The estimator's path (a smoother) takes the commands too.
+    common = ["--wheel-radius", "0.05", "--track-width", "0.3", "--gyro-bias", "0"]
+    smoothed = tmp_path / "s.csv"
+    assert main(["odometry", str(log), *common, "--smooth", "-o", str(smoothed), "-q"]) == 0
+    header = smoothed.read_text().splitlines()[0].split(",")
+    flags = np.loadtxt(smoothed, delimiter=",", skiprows=1, usecols=header.index("slip"))
+    assert np.flatnonzero(flags).tolist() == list(range(101, 121))
 
 
 def test_the_exact_heading_as_yaw_flags_no_slip_and_follows_the_wheels():

@@ -145,9 +145,10 @@ def _table_measurements(args) -> list[Measurement]:
     return made
 
 
-def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str) -> int:
+def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, commanded=None) -> int:
     """The estimator over the log with the measurements, filtered or smoothed; the poses,
-    covariance and the filter's own columns written."""
+    covariance and the filter's own columns written. ``commanded``: the wheel velocities
+    commanded over each interval ``(T-1, 2)`` rad/s, for the slip flags, or None."""
     measurements, notes = measurements_of_args(args)
     inside = [m for m in measurements if log.times[0] <= m.t <= log.times[-1]]
     if measurements and not inside:
@@ -174,7 +175,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str) -> int
     }
     if args.gyro_bias is not None:
         options["bias"] = args.gyro_bias
-    common = dict(gyro=gyro, heading=heading, **options)
+    common = dict(gyro=gyro, heading=heading, commanded=commanded, **options)
     start, covariance = log.start_pose(), None
     if inside:
         dead = estimate_trajectory(robot, log.times, increments, smooth=False, **common)

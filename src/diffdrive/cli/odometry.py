@@ -43,11 +43,17 @@ def run_odometry(args: argparse.Namespace) -> int:
     increments, note = log.checked_increments(robot, ticks, args.counter_bits, args.max_wheel_speed)
     note += robot_note(args)
     gyro = gyro_of(args, log)
+    if args.command_topic is not None and gyro is None:
+        raise ValueError(
+            "--command-topic flags wheels that spin beyond their commands against the gyro: "
+            "give --gyro-topic (or a gyro_z column); without one it would change nothing"
+        )
     if wants_fusion(args):
         if gyro is not None:
             log, note = _within_gyro(log, gyro, note)
         increments = log.increments(ticks, args.counter_bits)
-        return run_fusion(args, robot, log, increments, gyro, note)
+        commanded = _commands(args, robot, log) if gyro is not None else None
+        return run_fusion(args, robot, log, increments, gyro, note, commanded)
     if gyro is not None:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
