@@ -86,7 +86,9 @@ def test_a_bag_pose_topic_is_fused(tmp_path, monkeypatch, capsys):
         (["--measurements", "bad.csv"], "bad.csv:3"),
         (["--measurements", "nosigma.csv"], "give --gps-sigma M"),
         (["--measurements", "negative.csv"], "negative.csv:2: position measurement at t = 0"),
-        (["--command-topic", "/cmd_vel"], "--command-topic flags wheels that spin beyond"),
+        (["--command-topic", "/cmd_vel"], "--command-topic acts through a gyro"),
+        (["--gyro-bias", "0.01", "--slip-test", "interval"], "--slip-test act through a gyro"),
+        (["--turn-scale-sigma", "0.1"], "gyro_z column (or, for the turn scale, measurements)"),
         (["--measurements", "halfsigma.csv"], "gives all of sigma_x, sigma_y, sigma_theta or"),
         (
             ["--measurements", "unix.csv", "--gps-sigma", "0.1"],

@@ -171,7 +171,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         "turn_scale_sigma": args.turn_scale_sigma or 0.0,
         "gate": args.gate,
         "method": args.method,
-        "slip_test": args.slip_test,
+        "slip_test": args.slip_test or "episodes",
     }
     if args.gyro_bias is not None:
         options["bias"] = args.gyro_bias

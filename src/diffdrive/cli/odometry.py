@@ -43,11 +43,8 @@ def run_odometry(args: argparse.Namespace) -> int:
     increments, note = log.checked_increments(robot, ticks, args.counter_bits, args.max_wheel_speed)
     note += robot_note(args)
     gyro = gyro_of(args, log)
-    if args.command_topic is not None and gyro is None:
-        raise ValueError(
-            "--command-topic flags wheels that spin beyond their commands against the gyro: "
-            "give --gyro-topic (or a gyro_z column); without one it would change nothing"
-        )
+    if gyro is None:
+        _refuse_gyro_options(args)
     if wants_fusion(args):
         if gyro is not None:
             log, note = _within_gyro(log, gyro, note)
@@ -88,6 +85,29 @@ def run_odometry(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_gyro_options(args) -> None:
+    """Options that act through a gyro, given for a log without one: they would change
+    nothing, and the user would believe they had."""
+    measured = args.pose_topic or args.gps_topic or args.measurements
+    idle = [
+        name
+        for name, given in (
+            ("--gyro-bias", args.gyro_bias is not None),
+            ("--slip-test", args.slip_test is not None),
+            ("--command-topic", args.command_topic is not None),
+            ("--turn-scale-sigma", bool(args.turn_scale_sigma) and not measured),
+        )
+        if given
+    ]
+    if idle:
+        also = " (or, for the turn scale, measurements)" if "--turn-scale-sigma" in idle else ""
+        raise ValueError(
+            f"{', '.join(idle)} {'acts' if len(idle) == 1 else 'act'} through a gyro: give "
+            f"--gyro-topic or a gyro_z column{also}, or leave {'it' if len(idle) == 1 else 'them'} "
+            "out"
+        )
+
+
 def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
     from diffdrive.estimation.gyro import gyro_odometry
@@ -96,7 +116,7 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     options = {
         "k_left": 1e-4 if args.k_left is None else args.k_left,
         "k_right": 1e-4 if args.k_right is None else args.k_right,
-        "slip_test": args.slip_test,
+        "slip_test": args.slip_test or "episodes",
     }
     result = gyro_odometry(
         robot,
@@ -226,7 +246,6 @@ def add_to(command: Command, parents: Parents) -> None:
     gyro.add_argument(
         "--slip-test",
         choices=("episodes", "interval"),
-        default="episodes",
         help="flag each interval whose wheel and gyro turns disagree (interval), and also "
         "the runs of intervals one slipping wheel explains (episodes, the default)",
     )
