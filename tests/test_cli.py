@@ -364,6 +364,20 @@ def test_calibrate_refuses_folds_it_cannot_make_and_writes_nothing(
     assert not output.exists()
 
 
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--track-from-gyro", "--fix", "track_width"], "--fix: --track-from-gyro fits the"),
+        (["--gyro-arw", "0.01", "--k", "1e-5"], "--gyro-arw, --k: only --track-from-gyro uses"),
+    ],
+)
+def test_calibrate_refuses_the_options_of_the_other_kind(tmp_path, capsys, options, message):
+    output = tmp_path / "robot.toml"
+    assert main(["calibrate", *options, "-o", str(output)]) == 1
+    assert message in capsys.readouterr().err
+    assert not output.exists()
+
+
 def test_calibrate_real_square_runs_with_umbmark(tmp_path, capsys):
     from data import data_folder
     from diffdrive.io import read_robot

@@ -39,6 +39,8 @@ from diffdrive.io import TableError, write_robot
 from diffdrive.model import DiffDrive, Robot
 from diffdrive.simulation import dead_reckon, simulate
 
+GYRO_ARW = 2e-3  # --gyro-arw's default, rad/s/sqrt(Hz)
+
 
 def _mirrored_example(t: np.ndarray) -> np.ndarray:
     """The built-in history with the wheels swapped: the same path, turning the other way."""
@@ -116,7 +118,37 @@ def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
     return 0
 
 
+def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
+    """--track-from-gyro's options without it, or a fit's options with it: each would change
+    nothing, and the user would believe it had."""
+    if args.track_from_gyro:
+        idle = {
+            "--method": args.method != "least_squares",
+            "--integration": args.integration != "exact",
+            "--square-side": args.square_side is not None,
+            "--window": args.window is not None,
+            "--cv": args.cv != "loo",
+            "--fix": bool(args.fix),
+            "--extra": args.extra is not None,
+        }
+        why = "--track-from-gyro fits the track alone, from the gyro"
+    else:
+        idle = {
+            "--gyro-topic": args.gyro_topic is not None,
+            "--imu-rpy": any(args.imu_rpy),
+            "--gyro-arw": args.gyro_arw != GYRO_ARW,
+            "--k": args.k != 0.0,
+        }
+        why = "only --track-from-gyro uses these"
+    given = [name for name, used in idle.items() if used]
+    if given:
+        raise ValueError(
+            f"{', '.join(given)}: {why}; leave {'it' if len(given) == 1 else 'them'} out"
+        )
+
+
 def run_calibrate(args: argparse.Namespace) -> int:
+    _refuse_options_of_the_other_kind(args)
     nominal, ticks = robot_from(args)
     if args.track_from_gyro:
         return _track_from_gyro(args, nominal, ticks)
@@ -305,9 +337,9 @@ def add_to(command: Command, parents: Parents) -> None:
     gyro.add_argument(
         "--gyro-arw",
         type=float,
-        default=2e-3,
+        default=GYRO_ARW,
         metavar="RAD_S_SQRT_HZ",
-        help="the gyro's angle random walk (default 2e-3)",
+        help=f"the gyro's angle random walk (default {GYRO_ARW})",
     )
     gyro.add_argument(
         "--k",
