@@ -79,6 +79,18 @@ def test_the_figures_follow_their_stated_derivation():
         export.Reference(speed=0.0)
 
 
+def test_runs_and_a_noise_model_by_hand_are_not_both_taken(tmp_path, capsys):
+    robot = tmp_path / "robot.toml"
+    robot.write_text("wheel_radius = 0.05\ntrack_width = 0.3\n")
+    run = tmp_path / "run.csv"
+    run.write_text("t,left_angle,right_angle,x,y,theta\n0,0,0,0,0,0\n1,1,1,0.05,0,0\n")
+    output = tmp_path / "params.yaml"
+    argv = ["export", "--to", "ros2", "--robot", str(robot), str(run), "--k", "1e-3"]
+    assert main([*argv, "-o", str(output)]) == 1
+    assert "--k give the noise model by hand, and the runs identify it" in capsys.readouterr().err
+    assert not output.exists()
+
+
 @pytest.mark.parametrize(
     ("terms", "message"),
     [

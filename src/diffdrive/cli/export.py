@@ -22,6 +22,20 @@ FILES = {
 
 
 def run_export(args: argparse.Namespace) -> int:
+    by_hand = [
+        name
+        for name, value in (
+            ("--k", args.k),
+            ("--radius-sigma", args.radius_sigma),
+            ("--track-sigma", args.track_sigma),
+        )
+        if value is not None
+    ]
+    if args.runs and by_hand:
+        raise ValueError(
+            f"{', '.join(by_hand)} give the noise model by hand, and the runs identify it: "
+            "give the runs or the terms, not both"
+        )
     if not args.runs and args.k is None:
         raise ValueError(
             "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
