@@ -100,6 +100,9 @@ def test_evaluate_against_the_plan_agrees_with_follow(files, capsys) -> None:
         == 1
     )
     assert "neither --truth" in capsys.readouterr().err
+    against = ["evaluate", str(files / "follow.csv"), "--plan", str(files / "plan.csv")]
+    assert main([*against, "--rpe", "2", "--interpolate"]) == 1
+    assert "--interpolate, --rpe: evaluate --plan reads the plan" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -119,6 +119,19 @@ def plan_metrics(args) -> dict:
             "evaluate --plan measures one trajectory against the plan: give the trajectory, and "
             "neither --truth nor --consistency"
         )
+    pairing = {  # options of a comparison with a truth, which a plan's does not use
+        "--t-max-diff": args.t_max_diff != 0.01,
+        "--interpolate": args.interpolate,
+        "--rpe": args.rpe != 1.0,
+        "--rpe-unit": args.rpe_unit != "m",
+        "--rpe-pairs": args.rpe_pairs != "consecutive",
+    }
+    unused = [name for name, given in pairing.items() if given]
+    if unused:
+        raise TableError(
+            f"{', '.join(unused)}: evaluate --plan reads the plan at each pose's time (after "
+            "--t-offset); it has no pairs or RPE windows to set"
+        )
     plan_times, plan_poses = read_trajectory(args.plan, args.time_unit)
     times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
     for path, poses in ((args.input, estimate), (args.plan, plan_poses)):
