@@ -63,7 +63,13 @@ def test_plan_names_the_file_of_a_bad_path(files, capsys) -> None:
     ("command", "extra", "message"),
     [
         ("plan", ["--dt", "100"], "dt 100 s exceeds the plan's"),
-        ("follow", ["--seed", "-1"], "seed must be a whole number from 0 or None, got -1"),
+        (
+            "follow",
+            ["--seed", "-1", "--wheel-noise", "1e-4"],
+            "seed must be a whole number from 0 or None, got -1",
+        ),
+        ("follow", ["--seed", "3"], "--seed draws the wheel noise: give --wheel-noise too"),
+        ("follow", ["--predict"], "--predict predicts over the delay and lag"),
     ],
 )
 def test_a_sampling_or_seed_that_cannot_be_used_is_named(files, capsys, command, extra, message):

@@ -115,6 +115,10 @@ def _tracker(args: argparse.Namespace):
 
 
 def run_follow(args: argparse.Namespace) -> int:
+    if args.seed is not None and not args.wheel_noise:
+        raise ValueError("--seed draws the wheel noise: give --wheel-noise too, or leave it out")
+    if args.predict and not (args.delay or args.lag):
+        raise ValueError("--predict predicts over the delay and lag: give --delay or --lag")
     _robot, result = _plan_of(args)
     tracker = _tracker(args)
     noise = (args.wheel_noise, args.wheel_noise)
