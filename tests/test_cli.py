@@ -378,6 +378,24 @@ def test_calibrate_refuses_the_options_of_the_other_kind(tmp_path, capsys, optio
     assert not output.exists()
 
 
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["simulate", "LOG", "--dt", "0.5"], "--dt sets the built-in history's step"),
+        (["simulate", "--frame", "map"], "--frame and --child-frame name a bag's frames"),
+        (["odometry", "LOG", "--counter-bits", "12"], "the log holds wheel angles"),
+    ],
+)
+def test_options_that_would_change_nothing_are_named(tmp_path, capsys, argv, message):
+    log = tmp_path / "log.csv"
+    log.write_text("t,left_angle,right_angle\n0,0,0\n0.1,0.5,0.6\n0.2,1.0,1.2\n")
+    output = tmp_path / "out.csv"
+    argv = [str(log) if a == "LOG" else a for a in argv]
+    assert main([*argv, "--wheel-radius", "0.05", "--track-width", "0.3", "-o", str(output)]) == 1
+    assert message in capsys.readouterr().err
+    assert not output.exists()
+
+
 def test_calibrate_real_square_runs_with_umbmark(tmp_path, capsys):
     from data import data_folder
     from diffdrive.io import read_robot

@@ -191,6 +191,12 @@ def write_output(
             )
         ]
     else:
+        frames = (getattr(args, "frame", "odom"), getattr(args, "child_frame", "base_link"))
+        if frames != ("odom", "base_link"):
+            raise ValueError(
+                f"--frame and --child-frame name a bag's frames; a {format} file has none "
+                "(write .mcap, or --format ros2)"
+            )
         written = write_trajectory(args.output, times, poses, format, columns)
     if not args.quiet:
         where = ", ".join(map(str, written))

@@ -19,6 +19,8 @@ from diffdrive.cli.options import (
 from diffdrive.demo import EXAMPLE_DURATION
 from diffdrive.simulation import simulate_run
 
+DT = 0.01  # --dt's default, s
+
 
 def run_simulate(args: argparse.Namespace) -> int:
     robot, ticks = robot_from(args)
@@ -31,6 +33,8 @@ def run_simulate(args: argparse.Namespace) -> int:
             f"simulated the built-in {EXAMPLE_DURATION:g} s driving history",
         )
         return 0
+    if args.dt != DT:
+        raise ValueError(f"--dt sets the built-in history's step; {args.input} has its own times")
     log = read_log_of(args)
     increments, note = log.checked_increments(robot, ticks, args.counter_bits)
     note += robot_note(args)
@@ -60,4 +64,6 @@ def add_to(command: Command, parents: Parents) -> None:
         EPILOGS["simulate"],
     )
     sim.add_argument("input", nargs="?", type=Path, help="driving history or log; none: built-in")
-    sim.add_argument("--dt", type=float, default=0.01, help="step for the built-in history, s")
+    sim.add_argument(
+        "--dt", type=float, default=DT, help=f"step for the built-in history, s (default {DT})"
+    )

@@ -115,6 +115,11 @@ class Run:
         Ticks need ``ticks_per_revolution`` (or the run's own) and go through roll-overs of
         ``counter_bits``-bit counters; velocities are held from each row to the next.
         """
+        if counter_bits is not None and self.kind != "ticks":
+            raise TableError(
+                f"{self.source}: a counter width ({counter_bits} bits, --counter-bits) reads "
+                f"roll-overs of counter readings, but the log holds wheel {self.kind}s"
+            )
         if self.kind == "velocity":
             return self.wheels[:-1] * np.diff(self.times)[:, None]
         if self.kind == "angle":
