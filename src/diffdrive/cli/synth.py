@@ -70,6 +70,8 @@ def _format_of(path: Path) -> str:
 
 
 def _encoder_model(args: argparse.Namespace, ticks: float | None) -> sensors.EncoderModel:
+    if args.unsigned and args.counter_bits is None:
+        raise ValueError("--unsigned describes a counter that rolls over: give --counter-bits")
     slips = tuple(
         sensors.Slip(float(start), float(stop), wheel, float(ratio))
         for start, stop, wheel, ratio in (args.slip or [])
@@ -103,6 +105,18 @@ def _gyro_model(args: argparse.Namespace) -> sensors.GyroModel:
 def _absolute(args, robot, times, poses):
     """A pose sensor's readings (or a GPS's, with --gps), or None without --pose-sigma."""
     if args.pose_sigma is None and args.gps is None:
+        shaping = {
+            "--pose-period": args.pose_period is not None,
+            "--pose-latency": args.pose_latency != 0.0,
+            "--pose-dropout": args.pose_dropout != 0.0,
+            "--pose-outlier": args.pose_outlier != 0.0,
+        }
+        given = [name for name, used in shaping.items() if used]
+        if given:
+            raise ValueError(
+                f"{', '.join(given)} {'shapes' if len(given) == 1 else 'shape'} a pose or GPS "
+                "sensor: give --pose-sigma or --gps"
+            )
         return None
     sigma = tuple(args.pose_sigma or (0.0, 0.0, 0.0))
     model = sensors.AbsoluteModel(
