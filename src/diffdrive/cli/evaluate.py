@@ -36,6 +36,8 @@ from diffdrive.simulation import dead_reckon
 
 def _check_options(args: argparse.Namespace) -> None:
     """The pairing and window options, refused by their own names before any file is read."""
+    if args.truth is None and args.truth_topic is not None:
+        raise ValueError("--truth-topic names the truth's topic in the bag --truth gives")
     for option, value, allowed, rule in (
         ("--t-max-diff", args.t_max_diff, args.t_max_diff >= 0, "finite and >= 0"),
         ("--t-offset", args.t_offset, True, "finite"),

@@ -23,6 +23,8 @@ from diffdrive.io import TableError, atomic_output, read_trajectory
 def run_plot(args: argparse.Namespace) -> int:
     from diffdrive.plot import plot_trajectory
 
+    if args.truth is None and args.truth_topic is not None:
+        raise TableError("--truth-topic names the truth's topic in the bag --truth gives")
     robot, _ = robot_from(args)
     times, poses, what = trajectory_or_example(args, robot)
     truth = None
@@ -68,6 +70,8 @@ def _plot_errors(args, times, poses, truth) -> int:
 def run_animate(args: argparse.Namespace) -> int:
     from diffdrive.plot import animate, animation_writer
 
+    if args.truth_topic is not None:
+        raise TableError("--truth-topic: animate draws the trajectory alone, with no truth")
     robot, _ = robot_from(args)
     times, poses, what = trajectory_or_example(args, robot)
     if poses.ndim != 2:
