@@ -253,6 +253,8 @@ def ready():
     [
         (lambda o: o.update_positions(math.nan, 2.0, t=1.2), "left must be finite, got nan"),
         (lambda o: o.update_increments(0.1, math.inf), "right must be finite, got inf"),
+        # A NumPy scalar prints as the number, not as np.float64(nan).
+        (lambda o: o.update_increments(np.float64("nan"), 0.1), "left must be finite, got nan$"),
         (lambda o: o.update_velocities(1.0, 1.0, 0.0), "dt must be > 0, got 0.0"),
         (lambda o: o.update_velocities(1.0, 1.0, -0.1), "dt must be > 0"),
         (lambda o: o.update_positions(1.1, 2.1, t=math.nan), "t must be finite, got nan"),

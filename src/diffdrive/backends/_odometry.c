@@ -331,7 +331,8 @@ static int parse_double(PyObject *obj, const char *name, const char *field, doub
         return -1;
     }
     if (!isfinite(v)) {
-        PyErr_Format(PyExc_ValueError, "%s: %s must be finite, got %R", name, field, obj);
+        /* The value as a float prints the same whatever its type (not np.float64(nan)). */
+        PyErr_Format(PyExc_ValueError, "%s: %s must be finite, got %s", name, field, num(v).text);
         return -1;
     }
     *out = v;

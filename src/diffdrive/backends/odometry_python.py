@@ -63,7 +63,7 @@ def _number(name: str, field: str, value: object) -> float:
     except (TypeError, ValueError):
         raise TypeError(f"{name}: {field} must be a number, got {value!r}") from None
     if not math.isfinite(number):
-        raise ValueError(f"{name}: {field} must be finite, got {value!r}")
+        raise ValueError(f"{name}: {field} must be finite, got {number!r}")
     return number
 
 
