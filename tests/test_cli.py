@@ -367,8 +367,11 @@ def test_calibrate_refuses_folds_it_cannot_make_and_writes_nothing(
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        (["--track-from-gyro", "--fix", "track_width"], "--fix: --track-from-gyro fits the"),
-        (["--gyro-arw", "0.01", "--k", "1e-5"], "--gyro-arw, --k: only --track-from-gyro uses"),
+        (["--track-from-gyro", "--fix", "track_width"], "--fix: not used by --track-from-gyro"),
+        (
+            ["--gyro-arw", "0.01", "--k", "1e-5"],
+            "--gyro-arw, --k: used only with --track-from-gyro",
+        ),
     ],
 )
 def test_calibrate_refuses_the_options_of_the_other_kind(tmp_path, capsys, options, message):

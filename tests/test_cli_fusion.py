@@ -86,9 +86,12 @@ def test_a_bag_pose_topic_is_fused(tmp_path, monkeypatch, capsys):
         (["--measurements", "bad.csv"], "bad.csv:3"),
         (["--measurements", "nosigma.csv"], "give --gps-sigma M"),
         (["--measurements", "negative.csv"], "negative.csv:2: position measurement at t = 0"),
-        (["--command-topic", "/cmd_vel"], "--command-topic acts through a gyro"),
-        (["--gyro-bias", "0.01", "--slip-test", "interval"], "--slip-test act through a gyro"),
-        (["--turn-scale-sigma", "0.1"], "gyro_z column (or, for the turn scale, measurements)"),
+        (["--command-topic", "/cmd_vel"], "--command-topic: used only with a gyro"),
+        (
+            ["--gyro-bias", "0.01", "--slip-test", "interval"],
+            "--gyro-bias, --slip-test: used only with a gyro",
+        ),
+        (["--turn-scale-sigma", "0.1"], "the turn scale also learns from measurements"),
         (["--measurements", "halfsigma.csv"], "gives all of sigma_x, sigma_y, sigma_theta or"),
         (
             ["--measurements", "unix.csv", "--gps-sigma", "0.1"],
@@ -113,8 +116,11 @@ def test_bad_measurements_are_refused_by_name_and_nothing_is_written(
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--gate", "0.99"], "--gate acts only on absolute measurements"),
-        (["--lever-arm", "0.1", "0", "--gps-sigma", "1"], "--gps-sigma, --lever-arm act only"),
+        (["--gate", "0.99"], "--gate: used only with absolute measurements"),
+        (
+            ["--lever-arm", "0.1", "0", "--gps-sigma", "1"],
+            "--gps-sigma, --lever-arm: used only with absolute",
+        ),
         (["--imu-rpy", "0", "0", "90"], "--imu-rpy turns a bag's IMU (--gyro-topic)"),
         (["--imu-rpy", "0", "nan", "0"], "--imu-rpy must be three finite angles"),
     ],

@@ -326,6 +326,13 @@ def test_without_measurements_the_smoother_is_the_filter():
     np.testing.assert_allclose(smoothed.covariances, forward.covariances, atol=1e-12)
 
 
+def test_a_measurement_outside_the_log_is_named_with_the_log_span():
+    increments = noisy_increments(np.random.default_rng(5))[:9]
+    late = measurements_of("position", [5.0], [[0.0, 0.0]], 0.1)
+    with pytest.raises(ValueError, match=r"t = 5.0 s lies outside the log \[0, 0.18\] s"):
+        estimate_trajectory(ROBOT, T[:10], increments, heading="wheels", measurements=late)
+
+
 def test_the_turn_scale_state_learns_wheels_that_under_turn():
     """The robot turns 1.075 times as far as its wheels say (the Husky's kind of drive): with
     the turn scale as a state the fused estimator finds it from the gyro."""

@@ -87,7 +87,7 @@ def test_runs_and_a_noise_model_by_hand_are_not_both_taken(tmp_path, capsys):
     output = tmp_path / "params.yaml"
     argv = ["export", "--to", "ros2", "--robot", str(robot), str(run), "--k", "1e-3"]
     assert main([*argv, "-o", str(output)]) == 1
-    assert "--k give the noise model by hand, and the runs identify it" in capsys.readouterr().err
+    assert "--k: a noise model by hand, where the runs identify one" in capsys.readouterr().err
     assert not output.exists()
 
 

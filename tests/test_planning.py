@@ -84,23 +84,33 @@ LIMITS = PathLimits(
 )
 
 
-@settings(max_examples=25, deadline=None)
-@given(
-    st.lists(
-        st.tuples(st.floats(0, 6), st.floats(0, 6), st.floats(-math.pi, math.pi)),
-        min_size=2,
-        max_size=4,
-    )
+# Two to four waypoints anywhere in a 6 m square, with any heading.
+RANDOM_WAYPOINTS = st.lists(
+    st.tuples(st.floats(0, 6), st.floats(0, 6), st.floats(-math.pi, math.pi)),
+    min_size=2,
+    max_size=4,
 )
-def test_a_plan_never_exceeds_a_limit(waypoints: list[tuple[float, float, float]]) -> None:
+
+
+def _plan_or_none(waypoints, limits: PathLimits):
+    """The plan through drawn waypoints, or None where they are closer than 0.5 m or make a
+    spline the planner refuses by name (one that loops, has a cusp, or bends too sharply)."""
     points = np.array(waypoints)
     if np.hypot(*np.diff(points[:, :2], axis=0).T).min() < 0.5:
-        return
+        return None
     try:
-        result = plan(points, ROBOT, LIMITS)
-    except ValueError as error:  # a spline that loops, has a cusp or all but one: by name
+        return plan(points, ROBOT, limits)
+    except ValueError as error:
         if "spline" not in str(error) and "the path's radius there is" not in str(error):
             raise
+        return None
+
+
+@settings(max_examples=25, deadline=None)
+@given(RANDOM_WAYPOINTS)
+def test_a_plan_never_exceeds_a_limit(waypoints: list[tuple[float, float, float]]) -> None:
+    result = _plan_or_none(waypoints, LIMITS)
+    if result is None:
         return
     # Between states (what a controller stepping through them asks for) ...
     for name, ratio in limit_ratios(result.times, result.twists, ROBOT, LIMITS).items():
@@ -240,24 +250,11 @@ def test_a_jerk_limit_on_a_straight_line_costs_at_most_its_window() -> None:
 
 
 @settings(max_examples=15, deadline=None)
-@given(
-    st.lists(
-        st.tuples(st.floats(0, 6), st.floats(0, 6), st.floats(-math.pi, math.pi)),
-        min_size=2,
-        max_size=4,
-    ),
-    st.sampled_from([2.0, 10.0, 50.0]),
-)
+@given(RANDOM_WAYPOINTS, st.sampled_from([2.0, 10.0, 50.0]))
 def test_a_jerk_limited_plan_keeps_every_limit_and_the_jerk(waypoints, jerk) -> None:
-    points = np.array(waypoints)
-    if np.hypot(*np.diff(points[:, :2], axis=0).T).min() < 0.5:
-        return
     limits = dataclasses.replace(LIMITS, max_jerk=jerk)
-    try:
-        result = plan(points, ROBOT, limits)
-    except ValueError as error:
-        if "spline" not in str(error) and "the path's radius there is" not in str(error):
-            raise
+    result = _plan_or_none(waypoints, limits)
+    if result is None:
         return
     for name, ratio in limit_ratios(result.times, result.twists, ROBOT, limits).items():
         assert ratio.max() <= 1 + 1e-9, name

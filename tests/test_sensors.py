@@ -353,7 +353,10 @@ def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, c
         (["--time-offset", "nan", "-o", "x.mcap"], "time_offset must be finite"),
         (["--time-offset", "3e9", "-o", "x.mcap"], "/joint_states: times must lie in [0, 2^31)"),
         (["--gps", "100", "0", "0", "-o", "x.mcap"], "latitude must lie in [-90, 90]"),
-        (["--pose-period", "0.5", "-o", "x.mcap"], "--pose-period shapes a pose or GPS sensor"),
+        (
+            ["--pose-period", "0.5", "-o", "x.mcap"],
+            "--pose-period: used only with a pose or GPS sensor",
+        ),
         (["--unsigned", "-o", "x.mcap"], "--unsigned describes a counter that rolls over"),
     ]
     for extra, message in refused:

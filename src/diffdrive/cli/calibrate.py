@@ -27,6 +27,7 @@ from diffdrive.cli.options import (
     at_least,
     gyro_of,
     read_log_of,
+    refuse_unused,
     robot_from,
 )
 from diffdrive.demo import (
@@ -119,10 +120,9 @@ def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
 
 
 def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
-    """--track-from-gyro's options without it, or a fit's options with it: each would change
-    nothing, and the user would believe it had."""
+    """--track-from-gyro's options without it, or a fit's options with it."""
     if args.track_from_gyro:
-        idle = {
+        fit = {
             "--method": args.method != "least_squares",
             "--integration": args.integration != "exact",
             "--square-side": args.square_side is not None,
@@ -131,20 +131,15 @@ def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
             "--fix": bool(args.fix),
             "--extra": args.extra is not None,
         }
-        why = "--track-from-gyro fits the track alone, from the gyro"
+        refuse_unused(fit, "not used by --track-from-gyro, which fits the track alone")
     else:
-        idle = {
+        gyro = {
             "--gyro-topic": args.gyro_topic is not None,
             "--imu-rpy": any(args.imu_rpy),
             "--gyro-arw": args.gyro_arw != GYRO_ARW,
             "--k": args.k != 0.0,
         }
-        why = "only --track-from-gyro uses these"
-    given = [name for name, used in idle.items() if used]
-    if given:
-        raise ValueError(
-            f"{', '.join(given)}: {why}; leave {'it' if len(given) == 1 else 'them'} out"
-        )
+        refuse_unused(gyro, "used only with --track-from-gyro")
 
 
 def run_calibrate(args: argparse.Namespace) -> int:

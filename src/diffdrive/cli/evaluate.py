@@ -15,6 +15,7 @@ from diffdrive.cli.options import (
     TRAJECTORY_FILES,
     Command,
     Parents,
+    refuse_unused,
 )
 from diffdrive.demo import (
     example_log,
@@ -128,12 +129,11 @@ def plan_metrics(args) -> dict:
         "--rpe-unit": args.rpe_unit != "m",
         "--rpe-pairs": args.rpe_pairs != "consecutive",
     }
-    unused = [name for name, given in pairing.items() if given]
-    if unused:
-        raise TableError(
-            f"{', '.join(unused)}: evaluate --plan reads the plan at each pose's time (after "
-            "--t-offset); it has no pairs or RPE windows to set"
-        )
+    refuse_unused(
+        pairing,
+        "evaluate --plan reads the plan at each pose's time (after --t-offset); it has no "
+        "pairs or RPE windows to set",
+    )
     plan_times, plan_poses = read_trajectory(args.plan, args.time_unit)
     times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
     for path, poses in ((args.input, estimate), (args.plan, plan_poses)):

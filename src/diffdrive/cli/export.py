@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.cli.calibrate import _calibration_run
-from diffdrive.cli.options import Command, Parents, robot_from, robot_given
+from diffdrive.cli.options import Command, Parents, refuse_unused, robot_from, robot_given
 from diffdrive.export import TARGETS, Reference, export
 from diffdrive.io import read_robot, robot_from_settings
 from diffdrive.noise import TERMS, NoiseModel, identify_what_it_can
@@ -22,20 +22,13 @@ FILES = {
 
 
 def run_export(args: argparse.Namespace) -> int:
-    by_hand = [
-        name
-        for name, value in (
-            ("--k", args.k),
-            ("--radius-sigma", args.radius_sigma),
-            ("--track-sigma", args.track_sigma),
-        )
-        if value is not None
-    ]
-    if args.runs and by_hand:
-        raise ValueError(
-            f"{', '.join(by_hand)} give the noise model by hand, and the runs identify it: "
-            "give the runs or the terms, not both"
-        )
+    if args.runs:
+        by_hand = {
+            "--k": args.k is not None,
+            "--radius-sigma": args.radius_sigma is not None,
+            "--track-sigma": args.track_sigma is not None,
+        }
+        refuse_unused(by_hand, "a noise model by hand, where the runs identify one: not both")
     if not args.runs and args.k is None:
         raise ValueError(
             "export needs a noise model: runs with ground truth to identify it on, or --k (m) "

@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 from diffdrive import batch
-from diffdrive.cli.options import COVARIANCE_COLUMNS, write_output
+from diffdrive.cli.options import COVARIANCE_COLUMNS, refuse_unused, write_output
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation import Measurement, estimate_trajectory
 from diffdrive.evaluation import align, interpolate
@@ -40,26 +40,18 @@ def wants_fusion(args) -> bool:
 
 
 def refuse_idle_options(args) -> None:
-    """Options about measurements given without any: a user who set them would believe
-    they shaped the estimate."""
+    """The measurement options, given without any measurements."""
     if args.pose_topic or args.gps_topic or args.measurements:
         return
-    idle = [
-        name
-        for name, given in (
-            ("--pose-sigma", args.pose_sigma is not None),
-            ("--gps-sigma", args.gps_sigma is not None),
-            ("--lever-arm", args.lever_arm is not None),
-            ("--gate", args.gate != GATE),
-        )
-        if given
-    ]
-    if idle:
-        raise ValueError(
-            f"{', '.join(idle)} {'acts' if len(idle) == 1 else 'act'} only on absolute "
-            "measurements: give --pose-topic, "
-            "--gps-topic or --measurements, or leave them out"
-        )
+    refuse_unused(
+        {
+            "--pose-sigma": args.pose_sigma is not None,
+            "--gps-sigma": args.gps_sigma is not None,
+            "--lever-arm": args.lever_arm is not None,
+            "--gate": args.gate != GATE,
+        },
+        "used only with absolute measurements (--pose-topic, --gps-topic or --measurements)",
+    )
 
 
 def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:

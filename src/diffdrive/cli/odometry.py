@@ -20,6 +20,7 @@ from diffdrive.cli.options import (
     output_format,
     output_options,
     read_log_of,
+    refuse_unused,
     robot_from,
     robot_note,
     write_output,
@@ -86,26 +87,18 @@ def run_odometry(args: argparse.Namespace) -> int:
 
 
 def _refuse_gyro_options(args) -> None:
-    """Options that act through a gyro, given for a log without one: they would change
-    nothing, and the user would believe they had."""
+    """The options that act through a gyro, given for a log without one."""
     measured = args.pose_topic or args.gps_topic or args.measurements
-    idle = [
-        name
-        for name, given in (
-            ("--gyro-bias", args.gyro_bias is not None),
-            ("--slip-test", args.slip_test is not None),
-            ("--command-topic", args.command_topic is not None),
-            ("--turn-scale-sigma", bool(args.turn_scale_sigma) and not measured),
-        )
-        if given
-    ]
-    if idle:
-        also = " (or, for the turn scale, measurements)" if "--turn-scale-sigma" in idle else ""
-        raise ValueError(
-            f"{', '.join(idle)} {'acts' if len(idle) == 1 else 'act'} through a gyro: give "
-            f"--gyro-topic or a gyro_z column{also}, or leave {'it' if len(idle) == 1 else 'them'} "
-            "out"
-        )
+    refuse_unused(
+        {
+            "--gyro-bias": args.gyro_bias is not None,
+            "--slip-test": args.slip_test is not None,
+            "--command-topic": args.command_topic is not None,
+            "--turn-scale-sigma": bool(args.turn_scale_sigma) and not measured,
+        },
+        "used only with a gyro (--gyro-topic, or a gyro_z column; the turn scale also learns "
+        "from measurements)",
+    )
 
 
 def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:

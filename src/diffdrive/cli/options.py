@@ -258,6 +258,14 @@ def print_values(values: dict[str, float], as_json: bool, units: dict[str, str])
 NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
+def refuse_unused(options: dict[str, bool], why: str) -> None:
+    """Refuse the options given (``True``) that would change nothing in this run: a user who
+    set them would believe they had. ``ValueError``: their names, then ``why``."""
+    given = [name for name, used in options.items() if used]
+    if given:
+        raise ValueError(f"{', '.join(given)}: {why}")
+
+
 def between(smallest: int, largest: int):
     """An argparse type: a whole number from ``smallest`` to ``largest``."""
 

@@ -15,6 +15,7 @@ from diffdrive.cli.options import (
     Parents,
     add_imu_options,
     example_trajectory,
+    refuse_unused,
     robot_from,
 )
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS
@@ -111,12 +112,7 @@ def _absolute(args, robot, times, poses):
             "--pose-dropout": args.pose_dropout != 0.0,
             "--pose-outlier": args.pose_outlier != 0.0,
         }
-        given = [name for name, used in shaping.items() if used]
-        if given:
-            raise ValueError(
-                f"{', '.join(given)} {'shapes' if len(given) == 1 else 'shape'} a pose or GPS "
-                "sensor: give --pose-sigma or --gps"
-            )
+        refuse_unused(shaping, "used only with a pose or GPS sensor (--pose-sigma or --gps)")
         return None
     sigma = tuple(args.pose_sigma or (0.0, 0.0, 0.0))
     model = sensors.AbsoluteModel(

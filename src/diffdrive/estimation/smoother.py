@@ -144,7 +144,7 @@ def estimate_trajectory(
         if not times[0] <= m.t <= times[-1]:
             raise ValueError(
                 f"{m.kind} measurement at t = {m.t!r} s lies outside the log "
-                f"[{times[0]!r}, {times[-1]!r}] s"
+                f"[{times[0]:g}, {times[-1]:g}] s"
             )
     if slip_test not in SLIP_TESTS:
         raise ValueError(f"slip_test must be one of {SLIP_TESTS}, got {slip_test!r}")
