@@ -61,8 +61,11 @@ def test_logs_that_cannot_show_the_response_are_refused():
         identify_velocity_response(T, measured, COMMAND_TIMES, commands, accelerations=(0.0,))
 
 
-def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys):
+def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys, tmp_path):
+    """Over the stamps as recorded and over the simulator's sample times: the RMSE with the
+    response and at once, their ratio, and the share of the largest errors."""
     import importlib.util
+    import re
 
     from data import data_folder
 
@@ -70,13 +73,18 @@ def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys):
     spec = importlib.util.spec_from_file_location("drive_response", path)
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
-    script.main(["--bags", str(data_folder("ros-bags"))])
+    script.main(["--bags", str(data_folder("ros-bags")), "--output", str(tmp_path / "f.png")])
     lines = capsys.readouterr().out.splitlines()
     readme = " ".join((path.parents[1] / "README.md").read_text().split())
-    share = lines[1].split("(")[1][:-1].replace("%", " %")  # the README's way with a percent
-    for figure in (lines[1].split(": ")[1].split(" rad/s")[0], share):
-        assert figure in readme, figure
+    for line in lines[1:3]:
+        model, instant = re.findall(r"(\d\.\d{3}) rad/s", line)
+        share = re.search(r"\((\d+)%\)", line).group(1) + " %"
+        for figure in (model, instant, share):
+            assert figure in readme, figure
+    assert "carry 87% of its squared error" in lines[2]
+    assert "87 % of its squared error" in readme
     assert "time constant 35 ms" in lines[0]
+    assert (tmp_path / "f.png").stat().st_size > 0
 
 
 KS, KV, KA, DT = 1.0, 3.0, 0.5, 0.005

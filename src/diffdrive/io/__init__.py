@@ -8,6 +8,8 @@
 - ``logs``: wheel-log tables; ``optiodom``: the OptiOdom run files (Sousa et al. 2022);
 - ``trajectories``: ``t, x, y, theta`` as CSV, JSON lines or TUM, or a bag's topic;
 - ``robots``: robot files (TOML);
+- ``stamps``: ``sample_times``, the sample times behind a fixed-rate publisher's stamps that
+  are a clock tick early at times (a simulator's ``/joint_states``);
 - ``ros``: ROS 1 bags, ROS 2 bags and MCAP files (the ``ros`` extra), loaded on first use;
 - ``diffdrive.atomic`` (re-exported here): the atomic writes every writer goes through.
 
@@ -28,6 +30,7 @@ from diffdrive.io.robots import (
 )
 from diffdrive.io.run import RIM_SPEED_LIMIT, WHEEL_COLUMNS, Run, WheelKind, narrower_counter
 from diffdrive.io.sniff import is_bag
+from diffdrive.io.stamps import SampleTimes, sample_times
 from diffdrive.io.tables import TIME_UNITS, TableError, read_table
 from diffdrive.io.trajectories import FORMATS, read_trajectory, write_trajectory
 
@@ -39,6 +42,7 @@ __all__ = [
     "TIME_UNITS",
     "WHEEL_COLUMNS",
     "Run",
+    "SampleTimes",
     "TableError",
     "WheelKind",
     "atomic_output",
@@ -54,6 +58,7 @@ __all__ = [
     "read_table",
     "read_trajectory",
     "robot_from_settings",
+    "sample_times",
     "write_robot",
     "write_trajectory",
 ]

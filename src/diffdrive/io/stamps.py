@@ -1,0 +1,116 @@
+"""The sample times of a fixed-rate publisher whose stamps are a clock tick early at times.
+
+A simulator that steps in ticks (Gazebo: 1 ms) samples a plugin's state at the first tick
+past each period, but the node stamps the message with its own copy of the clock, which a
+``/clock`` message a tick late leaves one tick behind at times: that stamp is a tick early.
+A velocity differenced over one 33 ms interval is then 3 % off, up or down, on both intervals
+around such a stamp: on the TurtleBot3 bag, 441 of 2741 ``/joint_states`` stamps are a tick
+early, and the velocities' noise, 0.08 rad/s (robust spread of their second differences)
+with the stamps, falls to 0.003 rad/s with the sample times.
+
+``sample_times`` finds the period and the phase on which the stamps fall (the first tick past
+``start + k period`` for each message ``k``, messages dropped allowed), and returns those
+times when the stamps bear it out: at least ``share`` of them exactly on it and every other
+a tick early. Otherwise it refuses, saying how many stamps fit: stamps with any other jitter
+are not this, and are left to the caller. Where a sample's ideal time lies within a small
+fraction of a tick past a tick, a period a hair different can put its early stamp on a tick:
+the stamps cannot tell the two apart, and the times with the most stamps on their ticks are
+taken (the likelier while fewer than half are early). On 300 random records of 100 to 3000
+messages (periods of 5 to 60 ticks, up to 30 % early) that leaves 1 to 4 samples a tick off in
+one record in four: 0.2 % of the early stamps, against all of them in the stamps themselves.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["SampleTimes", "sample_times"]
+
+
+@dataclass(frozen=True, eq=False)
+class SampleTimes:
+    """``times`` ``(N,)`` s, the sample times restored; ``period`` (s) the publisher's;
+    ``moved`` how many stamps were off them (each by one ``tick``)."""
+
+    times: np.ndarray
+    period: float
+    moved: int
+
+
+def sample_times(times: object, tick: float = 1e-3, *, share: float = 0.8) -> SampleTimes:
+    """The sample times behind ``times`` ``(N,)`` s, stamps of a fixed-rate publisher on a
+    clock of ``tick`` s, some a tick early (see the module). ``ValueError`` when
+    the stamps do not fit that within one tick, or fit it exactly at fewer than ``share``."""
+    stamps = np.asarray(times, dtype=float)
+    if stamps.ndim != 1 or len(stamps) < 10:
+        raise ValueError(f"times must be (N,) s with N >= 10, got shape {stamps.shape}")
+    if not np.all(np.isfinite(stamps)) or np.any(np.diff(stamps) <= 0):
+        raise ValueError("times must be finite and increase strictly")
+    if not (math.isfinite(tick) and tick > 0.0):
+        raise ValueError(f"tick must be a finite time > 0 s, got {tick!r}")
+    if not 0.0 < share <= 1.0:
+        raise ValueError(f"share must lie in (0, 1], got {share!r}")
+    guess = float(np.median(np.diff(stamps)))
+    if guess < 4.5 * tick:  # stamps on ticks: a median of 5 ticks is 5, give or take a bit
+        raise ValueError(
+            f"the stamps' period, {guess:g} s, spans under 5 ticks of {tick:g} s: a tick "
+            "early cannot be told from the period"
+        )
+    # Periods between neighbours (more than one where messages were dropped), counted one
+    # gap at a time: rounding the whole span by the median would drift.
+    gaps = np.round(np.diff(stamps) / guess)
+    if np.any(gaps < 1):
+        raise ValueError(
+            "the stamps do not follow a fixed period: two fall within half a period of each other"
+        )
+    counts = np.concatenate([[0.0], np.cumsum(gaps)])
+    seen = (stamps - stamps[0]) / tick  # in ticks from the first stamp
+    grid, period = _ticks(counts, seen)
+    off = seen - grid
+    exact = int(np.sum(np.abs(off) < 0.25))
+    lagged = np.abs(off + 1.0) < 0.25
+    if exact < share * len(stamps) or not np.all((np.abs(off) < 0.25) | lagged):
+        raise ValueError(
+            f"the stamps are not a fixed period on a {tick:g} s clock, some a tick early: "
+            f"{exact} of {len(stamps)} fall on the period's ticks and "
+            f"{int(np.sum(~(np.abs(off) < 0.25) & ~lagged))} lie further than a tick from "
+            f"them (needed: at least {share:.0%} on them, none further)"
+        )
+    return SampleTimes(stamps[0] + grid * tick, period * tick, int(np.sum(lagged)))
+
+
+def _ticks(counts: np.ndarray, seen: np.ndarray) -> tuple[np.ndarray, float]:
+    """The ticks (from the first stamp) of the samples, the first tick past ``offset + k
+    period`` for message ``k`` (``counts``), and the period (ticks): those that leave the
+    fewest stamps ``seen`` neither on their tick nor a tick early, then the most on it.
+
+    A stamp on its tick ``s`` bounds the offset to ``(s - 1 - k period, s - k period]``, one
+    a tick early to the next tick's interval. For each period tried (a fine grid around the
+    least-squares one, which the early stamps pull by a little), every offset between two
+    bounds is scored, and the middle of the widest run of the best kept."""
+    slope, spread = np.polyfit(counts, seen, 1, cov=True)
+    period, error = slope[0], float(np.sqrt(spread[0, 0]))
+    # Steps of 0.002 / k ticks move the last message's ideal time by a 500th of a tick: the
+    # offsets that hold every stamp can be as narrow as that.
+    tries = max(11, int(np.ceil(10.0 * error * counts[-1] / 0.002)) | 1)
+    best = None
+    for trial in np.linspace(period - 5.0 * error, period + 5.0 * error, tries):
+        upper = np.sort(seen - counts * trial)
+        lower, early = upper - 1.0, upper + 1.0
+        ends = np.unique(np.concatenate([lower, upper, early]))
+        middles = 0.5 * (ends[1:] + ends[:-1])
+        below = np.searchsorted(lower, middles)
+        exact = below - np.searchsorted(upper, middles)
+        either = below - np.searchsorted(early, middles)
+        score = either * (len(seen) + 1) + exact
+        held = np.flatnonzero(score == score.max())
+        runs = np.split(held, np.flatnonzero(np.diff(held) > 1) + 1)
+        widest = max(runs, key=lambda r: ends[r[-1] + 1] - ends[r[0]])
+        width = ends[widest[-1] + 1] - ends[widest[0]]
+        if best is None or (score.max(), width) > best[:2]:
+            best = (score.max(), width, trial, 0.5 * (ends[widest[0]] + ends[widest[-1] + 1]))
+    _, _, trial, offset = best  # type: ignore[misc]
+    return np.ceil(counts * trial + offset - 1e-9), float(trial)
