@@ -168,6 +168,10 @@ def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys
     readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
     assert f"holds on {counts[0]} of the 10 experiments" in readme
     assert f"and on {counts[1]} of 10 from all the other experiments" in readme
+    inside = next(line for line in printed.splitlines() if line.startswith("in-sample:"))
+    passed, own = inside.split(": ")[1].split()[0], inside.split("draws ")[1].split("%")[0]
+    assert f"the model passes on {passed} of 10" in readme
+    assert f"it passes on {own} % of experiments" in readme
     turtle = next(line for line in printed.splitlines() if line.startswith("TurtleBot3"))
     share = turtle.split("% inside")[0].split()[-1]
     assert f"95 % ellipse at {share} % of poses" in readme

@@ -75,6 +75,33 @@ def test_the_predicted_covariance_is_honest_on_runs_it_did_not_see():
     assert result.inside_95 == pytest.approx(0.95, abs=0.04)
 
 
+def test_references_drawn_from_a_model_match_the_covariance_it_predicts():
+    """2000 references drawn on one run: the sample covariance of their error at the end is
+    the predicted one within 10 % (trace and each diagonal term), and ANEES over the run is
+    within 5 % of 1; a generator seeded alike draws alike."""
+    model = noise.NoiseModel(*TRUE.values(), np.zeros((5, 5)), 1, noise.TERMS)
+    (increments, truth), *_ = runs(1, seed=4)[0]
+    poses, predicted = noise.covariances(ROBOT, increments, truth[0], model)
+    rng = np.random.default_rng(7)
+    drawn = np.array(
+        [noise.draw_reference(ROBOT, increments, truth[0], model, rng) for _ in range(2000)]
+    )
+    errors = drawn - poses
+    found = np.cov(errors[:, -1].T)
+    assert np.trace(found) == pytest.approx(np.trace(predicted[-1]), rel=0.1)
+    np.testing.assert_allclose(np.diag(found), np.diag(predicted[-1]), rtol=0.1)
+    every = slice(10, None, 10)
+    nees = np.einsum(
+        "dti,tij,dtj->dt",
+        errors[:, every],
+        np.linalg.inv(predicted[every]),
+        errors[:, every],
+    )
+    assert nees.mean() / 3 == pytest.approx(1.0, abs=0.05)
+    again = noise.draw_reference(ROBOT, increments, truth[0], model, np.random.default_rng(7))
+    np.testing.assert_array_equal(again, drawn[0])
+
+
 def test_what_the_runs_cannot_identify_is_refused_by_name():
     straight = [
         (

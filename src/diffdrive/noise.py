@@ -35,6 +35,8 @@ Prediction (``covariances``): the pose covariance along a run that the model imp
 error against that reference: ``Odometry``'s with ``k``, the geometry's through the unscented
 transform of its three relative errors (over a long run with much turning a track error turns
 the path far, beyond a linear Jacobian's reach), and the reference's noise.
+``draw_reference`` draws a reference as the model says it arises, to score the model on
+errors it made itself: what the real errors should look like if the model were right.
 """
 
 from __future__ import annotations
@@ -59,6 +61,7 @@ __all__ = [
     "allan_deviation",
     "covariances",
     "cross_validate",
+    "draw_reference",
     "identify",
     "identify_gyro",
     "identify_what_it_can",
@@ -363,6 +366,31 @@ def covariances(
         [model.reference_sigma**2, model.reference_sigma**2, model.reference_heading_sigma**2]
     )
     return poses, predicted + reference
+
+
+def draw_reference(
+    robot: DiffDrive,
+    increments: object,
+    start: object,
+    model: NoiseModel,
+    rng: np.random.Generator,
+    method: Method = "exact",
+) -> np.ndarray:
+    """One reference ``(T+1, 3)`` for a run with wheel-angle ``increments`` ``(T, 2)`` rad
+    from ``start``, drawn as ``model`` says it arises: the run's geometry drawn once, each
+    wheel's travel in each step with variance ``k |travel|``, the reference's own noise at each
+    pose. ``reference - covariances(...)[0]`` is then an error the model's covariance should
+    cover: the check that the model could have made the errors it is scored on."""
+    increments = np.asarray(increments, dtype=float)
+    start = np.asarray(start, dtype=float)
+    base = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
+    sigmas = np.array([model.radius_sigma, model.radius_sigma, model.track_sigma])
+    drawn = robot.with_geometry(*(base * (1.0 + sigmas * rng.standard_normal(3))))
+    spread = np.sqrt(model.k * np.abs(increments * base[:2])) / base[:2]
+    wheels = increments + spread * rng.standard_normal(increments.shape)
+    poses = dead_reckon(drawn, wheels, start, method)
+    floor = np.array([model.reference_sigma] * 2 + [model.reference_heading_sigma])
+    return poses + floor * rng.standard_normal(poses.shape)
 
 
 @dataclass(frozen=True, eq=False)
