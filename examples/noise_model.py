@@ -76,7 +76,7 @@ def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
 
 
 def passes(found) -> bool:
-    """The issue's test of one experiment: 95 % coverage of 0.80 or more, ANEES in [1/3, 3]."""
+    """The test of one experiment: 95 % coverage of 0.80 or more, and ANEES in [1/3, 3]."""
     return found.inside_95 >= 0.80 and 1 / 3 <= found.anees <= 3
 
 
