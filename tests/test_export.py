@@ -102,10 +102,14 @@ def test_runs_and_a_noise_model_by_hand_are_not_both_taken(tmp_path, capsys):
 def test_a_noise_model_that_would_write_zero_or_wrong_covariances_is_refused(
     terms, message, tmp_path
 ):
-    model = noise.NoiseModel(*terms, 0.0, 0.0, np.zeros((5, 5)), 0, noise.TERMS[:3])
     path = tmp_path / "params.yaml"
-    with pytest.raises(ValueError, match=message):
+
+    def write():
+        model = noise.NoiseModel(*terms, 0.0, 0.0, np.zeros((5, 5)), 0, noise.TERMS[:3])
         export.export("ros2", NOMINAL, NOMINAL, model, path)
+
+    with pytest.raises(ValueError, match=message):
+        write()
     assert not path.exists()
 
 

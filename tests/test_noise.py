@@ -102,6 +102,22 @@ def test_references_drawn_from_a_model_match_the_covariance_it_predicts():
     np.testing.assert_array_equal(again, drawn[0])
 
 
+@pytest.mark.parametrize(
+    ("terms", "message"),
+    [
+        ((-1e-4, 0, 0, 0, 0), "noise model k must be >= 0, got -0.0001"),
+        ((1e-4, 0, 0, float("inf"), 0), "noise model reference_sigma must be finite"),
+        ((1e-4, 0, 0, 0, float("nan")), "noise model reference_heading_sigma must be finite"),
+        ((1e-4, 0, -0.01, 0, 0), "noise model track_sigma must be >= 0"),
+    ],
+)
+def test_a_noise_model_with_a_negative_or_non_finite_term_is_refused(terms, message):
+    """Built by hand: a negative k would be rooted into NaN draws, an infinite sigma into
+    infinite covariances, a negative sigma squared into a valid-looking one."""
+    with pytest.raises(ValueError, match=message):
+        noise.NoiseModel(*terms, np.zeros((5, 5)), 1, noise.TERMS)
+
+
 def test_what_the_runs_cannot_identify_is_refused_by_name():
     straight = [
         (

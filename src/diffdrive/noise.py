@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._validate import finite
 from diffdrive.calibration.offline import checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
 from diffdrive.integrate import Method
@@ -85,6 +86,13 @@ class NoiseModel:
     covariance: np.ndarray
     runs: int
     terms: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        # A negative or infinite term would be squared or rooted into covariances that look
+        # valid, or NaN ones, far from here.
+        for name in TERMS:
+            if not finite(f"noise model {name}", getattr(self, name)) >= 0.0:
+                raise ValueError(f"noise model {name} must be >= 0, got {getattr(self, name)!r}")
 
     @property
     def theta(self) -> np.ndarray:
