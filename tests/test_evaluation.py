@@ -183,6 +183,24 @@ def test_interpolation_follows_the_arc():
     )
 
 
+@pytest.mark.parametrize(
+    ("times", "poses", "message"),
+    [
+        ([0.0, 1.0, 1.0, 2.0], np.zeros((4, 3)), r"times\[2\] = 1.0 does not come after 1.0"),
+        ([2.0, 1.0, 0.0], np.zeros((3, 3)), r"times\[1\] = 1.0 does not come after 2.0"),
+        ([0.0, np.nan, 2.0], np.zeros((3, 3)), r"times\[1\] is nan"),
+        ([0.0, 1.0, 2.0], [[0, 0, 0], [0, np.nan, 0], [0, 0, 0]], "pose 1 is not"),
+    ],
+)
+def test_interpolation_refuses_stamps_out_of_order_and_poses_not_finite(times, poses, message):
+    """Named: a repeated last stamp gave 0 / 0 there, stamps going back were called out of
+    range, and a NaN pose came back as NaN poses along its arcs without a word."""
+    from diffdrive.evaluation import interpolate
+
+    with pytest.raises(ValueError, match=message):
+        interpolate(np.array(times), np.array(poses, dtype=float), [0.5])
+
+
 def test_consistency_by_hand():
     """Two poses, diagonal covariances: NEES by hand; the first, exact start is left out."""
     truth = np.zeros((3, 3))

@@ -51,3 +51,21 @@ def rng_of(seed: object) -> np.random.Generator:
     ):
         raise ValueError(f"seed must be a whole number from 0 or None, got {seed!r}")
     return np.random.default_rng(None if seed is None else int(seed))
+
+
+def increasing(name: str, times: np.ndarray) -> None:
+    """``ValueError`` unless the stamps ``times`` ``(N,)`` are finite and increase strictly,
+    naming ``name`` and the first stamp that is not."""
+    finite_ = np.isfinite(times)
+    if not finite_.all():
+        index = int(np.argmin(finite_))
+        raise ValueError(
+            f"{name} must be finite and increase strictly: {name}[{index}] is {times[index]}"
+        )
+    rising = np.diff(times) > 0
+    if not rising.all():
+        index = int(np.argmin(rising)) + 1
+        raise ValueError(
+            f"{name} must be finite and increase strictly: {name}[{index}] = {times[index]} "
+            f"does not come after {times[index - 1]}"
+        )

@@ -41,6 +41,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive._stats import chi2_quantile
+from diffdrive._validate import increasing
 
 __all__ = [
     "Consistency",
@@ -247,6 +248,11 @@ def interpolate(times: object, poses: object, at: object) -> np.ndarray:
     poses = np.asarray(poses, dtype=float)
     if poses.shape != (len(times), 3) or len(times) < 2:
         raise ValueError(f"poses must have shape ({len(times)}, 3), at least 2, got {poses.shape}")
+    increasing("times", times)
+    if not np.all(np.isfinite(poses)):
+        raise ValueError(
+            f"poses must be finite; pose {int(np.argmin(np.isfinite(poses).all(1)))} is not"
+        )
     if not (np.all(np.isfinite(at)) and at.min() >= times[0] and at.max() <= times[-1]):
         raise ValueError(f"times to interpolate at must lie within [{times[0]}, {times[-1]}] s")
     step = np.clip(np.searchsorted(times, at, side="right") - 1, 0, len(times) - 2)

@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive._validate import positive
+from diffdrive._validate import increasing, positive
 from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
 from diffdrive.estimation.imu import Gyro, rotation_from_rpy
 from diffdrive.estimation.smoother import estimate_trajectory
@@ -112,8 +112,7 @@ def gyro_odometry(
     increments = np.asarray(increments, dtype=float)
     if times.ndim != 1:
         raise ValueError(f"times must be (N,) s, got shape {times.shape}")
-    if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
-        raise ValueError("times must be finite and increase strictly")
+    increasing("times", times)
     if increments.shape != (len(times) - 1, 2) or len(times) < 2:
         raise ValueError(
             f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"

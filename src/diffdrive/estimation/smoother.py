@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive._validate import increasing
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.episodes import steady_episodes
 from diffdrive.estimation.fusion import PythonPoseEstimator, _body_covariance, _body_pose
@@ -125,8 +126,7 @@ def estimate_trajectory(
     increments = np.asarray(increments, dtype=float)
     if times.ndim != 1 or len(times) < 2:
         raise ValueError(f"times must be (N,) s with N >= 2, got shape {times.shape}")
-    if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
-        raise ValueError("times must be finite and increase strictly")
+    increasing("times", times)
     if increments.shape != (len(times) - 1, 2):
         raise ValueError(
             f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive._validate import increasing
+
 __all__ = ["SampleTimes", "sample_times"]
 
 
@@ -47,8 +49,7 @@ def sample_times(times: object, tick: float = 1e-3, *, share: float = 0.8) -> Sa
     stamps = np.asarray(times, dtype=float)
     if stamps.ndim != 1 or len(stamps) < 10:
         raise ValueError(f"times must be (N,) s with N >= 10, got shape {stamps.shape}")
-    if not np.all(np.isfinite(stamps)) or np.any(np.diff(stamps) <= 0):
-        raise ValueError("times must be finite and increase strictly")
+    increasing("times", stamps)
     if not (math.isfinite(tick) and tick > 0.0):
         raise ValueError(f"tick must be a finite time > 0 s, got {tick!r}")
     if not 0.0 < share <= 1.0:
