@@ -76,7 +76,8 @@ def test_a_first_stamp_that_is_itself_early_is_restored():
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (lambda t: t + np.random.default_rng(0).uniform(-3e-3, 3e-3, len(t)), "lie further"),
+        (lambda t: t + np.random.default_rng(0).uniform(-3e-3, 3e-3, len(t)), "wander"),
+        (lambda t: np.where(np.arange(len(t)) == 150, t - 2 * TICK, t), "1 lie further"),
         (lambda t: t - TICK * (np.arange(len(t)) % 2), "at least 80% on them"),
         (lambda t: np.arange(len(t)) * 4e-3, "spans under 5 ticks"),
         (lambda t: np.sort(np.concatenate([t[:-1], [t[5] + 1e-4]])), "within half a period"),
