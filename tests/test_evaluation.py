@@ -201,6 +201,20 @@ def test_interpolation_refuses_stamps_out_of_order_and_poses_not_finite(times, p
         interpolate(np.array(times), np.array(poses, dtype=float), [0.5])
 
 
+def test_positions_without_headings_are_interpolated_along_straight_lines():
+    """GPS fixes (every heading NaN): linear in x and y, the heading NaN; one NaN heading
+    among finite ones is still refused."""
+    from diffdrive.evaluation import interpolate
+
+    fixes = np.array([[0.0, 0.0, np.nan], [2.0, 4.0, np.nan], [2.0, 0.0, np.nan]])
+    found = interpolate([0.0, 1.0, 3.0], fixes, [0.25, 2.0])
+    np.testing.assert_allclose(found[:, :2], [[0.5, 1.0], [2.0, 2.0]], atol=1e-15)
+    assert np.isnan(found[:, 2]).all()
+    fixes[1, 2] = 0.0
+    with pytest.raises(ValueError, match="pose 0 is not"):
+        interpolate([0.0, 1.0, 3.0], fixes, [0.25])
+
+
 def test_consistency_by_hand():
     """Two poses, diagonal covariances: NEES by hand; the first, exact start is left out."""
     truth = np.zeros((3, 3))

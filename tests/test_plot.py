@@ -87,3 +87,21 @@ def test_the_plot_says_which_robot_it_assumed_for_the_wheels(tmp_path, monkeypat
     argv = ["plot", str(path), "--wheel-radius", "0.042", "--track-width", "0.2"]
     assert main([*argv, "-o", str(tmp_path / "b.png"), "-q"]) == 0
     assert made[-1].axes[2].get_title() == ""
+
+
+def test_error_bands_count_what_they_draw_and_fixes_draw_x_and_y_alone(tmp_path):
+    """Errors of 1 sigma everywhere but one 3-sigma heading: inside all three at all but that
+    pose; against fixes without headings the heading is neither drawn nor counted."""
+    from diffdrive.plot import plot_error_bands
+
+    times = np.arange(10) * 0.1
+    covariances = np.tile(np.diag([0.01, 0.04, 0.0025]), (10, 1, 1))
+    estimate = np.zeros((10, 3))
+    truth = np.tile([0.1, -0.2, 0.05], (10, 1))
+    truth[4, 2] = 0.15  # three sigmas of heading
+    share = plot_error_bands(times, estimate, covariances, truth, tmp_path / "pose.png")
+    assert share == pytest.approx(0.9)
+    truth[:, 2] = np.nan
+    share = plot_error_bands(times, estimate, covariances, truth, tmp_path / "xy.png", "GPS")
+    assert share == 1.0
+    assert (tmp_path / "xy.png").stat().st_size > 10_000

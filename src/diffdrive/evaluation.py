@@ -243,20 +243,24 @@ def associate(
 
 def interpolate(times: object, poses: object, at: object) -> np.ndarray:
     """Poses ``(M, 3)`` at the times ``at`` ``(M,)`` s, each along the constant-twist arc
-    between the two poses around it (the SE(2) geodesic; exact for odometry with ``exact``)."""
+    between the two poses around it (the SE(2) geodesic; exact for odometry with ``exact``).
+    Positions without headings (every heading NaN, as GPS fixes) are interpolated along the
+    straight line between them, their headings left NaN."""
     times, at = np.asarray(times, dtype=float), np.asarray(at, dtype=float)
     poses = np.asarray(poses, dtype=float)
     if poses.shape != (len(times), 3) or len(times) < 2:
         raise ValueError(f"poses must have shape ({len(times)}, 3), at least 2, got {poses.shape}")
     increasing("times", times)
-    if not np.all(np.isfinite(poses)):
-        raise ValueError(
-            f"poses must be finite; pose {int(np.argmin(np.isfinite(poses).all(1)))} is not"
-        )
+    positions_only = bool(np.isnan(poses[:, 2]).all())
+    usable = np.isfinite(poses[:, :2] if positions_only else poses).all(axis=1)
+    if not usable.all():
+        raise ValueError(f"poses must be finite; pose {int(np.argmin(usable))} is not")
     if not (np.all(np.isfinite(at)) and at.min() >= times[0] and at.max() <= times[-1]):
         raise ValueError(f"times to interpolate at must lie within [{times[0]}, {times[-1]}] s")
     step = np.clip(np.searchsorted(times, at, side="right") - 1, 0, len(times) - 2)
     fraction = (at - times[step]) / (times[step + 1] - times[step])
+    if positions_only:  # the NaN headings stay NaN
+        return poses[step] + fraction[:, None] * (poses[step + 1] - poses[step])
     motion = batch.log(batch.relative_to(poses[step + 1], poses[step]))
     return batch.compose(poses[step], batch.exp(motion, fraction))
 

@@ -173,19 +173,21 @@ def plot_error_bands(
     covariances: np.ndarray,
     truth: np.ndarray,
     output: str | Path,
+    title: str = "",
 ) -> float:
     """Each error of ``estimate`` ``(T+1, 3)`` against ``truth`` (x, y in m, heading in deg)
     over ``times`` with the estimate's plus/minus 2-sigma band from ``covariances``
-    ``(T+1, 3, 3)``; returns the share of errors inside their bands (all three at once)."""
+    ``(T+1, 3, 3)``; returns the share of poses with every error inside its band. A truth
+    without headings (all NaN, as GPS fixes) has its x and y errors drawn alone."""
     error = truth - estimate
     error[:, 2] = np.degrees(np.remainder(error[:, 2] + np.pi, 2 * np.pi) - np.pi)
     sigma = np.sqrt(np.maximum(np.einsum("tii->ti", covariances), 0.0))
     sigma[:, 2] = np.degrees(sigma[:, 2])
-    figure = _figure(figsize=(10, 7), layout="constrained")
-    axes = figure.subplots(3, 1, sharex=True)
-    for ax, k, label in zip(
-        axes, range(3), ("x error, m", "y error, m", "heading error, deg"), strict=True
-    ):
+    axes_drawn = 2 if np.isnan(truth[:, 2]).all() else 3
+    figure = _figure(figsize=(10, 2.4 * axes_drawn), layout="constrained")
+    axes = figure.subplots(axes_drawn, 1, sharex=True)
+    labels = ("x error, m", "y error, m", "heading error, deg")
+    for ax, k, label in zip(axes, range(axes_drawn), labels, strict=False):
         ax.fill_between(
             times,
             -2 * sigma[:, k],
@@ -199,8 +201,13 @@ def plot_error_bands(
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="upper left")
     axes[-1].set_xlabel("t, s")
-    inside = float(np.mean(np.all(np.abs(error) <= 2 * sigma, axis=1)))
-    axes[0].set_title(f"errors and their 2-sigma bands: {inside:.0%} of poses inside all three")
+    drawn = slice(0, axes_drawn)
+    inside = float(np.mean(np.all(np.abs(error[:, drawn]) <= 2 * sigma[:, drawn], axis=1)))
+    what = "all three" if axes_drawn == 3 else "both"
+    axes[0].set_title(
+        f"{title + ': ' if title else ''}errors and their 2-sigma bands: {inside:.0%} of "
+        f"poses inside {what}"
+    )
     figure.savefig(output, dpi=100)
     return inside
 
