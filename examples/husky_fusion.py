@@ -6,12 +6,15 @@
 - GPS: every other fix fused (the smoother, the start pose fitted to the fixes used) against
   the fixes left out, beside interpolating the fixes used in time, and the wheels' and gyro's
   dead reckoning plus the used fixes' residuals interpolated (the bound of fusing here).
+- How honest the gyro estimate's covariance is against the fixes (ANEES and the shares inside
+  the 50 % and 95 % ellipses, positions only), and the figure of its errors with their
+  2-sigma bands.
 
 The wheel travel and turn of each interval come from the drive controller's odometry, the gyro
 from ``/imu/data`` (mounted with its y axis up: roll 90 degrees), the fixes from ``/fix``.
 
     pip install -e '.[ros]'
-    python examples/husky_fusion.py [--bags ../shared/data/ros-bags]
+    python examples/husky_fusion.py [--bags ../shared/data/ros-bags] [--figure FIGURE.png]
 """
 
 from __future__ import annotations
@@ -63,6 +66,7 @@ def read(bags: Path) -> dict:
         "fix_times": gps.times[fixes],
         "fixes": gps.positions[fixes],
         "sigma": float(np.sqrt(np.median(gps.variance[fixes]))),
+        "variance": gps.variance[fixes],
     }
 
 
@@ -149,9 +153,41 @@ def every_other_fix(data: dict, k: float = 0.3, sigma: float = 0.2) -> dict:
     }
 
 
+def consistency_against_gps(data: dict, figure: Path, k: float = 1e-3) -> dict:
+    """How honest the gyro estimate's covariance is against the fixes: wheels ``k`` m and the
+    gyro (its heading), the estimate moved onto the fixes by the rigid motion that best fits
+    them, its covariance turned with it and each fix's reported variance added (the
+    reference's own noise, as ``noise.covariances`` adds it). ``figure``: the x and y errors
+    with their 2-sigma bands."""
+    from diffdrive.evaluation import consistency
+    from diffdrive.plot import plot_error_bands
+
+    estimate = estimate_trajectory(
+        HUSKY, data["times"], data["increments"], heading="gyro", gyro=data["gyro"],
+        initial_pose=data["start"], smooth=False, bias=data["bias"], k_left=k, k_right=k,
+    )  # fmt: skip
+    stamps = data["fix_times"]
+    at = interpolate(data["times"], estimate.poses, stamps)
+    nearest = np.clip(np.searchsorted(data["times"], stamps), 0, len(data["times"]) - 1)
+    flat = np.column_stack([at[:, :2], np.zeros(len(at))])
+    moved = align(flat, np.column_stack([data["fixes"], np.zeros(len(at))]))
+    c, s = math.cos(moved[0, 2]), math.sin(moved[0, 2])  # the rotation align applied
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    covariances = turn @ estimate.covariances[nearest] @ turn.T
+    covariances[:, 0, 0] += data["variance"]
+    covariances[:, 1, 1] += data["variance"]
+    truth = np.column_stack([data["fixes"], np.full(len(at), np.nan)])
+    found = consistency(moved, covariances, truth)
+    figure.parent.mkdir(parents=True, exist_ok=True)
+    title = "Husky against GPS: wheels and gyro, the estimate aligned to the fixes"
+    plot_error_bands(stamps - stamps[0], moved, covariances, truth, figure, title)
+    return {"anees": found.anees, "inside_95": found.inside_95, "inside_50": found.inside_50}
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bags", type=Path, default=BAGS)
+    parser.add_argument("--figure", type=Path, default=Path("docs/figures/noise_husky.png"))
     args = parser.parse_args(argv)
     data = read(args.bags)
     found = heading_sources(data)
@@ -166,6 +202,13 @@ def main(argv: list[str] | None = None) -> None:
         f"distance to the fixes left out {gps['interpolated']:.3f} m interpolating the used "
         f"ones, {gps['smoothed']:.2f} m smoothed ({gps['refused']} refused by the gate), "
         f"{gps['residuals']:.3f} m dead reckoning plus the used fixes' residuals interpolated"
+    )
+
+    honest = consistency_against_gps(data, args.figure)
+    print(
+        f"the gyro estimate's covariance against GPS (with each fix's reported variance): "
+        f"ANEES {honest['anees']:.2f}, {honest['inside_95']:.0%} inside the 95 % ellipse, "
+        f"{honest['inside_50']:.0%} inside the 50 % one; figure: {args.figure}"
     )
 
 

@@ -11,13 +11,14 @@ the 95 % ellipse and ANEES, pooled over the experiment's runs. A term the traini
 identify is left out (and named); ``--seconds`` thins the runs to one pose every so often.
 
     python examples/noise_model.py [--data ../shared/data/optiodom-diffdrive]
-        [--bags ../shared/data/ros-bags]
+        [--bags ../shared/data/ros-bags] [--figure FIGURE.png]
 
 Then the model's best chance: calibrated and identified on all ten experiments and scored on
 each (in-sample), and scored on 30 references it draws itself on each experiment's runs
 (``noise.draw_reference``), which it passes if its terms can make errors like these.
 
-Last, the TurtleBot3 bag against ``/odom`` (one run: what it can identify, in-sample).
+Last, the TurtleBot3 bag against ``/odom`` (one run: what it can identify, in-sample), and
+the figure: its errors against time with their 2-sigma bands.
 """
 
 from __future__ import annotations
@@ -115,12 +116,14 @@ def _score(predicted: list, references: list):
     )
 
 
-def turtlebot3(bags: Path) -> str:
+def turtlebot3(bags: Path, figure: Path) -> str:
     """The TurtleBot3 bag against ``/odom``, one run: what can be identified on it, and the
-    consistency of the covariance it then predicts on the same run."""
+    consistency of the covariance it then predicts on the same run; ``figure``: each error
+    with its 2-sigma band."""
     import diffdrive as dd
     from diffdrive.evaluation import consistency, interpolate
     from diffdrive.io import ros
+    from diffdrive.plot import plot_error_bands
 
     bag = bags / "turtlebot3_fuse.bag"
     run = ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
@@ -132,6 +135,9 @@ def turtlebot3(bags: Path) -> str:
     model, left_out = noise.identify_what_it_can(robot, [(increments, truth)])
     poses, predicted = noise.covariances(robot, increments, truth[0], model)
     found = consistency(poses[1:], predicted[1:], truth[1:])
+    figure.parent.mkdir(parents=True, exist_ok=True)
+    title = "TurtleBot3 against /odom, the model identified on it"
+    plot_error_bands(run.times[1:], poses[1:], predicted[1:], truth[1:], figure, title)
     return (
         f"TurtleBot3 against /odom: k {model.k:.2g} m, reference {model.reference_sigma:.2f} m "
         f"and {model.reference_heading_sigma:.2f} rad ({', '.join(left_out)} left out); "
@@ -143,6 +149,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA)
     parser.add_argument("--bags", type=Path, default=DATA.parent / "ros-bags")
+    parser.add_argument("--figure", type=Path, default=Path("docs/figures/noise_turtlebot3.png"))
     args = parser.parse_args(argv)
     experiments = load(args.data)
     for same_kind in (True, False):
@@ -180,7 +187,8 @@ def main(argv: list[str] | None = None) -> None:
         f"the model's own draws {np.mean(list(own.values())):.0%} of experiments do"
     )
     print()
-    print(turtlebot3(args.bags))
+    print(turtlebot3(args.bags, args.figure))
+    print(f"figure: {args.figure}")
 
 
 if __name__ == "__main__":

@@ -142,26 +142,33 @@ def test_late_vision_example_fuses_the_camera_and_draws(tmp_path, capsys):
     assert output.stat().st_size > 10_000
 
 
-def test_husky_fusion_example_prints_the_figures_the_readme_quotes(capsys):
+def test_husky_fusion_example_prints_the_figures_the_readme_quotes(capsys, tmp_path):
     from data import data_folder
 
     script = load("husky_fusion")
-    script.main(["--bags", str(data_folder("ros-bags"))])
-    printed = capsys.readouterr().out
+    figure = tmp_path / "husky.png"
+    script.main(["--bags", str(data_folder("ros-bags")), "--figure", str(figure)])
+    printed = capsys.readouterr().out.replace(f"figure: {figure}", "")
     readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
     numbers = [part for part in printed.replace(";", " ").split() if part[0].isdigit()]
     figures = [n for n in numbers if "." in n and not n.endswith(")")]
-    assert len(figures) >= 6
-    for figure in figures:
-        assert figure in readme, figure
+    assert len(figures) >= 7
+    for number in figures:
+        assert number in readme, number
+    honest = next(line for line in printed.splitlines() if "covariance against GPS" in line)
+    inside = honest.split("% inside the 95")[0].split()[-1]
+    assert f"{inside} % inside the 95 % ellipse" in readme
+    assert figure.stat().st_size > 10_000
 
 
-def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys):
+def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys, tmp_path):
     from data import data_folder
 
     script = load("noise_model")
     folders = ["--data", str(data_folder("optiodom-diffdrive"))]
-    script.main([*folders, "--bags", str(data_folder("ros-bags"))])
+    figure = tmp_path / "bands.png"
+    script.main([*folders, "--bags", str(data_folder("ros-bags")), "--figure", str(figure)])
+    assert figure.stat().st_size > 10_000
     printed = capsys.readouterr().out
     lines = [line for line in printed.splitlines() if "ANEES in [1/3, 3]" in line]
     counts = [int(line.split(": ")[1].split()[0]) for line in lines]

@@ -205,7 +205,7 @@ def plot_error_bands(
     inside = float(np.mean(np.all(np.abs(error[:, drawn]) <= 2 * sigma[:, drawn], axis=1)))
     what = "all three" if axes_drawn == 3 else "both"
     axes[0].set_title(
-        f"{title + ': ' if title else ''}errors and their 2-sigma bands: {inside:.0%} of "
+        f"{title + chr(10) if title else ''}errors and their 2-sigma bands: {inside:.0%} of "
         f"poses inside {what}"
     )
     figure.savefig(output, dpi=100)
