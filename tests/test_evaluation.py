@@ -238,7 +238,7 @@ def test_consistency_by_hand():
 
 
 def test_odometrys_covariance_is_honest_over_many_robots():
-    """4000 robots whose wheels have exactly Odometry's noise (diffdrive.sensors): the final
+    """10^4 robots whose wheels have exactly Odometry's noise (diffdrive.sensors): the final
     poses' NEES against Odometry's covariance averages 1 (ANEES within 5 %), and 95 % of the
     truths lie inside the 95 % ellipse."""
     from diffdrive import sensors
@@ -248,7 +248,7 @@ def test_odometrys_covariance_is_honest_over_many_robots():
     wheels = np.stack([6 + 3 * np.sin(0.9 * t[:-1]), 6 - 3 * np.cos(0.6 * t[:-1])], axis=-1)
     path = dd.simulate(robot, wheels, times=t)
     model = sensors.EncoderModel(k_left=1e-4, k_right=1e-4)
-    readings = sensors.encoder_readings(robot, t, path.poses, model, robots=4000, seed=11)
+    readings = sensors.encoder_readings(robot, t, path.poses, model, robots=10_000, seed=11)
     finals, covariances = [], []
     for angles in readings.readings:
         odometry = dd.Odometry(
@@ -257,7 +257,7 @@ def test_odometrys_covariance_is_honest_over_many_robots():
         odometry.update_arrays("positions", *angles.T, t)
         finals.append(odometry.pose.to_array())
         covariances.append(odometry.covariance)
-    truth = np.repeat(path.poses[-1:], 4000, axis=0)
+    truth = np.repeat(path.poses[-1:], 10_000, axis=0)
     result = consistency(np.array(finals), np.array(covariances), truth)
     assert result.anees == pytest.approx(1.0, abs=0.05)
     assert result.inside_95 == pytest.approx(0.95, abs=0.012)
