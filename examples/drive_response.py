@@ -3,16 +3,17 @@ acceleration limit identified from ``/cmd_vel`` and ``/joint_states``, scored on
 
 The wheel velocities are the joint angles' differences over each interval, between the
 simulator's sample times (``io.sample_times``: 441 of the 2741 stamps are a 1 ms tick early),
-and, beside them, between the stamps as recorded; the commands are
-``/cmd_vel``'s twists through the robot's inverse kinematics (radii and track from the
-``increments`` calibration), each held until the next. The response is identified
-(``dynamics.identify_velocity_response``) on the first half of the log; on the second half,
-in 5 s segments each started from its measured velocity, its prediction is compared with the
+and, beside them, between the stamps as recorded; the commands are ``/cmd_vel``'s twists
+through the robot's inverse kinematics (radii and track from the ``increments``
+calibration), each held until the next. ``dynamics.cross_validate`` cuts the log into
+``--folds`` blocks (5); each is held out in turn, the response identified on the rest, and
+the block predicted in 5 s segments, each started from its measured velocity, beside the
 instant kinematic response (the wheels at their command at once). The figure: a held-out
 segment, each wheel's measured velocity, the response's prediction and the command.
 
     pip install -e '.[ros,examples]'
     python examples/drive_response.py [--bags ../shared/data/ros-bags] [--output FIGURE.png]
+        [--folds 5]
 """
 
 from __future__ import annotations
@@ -25,15 +26,16 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive import batch
-from diffdrive.dynamics import identify_velocity_response
+from diffdrive.dynamics import cross_validate
 from diffdrive.io import ros
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
 ROBOT = dd.DiffDrive(left_wheel_radius=0.03256, right_wheel_radius=0.03252, track_width=0.2955)
 
 
-def held_out(bags: Path, restore: bool = True) -> dict:
-    """The response identified on the first half and scored on the second; ``restore``: the
+def held_out(bags: Path, restore: bool = True, folds: int = 5) -> dict:
+    """The response scored by ``dynamics.cross_validate``: the log cut into ``folds`` blocks,
+    each scored in 5 s segments by the response identified on the others; ``restore``: the
     wheel velocities over the simulator's sample times (``io.sample_times``), else over the
     stamps as recorded."""
     bag = bags / "turtlebot3_fuse.bag"
@@ -44,30 +46,17 @@ def held_out(bags: Path, restore: bool = True) -> dict:
     measured = np.diff(run.wheels, axis=0) / np.diff(stamps)[:, None]
     v, omega = commands.twists.T
     wheels = batch.to_wheel_velocities(ROBOT, np.column_stack([v, 0.0 * v, omega]))
-    half = len(times) // 2
     limits = (math.inf, 20.0, 40.0, 60.0, 80.0, 120.0)
-    fit = identify_velocity_response(
-        times[:half], measured[:half], commands.times, wheels, accelerations=limits
+    found = cross_validate(
+        times, measured, commands.times, wheels, folds=folds, segment=5.0, accelerations=limits
     )
-    segment = round(float(5.0 / np.mean(np.diff(times))))
-    model, instant, segments = [], [], []  # squared errors, and what the figure draws
-    for start in range(half, len(times) - segment, segment):
-        part = slice(start, start + segment)
-        predicted = fit.predict(times[part], commands.times, wheels, measured[start])
-        index = np.searchsorted(commands.times, times[part], side="right") - 1
-        at_once = np.where((index >= 0)[:, None], wheels[np.maximum(index, 0)], 0.0)
-        model.append((predicted - measured[part]) ** 2)
-        instant.append((at_once - measured[part]) ** 2)
-        segments.append((times[part], measured[part], predicted, at_once))
+    scored = ~np.isnan(found.predicted)
+    piece = round(5.0 / float(np.mean(np.diff(times))))
+    shown = slice(len(times) // 2 + 2 * piece, len(times) // 2 + 3 * piece)
     return {
-        "segments": segments,
-        "delay": fit.delay,
-        "time_constant": fit.time_constant,
-        "gain": fit.gain,
-        "acceleration": fit.acceleration,
-        "model": float(np.sqrt(np.concatenate(model).mean())),
-        "instant": float(np.sqrt(np.concatenate(instant).mean())),
-        "largest": _share_of_largest(np.concatenate(model)),
+        "found": found,
+        "segment": (times[shown], measured[shown], found.predicted[shown], found.at_once[shown]),
+        "largest": _share_of_largest((found.predicted - measured)[scored] ** 2),
     }
 
 
@@ -99,22 +88,28 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bags", type=Path, default=BAGS)
     parser.add_argument("--output", type=Path, default=Path("docs/figures/drive_response.png"))
+    parser.add_argument("--folds", type=int, default=5, help="blocks held out in turn")
     args = parser.parse_args(argv)
-    recorded, found = held_out(args.bags, restore=False), held_out(args.bags)
-    print(
-        f"TurtleBot3 response: delay {found['delay'] * 1000:.0f} ms, time constant "
-        f"{found['time_constant'] * 1000:.0f} ms, gain {found['gain']:.3f}, acceleration "
-        f"limit {found['acceleration']:g} rad/s^2"
-    )
-    for name, result in (("the stamps as recorded", recorded), ("the sample times", found)):
+    recorded = held_out(args.bags, restore=False, folds=args.folds)
+    restored = held_out(args.bags, folds=args.folds)
+    for fold, response in enumerate(restored["found"].responses, 1):
         print(
-            f"held-out wheel-velocity RMSE over {name}: {result['model']:.3f} rad/s with the "
-            f"response, {result['instant']:.3f} rad/s at once "
-            f"({result['model'] / result['instant']:.0%}); the largest 3 % of the response's "
+            f"fold {fold}'s response (identified on the others): delay "
+            f"{response.delay * 1000:.0f} ms, time constant {response.time_constant * 1000:.0f} "
+            f"ms, gain {response.gain:.3f}, acceleration limit {response.acceleration:.1f} "
+            "rad/s^2"
+        )
+    for name, result in (("the stamps as recorded", recorded), ("the sample times", restored)):
+        found = result["found"]
+        each = ", ".join(f"{a / b:.0%}" for a, b in zip(found.rmse, found.instant, strict=True))
+        print(
+            f"held-out wheel-velocity RMSE over {name}, {args.folds} folds: {found.pooled:.3f} "
+            f"rad/s with the response, {found.pooled_instant:.3f} rad/s at once "
+            f"({found.ratio:.1%}; fold by fold {each}); the largest 3 % of the response's "
             f"errors carry {result['largest']:.0%} of its squared error"
         )
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    draw(found["segments"][2], args.output)
+    draw(restored["segment"], args.output)
     print(f"figure: {args.output}")
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from diffdrive.dynamics import VelocityResponse, identify_velocity_response
+from diffdrive.dynamics import VelocityResponse, cross_validate, identify_velocity_response
 
 T = np.arange(0.0, 60.0, 0.02)
 COMMAND_TIMES = np.arange(0.0, 60.0, 0.5)
@@ -45,6 +45,42 @@ def test_an_acceleration_limit_is_found_between_those_tried():
     assert unlimited.acceleration == math.inf  # none tried, none fitted
 
 
+def test_cross_validation_scores_each_block_with_a_response_identified_without_it():
+    """Five blocks of a log of 60 s: each fold's response is the truth again (from the other
+    48 s), its held-out RMSE is the noise, and it predicts far better than the wheels at their
+    commands at once; every held-out sample is scored once, and nothing else."""
+    commands, measured = logged(0.05, seed=2)
+    found = cross_validate(T, measured, COMMAND_TIMES, commands, folds=5, segment=3.0)
+    assert len(found.responses) == 5
+    for response in found.responses:
+        assert response.gain == pytest.approx(0.95, rel=0.02)
+        assert response.delay == pytest.approx(0.037, abs=0.005)
+        assert response.time_constant == pytest.approx(0.12, rel=0.05)
+    np.testing.assert_allclose(found.rmse, 0.05, rtol=0.2)
+    assert found.pooled == pytest.approx(0.05, rel=0.2)
+    assert found.ratio < 0.1
+    assert np.all(found.instant > 5 * found.rmse)
+    assert np.isnan(found.predicted).sum() == 0  # 12 s blocks: four whole 3 s pieces each
+    block = slice(600, 750)  # the second block's first piece: predicted from its own start
+    again = found.responses[1].predict(T[block], COMMAND_TIMES, commands, measured[600])
+    np.testing.assert_array_equal(found.predicted[block], again)
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"folds": 1}, "folds must be a whole number >= 2"),
+        ({"folds": True}, "folds must be a whole number >= 2"),
+        ({"segment": 0.0}, "segment must be a finite time > 0 s"),
+        ({"folds": 30, "segment": 5.0}, "30 folds of a 60 s log are shorter than one 5 s"),
+    ],
+)
+def test_cross_validation_refuses_folds_it_cannot_score(options, message):
+    commands, measured = logged(0.05)
+    with pytest.raises(ValueError, match=message):
+        cross_validate(T, measured, COMMAND_TIMES, commands, **options)
+
+
 def test_logs_that_cannot_show_the_response_are_refused():
     commands, measured = logged(0.01)
     with pytest.raises(ValueError, match="constant command cannot show"):
@@ -62,8 +98,9 @@ def test_logs_that_cannot_show_the_response_are_refused():
 
 
 def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys, tmp_path):
-    """Over the stamps as recorded and over the simulator's sample times: the RMSE with the
-    response and at once, their ratio, and the share of the largest errors."""
+    """Five folds, over the stamps as recorded and over the simulator's sample times: the
+    pooled RMSE with the response and at once, their ratio, and the share of the largest
+    errors; the held-out response at most half the instant one over the sample times."""
     import importlib.util
     import re
 
@@ -76,14 +113,20 @@ def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys, tmp_path):
     script.main(["--bags", str(data_folder("ros-bags")), "--output", str(tmp_path / "f.png")])
     lines = capsys.readouterr().out.splitlines()
     readme = " ".join((path.parents[1] / "README.md").read_text().split())
-    for line in lines[1:3]:
+    scored = [line for line in lines if line.startswith("held-out wheel-velocity RMSE")]
+    for line in scored:
         model, instant = re.findall(r"(\d\.\d{3}) rad/s", line)
-        share = re.search(r"\((\d+)%\)", line).group(1) + " %"
+        share = re.search(r"\((\d+\.\d)%;", line).group(1) + " %"
         for figure in (model, instant, share):
             assert figure in readme, figure
-    assert "carry 87% of its squared error" in lines[2]
-    assert "87 % of its squared error" in readme
-    assert "time constant 35 ms" in lines[0]
+    restored = scored[1]
+    ratio = float(re.search(r"\((\d+\.\d)%;", restored).group(1))
+    assert ratio <= 50.0
+    largest = re.search(r"carry (\d+)% of", restored).group(1)
+    assert f"carry {largest} % of its squared error" in readme
+    folds = [line for line in lines if line.startswith("fold ")]
+    assert len(folds) == 5
+    assert all("time constant 3" in line for line in folds)  # 31-35 ms
     assert (tmp_path / "f.png").stat().st_size > 0
 
 

@@ -2,7 +2,8 @@
 
 - ``response``: ``identify_velocity_response``, a velocity-commanded drive's pure delay,
   first-order time constant, gain and acceleration limit, fitted to a log of commands and
-  measured wheel velocities; ``VelocityResponse.predict`` drives the model with commands.
+  measured wheel velocities; ``VelocityResponse.predict`` drives the model with commands;
+  ``cross_validate`` scores it on held-out time against the instant kinematic response.
 
 - ``voltage``: ``identify_voltage_response``, a voltage-driven wheel's kS, kV and kA (SysId's
   regression) with the measurement's delay found from the data; ``identify_drivetrain``, the
@@ -14,7 +15,12 @@
 """
 
 from diffdrive.dynamics.drive import DriveModel, simulate_commands
-from diffdrive.dynamics.response import VelocityResponse, identify_velocity_response
+from diffdrive.dynamics.response import (
+    HeldOutResponse,
+    VelocityResponse,
+    cross_validate,
+    identify_velocity_response,
+)
 from diffdrive.dynamics.voltage import (
     DrivetrainResponse,
     Feedforward,
@@ -27,8 +33,10 @@ __all__ = [
     "DriveModel",
     "DrivetrainResponse",
     "Feedforward",
+    "HeldOutResponse",
     "VelocityResponse",
     "VoltageResponse",
+    "cross_validate",
     "identify_drivetrain",
     "identify_velocity_response",
     "identify_voltage_response",

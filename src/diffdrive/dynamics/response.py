@@ -21,12 +21,20 @@ the residual variance.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["VelocityResponse", "held_commands", "identify_velocity_response", "simulate_response"]
+__all__ = [
+    "HeldOutResponse",
+    "VelocityResponse",
+    "cross_validate",
+    "held_commands",
+    "identify_velocity_response",
+    "simulate_response",
+]
 
 _LOG_TAU = (math.log(1e-4), math.log(100.0))  # the time constants searched, s
 
@@ -96,17 +104,26 @@ def simulate_response(
     return out
 
 
-def _fit(times, command, measured, start, acceleration, iterations=30):
-    """Gauss-Newton on (gain, log time constant): the parameters, the residual sum and the
-    Jacobian at the end."""
+def _fit(stretches, command, start, acceleration, iterations=30):
+    """Gauss-Newton on (gain, log time constant) over the ``stretches`` ``[(times,
+    measured)]``, each driven from its first measured velocity: the parameters, the residual
+    sum and the Jacobian at the end."""
     params = np.array([start[0], min(max(math.log(start[1]), _LOG_TAU[0]), _LOG_TAU[1])])
+    command_times, commands, delay = command
 
     def residual(p):
-        command_times, commands, delay = command
-        predicted = simulate_response(
-            times, command_times, commands, delay, measured[0], p[0], math.exp(p[1]), acceleration
-        )
-        return (predicted - measured).ravel()
+        return np.concatenate(
+            [
+                (
+                    simulate_response(
+                        times, command_times, commands, delay, measured[0], p[0],
+                        math.exp(p[1]), acceleration,
+                    )
+                    - measured
+                ).ravel()
+                for times, measured in stretches
+            ]
+        )  # fmt: skip
 
     current = residual(params)
     for _ in range(iterations):
@@ -147,6 +164,15 @@ def identify_velocity_response(
     ``command_times`` ``(M,)`` s (see the module); ``accelerations`` are the limits tried
     (rad/s^2; ``inf``: none), the best refined between its neighbours (needs scipy).
     ``ValueError`` names what the log lacks."""
+    times, measured, command_times, commands = _checked(
+        times, measured, command_times, commands, max_delay, accelerations
+    )
+    return _identify([(times, measured)], command_times, commands, max_delay, accelerations)
+
+
+def _checked(times, measured, command_times, commands, max_delay, accelerations):
+    """The log as float arrays ``(N,), (N, W), (M,), (M, W)``, or ``ValueError`` naming what
+    it lacks."""
     times = np.asarray(times, dtype=float)
     measured = np.asarray(measured, dtype=float)
     command_times = np.asarray(command_times, dtype=float)
@@ -184,27 +210,35 @@ def identify_velocity_response(
             "a constant command cannot show how the drive answers: the log must hold changes "
             "of command"
         )
-    step = float(np.mean(np.diff(times)))
+    return times, measured, command_times, commands
+
+
+def _identify(stretches, command_times, commands, max_delay, accelerations) -> VelocityResponse:
+    """``identify_velocity_response`` on checked ``stretches`` ``[(times, measured)]`` of
+    one log (the parts a held-out fold leaves), each its own start."""
+    step = float(np.mean(np.concatenate([np.diff(t) for t, _ in stretches])))
     delays = np.arange(0.0, max_delay + 1e-12, step / 10.0)
+
+    def arx(delay: float) -> tuple[float, float, float]:
+        held = [held_commands(command_times, commands, t - delay) for t, _ in stretches]
+        return _arx([m for _, m in stretches], held)
+
     # The delay by the first-order ARX fit's residual (fast), then refined by output error
     # over its neighbours.
-    residuals = [
-        _arx(measured, held_commands(command_times, commands, times - d))[2] for d in delays
-    ]
-    centre = int(np.argmin(residuals))
+    centre = int(np.argmin([arx(d)[2] for d in delays]))
     # The sampled ARX sees the delay only to a step: output error over a step either side.
-    gain, keep, _ = _arx(measured, held_commands(command_times, commands, times - delays[centre]))
+    gain, keep, _ = arx(delays[centre])
     start = (gain, -step / math.log(keep))
     best = None
     for delay in delays[max(centre - 10, 0) : centre + 11]:
-        found = _fit(times, (command_times, commands, delay), measured, start, math.inf, 6)
+        found = _fit(stretches, (command_times, commands, delay), start, math.inf, 6)
         if best is None or found[1] < best[1]:
             best = (delay, found[1], found[0])
     delay, _, params = best  # type: ignore[misc]
     start = (params[0], math.exp(params[1]))
 
     def fitted(acceleration: float):
-        return _fit(times, (command_times, commands, delay), measured, start, acceleration)
+        return _fit(stretches, (command_times, commands, delay), start, acceleration)
 
     tried = sorted(set(accelerations))
     fits = [fitted(a) for a in tried]
@@ -212,7 +246,7 @@ def identify_velocity_response(
     acceleration, (params, cost, jacobian) = tried[chosen], fits[chosen]
     if math.isfinite(acceleration) and len(tried) > 1:
         acceleration, (params, cost, jacobian) = _refined(tried, chosen, fitted, fits[chosen])
-    count = measured.size
+    count = sum(m.size for _, m in stretches)
     variance = cost / max(count - 3, 1)
     normal = np.linalg.pinv(jacobian.T @ jacobian) * variance
     tau = math.exp(params[1])
@@ -224,6 +258,92 @@ def identify_velocity_response(
         float(acceleration),
         by @ normal @ by,
         math.sqrt(cost / count),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class HeldOutResponse:
+    """``cross_validate``'s result. Per fold: the ``responses`` identified without it, and the
+    held-out RMSE (rad/s) of their predictions, ``rmse``, and of the instant kinematic
+    response (the wheels at their commands at once), ``instant``. Pooled over every scored
+    sample: ``pooled`` and ``pooled_instant``. ``predicted`` and ``at_once`` ``(N, W)``: what
+    was scored at each sample (NaN where nothing was)."""
+
+    responses: tuple[VelocityResponse, ...]
+    rmse: np.ndarray
+    instant: np.ndarray
+    pooled: float
+    pooled_instant: float
+    predicted: np.ndarray
+    at_once: np.ndarray
+
+    @property
+    def ratio(self) -> float:
+        """``pooled / pooled_instant``: below 1, the response predicts better."""
+        return self.pooled / self.pooled_instant
+
+
+def cross_validate(
+    times: object,
+    measured: object,
+    command_times: object,
+    commands: object,
+    *,
+    folds: int = 5,
+    segment: float = 5.0,
+    max_delay: float = 0.3,
+    accelerations: tuple[float, ...] = (math.inf,),
+) -> HeldOutResponse:
+    """The response scored on time it was not identified on: the log (as
+    ``identify_velocity_response`` takes it) cut into ``folds`` blocks of equal length, each
+    in turn held out and the response identified on the rest (the parts before and after it,
+    each its own start); the held-out block cut into ``segment``-second pieces, each predicted
+    from its first measured velocity by the commands alone. ``ValueError`` when a block holds
+    no whole piece or leaves too little to identify on."""
+    t, v, stamps, wanted = _checked(
+        times, measured, command_times, commands, max_delay, accelerations
+    )
+    if isinstance(folds, bool) or not isinstance(folds, int) or folds < 2:
+        raise ValueError(f"folds must be a whole number >= 2, got {folds!r}")
+    step = float(np.mean(np.diff(t)))
+    if not (math.isfinite(segment) and segment > 0.0):
+        raise ValueError(f"segment must be a finite time > 0 s, got {segment!r}")
+    piece = max(2, round(segment / step))
+    bounds = np.linspace(0, len(t), folds + 1).round().astype(int)
+    if np.diff(bounds).min() < piece:
+        raise ValueError(
+            f"{folds} folds of a {t[-1] - t[0]:.3g} s log are shorter than one "
+            f"{segment:g} s segment: fewer folds or shorter segments"
+        )
+    predicted = np.full(v.shape, np.nan)
+    at_once = np.full(v.shape, np.nan)
+    responses, rmse, instant = [], [], []
+    for lo, hi in itertools.pairwise(bounds.tolist()):
+        stretches = [(t[a:b], v[a:b]) for a, b in ((0, lo), (hi, len(t)))]
+        stretches = [(part, wheels) for part, wheels in stretches if len(part) >= 20]
+        if not stretches:
+            raise ValueError(
+                f"holding out {t[lo]:.3g}-{t[hi - 1]:.3g} s leaves under 20 samples "
+                "to identify on: more folds or a longer log"
+            )
+        found = _identify(stretches, stamps, wanted, max_delay, accelerations)
+        for start in range(lo, hi - piece + 1, piece):
+            part = slice(start, start + piece)
+            predicted[part] = found.predict(t[part], stamps, wanted, v[start])
+            at_once[part] = held_commands(stamps, wanted, t[part])
+        block = slice(lo, lo + (hi - lo) // piece * piece)  # its whole pieces
+        responses.append(found)
+        rmse.append(math.sqrt(np.mean((predicted[block] - v[block]) ** 2)))
+        instant.append(math.sqrt(np.mean((at_once[block] - v[block]) ** 2)))
+    scored = ~np.isnan(predicted)
+    return HeldOutResponse(
+        tuple(responses),
+        np.array(rmse),
+        np.array(instant),
+        math.sqrt(np.mean((predicted[scored] - v[scored]) ** 2)),
+        math.sqrt(np.mean((at_once[scored] - v[scored]) ** 2)),
+        predicted,
+        at_once,
     )
 
 
@@ -250,10 +370,16 @@ def _refined(tried: list[float], best: int, fitted, at_best):
 
 
 def _arx(measured, held) -> tuple[float, float, float]:
-    """The ARX fit ``v_{k+1} = a v_k + b u_{k+1}`` over every wheel: the gain ``b / (1 - a)``,
-    ``a`` (kept in (0, 1)) and the residual sum of squares."""
-    x = np.column_stack([measured[:-1].ravel(), held[1:].ravel()])
-    y = measured[1:].ravel()
+    """The ARX fit ``v_{k+1} = a v_k + b u_{k+1}`` over every wheel of every stretch
+    (``measured`` and ``held``: lists of ``(N_i, W)``): the gain ``b / (1 - a)``, ``a`` (kept
+    in (0, 1)) and the residual sum of squares."""
+    x = np.column_stack(
+        [
+            np.concatenate([m[:-1].ravel() for m in measured]),
+            np.concatenate([h[1:].ravel() for h in held]),
+        ]
+    )
+    y = np.concatenate([m[1:].ravel() for m in measured])
     (a, b), *_ = np.linalg.lstsq(x, y, rcond=None)
     residual = float(np.sum((x @ np.array([a, b]) - y) ** 2))
     a = min(max(float(a), 1e-3), 0.999)
