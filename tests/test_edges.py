@@ -2,6 +2,7 @@
 cause. Each case was a silent wrong answer, a traceback or an unnamed error before."""
 
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -282,6 +283,38 @@ def test_sigterm_during_a_write_leaves_no_temporary_file(tmp_path):
             time.sleep(0.02)
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=30) == 128 + signal.SIGTERM
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="no signal masks here")
+def test_an_interrupt_while_the_temporary_file_is_made_leaves_nothing(tmp_path, monkeypatch):
+    """SIGTERM (turned into SystemExit, as the command line does) arriving inside mkstemp just
+    after it made the file: it waits until the file's name is held, then unwinds and the file
+    goes. Before, it unwound from inside mkstemp and left the file."""
+    import tempfile
+    import threading
+
+    from diffdrive.atomic import atomic_output
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers are set from the main thread only")
+    made = tempfile.mkstemp
+
+    def interrupted(*args, **kwargs):
+        found = made(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return found
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    monkeypatch.setattr(tempfile, "mkstemp", interrupted)
+    try:
+        with pytest.raises(SystemExit), atomic_output(tmp_path / "out.csv") as temporary:
+            temporary.write_text("never")
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     assert list(tmp_path.iterdir()) == []
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -28,11 +29,18 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     folder = path.parent
     if not folder.is_dir():
         raise TableError(f"cannot write {path}: the folder {folder} does not exist")
-    handle, temporary = tempfile.mkstemp(
-        dir=path.parent or ".", prefix=f".{path.stem}.", suffix=path.suffix
-    )
-    os.close(handle)
+    temporary: str | None = None
+    # An interrupt (Ctrl-C, or SIGTERM, which the command line turns into one) inside mkstemp,
+    # after it made the file and before its name is known here, would leave the file behind:
+    # they wait until the name is held, and then arrive inside the try.
+    held = _hold_interrupts()
     try:
+        handle, temporary = tempfile.mkstemp(
+            dir=path.parent or ".", prefix=f".{path.stem}.", suffix=path.suffix
+        )
+        os.close(handle)
+        _release(held)
+        held = None
         yield Path(temporary)
         # mkstemp makes the file private (0600); give it the mode a plain open would.
         umask = os.umask(0)
@@ -40,9 +48,29 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         os.chmod(temporary, 0o666 & ~umask)
         os.replace(temporary, path)
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
+        if temporary is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(temporary)
         raise
+    finally:
+        _release(held)
+
+
+_INTERRUPTS = {signal.SIGINT, signal.SIGTERM}
+
+
+def _hold_interrupts() -> set | None:
+    """Hold SIGINT and SIGTERM back from this thread; the mask it replaced (None where
+    signals cannot be held, as on Windows)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        return None
+    return signal.pthread_sigmask(signal.SIG_BLOCK, _INTERRUPTS)
+
+
+def _release(held: set | None) -> None:
+    """Put back the mask ``held`` (a held interrupt arrives now); None: nothing to do."""
+    if held is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 @contextlib.contextmanager
