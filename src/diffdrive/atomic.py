@@ -10,6 +10,7 @@ import contextlib
 import os
 import signal
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TextIO
@@ -32,7 +33,8 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     temporary: str | None = None
     # An interrupt (Ctrl-C, or SIGTERM, which the command line turns into one) inside mkstemp,
     # after it made the file and before its name is known here, would leave the file behind:
-    # they wait until the name is held, and then arrive inside the try.
+    # it is recorded until the name is held, and then handled inside the try. (Masking the
+    # signals would not do: another thread, such as a BLAS pool's, takes them instead.)
     held = _hold_interrupts()
     try:
         handle, temporary = tempfile.mkstemp(
@@ -56,21 +58,37 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         _release(held)
 
 
-_INTERRUPTS = {signal.SIGINT, signal.SIGTERM}
+_INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 
 
-def _hold_interrupts() -> set | None:
-    """Hold SIGINT and SIGTERM back from this thread; the mask it replaced (None where
-    signals cannot be held, as on Windows)."""
-    if not hasattr(signal, "pthread_sigmask"):
+def _hold_interrupts():
+    """Have SIGINT and SIGTERM recorded instead of handled, until ``_release``; what that
+    needs to put back (None outside the main thread, where Python runs no handler)."""
+    if threading.current_thread() is not threading.main_thread():
         return None
-    return signal.pthread_sigmask(signal.SIG_BLOCK, _INTERRUPTS)
+    caught: list[int] = []
+    previous = {
+        number: signal.signal(number, lambda n, _: caught.append(n)) for number in _INTERRUPTS
+    }
+    return previous, caught
 
 
-def _release(held: set | None) -> None:
-    """Put back the mask ``held`` (a held interrupt arrives now); None: nothing to do."""
-    if held is not None:
-        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+def _release(held) -> None:
+    """Put the handlers back, then hand each interrupt recorded meanwhile to its own handler
+    (an exception it raises comes out here); None: nothing to do."""
+    if held is None:
+        return
+    previous, caught = held
+    for number, handler in previous.items():
+        signal.signal(number, handler)
+    pending = list(caught)
+    caught.clear()  # handed on once, even if a handler's exception brings us back here
+    for number in pending:
+        handler = previous[number]
+        if callable(handler):
+            handler(number, None)
+        elif handler == signal.SIG_DFL:
+            signal.raise_signal(number)
 
 
 @contextlib.contextmanager
