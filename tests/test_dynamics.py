@@ -2,6 +2,7 @@
 acceleration limit found again on synthetic logs at three noise levels, the refusals, and the
 TurtleBot3 figures the README quotes."""
 
+import importlib.util
 import math
 from pathlib import Path
 
@@ -79,6 +80,42 @@ def test_cross_validation_refuses_folds_it_cannot_score(options, message):
     commands, measured = logged(0.05)
     with pytest.raises(ValueError, match=message):
         cross_validate(T, measured, COMMAND_TIMES, commands, **options)
+
+
+STEP_TIMES = np.linspace(0.0, 1.0, 101)
+RESPONSE_CASES = {
+    # (delay, time constant, gain, limit, command): the closed form at t, wheel by wheel
+    "lag": (
+        (0.05, 0.1, 0.9, math.inf, [4.0, -2.0]),
+        lambda t: np.outer(0.9 * (1 - np.exp(-np.maximum(t - 0.05, 0) / 0.1)), [4.0, -2.0]),
+    ),
+    "limit": (
+        (0.0, 0.0, 1.0, 10.0, [4.0, -2.0]),
+        lambda t: np.stack([np.minimum(10 * t, 4.0), -np.minimum(10 * t, 2.0)], axis=-1),
+    ),
+}
+BACKENDS = ["python"] + (["numba"] if importlib.util.find_spec("numba") else [])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("case", sorted(RESPONSE_CASES))
+def test_each_backend_drives_the_response_as_the_closed_form_says(case, backend, monkeypatch):
+    """A step of command from rest: a first-order lag after a delay, and a ramp at the limit
+    with no lag; numba's loop and Python's give the same numbers to the bit."""
+    from diffdrive.dynamics import response
+
+    (delay, tau, gain, limit, command), closed = RESPONSE_CASES[case]
+    monkeypatch.setattr(response, "_COMPILED", backend == "numba")
+    found = response.simulate_response(
+        STEP_TIMES, [0.0], [command], delay, np.zeros(2), gain, tau, limit
+    )
+    np.testing.assert_allclose(found, closed(STEP_TIMES), rtol=1e-12, atol=1e-12)
+    if len(BACKENDS) == 2:
+        monkeypatch.setattr(response, "_COMPILED", backend != "numba")
+        other = response.simulate_response(
+            STEP_TIMES, [0.0], [command], delay, np.zeros(2), gain, tau, limit
+        )
+        np.testing.assert_array_equal(found, other)
 
 
 def test_logs_that_cannot_show_the_response_are_refused():

@@ -21,6 +21,7 @@ the residual variance.
 
 from __future__ import annotations
 
+import importlib.util
 import itertools
 import math
 from dataclasses import dataclass
@@ -77,7 +78,8 @@ def simulate_response(
     times, command_times, commands, delay, initial, gain, time_constant, acceleration
 ):
     """The model's wheel velocities ``(N, W)`` at ``times``: integrated exactly between the
-    samples and the (delayed) command changes, each piece's command held."""
+    samples and the (delayed) command changes, each piece's command held. Its loop runs
+    compiled where numba is installed (``backends/numba_response.py``), in Python else."""
     changes = np.asarray(command_times, dtype=float) + delay
     inside = (changes > times[0]) & (changes < times[-1])
     events = np.union1d(times, changes[inside])
@@ -85,14 +87,29 @@ def simulate_response(
     held = held_commands(changes, commands, events)  # the command in force from each event on
     pieces = np.diff(events)
     # A time constant of 0: the wheel is at the command at once (as fast as its limit lets).
-    keep = (np.exp(-pieces / time_constant) if time_constant > 0.0 else 0.0 * pieces).tolist()
-    limits = (acceleration * pieces).tolist()
-    out = np.empty((len(times), held.shape[1]))
-    for w in range(held.shape[1]):
-        target = (gain * held[:-1, w]).tolist()
+    keep = np.exp(-pieces / time_constant) if time_constant > 0.0 else 0.0 * pieces
+    limits = acceleration * pieces
+    target = gain * held[:-1]
+    start = np.asarray(initial, dtype=float)
+    out = np.empty((len(events), held.shape[1]))
+    if _COMPILED:
+        from diffdrive.backends.numba_response import respond
+
+        respond(keep, np.ascontiguousarray(target), limits, start, out)
+    else:
+        _respond(keep.tolist(), target, limits.tolist(), start, out)
+    return out[at_sample]
+
+
+_COMPILED = importlib.util.find_spec("numba") is not None
+
+
+def _respond(keep: list, target: np.ndarray, limits: list, initial, out: np.ndarray) -> None:
+    """``backends.numba_response.respond`` in Python: the same steps in the same order."""
+    for w in range(target.shape[1]):
         v = float(initial[w])
         column = [v]
-        for decay, goal, limit in zip(keep, target, limits, strict=True):
+        for decay, goal, limit in zip(keep, target[:, w].tolist(), limits, strict=True):
             change = (1.0 - decay) * (goal - v)
             if change > limit:
                 change = limit
@@ -100,8 +117,7 @@ def simulate_response(
                 change = -limit
             v += change
             column.append(v)
-        out[:, w] = np.array(column)[at_sample]
-    return out
+        out[:, w] = column
 
 
 def _fit(stretches, command, start, acceleration, iterations=30):
