@@ -51,8 +51,12 @@ def held_out(bags: Path, restore: bool = True, folds: int = 5) -> dict:
         times, measured, commands.times, wheels, folds=folds, segment=5.0, accelerations=limits
     )
     scored = ~np.isnan(found.predicted)
+    # The figure's segment: the last whole 5 s piece of the block that holds the log's middle.
     piece = round(5.0 / float(np.mean(np.diff(times))))
-    shown = slice(len(times) // 2 + 2 * piece, len(times) // 2 + 3 * piece)
+    bounds = np.linspace(0, len(times), folds + 1).round().astype(int)
+    block = int(np.searchsorted(bounds, len(times) // 2, side="right")) - 1
+    first = bounds[block] + ((bounds[block + 1] - bounds[block]) // piece - 1) * piece
+    shown = slice(first, first + piece)
     return {
         "found": found,
         "segment": (times[shown], measured[shown], found.predicted[shown], found.at_once[shown]),
