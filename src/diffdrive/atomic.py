@@ -63,9 +63,12 @@ _INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 
 def _hold_interrupts():
     """Have SIGINT and SIGTERM recorded instead of handled, until ``_release``; what that
-    needs to put back (None outside the main thread, where Python runs no handler)."""
+    needs to put back (None outside the main thread, where Python runs no handler, and where
+    a handler was set outside Python)."""
     if threading.current_thread() is not threading.main_thread():
         return None
+    if any(signal.getsignal(number) is None for number in _INTERRUPTS):
+        return None  # a handler set outside Python cannot be put back from here
     caught: list[int] = []
     previous = {
         number: signal.signal(number, lambda n, _: caught.append(n)) for number in _INTERRUPTS

@@ -244,10 +244,7 @@ def _chunk_of(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
     for k0 in range(0, steps, block):
         angles = setup.travel[k0 : k0 + block]  # (B, 2) rad, the same for every robot
         if np.any(setup.k):  # noise on each wheel's travel (m), as an angle: (count, B, 2)
-            arcs = radii * angles
-            angles = (
-                angles + np.sqrt(setup.k * np.abs(arcs)) * rng.standard_normal(arcs.shape) / radii
-            )
+            angles = noisy_angles(angles, radii, setup.k, rng)
         increments = twists(geometry, angles)  # (count, B, 3): the step's wheel-to-body map
         poses = accumulate(increments, pose, setup.method)[:, 1:]  # (count, B, 3)
         mean = poses.mean(axis=0)
@@ -264,6 +261,13 @@ def run_chunks(setup: Plan, indices: range, threads: int = 1) -> tuple[np.ndarra
     with ThreadPoolExecutor(max_workers=whole("threads", threads, smallest=1)) as pool:
         finals, parts = zip(*pool.map(lambda i: _run_chunk(setup, i), indices), strict=True)
     return np.concatenate(finals), Moments.combine(parts)
+
+
+def noisy_angles(angles, radii, k, rng: np.random.Generator) -> np.ndarray:
+    """Wheel-angle increments ``angles`` (rad) with each wheel's travel drawn noisy, of
+    variance ``k |radius angle|`` (``Odometry``'s model; ``k`` and ``radii`` per wheel, m)."""
+    arcs = radii * angles
+    return angles + np.sqrt(k * np.abs(arcs)) * rng.standard_normal(arcs.shape) / radii
 
 
 def monte_carlo(

@@ -51,6 +51,7 @@ from diffdrive.calibration.offline import checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive
+from diffdrive.montecarlo import noisy_angles
 from diffdrive.simulation import dead_reckon
 from diffdrive.types import Pose
 
@@ -393,10 +394,9 @@ def draw_reference(
     start = np.asarray(start, dtype=float)
     base = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
     sigmas = np.array([model.radius_sigma, model.radius_sigma, model.track_sigma])
-    drawn = robot.with_geometry(*(base * (1.0 + sigmas * rng.standard_normal(3))))
-    spread = np.sqrt(model.k * np.abs(increments * base[:2])) / base[:2]
-    wheels = increments + spread * rng.standard_normal(increments.shape)
-    poses = dead_reckon(drawn, wheels, start, method)
+    geometry = base * (1.0 + sigmas * rng.standard_normal(3))
+    wheels = noisy_angles(increments, geometry[:2], model.k, rng)
+    poses = dead_reckon(robot.with_geometry(*geometry), wheels, start, method)
     floor = np.array([model.reference_sigma] * 2 + [model.reference_heading_sigma])
     return poses + floor * rng.standard_normal(poses.shape)
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive._validate import increasing
 from diffdrive.model import DiffDrive
 
 __all__ = ["GyroTrack", "track_from_gyro"]
@@ -87,9 +88,8 @@ def track_from_gyro(
         and np.all(np.isfinite(angles))
     ):
         raise ValueError("times, increments and gyro_angles must be finite")
+    increasing("times", times)
     dt = np.diff(times)
-    if np.any(dt <= 0):
-        raise ValueError("times must increase strictly")
     r_l, r_r = robot.left_wheel_radius, robot.right_wheel_radius
     arcs = increments * np.array([r_l, r_r])
     u = arcs[:, 1] - arcs[:, 0]

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive._validate import increasing
+
 __all__ = [
     "HeldOutResponse",
     "VelocityResponse",
@@ -210,8 +212,10 @@ def _checked(times, measured, command_times, commands, max_delay, accelerations)
     arrays = (times, measured, command_times, commands)
     if not all(np.all(np.isfinite(a)) for a in arrays):
         raise ValueError("times, measured, command_times and commands must be finite")
-    if np.any(np.diff(times) <= 0) or np.any(np.diff(command_times) < 0):
-        raise ValueError("times must increase strictly, and command_times must not go back")
+    increasing("times", times)
+    if np.any(np.diff(command_times) < 0):
+        back = int(np.argmax(np.diff(command_times) < 0)) + 1
+        raise ValueError(f"command_times must not go back: command_times[{back}] does")
     if len(command_times) == 0 or command_times[0] >= times[-1] or command_times[-1] < times[0]:
         raise ValueError(
             "the commands and the wheels' stamps do not overlap: the log must hold commands "

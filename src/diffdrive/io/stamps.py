@@ -75,7 +75,8 @@ def sample_times(times: object, tick: float = 1e-3, *, share: float = 0.8) -> Sa
     if wander > 3.0:
         raise ValueError(
             f"the stamps are not a fixed period on a {tick:g} s clock, some a tick early: they "
-            f"wander {wander:.3g} ticks about a fixed period (at most 2 would be)"
+            f"wander {wander:.3g} ticks about a fixed period (at most 2 would be; times and "
+            "tick must be in one unit, seconds unless both are given otherwise)"
         )
     grid, period = _ticks(counts, seen)
     off = seen - grid
