@@ -8,6 +8,7 @@ import pytest
 
 import diffdrive as dd
 from diffdrive.cli import main
+from diffdrive.cli.options import COVARIANCE_COLUMNS, TWIST_COVARIANCE_COLUMNS
 from diffdrive.demo import EXAMPLE_TICKS_PER_REVOLUTION, example_encoder_log
 
 TICKS = ["--ticks-per-revolution", str(EXAMPLE_TICKS_PER_REVOLUTION)]
@@ -179,3 +180,68 @@ def test_plot_draws_the_errors_within_their_bands(log_and_fixes, capsys):
     assert (folder / "bands.png").stat().st_size > 10_000
     assert main(["plot", "truth.csv", "--truth", "truth.csv", "--errors", "-o", "x.png"]) != 0
     assert "a covariance is needed here" in capsys.readouterr().err
+
+
+# -- /odom: the twist and both covariances on every path ------------------------------------
+
+PATHS = {
+    "wheels": [],
+    "gyro": ["--gyro-topic", "/imu/data", "--heading", "gyro", "--gyro-bias", "0.003"],
+    "fused": ["--gyro-topic", "/imu/data"],
+    "estimator": ["--gyro-topic", "/imu/data", "--pose-topic", "/pose"],
+    "smoother": ["--pose-topic", "/pose", "--smooth"],
+}
+
+
+@pytest.fixture(scope="module")
+def synthetic_bag(tmp_path_factory):
+    """A bag of the built-in path: wheels with noise, a gyro with a bias, poses at 2 Hz."""
+    pytest.importorskip("rosbags")
+    folder = tmp_path_factory.mktemp("odom")
+    synth = ["synth", "--k-left", "1e-5", "--k-right", "1e-5", "--gyro-bias", "0.003"]
+    synth += ["--gyro-arw", "1e-3", "--pose-sigma", "0.05", "0.05", "0.02", "--pose-period"]
+    synth += ["0.5", "--seed", "3", "-q", "-o", str(folder / "run.mcap")]
+    assert main(synth) == 0
+    return folder / "run.mcap"
+
+
+@pytest.mark.parametrize("path", list(PATHS))
+@pytest.mark.parametrize("format", ["mcap", "ros2"])
+def test_odom_carries_the_twist_and_both_covariances_of_the_csv(synthetic_bag, path, format):
+    """Each bag written reads back (rosbags) with the twist, the pose covariance and the twist
+    covariance of the CSV the same run writes; the twist is the robot's, not zero."""
+    from diffdrive.io import ros
+
+    folder = synthetic_bag.parent / f"{path}-{format}"
+    folder.mkdir()
+    joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
+    base = ["odometry", str(synthetic_bag), *joints, *PATHS[path], "-q"]
+    bag = folder / ("odom.mcap" if format == "mcap" else "odom")
+    assert main([*base, "-o", str(bag), "--format", format]) == 0
+    table_path = folder / "odom.csv"
+    assert main([*base, "-o", str(table_path), "--twist", "--covariance"]) == 0
+    table = np.genfromtxt(table_path, delimiter=",", names=True)
+    back = ros.read_odometry(bag, "/odom")
+    np.testing.assert_allclose(back.times, table["t"], atol=2e-9)
+    twists = np.column_stack([table[name] for name in ("vx", "vy", "omega")])
+    np.testing.assert_allclose(back.twists, twists, rtol=1e-12, atol=1e-15)
+    pairs = (
+        (back.covariances, COVARIANCE_COLUMNS),
+        (back.twist_covariances, TWIST_COVARIANCE_COLUMNS),
+    )
+    for matrices, names in pairs:
+        flat = matrices.reshape(-1, 9)
+        for name, index in names.items():
+            np.testing.assert_allclose(flat[:, index], table[name], rtol=1e-12, atol=1e-18)
+    moving = np.abs(twists[:, 0]) > 0.1
+    assert moving.mean() > 0.5  # the built-in path drives: the twist says so
+    assert np.all(back.twist_covariances[moving, 0, 0] > 0)
+    assert np.all(back.twist_covariances[:, 2, 2] > 0)
+
+
+def test_no_wheel_noise_is_refused_for_a_bag(synthetic_bag, tmp_path, capsys):
+    joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
+    argv = ["odometry", str(synthetic_bag), *joints, "--k-left", "0", "--k-right", "0"]
+    assert main([*argv, "-o", str(tmp_path / "o.mcap")]) == 1
+    assert "--k-left 0 --k-right 0: the /odom messages would carry zero" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

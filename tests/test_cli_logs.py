@@ -146,12 +146,19 @@ def test_twist_and_covariance_columns(tmp_path, capsys):
         "cov_yy",
         "cov_ytheta",
         "cov_thetatheta",
+        "cov_vxvx",
+        "cov_vxvy",
+        "cov_vxomega",
+        "cov_vyvy",
+        "cov_vyomega",
+        "cov_omegaomega",
     ]
     table = np.genfromtxt(out, delimiter=",", names=True)
-    assert math.isnan(table["vx"][0])
+    assert table["vx"][0] == table["vx"][1]  # the first row: the first interval's twist
     assert table["vx"][-1] == pytest.approx(0.05 * 5.5, rel=0.02)
     assert table["cov_xx"][0] == 0.0
     assert table["cov_yy"][-1] > 0.0
+    assert np.all(table["cov_vxvx"] > 0.0)
 
 
 # -- time units ----------------------------------------------------------------------------

@@ -349,7 +349,16 @@ def test_evaluate_wheel_odometry_against_gps_from_the_command_line(capsys):
 def test_a_bag_output_of_simulate_and_a_missing_rosbags_message(tmp_path, capsys, monkeypatch):
     code, _, err = run(["simulate", "-o", tmp_path / "s.mcap"], capsys)
     assert code == 0, err
-    assert len(ros.read_odometry(tmp_path / "s.mcap", "/odom").times) == 2001
+    written = ros.read_odometry(tmp_path / "s.mcap", "/odom")
+    assert len(written.times) == 2001
+    truth = dd.simulate(dd.demo.example_robot(), dd.demo.example_wheel_velocities, dt=0.01,
+                        duration=dd.demo.EXAMPLE_DURATION)  # fmt: skip
+    np.testing.assert_allclose(written.twists[1:], truth.twists, atol=1e-12)  # not zero
+    log = tmp_path / "log.csv"
+    log.write_text("t,left_velocity,right_velocity\n0,1,1\n0.1,1,1\n0.2,1,1\n")
+    code, _, err = run(["simulate", log, "-o", tmp_path / "log.mcap"], capsys)
+    assert code == 1
+    assert "diffdrive odometry writes a log's odometry to a bag" in err
     monkeypatch.setitem(__import__("sys").modules, "rosbags.highlevel", None)
     with pytest.raises(ImportError, match=r"pip install 'diffdrive\[ros\]'"):
         ros.topics(TB3)

@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 from diffdrive import batch
-from diffdrive.cli.options import COVARIANCE_COLUMNS, refuse_unused, write_output
+from diffdrive.cli.options import estimate_columns, refuse_unused, wheel_noise, write_output
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation import Measurement, estimate_trajectory
 from diffdrive.evaluation import align, interpolate
@@ -157,9 +157,11 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     heading = args.heading or ("fused" if gyro is not None else "wheels")
     if heading != "wheels" and gyro is None:
         raise ValueError(f"--heading {heading} needs a gyro: --gyro-topic, or a gyro_z column")
+    k_left, k_right, assumed = wheel_noise(args)
+    note += assumed
     options = {
-        "k_left": 1e-4 if args.k_left is None else args.k_left,
-        "k_right": 1e-4 if args.k_right is None else args.k_right,
+        "k_left": k_left,
+        "k_right": k_right,
         "turn_scale_sigma": args.turn_scale_sigma or 0.0,
         "gate": args.gate,
         "method": args.method,
@@ -186,15 +188,17 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         smooth=args.smooth,
         **common,
     )
-    flat = result.covariances.reshape(-1, 9)
-    columns = {name: flat[:, index] for name, index in COVARIANCE_COLUMNS.items()}
+    twists, twist_covariances = result.twists, result.twist_covariances
+    columns = estimate_columns(args, result.covariances, twists, twist_covariances, True)
     if heading != "wheels":
         columns.update(slip=result.slip.astype(float), gyro_bias=result.states[:, 3])
     if options["turn_scale_sigma"]:
         columns["turn_scale"] = result.states[:, 4]
     which = "smoothed" if args.smooth else "filtered"
     what = f"{which} estimate of {log.source} ({heading} heading)"
-    write_output(args, log.times, result.poses, what, columns, result.covariances)
+    write_output(
+        args, log.times, result.poses, what, columns, result.covariances, twists, twist_covariances
+    )
     if result.rejected and result.rejected > 0.5 * max(1, len(inside)):
         print(
             f"diffdrive odometry: warning: the gate refused {result.rejected} of {len(inside)} "

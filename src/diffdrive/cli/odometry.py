@@ -13,9 +13,11 @@ from diffdrive.cli.fusion import GATE, refuse_idle_options, run_fusion, wants_fu
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
     LOG_COLUMNS,
+    TWIST_COVARIANCE_COLUMNS,
     Command,
     Parents,
     add_imu_options,
+    estimate_columns,
     gyro_of,
     output_format,
     output_options,
@@ -23,10 +25,12 @@ from diffdrive.cli.options import (
     refuse_unused,
     robot_from,
     robot_note,
+    wheel_noise,
     write_output,
 )
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation.odometry import odometry_of_run
+from diffdrive.estimation.twists import interval_twists
 from diffdrive.io import RIM_SPEED_LIMIT, Run, TableError
 from diffdrive.model import Robot
 
@@ -56,7 +60,8 @@ def run_odometry(args: argparse.Namespace) -> int:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
-    to_bag = output_format(args) in ("mcap", "ros2")
+    k_left, k_right, assumed = wheel_noise(args)
+    with_covariance = args.covariance or output_format(args) in ("mcap", "ros2")
     poses, covariances = odometry_of_run(
         robot,
         log,
@@ -64,23 +69,16 @@ def run_odometry(args: argparse.Namespace) -> int:
         ticks_per_revolution=ticks,
         counter_bits=args.counter_bits,
         max_wheel_speed=args.max_wheel_speed,
-        k_left=args.k_left or 0.0,
-        k_right=args.k_right or 0.0,
-        covariance=args.covariance or to_bag,
+        k_left=k_left,
+        k_right=k_right,
+        covariance=with_covariance,
     )
-    times = log.times
-    columns: dict[str, np.ndarray] = {}
-    twists = batch.to_twist(robot, increments)
-    twists = np.vstack([np.full(3, np.nan), twists / np.diff(times)[:, None]])
-    if args.twist:
-        columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])
-    if args.covariance and covariances is not None:
-        flat = covariances.reshape(-1, 9)
-        for name, index in COVARIANCE_COLUMNS.items():
-            columns[name] = flat[:, index]
-    write_output(args, times, poses, f"odometry of {log.source}", columns, covariances, twists)
+    twists, twist_covariances = interval_twists(robot, log.times, increments, k_left, k_right)
+    columns = estimate_columns(args, covariances, twists, twist_covariances, args.covariance)
+    what = f"odometry of {log.source}"
+    write_output(args, log.times, poses, what, columns, covariances, twists, twist_covariances)
     if not args.quiet:
-        print(note)
+        print(note + (assumed if with_covariance or args.twist else ""))
         if log.truth is not None:
             print(error_summary(poses, log.truth))
     return 0
@@ -106,11 +104,9 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     from diffdrive.estimation.gyro import gyro_odometry
 
     log, note = _within_gyro(log, gyro, note)
-    options = {
-        "k_left": 1e-4 if args.k_left is None else args.k_left,
-        "k_right": 1e-4 if args.k_right is None else args.k_right,
-        "slip_test": args.slip_test or "episodes",
-    }
+    k_left, k_right, assumed = wheel_noise(args)
+    note += assumed
+    options = {"k_left": k_left, "k_right": k_right, "slip_test": args.slip_test or "episodes"}
     result = gyro_odometry(
         robot,
         log.times,
@@ -122,16 +118,15 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
         commanded=_commands(args, robot, log),
         **options,
     )
-    columns = {
-        "slip": result.slip.astype(float),
-        "slip_score": result.slip_score,
-        "gyro_bias": result.bias,
-    }
-    if args.covariance:
-        flat = result.covariances.reshape(-1, 9)
-        columns.update({name: flat[:, index] for name, index in COVARIANCE_COLUMNS.items()})
+    twists, twist_covariances = result.twists, result.twist_covariances
+    columns = estimate_columns(args, result.covariances, twists, twist_covariances, args.covariance)
+    columns.update(
+        slip=result.slip.astype(float), slip_score=result.slip_score, gyro_bias=result.bias
+    )
     what = f"odometry of {log.source} ({result.heading} heading)"
-    write_output(args, log.times, result.poses, what, columns, result.covariances)
+    write_output(
+        args, log.times, result.poses, what, columns, result.covariances, twists, twist_covariances
+    )
     share = float(np.count_nonzero(result.slip[1:])) / max(1, len(result.slip) - 1)
     if share > SUSPICIOUS_SLIP_SHARE:  # said even with -q: the result is likely wrong
         print(
@@ -214,13 +209,13 @@ def add_to(command: Command, parents: Parents) -> None:
         "--k-left",
         type=float,
         metavar="M",
-        help="left wheel-error constant of the covariance model, m (default 0; 1e-4 with a gyro)",
+        help="left wheel-error constant of the covariance model, m (default 1e-4, said when used)",
     )
     odo.add_argument(
         "--k-right",
         type=float,
         metavar="M",
-        help="right wheel-error constant, m (default 0; 1e-4 with a gyro)",
+        help="right wheel-error constant, m (default 1e-4)",
     )
     gyro = odo.add_argument_group("a gyro: a bag's IMU topic or a gyro_z column (rad/s)")
     add_imu_options(gyro)
@@ -304,8 +299,9 @@ def add_to(command: Command, parents: Parents) -> None:
     odo.add_argument(
         "--twist",
         action="store_true",
-        help="add columns vx, vy, omega: the twist over the interval ending at "
-        "each row (nan on the first)",
+        help="add columns vx, vy, omega (m/s, m/s, rad/s): the body twist over the interval "
+        "ending at each row (the first row: the first interval's); with --covariance also "
+        f"{', '.join(TWIST_COVARIANCE_COLUMNS)}",
     )
     odo.add_argument(
         "--covariance",

@@ -170,10 +170,18 @@ def output_format(args: argparse.Namespace) -> OutputFormat:
 
 
 def write_output(
-    args, times, poses, what: str, columns=None, covariances=None, twists=None
+    args,
+    times,
+    poses,
+    what: str,
+    columns=None,
+    covariances=None,
+    twists=None,
+    twist_covariances=None,
 ) -> None:
     """Write the trajectory in the chosen format: a file of poses and ``columns``, or
-    ``nav_msgs/Odometry`` and ``/tf`` with ``covariances`` and ``twists`` to a bag."""
+    ``nav_msgs/Odometry`` and ``/tf`` with ``covariances``, ``twists`` and
+    ``twist_covariances`` to a bag."""
     format = output_format(args)
     if format == "mcap" or format == "ros2":
         from diffdrive.io.ros import write_odometry
@@ -185,6 +193,7 @@ def write_output(
                 poses,
                 covariances,
                 twists,
+                twist_covariances,
                 format=format,
                 frame=args.frame,
                 child_frame=args.child_frame,
@@ -218,7 +227,8 @@ def read_log_of(args: argparse.Namespace, path: Path | None = None) -> Run:
     )
 
 
-# The covariance's distinct entries, by their index in the row-major 3x3 matrix.
+# The covariance's distinct entries, by their index in the row-major 3x3 matrix: the pose's
+# over (x, y, theta), the twist's over (vx, vy, omega).
 COVARIANCE_COLUMNS = {
     "cov_xx": 0,
     "cov_xy": 1,
@@ -227,6 +237,60 @@ COVARIANCE_COLUMNS = {
     "cov_ytheta": 5,
     "cov_thetatheta": 8,
 }
+TWIST_COVARIANCE_COLUMNS = {
+    "cov_vxvx": 0,
+    "cov_vxvy": 1,
+    "cov_vxomega": 2,
+    "cov_vyvy": 4,
+    "cov_vyomega": 5,
+    "cov_omegaomega": 8,
+}
+
+
+def matrix_columns(matrices: np.ndarray, names: dict[str, int]) -> dict[str, np.ndarray]:
+    """The distinct entries of symmetric 3x3 ``matrices`` ``(N, 3, 3)`` as named columns."""
+    flat = np.asarray(matrices).reshape(-1, 9)
+    return {name: flat[:, index] for name, index in names.items()}
+
+
+def estimate_columns(args, covariances, twists, twist_covariances, covariance: bool) -> dict:
+    """A trajectory file's extra columns: with ``--twist`` the twist ``vx, vy, omega``; with
+    ``covariance`` the pose covariance's entries and, with ``--twist``, the twist's."""
+    columns: dict[str, np.ndarray] = {}
+    if args.twist:
+        columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])
+    if covariance:
+        columns.update(matrix_columns(covariances, COVARIANCE_COLUMNS))
+        if args.twist:
+            columns.update(matrix_columns(twist_covariances, TWIST_COVARIANCE_COLUMNS))
+    return columns
+
+
+# The wheels' noise (Odometry's k, m) wherever a command writes a covariance and none is given:
+# one default for every path, said in the report.
+DEFAULT_WHEEL_NOISE = 1e-4
+
+
+def wheel_noise(args: argparse.Namespace) -> tuple[float, float, str]:
+    """``--k-left`` and ``--k-right`` (m), each ``DEFAULT_WHEEL_NOISE`` when not given, and a
+    report's line (with its newline) on what was assumed, or nothing. Both 0 are refused for
+    a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which a filter reads as
+    exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
+    given = (args.k_left, args.k_right)
+    k_left, k_right = (DEFAULT_WHEEL_NOISE if k is None else k for k in given)
+    if k_left == 0.0 and k_right == 0.0 and output_format(args) in ("mcap", "ros2"):
+        raise ValueError(
+            "--k-left 0 --k-right 0: the /odom messages would carry zero covariances, which ROS "
+            "filters read as exact; give the wheels' noise (k > 0, m)"
+        )
+    if all(k is not None for k in given):
+        return k_left, k_right, ""
+    return (
+        k_left,
+        k_right,
+        f"\nwheel noise: k = {k_left:g} m left, {k_right:g} m right (a default where not given: "
+        "--k-left, --k-right)",
+    )
 
 
 def example_trajectory(robot: Robot, dt: float = 0.01, method: Method = "exact"):

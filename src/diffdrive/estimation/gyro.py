@@ -79,7 +79,8 @@ class GyroOdometry(PoseEstimator):
 class GyroTrajectory:
     """``gyro_odometry``'s result: ``times`` ``(N,)``, ``poses`` ``(N, 3)``, ``covariances``
     ``(N, 3, 3)``, ``bias`` ``(N,)`` rad/s, and per row the ``slip`` flag and ``slip_score`` of
-    the interval that ends there (False and 0 on the first row)."""
+    the interval that ends there (False and 0 on the first row); ``twists`` ``(N, 3)`` and
+    ``twist_covariances`` ``(N, 3, 3)`` as ``Estimate``'s."""
 
     times: np.ndarray
     poses: np.ndarray
@@ -88,6 +89,8 @@ class GyroTrajectory:
     slip: np.ndarray
     slip_score: np.ndarray
     heading: str
+    twists: np.ndarray
+    twist_covariances: np.ndarray
 
 
 def gyro_odometry(
@@ -151,6 +154,8 @@ def gyro_odometry(
         estimate.slip,
         estimate.slip_score,
         heading,
+        estimate.twists,
+        estimate.twist_covariances,
     )
 
 

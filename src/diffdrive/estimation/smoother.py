@@ -24,6 +24,7 @@ from diffdrive.estimation.episodes import steady_episodes
 from diffdrive.estimation.fusion import PythonPoseEstimator, _body_covariance, _body_pose
 from diffdrive.estimation.imu import Gyro
 from diffdrive.estimation.measurements import Measurement
+from diffdrive.estimation.twists import interval_twists
 from diffdrive.model import Robot
 
 SLIP_TESTS = ("episodes", "interval")
@@ -38,7 +39,11 @@ class Estimate:
     (``x, y, theta, bias, turn_scale`` of the reference point) and ``state_covariances``
     ``(N, 5, 5)``; per row the ``slip`` flag and ``slip_score`` of the interval ending there;
     the ``measurements`` in stamp order with ``accepted`` ``(M,)`` and ``scores`` ``(M,)`` (the
-    squared Mahalanobis distance in the forward pass); ``smoothed`` says which pass it is."""
+    squared Mahalanobis distance in the forward pass); ``smoothed`` says which pass it is;
+    ``twists`` ``(N, 3)`` ``[vx, vy, omega]`` and ``twist_covariances`` ``(N, 3, 3)``: the body
+    twist over the interval ending at each row (row 0: the first interval's) and its
+    covariance, from the wheels and the heading source with the estimated bias or turn scale
+    (``diffdrive.estimation.twists``)."""
 
     times: np.ndarray
     poses: np.ndarray
@@ -52,6 +57,8 @@ class Estimate:
     scores: np.ndarray
     smoothed: bool
     heading: str
+    twists: np.ndarray
+    twist_covariances: np.ndarray
 
     @property
     def rejected(self) -> int:
@@ -179,6 +186,7 @@ def estimate_trajectory(
     pose_covariances = np.array(
         [_body_covariance(x, P, offset) for x, P in zip(states, covariances, strict=True)]
     )
+    twists, twist_covariances = _twists(robot, estimator.config, log, states, covariances, slips)
     return Estimate(
         times,
         poses,
@@ -192,6 +200,36 @@ def estimate_trajectory(
         distances,
         smooth,
         heading,
+        twists,
+        twist_covariances,
+    )
+
+
+def _twists(robot: Robot, c: ekf.Config, log, states, covariances, slips):
+    """The body twist over each interval and its covariance (``interval_twists``): the
+    wheels' turn times the estimated turn scale, or the gyro's turn less the estimated bias,
+    each interval's wheel noise inflated as the filter inflated it."""
+    times, increments, turned = log[4], log[5], log[6]
+    inflation = np.where(slips[1:], c.slip_inflation, 1.0)
+    if c.heading == "wheels":
+        return interval_twists(
+            robot,
+            times,
+            increments,
+            *c.k,
+            turn_scale=states[1:, ekf.SCALE],
+            turn_scale_variances=covariances[1:, ekf.SCALE, ekf.SCALE],
+            noise_scale=inflation,
+        )
+    dt = np.diff(times)
+    return interval_twists(
+        robot,
+        times,
+        increments,
+        *c.k,
+        turns=turned - states[1:, ekf.BIAS] * dt,
+        turn_variances=c.arw2 * dt + dt * dt * covariances[1:, ekf.BIAS, ekf.BIAS],
+        noise_scale=inflation,
     )
 
 

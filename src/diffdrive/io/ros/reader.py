@@ -235,12 +235,14 @@ class OdometryTopic:
     """``nav_msgs/Odometry`` (or ``geometry_msgs/PoseWithCovarianceStamped``, whose twists
     are zero and child frame empty): ``times`` ``(N,)`` s, ``poses`` ``(N, 3)`` ``[x, y, yaw]``
     (yaw unwrapped), ``twists`` ``(N, 3)`` ``[vx, vy, omega]``, ``covariances`` ``(N, 3, 3)``
-    over ``(x, y, yaw)``, the frames, which stamp was used and how many were dropped."""
+    over ``(x, y, yaw)``, ``twist_covariances`` ``(N, 3, 3)`` over ``(vx, vy, omega)``, the
+    frames, which stamp was used and how many were dropped."""
 
     times: np.ndarray
     poses: np.ndarray
     twists: np.ndarray
     covariances: np.ndarray
+    twist_covariances: np.ndarray
     frame: str
     child_frame: str
     stamp_source: str
@@ -254,8 +256,7 @@ def read_odometry(path: str | Path, topic: str) -> OdometryTopic:
     def row(m):
         p = m.pose.pose
         t = m.twist.twist if hasattr(m, "twist") else _NO_TWIST
-        full = np.asarray(m.pose.covariance, dtype=float).reshape(6, 6)
-        planar = full[np.ix_([0, 1, 5], [0, 1, 5])].ravel()
+        spread = m.twist.covariance if hasattr(m, "twist") else np.zeros(36)
         return (
             p.position.x,
             p.position.y,
@@ -263,7 +264,8 @@ def read_odometry(path: str | Path, topic: str) -> OdometryTopic:
             t.linear.x,
             t.linear.y,
             t.angular.z,
-            *planar,
+            *_planar(m.pose.covariance),
+            *_planar(spread),
         )
 
     kinds = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseWithCovarianceStamped")
@@ -274,12 +276,19 @@ def read_odometry(path: str | Path, topic: str) -> OdometryTopic:
         ordered.times,
         poses,
         rows[:, 3:6],
-        rows[:, 6:].reshape(-1, 3, 3),
+        rows[:, 6:15].reshape(-1, 3, 3),
+        rows[:, 15:].reshape(-1, 3, 3),
         last.header.frame_id,
         getattr(last, "child_frame_id", ""),
         ordered.source,
         ordered.dropped,
     )
+
+
+def _planar(covariance) -> np.ndarray:
+    """The ``(x, y, yaw)`` block (or their rates') of ROS's row-major 6x6, as 9 values."""
+    full = np.asarray(covariance, dtype=float).reshape(6, 6)
+    return full[np.ix_([0, 1, 5], [0, 1, 5])].ravel()
 
 
 class _Still:

@@ -34,6 +34,7 @@ def write_odometry(
     poses: object,
     covariances: object = None,
     twists: object = None,
+    twist_covariances: object = None,
     *,
     format: BagFormat | None = None,
     topic: str = "/odom",
@@ -44,21 +45,32 @@ def write_odometry(
     """Write poses ``(N, 3)`` at ``times`` ``(N,)`` (s, >= 0) as ``nav_msgs/Odometry`` on
     ``topic``, and ``frame -> child_frame`` on ``/tf`` when ``tf``.
 
-    ``covariances`` ``(N, 3, 3)`` over ``(x, y, theta)`` fill the pose covariance (z, roll and
-    pitch get 1e6: not estimated); ``twists`` ``(N, 3)`` ``[vx, vy, omega]`` the twist (its
-    covariance stays zero: unknown). ``format`` is ``"mcap"`` (one MCAP file, what Foxglove
+    ``covariances`` ``(N, 3, 3)`` over ``(x, y, theta)`` fill the pose covariance and
+    ``twist_covariances`` ``(N, 3, 3)`` over ``(vx, vy, omega)`` the twist's (z, roll and
+    pitch, and their rates, get 1e6: not estimated); ``twists`` ``(N, 3)`` ``[vx, vy, omega]``
+    the twist, in the child frame as ROS has it. A covariance or twist not given is zero: an
+    exact trajectory (a simulation's, a ground truth), at rest unless ``twists`` says
+    otherwise. ``format`` is ``"mcap"`` (one MCAP file, what Foxglove
     opens) or ``"ros2"`` (a ROS 2 bag folder, for ``ros2 bag play``); default: ``mcap`` for a
     name ending in ``.mcap``, else ``ros2``. The file or folder appears whole or not at all; an
     existing folder is not replaced.
     """
-    times, poses, covariances, twists = _checked(times, poses, covariances, twists)
+    times, poses, covariances, twists, twist_covariances = _checked(
+        times, poses, covariances, twists, twist_covariances
+    )
     with _bag(path, format) as (writer, store):
         odometry = writer.add_connection(topic, "nav_msgs/msg/Odometry", typestore=store)
         transforms = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
         for k in range(len(times)):
             stamp = _stamp(store, times[k])
             message = _odometry(
-                store, stamp, frame, child_frame, poses[k], covariances[k], twists[k]
+                store,
+                stamp,
+                (frame, child_frame),
+                poses[k],
+                covariances[k],
+                twists[k],
+                twist_covariances[k],
             )
             _write(writer, store, odometry, stamp, message)
             if tf:
@@ -202,10 +214,7 @@ def _fix(store, stamp, stream, value):
 
 def _pose(store, stamp, stream, value):
     t = store.types
-    full = np.zeros((6, 6))
-    full[2, 2] = full[3, 3] = full[4, 4] = _UNESTIMATED_VARIANCE
-    if stream.covariance is not None:
-        full[np.ix_(_PLANAR, _PLANAR)] = stream.covariance
+    planar = np.zeros((3, 3)) if stream.covariance is None else stream.covariance
     position = t["geometry_msgs/msg/Point"](x=float(value[0]), y=float(value[1]), z=0.0)
     return t["geometry_msgs/msg/PoseWithCovarianceStamped"](
         header=_header(store, stamp, stream.frame),
@@ -213,7 +222,7 @@ def _pose(store, stamp, stream, value):
             pose=t["geometry_msgs/msg/Pose"](
                 position=position, orientation=_quaternion(store, float(value[2]))
             ),
-            covariance=full.ravel(),
+            covariance=_planar_covariance(planar),
         ),
     )
 
@@ -235,31 +244,28 @@ _MESSAGES = {
 }
 
 
-def _checked(
-    times: object, poses: object, covariances: object, twists: object
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _checked(times: object, poses: object, *optional: object) -> tuple[np.ndarray, ...]:
+    """``times`` ``(N,)``, ``poses`` ``(N, 3)`` and the optional covariances ``(N, 3, 3)``,
+    twists ``(N, 3)`` and twist covariances ``(N, 3, 3)`` (zeros where None), checked."""
     times = np.asarray(times, dtype=float)
     poses = np.asarray(poses, dtype=float)
     if times.ndim != 1 or poses.shape != (len(times), 3) or len(times) == 0:
         raise ValueError(
             f"times (N,) and poses (N, 3) must match, got {times.shape}, {poses.shape}"
         )
-    covariances = (
-        np.zeros((len(times), 3, 3))
-        if covariances is None
-        else np.asarray(covariances, dtype=float)
-    )
-    twists = np.zeros((len(times), 3)) if twists is None else np.asarray(twists, dtype=float)
-    if covariances.shape != (len(times), 3, 3) or twists.shape != (len(times), 3):
-        raise ValueError(
-            f"covariances must be ({len(times)}, 3, 3) and twists ({len(times)}, 3), got "
-            f"{covariances.shape} and {twists.shape}"
-        )
-    for name, array in (("times", times), ("poses", poses), ("covariances", covariances)):
+    arrays = [times, poses]
+    names = ("covariances", "twists", "twist_covariances")
+    for name, given, shape in zip(names, optional, ((3, 3), (3,), (3, 3)), strict=True):
+        wanted = (len(times), *shape)
+        array = np.zeros(wanted) if given is None else np.asarray(given, dtype=float)
+        if array.shape != wanted:
+            raise ValueError(f"{name} must be {wanted}, got {array.shape}")
+        arrays.append(array)
+    for name, array in zip(("times", "poses", *names), arrays, strict=True):
         if not np.all(np.isfinite(array)):
             raise ValueError(f"{name} must be finite")
     _check_ros_times(times, "times")
-    return times, poses, covariances, np.nan_to_num(twists)
+    return tuple(arrays)
 
 
 def _check_ros_times(times: np.ndarray, what: str) -> None:
@@ -290,11 +296,18 @@ def _quaternion(store, yaw: float):
     return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
 
 
-def _odometry(store, stamp, frame, child_frame, pose, covariance, twist):
-    t = store.types
+def _planar_covariance(covariance: np.ndarray) -> np.ndarray:
+    """A 3x3 over ``(x, y, yaw)`` (or their rates) as ROS's row-major 6x6, 36 values; the
+    axes a planar robot does not estimate at 1e6."""
     full = np.zeros((6, 6))
     full[2, 2] = full[3, 3] = full[4, 4] = _UNESTIMATED_VARIANCE
     full[np.ix_(_PLANAR, _PLANAR)] = covariance
+    return full.ravel()
+
+
+def _odometry(store, stamp, frames, pose, covariance, twist, twist_covariance):
+    t = store.types
+    frame, child_frame = frames
     position = t["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0)
     vector = t["geometry_msgs/msg/Vector3"]
     return t["nav_msgs/msg/Odometry"](
@@ -304,14 +317,14 @@ def _odometry(store, stamp, frame, child_frame, pose, covariance, twist):
             pose=t["geometry_msgs/msg/Pose"](
                 position=position, orientation=_quaternion(store, float(pose[2]))
             ),
-            covariance=full.ravel(),
+            covariance=_planar_covariance(covariance),
         ),
         twist=t["geometry_msgs/msg/TwistWithCovariance"](
             twist=t["geometry_msgs/msg/Twist"](
                 linear=vector(x=float(twist[0]), y=float(twist[1]), z=0.0),
                 angular=vector(x=0.0, y=0.0, z=float(twist[2])),
             ),
-            covariance=np.zeros(36),
+            covariance=_planar_covariance(twist_covariance),
         ),
     )
 
