@@ -382,6 +382,7 @@ def test_calibrate_refuses_the_options_of_the_other_kind(tmp_path, capsys, optio
 
 
 ROBOT = ["--wheel-radius", "0.05", "--track-width", "0.3"]
+OPTIODOM = ["--wheel-radius", "0.042", "--track-width", "0.2"]  # the platform's nominal robot
 
 
 @pytest.mark.parametrize(
@@ -413,7 +414,8 @@ def test_calibrate_real_square_runs_with_umbmark(tmp_path, capsys):
     runs = sorted((data_folder("optiodom-diffdrive") / "square" / "230620202042").glob("*run*"))
     output = tmp_path / "robot.toml"
     code, _, _ = run(
-        ["calibrate", *runs, "--method", "umbmark", "--square-side", 0.75, "-o", output], capsys
+        ["calibrate", *runs, *OPTIODOM, "--method", "umbmark", "--square-side", 0.75, "-o", output],
+        capsys,
     )
     assert code == 0
     assert read_robot(output)["track_width"] == pytest.approx(0.201458, abs=5e-7)
@@ -425,7 +427,7 @@ def test_calibrate_increments_a_window_at_a_time(tmp_path, capsys):
 
     runs = sorted((data_folder("optiodom-diffdrive") / "circular" / "250620202345").glob("*run*"))
     output = tmp_path / "robot.toml"
-    argv = ["calibrate", *runs, "--method", "increments", "--cv", "none", "-o", output]
+    argv = ["calibrate", *runs, *OPTIODOM, "--method", "increments", "--cv", "none", "-o", output]
     code, _, _ = run([*argv, "--window", 20], capsys)
     assert code == 0
     windowed = read_robot(output)
@@ -450,7 +452,7 @@ def test_calibrate_refuses_runs_that_cannot_fix_the_track(tmp_path, capsys):
     rows = "\n".join(f"{k * 0.05},{k * 0.5},{k * 0.5},{k * 0.021},0,0" for k in range(50))
     log = tmp_path / "straight.csv"
     log.write_text("t,left_angle,right_angle,x,y,theta\n" + rows + "\n")
-    code, _, err = run(["calibrate", log, "-o", tmp_path / "robot.toml"], capsys)
+    code, _, err = run(["calibrate", log, *OPTIODOM, "-o", tmp_path / "robot.toml"], capsys)
     assert code == 1
     assert "too little to identify the track_width" in err
     assert not (tmp_path / "robot.toml").exists()
@@ -514,7 +516,7 @@ def test_what_calibrate_reports_is_what_its_robot_file_gives(tmp_path, capsys):
 
     runs = sorted((data_folder("optiodom-diffdrive") / "free" / "030120210006").glob("*run*"))
     robot = tmp_path / "robot.toml"
-    argv = ["calibrate", *runs, "--integration", "rk2", "--cv", "none", "-o", robot]
+    argv = ["calibrate", *runs, *OPTIODOM, "--integration", "rk2", "--cv", "none", "-o", robot]
     code, out, _ = run([*argv, "--extra", "axle_offset", "heading_offset"], capsys)
     assert code == 0
     assert "heading offset of the reference" in out
@@ -543,3 +545,51 @@ def test_a_long_evaluation_says_what_it_is_doing_on_a_terminal(tmp_path, capsys,
     err = capsys.readouterr().err
     assert "evaluate: reading the trajectory" in err
     assert "evaluate: pairing and measuring 3 poses" in err
+
+
+# -- the robot: only its geometry counts as given ----------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["export", "--to", "ros2", "--k", "1e-4"],
+        ["plan", "WAYPOINTS", "--max-velocity", "1"],
+        ["calibrate", "RUN"],
+    ],
+    ids=["export", "plan", "calibrate"],
+)
+def test_ticks_per_revolution_alone_is_not_a_robot(tmp_path, capsys, argv):
+    """The encoders' resolution says nothing of the geometry: a command that writes the
+    geometry (or what follows from it) refuses, naming the flags, and writes nothing."""
+    waypoints, run_file = tmp_path / "w.csv", tmp_path / "run.csv"
+    waypoints.write_text("x,y\n0,0\n1,0\n")
+    run_file.write_text("t,left_ticks,right_ticks,x,y,theta\n0,0,0,0,0,0\n1,100,120,0.1,0,0\n")
+    argv = [{"WAYPOINTS": waypoints, "RUN": run_file}.get(a, a) for a in argv]
+    out = tmp_path / "out.yaml"
+    code, _, err = run([*argv, "--ticks-per-revolution", "4096", "-o", out], capsys)
+    assert code == 1
+    assert "give --robot FILE, or --wheel-radius and --track-width" in err
+    assert "(--ticks-per-revolution is the encoders', not the geometry)" in err
+    robot = tmp_path / "ticks.toml"  # a robot file that holds only the encoders' resolution
+    robot.write_text("ticks_per_revolution = 4096\n")
+    code, _, err = run([*argv, "--robot", robot, "-o", out], capsys)
+    assert code == 1
+    assert "is the encoders', not the geometry" in err
+    assert not out.exists()
+
+
+def test_odometry_says_it_assumed_the_robot_when_told_only_the_ticks(tmp_path, capsys):
+    log = tmp_path / "log.csv"
+    log.write_text("t,left_ticks,right_ticks\n0,0,0\n0.1,100,120\n0.2,200,240\n")
+    code, out, _ = run(
+        ["odometry", log, "--ticks-per-revolution", "4096", "-o", tmp_path / "o.csv"], capsys
+    )
+    assert code == 0
+    assert "robot: the built-in robot (42 mm wheels, track 0.2 m; assumed: give --robot)" in out
+    code, out, _ = run(
+        ["odometry", log, "--ticks-per-revolution", "4096", *ROBOT, "-o", tmp_path / "o.csv"],
+        capsys,
+    )
+    assert code == 0
+    assert "robot:" not in out

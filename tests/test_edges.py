@@ -149,6 +149,7 @@ def test_a_huge_field_is_a_named_error_not_a_traceback(tmp_path, capsys, command
         f"{header}\n0,0,0{',0' if header.count(',') == 3 else ''}\n1,{'9' * 200_000},1\n"
     )
     argv = [command, path] + (["--truth", path] if command == "evaluate" else [])
+    argv += ["--wheel-radius", "0.05", "--track-width", "0.3"] if command == "calibrate" else []
     code, _, err = run([*argv, "-o", tmp_path / "out.x"] if command != "evaluate" else argv, capsys)
     assert code == 1
     assert "log.csv:3:" in err
@@ -202,7 +203,8 @@ def test_undecodable_input_is_named_with_its_line(tmp_path, capsys, content, exp
     path = tmp_path / "log.csv"
     path.write_bytes(content)
     for command in ("simulate", "odometry", "plot", "calibrate"):
-        code, _, err = run([command, path, "-o", tmp_path / "o.png"], capsys)
+        robot = ["--wheel-radius", "0.05", "--track-width", "0.3"] if command == "calibrate" else []
+        code, _, err = run([command, path, *robot, "-o", tmp_path / "o.png"], capsys)
         assert code == 1, command
         assert expected in err or "missing" in err, (command, err)
         assert "Traceback" not in err

@@ -80,7 +80,7 @@ def test_calibrate_finds_the_track_from_a_bag_imu(tmp_path, monkeypatch, capsys)
     bag = str(data_folder("ros-bags") / "turtlebot3_fuse.bag")
     joints = ["--left-joint", "wheel_left_joint", "--right-joint", "wheel_right_joint"]
     radii = ["--left-wheel-radius", "0.03256", "--right-wheel-radius", "0.03252"]
-    gyro = ["--track-from-gyro", "--gyro-topic", "/imu", "--track-width", "0.287"]
+    gyro = ["--track-from-gyro", "--gyro-topic", "/imu"]  # the track is what it finds
     assert main(["calibrate", bag, *joints, *radii, *gyro, "-o", "robot.toml"]) == 0
     written = dd.io.read_robot(tmp_path / "robot.toml")
     assert written["track_width"] == pytest.approx(0.2955, rel=0.01)
@@ -88,3 +88,5 @@ def test_calibrate_finds_the_track_from_a_bag_imu(tmp_path, monkeypatch, capsys)
     assert "track from the gyro: 0.2954" in capsys.readouterr().out
     assert main(["calibrate", bag, bag, *joints, *radii, *gyro, "-o", "two.toml"]) != 0
     assert "--track-from-gyro takes one log, got 2" in capsys.readouterr().err
+    assert main(["calibrate", bag, *joints, *gyro, "--track-width", "0.3", "-o", "x.toml"]) == 1
+    assert "--track-from-gyro keeps the wheel radii" in capsys.readouterr().err

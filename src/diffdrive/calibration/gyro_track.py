@@ -64,7 +64,8 @@ def track_from_gyro(
     ticks_per_revolution: float | None = None,
     angle_random_walk: float = 2e-3,
 ) -> GyroTrack:
-    """The effective track of ``robot`` (its wheel radii taken as right) from wheel-angle
+    """The effective track of ``robot`` (its wheel radii taken as right; its track is not
+    used) from wheel-angle
     ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s and the angles the gyro turned
     over the same intervals ``gyro_angles`` ``(N-1,)`` rad (``Gyro.angles`` differenced): see
     the module. ``k`` (m; default 0, wheels read exactly), ``ticks_per_revolution`` and
@@ -94,15 +95,19 @@ def track_from_gyro(
     arcs = increments * np.array([r_l, r_r])
     u = arcs[:, 1] - arcs[:, 0]
     turned = np.abs(u) > 0
-    if np.count_nonzero(turned) < 20 or float(np.sum(np.abs(u))) < 0.05 * robot.track_width:
+    if np.count_nonzero(turned) >= 20:
+        # The bias: least squares of the gyro on (u, dt), then taken off.
+        design = np.column_stack([u, dt])
+        (_, bias), *_ = np.linalg.lstsq(design, angles, rcond=None)
+    else:
+        bias = 0.0
+    y = angles - bias * dt
+    # The turn as the gyro saw it: the robot's own track is what is sought, not a measure.
+    if np.count_nonzero(turned) < 20 or float(np.sum(np.abs(y))) < 0.05:
         raise ValueError(
             "the log does not turn enough to find the track from a gyro: it needs turning "
             "(20 intervals or more, and a turn of a few degrees or more in all)"
         )
-    # The bias: least squares of the gyro on (u, dt), then taken off.
-    design = np.column_stack([u, dt])
-    (_, bias), *_ = np.linalg.lstsq(design, angles, rcond=None)
-    y = angles - bias * dt
     wheel = k * np.mean(np.abs(arcs).sum(axis=1))
     if ticks_per_revolution is not None:  # a count's quantisation on each wheel: q^2 / 6
         q = 2 * math.pi / ticks_per_revolution

@@ -25,10 +25,13 @@ from diffdrive.cli.options import (
     Parents,
     add_imu_options,
     at_least,
+    checked_ticks,
     gyro_of,
     read_log_of,
+    refuse_assumed_robot,
     refuse_unused,
     robot_from,
+    robot_settings,
 )
 from diffdrive.demo import (
     EXAMPLE_DURATION,
@@ -36,7 +39,7 @@ from diffdrive.demo import (
 )
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.integrate import METHODS, Method
-from diffdrive.io import TableError, write_robot
+from diffdrive.io import TableError, robot_from_settings, write_robot
 from diffdrive.model import DiffDrive, Robot
 from diffdrive.simulation import dead_reckon, simulate
 
@@ -119,6 +122,22 @@ def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
     return 0
 
 
+def _radii_robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
+    """--track-from-gyro's robot: its wheel radii given (a gyro sees the track over the
+    radii), its track what is estimated, so not needed (1 m stands in until then)."""
+    settings = robot_settings(args)
+    ticks = checked_ticks(settings.pop("ticks_per_revolution", None))
+    radii = {"wheel_radius", "left_wheel_radius", "right_wheel_radius"} & settings.keys()
+    if not radii:
+        raise ValueError(
+            "--track-from-gyro keeps the wheel radii (a gyro sees the track over them): give "
+            "--wheel-radius, or --left-wheel-radius and --right-wheel-radius, or --robot FILE"
+        )
+    if not {"track_width", "half_track", "icr_left", "icr_right"} & settings.keys():
+        settings["track_width"] = 1.0
+    return robot_from_settings(settings, f" (in {args.robot})" if args.robot else ""), ticks
+
+
 def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
     """--track-from-gyro's options without it, or a fit's options with it."""
     if args.track_from_gyro:
@@ -144,9 +163,12 @@ def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
 
 def run_calibrate(args: argparse.Namespace) -> int:
     _refuse_options_of_the_other_kind(args)
-    nominal, ticks = robot_from(args)
     if args.track_from_gyro:
-        return _track_from_gyro(args, nominal, ticks)
+        return _track_from_gyro(args, *_radii_robot(args))
+    nominal, ticks = robot_from(args)
+    if args.runs:
+        # The fit starts from the nominal robot, and --fix and UMBmark keep parts of it.
+        refuse_assumed_robot(args, "calibrate fits the robot from its nominal geometry")
     if args.runs:
         read = [_calibration_run(args, path, ticks) for path in args.runs]
         runs = [run for run, _ in read]

@@ -8,7 +8,13 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.cli.calibrate import _calibration_run
-from diffdrive.cli.options import Command, Parents, refuse_unused, robot_from, robot_given
+from diffdrive.cli.options import (
+    Command,
+    Parents,
+    refuse_assumed_robot,
+    refuse_unused,
+    robot_from,
+)
 from diffdrive.export import TARGETS, Reference, export
 from diffdrive.io import read_robot, robot_from_settings
 from diffdrive.noise import TERMS, NoiseModel, identify_what_it_can
@@ -34,14 +40,9 @@ def run_export(args: argparse.Namespace) -> int:
             "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
             "with --radius-sigma and --track-sigma"
         )
-    if not robot_given(args):
-        # The file is a controller's or a filter's configuration: the built-in robot's
-        # geometry in it would be a wrong answer that nothing downstream questions.
-        raise ValueError(
-            f"export --to {args.to} writes the robot's geometry and the noise it implies: give "
-            "--robot FILE, or --wheel-radius and --track-width (the built-in robot is not "
-            "assumed here)"
-        )
+    refuse_assumed_robot(
+        args, f"export --to {args.to} writes the robot's geometry and the noise it implies"
+    )
     model_robot, ticks = robot_from(args)
     robot = nominal = model_robot.equivalent  # a SkidSteer's equivalent drive: what ROS takes
     if args.nominal is not None:

@@ -127,9 +127,39 @@ def output_options(default: str) -> argparse.ArgumentParser:
     return options
 
 
+# The settings that fix a robot's geometry; ticks per revolution are the encoders', not it.
+GEOMETRY_KEYS = tuple(key for key in ROBOT_KEYS if key != "ticks_per_revolution")
+
+
+def robot_settings(args: argparse.Namespace) -> dict[str, float]:
+    """The robot file's settings with the flags over them."""
+    flags = {name: getattr(args, name) for name in ROBOT_KEYS if getattr(args, name) is not None}
+    from_file = read_robot(args.robot) if args.robot else {}
+    return overridden(from_file, flags, lambda key: "--" + key.replace("_", "-"))
+
+
 def robot_given(args: argparse.Namespace) -> bool:
-    """Whether the command was told of a robot (a file or a flag)."""
-    return args.robot is not None or any(getattr(args, k) is not None for k in ROBOT_KEYS)
+    """Whether the command was told the robot's geometry (radii, track: a robot file's or the
+    flags'); ``--ticks-per-revolution`` alone describes the encoders, not the robot."""
+    return any(key in GEOMETRY_KEYS for key in robot_settings(args))
+
+
+def refuse_assumed_robot(args: argparse.Namespace, writes: str) -> None:
+    """``ValueError`` when the command, which ``writes`` the robot's geometry or what follows
+    from it into a file, was told no geometry: the built-in robot's there would be a wrong
+    answer nothing downstream questions. The message names the flags."""
+    if robot_given(args):
+        return
+    only = (
+        " (--ticks-per-revolution is the encoders', not the geometry)"
+        if getattr(args, "ticks_per_revolution", None) is not None
+        or "ticks_per_revolution" in robot_settings(args)
+        else ""
+    )
+    raise ValueError(
+        f"{writes}: give --robot FILE, or --wheel-radius and --track-width{only}; the built-in "
+        "robot is not assumed here"
+    )
 
 
 def assumed_robot(args: argparse.Namespace) -> str | None:
@@ -146,14 +176,17 @@ def robot_note(args: argparse.Namespace) -> str:
     return "" if assumed is None else f"\nrobot: {assumed}"
 
 
-def robot_from(args: argparse.Namespace) -> tuple[Robot, float | None]:
-    """The robot of the command's options, and its ticks per revolution if known."""
-    flags = {name: getattr(args, name) for name in ROBOT_KEYS if getattr(args, name) is not None}
-    from_file = read_robot(args.robot) if args.robot else {}
-    settings = overridden(from_file, flags, lambda key: "--" + key.replace("_", "-"))
-    ticks = settings.pop("ticks_per_revolution", None)
+def checked_ticks(ticks: float | None) -> float | None:
+    """A robot's ticks per revolution, refused unless finite and > 0 (None: not given)."""
     if ticks is not None and not (math.isfinite(ticks) and ticks > 0):
         raise ValueError(f"ticks_per_revolution must be finite and > 0, got {ticks!r}")
+    return ticks
+
+
+def robot_from(args: argparse.Namespace) -> tuple[Robot, float | None]:
+    """The robot of the command's options, and its ticks per revolution if known."""
+    settings = robot_settings(args)
+    ticks = checked_ticks(settings.pop("ticks_per_revolution", None))
     if not settings:
         return example_robot(), ticks
     return robot_from_settings(settings, f" (in {args.robot})" if args.robot else ""), ticks

@@ -8,7 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.cli.options import Command, Parents, output_options, robot_from, robot_given
+from diffdrive.cli.options import (
+    Command,
+    Parents,
+    output_options,
+    refuse_assumed_robot,
+    robot_from,
+)
 from diffdrive.cli.options import write_output as write_poses
 from diffdrive.control import (
     LTVUnicycle,
@@ -40,13 +46,9 @@ TRACKERS = ("ramsete", "ltv", "pure-pursuit")
 
 
 def _plan_of(args: argparse.Namespace):
-    if not robot_given(args):
-        # The wheels' limits and the spline's curvature meet through the track and radii:
-        # the built-in robot's would give a plan for another robot.
-        raise ValueError(
-            f"{args.command} needs the robot: give --robot FILE, or --wheel-radius and "
-            "--track-width (the built-in robot is not assumed here)"
-        )
+    # The wheels' limits and the spline's curvature meet through the track and radii: the
+    # built-in robot's would give a plan for another robot.
+    refuse_assumed_robot(args, f"{args.command} needs the robot")
     robot, _ = robot_from(args)
     unused = [name for name in read_header(args.waypoints) if name not in ("x", "y", "theta")]
     if unused:
