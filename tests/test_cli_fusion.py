@@ -2,11 +2,13 @@
 estimate and its covariance out, and the refusals that name what is wrong."""
 
 import json
+import math
 
 import numpy as np
 import pytest
 
 import diffdrive as dd
+from diffdrive import batch
 from diffdrive.cli import main
 from diffdrive.cli.options import COVARIANCE_COLUMNS, TWIST_COVARIANCE_COLUMNS
 from diffdrive.demo import EXAMPLE_TICKS_PER_REVOLUTION, example_encoder_log
@@ -245,3 +247,123 @@ def test_no_wheel_noise_is_refused_for_a_bag(synthetic_bag, tmp_path, capsys):
     assert main([*argv, "-o", str(tmp_path / "o.mcap")]) == 1
     assert "--k-left 0 --k-right 0: the /odom messages would carry zero" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+# -- time bases and frames ----------------------------------------------------------------------
+
+
+def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, capsys):
+    """/ground_truth: the trajectory with its twists, stamped as the joints; a GPS fix with
+    the covariance synth knows. Against the trajectory file (1 s earlier) evaluate warns."""
+    pytest.importorskip("rosbags")
+    from diffdrive.io import ros
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "--dt", "0.02", "-o", "traj.csv", "-q"]) == 0
+    gps = ["--gps", "48.1", "11.6", "520", "--pose-sigma", "0.5", "0.4", "0", "--seed", "2"]
+    assert main(["synth", "traj.csv", *gps, "-o", "run.mcap"]) == 0
+    assert "the bag's stamps are the trajectory's plus 1 s" in capsys.readouterr().out
+    table = np.genfromtxt("traj.csv", delimiter=",", names=True)
+    truth = ros.read_odometry("run.mcap", "/ground_truth")
+    joints = ros.read_joint_states("run.mcap", "left_wheel_joint", "right_wheel_joint")
+    np.testing.assert_allclose(truth.times, joints.times, atol=2e-9)
+    np.testing.assert_allclose(truth.times, table["t"] + 1.0, atol=2e-9)
+    poses = np.column_stack([table["x"], table["y"], table["theta"]])
+    np.testing.assert_allclose(truth.poses, poses, atol=1e-12)
+    robot = dd.demo.example_robot()
+    moving = np.abs(truth.twists[:, 0]) > 0.05
+    assert moving.mean() > 0.5
+    assert truth.frame == "world"
+    assert np.all(
+        np.abs(
+            batch.to_twist(robot, robot.to_wheel_velocities(dd.Twist(*truth.twists[5])))
+            - truth.twists[5]
+        )
+        < 1e-9
+    )
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([tmp_path / "run.mcap"]) as reader:
+        fixes = [c for c in reader.connections if c.topic == "/fix"]
+        _, _, raw = next(reader.messages(connections=fixes))
+        fix = reader.deserialize(raw, fixes[0].msgtype)
+    assert fix.position_covariance_type == 2  # COVARIANCE_TYPE_DIAGONAL_KNOWN
+    np.testing.assert_allclose(fix.position_covariance, np.diag([0.25, 0.16, 0.0]).ravel())
+    odometry = ["odometry", "run.mcap", "--left-joint", "left_wheel_joint", "--right-joint"]
+    assert main([*odometry, "right_wheel_joint", "-o", "odo.csv", "-q"]) == 0
+    code = main(["evaluate", "odo.csv", "--truth", "traj.csv", "--json"])
+    assert code == 0
+    captured = capsys.readouterr()
+    assert "start +1 s and end +1 s apart, more than a period (0.02 s)" in captured.err
+    assert json.loads(captured.out)["max_heading_error_deg"] > 50  # paired across 1 s
+    code = main(["evaluate", "odo.csv", "--truth", "run.mcap", "--truth-topic", "/ground_truth",
+                 "--json"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0
+    assert "warning" not in captured.err
+    assert json.loads(captured.out)["max_heading_error_deg"] < 1e-6
+
+
+def test_gps_in_the_datums_frame_and_the_consistency_of_frames_apart(tmp_path, monkeypatch, capsys):
+    """The GPS estimate in east-north at --datum lies in the truth's frame (at the first fix it
+    is that fix's error off); --consistency in frames apart is named, and --align scores it."""
+    pytest.importorskip("rosbags")
+    monkeypatch.chdir(tmp_path)
+    gps = ["--gps", "48.1", "11.6", "520", "--pose-sigma", "0.5", "0.5", "0", "--seed", "4"]
+    assert (
+        main(["synth", *gps, "--k-left", "1e-5", "--k-right", "1e-5", "-o", "run.mcap", "-q"]) == 0
+    )
+    joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
+    base = ["odometry", "run.mcap", *joints, "--gps-topic", "/fix", "--smooth", "-q"]
+    assert main([*base, "-o", "first.csv"]) == 0
+    assert main([*base, "--datum", "48.1", "11.6", "520", "-o", "datum.csv"]) == 0
+    truth = ["--truth", "run.mcap", "--truth-topic", "/ground_truth", "--json"]
+    errors = {}
+    for name in ("first", "datum"):
+        assert main(["evaluate", f"{name}.csv", *truth]) == 0
+        errors[name] = json.loads(capsys.readouterr().out)
+    assert errors["datum"]["ate_m"] < 0.1
+    assert errors["first"]["ate_m"] > 3 * errors["datum"]["ate_m"]  # the first fix's error
+    assert main(["odometry", "run.mcap", *joints, "--datum", "48", "11", "0", "-q"]) == 1
+    assert "--datum: used only with --gps-topic" in capsys.readouterr().err
+    # Wheel odometry (its own frame, turned) against the fixes (east-north): frames apart.
+    odometry = ["odometry", "run.mcap", *joints, "--covariance", "-o", "odo.csv", "-q"]
+    assert main([*odometry, "--k-left", "1e-3", "--k-right", "1e-3"]) == 0
+    turned = np.genfromtxt("odo.csv", delimiter=",", names=True)
+    rows = np.column_stack([turned[name] for name in turned.dtype.names])
+    c, s = math.cos(0.5), math.sin(0.5)
+    rows[:, 1], rows[:, 2] = c * turned["x"] - s * turned["y"], s * turned["x"] + c * turned["y"]
+    rows[:, 3] += 0.5  # the same estimate in a frame turned by 0.5 rad
+    with open("turned.csv", "w") as out:
+        out.write(",".join(turned.dtype.names) + "\n")
+        out.writelines(",".join(map(repr, row)) + "\n" for row in rows.tolist())
+    truth = ["--truth", "run.mcap", "--truth-topic", "/ground_truth", "--consistency"]
+    assert main(["evaluate", "odo.csv", *truth, "--json"]) == 0
+    assert "warning" not in capsys.readouterr().err  # one frame
+    assert main(["evaluate", "turned.csv", *truth, "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "onto the truth by a rigid motion (turned -28.7 deg" in captured.err
+    assert "--align scores the covariance" in captured.err
+    assert json.loads(captured.out)["inside_95_percent"] < 0.1
+    assert main(["evaluate", "turned.csv", *truth, "--align", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["inside_95_percent"] > 0.9
+
+
+def test_the_start_pose_fit_puts_the_sensor_where_its_lever_arm_says(log_and_fixes, capsys):
+    """Fixes of a sensor 0.3 m ahead and 0.1 m left of the body origin, exact: the start pose
+    fitted from them is the truth's, not 0.3 m off."""
+    folder, log = log_and_fixes
+    theta = log["theta"]
+    fixes = {
+        "t": log["t"],
+        "x": log["x"] + 0.3 * np.cos(theta) - 0.1 * np.sin(theta),
+        "y": log["y"] + 0.3 * np.sin(theta) + 0.1 * np.cos(theta),
+        "sigma_x": np.full(len(theta), 0.01),
+        "sigma_y": np.full(len(theta), 0.01),
+    }
+    write_table(folder / "arm.csv", fixes)
+    argv = ["odometry", "log.csv", *TICKS, "--measurements", "arm.csv", "-o", "a.csv"]
+    assert main([*argv, "--lever-arm", "0.3", "0.1"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("start pose"))
+    x, y = (float(v.strip(" (m")) for v in line.split(": ")[1].split(",")[:2])
+    assert math.hypot(x - log["x"][0], y - log["y"][0]) < 0.005

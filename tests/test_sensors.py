@@ -330,9 +330,9 @@ def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, c
     common = ["--ticks-per-revolution", "4096", "--counter-bits", "12", "--seed", "1"]
     argv = ["synth", *common, "--gyro-arw", "2e-3", "--pose-sigma", "0.02", "0.02", "0.01"]
     assert main([*argv, "--pose-period", "0.5", "-o", str(bag)]) == 0
-    assert "/joint_states, /imu/data, /cmd_vel, /pose in" in capsys.readouterr().out
+    assert "/cmd_vel, /pose, the truth on /ground_truth in" in capsys.readouterr().out
     names = {topic.name for topic in ros.topics(bag)}
-    assert names == {"/joint_states", "/imu/data", "/cmd_vel", "/pose"}
+    assert names == {"/joint_states", "/imu/data", "/cmd_vel", "/pose", "/ground_truth"}
     assert main(["synth", *common, "-o", str(table), "-q"]) == 0
     run = read_run(table)
     assert run.kind == "ticks"

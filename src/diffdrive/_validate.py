@@ -69,3 +69,21 @@ def increasing(name: str, times: np.ndarray) -> None:
             f"{name} must be finite and increase strictly: {name}[{index}] = {times[index]} "
             f"does not come after {times[index - 1]}"
         )
+
+
+def geodetic_point(name: str, value: object) -> tuple[float, float, float]:
+    """``(latitude deg, longitude deg, height m)``: finite, on the globe; ``ValueError`` (or
+    ``TypeError``) naming ``name`` and what is wrong."""
+    try:
+        lat, lon, height = value  # type: ignore[misc]
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{name} must be (latitude deg, longitude deg, height m), got {value!r}"
+        ) from None
+    lat, lon, height = (finite(name, v) for v in (lat, lon, height))
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise ValueError(
+            f"{name}: latitude must lie in [-90, 90] and longitude in [-180, 180] degrees, "
+            f"got {lat:g}, {lon:g}"
+        )
+    return lat, lon, height

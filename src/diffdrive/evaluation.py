@@ -48,6 +48,7 @@ __all__ = [
     "PathErrors",
     "RunErrors",
     "align",
+    "alignment",
     "associate",
     "ate",
     "consistency",
@@ -111,11 +112,9 @@ def worst(errors: list[RunErrors]) -> RunErrors:
     return RunErrors(*np.max([e.to_array() for e in errors], axis=0))
 
 
-def align(estimate: object, truth: object) -> np.ndarray:
-    """``estimate`` moved by the rigid motion that best fits its positions onto ``truth``'s.
-
-    Least squares over the positions (Umeyama's method without scale); returns ``(T+1, 3)``.
-    """
+def alignment(estimate: object, truth: object) -> np.ndarray:
+    """The rigid motion ``(x, y, angle)`` (m, m, rad) that best fits ``estimate``'s positions
+    onto ``truth``'s: least squares over the positions (Umeyama's method without scale)."""
     estimate, truth = _check(estimate, truth)
     p, q = estimate[:, :2], truth[:, :2]
     p_mean, q_mean = p.mean(axis=0), q.mean(axis=0)
@@ -124,8 +123,12 @@ def align(estimate: object, truth: object) -> np.ndarray:
     d = np.sign(np.linalg.det(u @ vt))
     rotation = u @ np.diag([1.0, d]) @ vt
     angle = np.arctan2(rotation[1, 0], rotation[0, 0])
-    offset = q_mean - rotation @ p_mean
-    return batch.compose(np.array([*offset, angle]), estimate)
+    return np.array([*(q_mean - rotation @ p_mean), angle])
+
+
+def align(estimate: object, truth: object) -> np.ndarray:
+    """``estimate`` moved by ``alignment``'s rigid motion onto ``truth``: ``(T+1, 3)``."""
+    return batch.compose(alignment(estimate, truth), np.asarray(estimate, dtype=float))
 
 
 def ate(estimate: object, truth: object, aligned: bool = False) -> float:
@@ -281,11 +284,17 @@ class Consistency:
 
 
 def consistency(
-    estimate: object, covariances: object, truth: object, positions_only: bool | None = None
+    estimate: object,
+    covariances: object,
+    truth: object,
+    positions_only: bool | None = None,
+    aligned: bool = False,
 ) -> Consistency:
     """How honest the covariances ``(T+1, 3, 3)`` (over ``x, y, theta``) of ``estimate``
     ``(T+1, 3)`` are against ``truth`` ``(T+1, 3)``: see the module. ``positions_only``
-    (default: when the truth has no headings, NaN, as GPS) compares x and y alone."""
+    (default: when the truth has no headings, NaN, as GPS) compares x and y alone.
+    ``aligned``: the estimate first moved onto the truth by ``alignment``'s rigid motion, its
+    covariances turned with it (for an estimate in a frame of its own, odometry against GPS)."""
     poses = np.array(estimate, dtype=float)
     reference = np.array(truth, dtype=float)
     if positions_only is None:
@@ -301,6 +310,14 @@ def consistency(
     if not np.all(np.isfinite(matrices)):
         row = int(np.argmin(np.all(np.isfinite(matrices), axis=(1, 2))))
         raise ValueError(f"covariances must be finite; covariance {row} is not")
+    if aligned:
+        motion = alignment(estimate, truth)
+        estimate = batch.compose(motion, estimate)
+        c, s = math.cos(motion[2]), math.sin(motion[2])
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        matrices = turn @ matrices @ turn.T
+        if positions_only:
+            estimate[:, 2] = 0.0
     axes = [0, 1] if positions_only else [0, 1, 2]
     error = (truth - estimate)[:, axes]
     if not positions_only:

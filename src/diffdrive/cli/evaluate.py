@@ -23,6 +23,7 @@ from diffdrive.demo import (
 )
 from diffdrive.evaluation import (
     RPE_PAIRS,
+    alignment,
     associate,
     ate,
     consistency,
@@ -39,6 +40,7 @@ def _check_options(args: argparse.Namespace) -> None:
     """The pairing and window options, refused by their own names before any file is read."""
     if args.truth is None and args.truth_topic is not None:
         raise ValueError("--truth-topic names the truth's topic in the bag --truth gives")
+    refuse_unused({"--align": args.align and not args.consistency}, "used only with --consistency")
     for option, value, allowed, rule in (
         ("--t-max-diff", args.t_max_diff, args.t_max_diff >= 0, "finite and >= 0"),
         ("--t-offset", args.t_offset, True, "finite"),
@@ -66,22 +68,32 @@ def run_evaluate(args: argparse.Namespace) -> int:
         if args.truth is None:
             raise TableError("evaluate needs --truth with a ground-truth trajectory or bag")
         _stage(args.input, "reading the trajectory")
-        times, estimate = read_trajectory(args.input, args.time_unit, args.topic)
+        times, estimate = read_trajectory(args.input, args.time_unit, args.topic, args.datum)
         if args.consistency:
             covariances = read_covariances(args, times)
         _stage(args.truth, "reading the truth")
-        truth_times, truth = read_trajectory(args.truth, args.time_unit, args.truth_topic)
+        truth_times, truth = read_trajectory(
+            args.truth, args.time_unit, args.truth_topic, args.datum
+        )
         _stage(args.input, f"pairing and measuring {len(times)} poses")
         for path, poses in ((args.input, estimate), (args.truth, truth)):
             if poses.ndim != 2:
                 raise TableError(f"{path}: evaluate takes one robot; the file has {len(poses)}")
+        if args.datum is not None and not any(np.isnan(p[:, 2]).all() for p in (estimate, truth)):
+            raise TableError(
+                f"--datum places GPS fixes: neither {args.input} nor {args.truth} is a "
+                "NavSatFix topic"
+            )
+        _warn_of_other_clocks(args, times, truth_times)
         times, estimate, truth, covariances = _paired(
             args, times, estimate, truth_times, truth, covariances
         )
     if args.plan is None:
         metrics = evaluation_metrics(args, times, estimate, truth)
     if covariances is not None:
-        found = consistency(estimate, covariances, truth)
+        found = consistency(estimate, covariances, truth, aligned=args.align)
+        if not args.align:
+            _warn_of_other_frames(estimate, covariances, truth, found)
         metrics.update(
             consistency_poses=found.used,
             consistency_dof=found.dof,
@@ -100,6 +112,46 @@ def run_evaluate(args: argparse.Namespace) -> int:
             )
             print(f"{key:34} {shown:>12}")
     return 0
+
+
+def _warn_of_other_clocks(args, times: np.ndarray, truth_times: np.ndarray) -> None:
+    """Say when the two inputs' time spans (the trajectory's after --t-offset) differ by more
+    than their period: most likely two clocks (a bag's stamps 1 s in, Unix time), whose poses
+    would be paired with others of other times."""
+    shifted = times + args.t_offset
+    period = max(float(np.median(np.diff(times))), float(np.median(np.diff(truth_times))))
+    starts, ends = shifted[0] - truth_times[0], shifted[-1] - truth_times[-1]
+    if max(abs(starts), abs(ends)) <= period:
+        return
+    print(
+        f"evaluate: warning: {args.input} spans {shifted[0]:g} to {shifted[-1]:g} s (after "
+        f"--t-offset) and {args.truth} {truth_times[0]:g} to {truth_times[-1]:g} s: they start "
+        f"{starts:+g} s and end {ends:+g} s apart, more than a period ({period:g} s). If they "
+        "are on two clocks, --t-offset moves the trajectory's (a synth bag starts 1 s in: "
+        "compare with its /ground_truth)",
+        file=sys.stderr,
+    )
+
+
+def _warn_of_other_frames(estimate, covariances, truth, found) -> None:
+    """Say when the covariance fits the errors far better once the estimate is moved onto the
+    truth by a rigid motion: the two are most likely in frames of their own (odometry's
+    against GPS's east-north), and the raw errors measure that offset. Judged on the median
+    NEES: the mean is the first poses', whose covariance is all but zero."""
+    moved = consistency(estimate, covariances, truth, aligned=True)
+    before, after = np.nanmedian(found.nees), np.nanmedian(moved.nees)
+    if not before > 10.0 * after:
+        return
+    positions = np.column_stack([truth[:, :2], np.zeros(len(truth))])  # GPS: no heading
+    motion = alignment(estimate, positions)
+    print(
+        f"evaluate: warning: the median NEES {before:.4g} falls to {after:.4g} once the "
+        f"trajectory is moved onto the truth by a rigid motion (turned "
+        f"{math.degrees(motion[2]):.1f} deg, shifted {math.hypot(*motion[:2]):.3g} m): if the "
+        "two do not share a frame (odometry against GPS, say), --align scores the covariance "
+        "after that motion",
+        file=sys.stderr,
+    )
 
 
 # Files this large take seconds: a terminal is told what is going on (10^6 poses, ~50 MB).
@@ -300,5 +352,19 @@ def add_to(command: Command, parents: Parents) -> None:
         help="also how honest the estimate's covariance is: ANEES (1: honest; below: too "
         "wide; above: too narrow) and the shares inside the 50 %% and 95 %% ellipses; reads "
         "the covariance columns (odometry --covariance) or a bag's Odometry covariances",
+    )
+    ev.add_argument(
+        "--align",
+        action="store_true",
+        help="with --consistency: move the trajectory onto the truth by the rigid motion that "
+        "fits them best first, its covariances turned with it (for frames of their own)",
+    )
+    ev.add_argument(
+        "--datum",
+        type=float,
+        nargs=3,
+        metavar=("LAT", "LON", "ALT"),
+        help="a NavSatFix topic's frame origin (deg, deg, m): x east, y north (default: its "
+        "first fix)",
     )
     ev.add_argument("--json", action="store_true")

@@ -41,6 +41,7 @@ def wants_fusion(args) -> bool:
 
 def refuse_idle_options(args) -> None:
     """The measurement options, given without any measurements."""
+    refuse_idle_datum(args)
     if args.pose_topic or args.gps_topic or args.measurements:
         return
     refuse_unused(
@@ -51,6 +52,13 @@ def refuse_idle_options(args) -> None:
             "--gate": args.gate != GATE,
         },
         "used only with absolute measurements (--pose-topic, --gps-topic or --measurements)",
+    )
+
+
+def refuse_idle_datum(args) -> None:
+    """--datum without GPS fixes to place."""
+    refuse_unused(
+        {"--datum": args.datum is not None and not args.gps_topic}, "used only with --gps-topic"
     )
 
 
@@ -69,13 +77,21 @@ def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:
             made += [_made("pose", t, p, c, args, f"{args.pose_topic}") for t, p, c in rows]
             notes.append(f"{len(topic.times)} poses from {args.pose_topic}")
         if args.gps_topic:
-            fixes = ros.read_navsatfix(args.input, args.gps_topic)
+            fixes = ros.read_navsatfix(args.input, args.gps_topic, args.datum)
             rows = zip(fixes.times, fixes.positions, fixes.variance, strict=True)
             made += [
                 _made("position", t, p, np.eye(2) * v, args, args.gps_topic) for t, p, v in rows
             ]
+            lat, lon, alt = fixes.datum
+            where = (
+                "the first fix (--datum LAT LON ALT fixes the frame)"
+                if args.datum is None
+                else "the datum"
+            )
             notes.append(
-                f"{len(fixes.times)} GPS fixes from {args.gps_topic}, east-north at the first"
+                f"{len(fixes.times)} GPS fixes from {args.gps_topic}, in east-north (x east, y "
+                f"north, theta counter-clockwise from east) at {where}: {lat:.8f}, {lon:.8f}, "
+                f"{alt:.3f} m"
             )
     if args.measurements:
         made += _table_measurements(args)
@@ -223,24 +239,30 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
 
 def _start_in_frame(times, poses, measurements: list[Measurement]):
     """The start pose in the measurements' frame (the dead-reckoned path fitted onto their
-    positions), a covariance from the fit's residual, and the residual's RMS (m)."""
+    positions, each where its sensor sits: the pose moved by its lever arm), a covariance
+    from the fit's residual, and the residual's RMS (m)."""
     stamps = np.array([m.t for m in measurements])
     seen = np.array([[*m.value[:2], 0.0] for m in measurements])
     path = interpolate(times, poses, stamps)
-    flat = np.column_stack([path[:, :2], np.zeros(len(path))])
+    arms = np.array([[*m.lever_arm, 0.0] for m in measurements])
+    sensors = batch.compose(path, arms)
+    flat = np.column_stack([sensors[:, :2], np.zeros(len(path))])
     if len(measurements) == 1 or np.ptp(flat[:, :2], axis=0).max() < 1e-9:
         shift = seen[0, :2] - flat[0, :2]  # one point, or no travel: a translation only
         moved = np.array([*shift, 0.0])
-        if measurements[0].kind == "pose":
-            moved = batch.compose(
-                np.array([*measurements[0].value[:2], measurements[0].value[2]]),
-                batch.inverse(path[0]),
-            )
+        first = measurements[0]
+        if first.kind == "pose":  # the robot's pose the sensor's pose implies
+            heading = first.value[2]
+            c, s = math.cos(heading), math.sin(heading)
+            arm_x, arm_y = first.lever_arm[0], first.lever_arm[1]
+            body = np.array([first.value[0] - c * arm_x + s * arm_y,
+                             first.value[1] - s * arm_x - c * arm_y, heading])  # fmt: skip
+            moved = batch.compose(body, batch.inverse(path[0]))
     else:
         fitted = align(flat, seen)
         moved = batch.compose(fitted[0], batch.inverse(flat[0]))
     start = batch.compose(moved, poses[0])
-    placed = batch.compose(moved, path)
+    placed = batch.compose(moved, flat)
     rms = float(np.sqrt(np.mean(np.sum((placed[:, :2] - seen[:, :2]) ** 2, axis=1))))
     spread = max(rms, 0.01)
     extent = max(float(np.ptp(seen[:, :2], axis=0).max()), 1.0)

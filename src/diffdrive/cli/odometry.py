@@ -251,6 +251,14 @@ def add_to(command: Command, parents: Parents) -> None:
     )
     fused.add_argument("--gps-topic", metavar="TOPIC", help="NavSatFix topic of the bag")
     fused.add_argument(
+        "--datum",
+        type=float,
+        nargs=3,
+        metavar=("LAT", "LON", "ALT"),
+        help="the GPS frame's origin (deg, deg, m), as robot_localization's navsat_transform "
+        "datum: x east, y north, theta counter-clockwise from east (default: the first fix)",
+    )
+    fused.add_argument(
         "--measurements",
         type=Path,
         metavar="FILE",

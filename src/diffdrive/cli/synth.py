@@ -42,6 +42,7 @@ def run_synth(args: argparse.Namespace) -> int:
     commands = sensors.commands_of(robot, times, poses)
     absolute = _absolute(args, robot, times, poses)
     format = args.format or _format_of(args.output)
+    offset = 0.0
     if format == "csv":
         if absolute is not None:
             raise ValueError("a pose or GPS sensor needs a bag (-o NAME.mcap, or --format ros2)")
@@ -54,14 +55,28 @@ def run_synth(args: argparse.Namespace) -> int:
         if absolute is not None:
             streams["absolute"] = absolute
         origin = tuple(args.gps) if args.gps else None
+        offset = sensors.bag_time_offset(times[0]) if args.time_offset is None else args.time_offset
         sensors.write_bag(
-            args.output, format=format, origin=origin, time_offset=args.time_offset, **streams
+            args.output,
+            format=format,
+            origin=origin,
+            time_offset=offset,
+            truth=(times, poses),
+            **streams,
         )
         written = "/joint_states, /imu/data, /cmd_vel" + (
             "" if absolute is None else (", /fix" if args.gps else ", /pose")
         )
+        written += ", the truth on /ground_truth"
     if not args.quiet:
         print(f"synth: {len(times)} samples along {what}: {written} in {args.output} ({format})")
+        if format != "csv" and offset:
+            # The one thing that makes the bag's clock differ from the trajectory's.
+            print(
+                f"synth: the bag's stamps are the trajectory's plus {offset:g} s (ROS reads a "
+                "stamp of 0 as unset): evaluate against the bag's /ground_truth, or give "
+                f"--t-offset {-offset:g} against {what}"
+            )
     return 0
 
 
@@ -134,9 +149,10 @@ EPILOGS = {
       --k-left 1e-5 --k-right 1e-5 --slip 6 6.4 left 0.5 --gyro-arw 2e-3 --seed 1 -o run.mcap
   diffdrive synth --ticks-per-revolution 4096 -o run.csv    a wheel log odometry reads
 
-Every error source defaults to none (an ideal sensor); --seed makes the run repeatable. ROS
-reads a stamp of 0 as unset: bag times start --time-offset s in (default 1 s for a path that
-starts at 0).""",
+Every error source defaults to none (an ideal sensor); --seed makes the run repeatable. A bag
+holds the trajectory itself as nav_msgs/Odometry on /ground_truth (world -> base_link, exact:
+zero covariances), on the bag's clock; a table holds it as x, y, theta. ROS reads a stamp of 0
+as unset: bag times start --time-offset s in (default 1 s for a path that starts at 0).""",
 }
 
 

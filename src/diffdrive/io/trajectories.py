@@ -68,7 +68,10 @@ def trajectory_format(path: str | Path) -> Format:
 
 
 def read_trajectory(
-    path: str | Path, time_unit: str | None = None, topic: str | None = None
+    path: str | Path,
+    time_unit: str | None = None,
+    topic: str | None = None,
+    datum: object = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(times (T+1,), poses (T+1, 3))`` of a trajectory file or of a bag's ``topic``.
 
@@ -76,11 +79,12 @@ def read_trajectory(
     ``(N, T+1, 3)``. Its times are in ``time_unit`` (None: seconds, refused when plainly
     not; see ``diffdrive.io.tables``), returned in seconds. A bag's topic is
     ``nav_msgs/Odometry``, ``sensor_msgs/NavSatFix`` (local east, north; the heading
-    unknown, NaN) or ``tf:PARENT:CHILD`` (a transform chain). An OptiOdom run file (no
+    unknown, NaN; at ``datum`` (lat deg, lon deg, altitude m), else at the first fix) or
+    ``tf:PARENT:CHILD`` (a transform chain). An OptiOdom run file (no
     header) gives its ground truth. ``TableError`` names the file and line.
     """
     if is_bag(path):
-        return _read_bag(path, topic)
+        return _read_bag(path, topic, datum)
     if topic is not None:
         raise TableError(f"{path}: a topic needs a bag; this is a trajectory file")
     path = Path(path)
@@ -110,7 +114,7 @@ def read_trajectory(
     return times, poses
 
 
-def _read_bag(path: str | Path, topic: str | None) -> tuple[np.ndarray, np.ndarray]:
+def _read_bag(path: str | Path, topic: str | None, datum) -> tuple[np.ndarray, np.ndarray]:
     from diffdrive.io import ros
 
     if topic is None:
@@ -127,7 +131,7 @@ def _read_bag(path: str | Path, topic: str | None) -> tuple[np.ndarray, np.ndarr
     else:
         kind = {t.name: t.msgtype for t in ros.topics(path)}.get(topic)
         if kind == "sensor_msgs/msg/NavSatFix":
-            fixes = ros.read_navsatfix(path, topic)
+            fixes = ros.read_navsatfix(path, topic, datum)
             times = fixes.times
             poses = np.column_stack([fixes.positions, np.full(len(times), np.nan)])
         else:

@@ -11,14 +11,15 @@ from a file or bag), with the truth to test estimators against.
   with noise, latency, dropouts and labelled outliers;
 - ``commands``: ``commands_of``: the twists and wheel velocities a controller would have sent;
 - ``output``: ``write_bag`` (a ROS 2 bag or MCAP file: ``JointState``, ``Imu``, ``NavSatFix``,
-  ``PoseWithCovarianceStamped``, ``Twist``) and ``write_table`` (a wheel-log table).
+  ``PoseWithCovarianceStamped``, ``Twist``, and the truth as ``Odometry`` on
+  ``/ground_truth``) and ``write_table`` (a wheel-log table).
 """
 
 from diffdrive.sensors.absolute import AbsoluteModel, AbsoluteReadings, absolute_readings
 from diffdrive.sensors.commands import Commands, commands_of
 from diffdrive.sensors.encoders import EncoderModel, EncoderReadings, Slip, encoder_readings
 from diffdrive.sensors.gyro import GyroModel, GyroReadings, gyro_readings
-from diffdrive.sensors.output import streams_of, write_bag, write_table
+from diffdrive.sensors.output import bag_time_offset, streams_of, write_bag, write_table
 
 __all__ = [
     "AbsoluteModel",
@@ -30,6 +31,7 @@ __all__ = [
     "GyroReadings",
     "Slip",
     "absolute_readings",
+    "bag_time_offset",
     "commands_of",
     "encoder_readings",
     "gyro_readings",

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import finite, positive, rng_of
+from diffdrive._validate import finite, geodetic_point, positive, rng_of
 from diffdrive.model import Robot
 from diffdrive.sensors.motion import motion_of
 
@@ -76,12 +76,7 @@ class AbsoluteReadings:
             import pymap3d
         except ImportError:
             raise ImportError("geodetic needs pymap3d: pip install 'diffdrive[ros]'") from None
-        lat0, lon0, h0 = (finite("origin", value) for value in origin)
-        if not (-90.0 <= lat0 <= 90.0 and -180.0 <= lon0 <= 180.0):
-            raise ValueError(
-                f"origin: latitude must lie in [-90, 90] and longitude in [-180, 180] degrees, "
-                f"got {lat0:g}, {lon0:g}"
-            )
+        lat0, lon0, h0 = geodetic_point("origin", origin)
         east, north = self.poses[..., 0], self.poses[..., 1]
         lat, lon, height = pymap3d.enu2geodetic(east, north, np.zeros_like(east), lat0, lon0, h0)
         return np.stack([lat, lon, height], axis=-1)

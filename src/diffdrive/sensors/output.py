@@ -17,7 +17,7 @@ from diffdrive.sensors.commands import Commands
 from diffdrive.sensors.encoders import EncoderReadings
 from diffdrive.sensors.gyro import GyroReadings
 
-__all__ = ["streams_of", "write_bag", "write_table"]
+__all__ = ["bag_time_offset", "streams_of", "write_bag", "write_table"]
 
 
 def _wheel_angles(encoders: EncoderReadings, robot: int) -> np.ndarray:
@@ -40,16 +40,35 @@ def streams_of(
     absolute: AbsoluteReadings | None = None,
     commands: Commands | None = None,
     origin: tuple[float, float, float] | None = None,
+    truth: tuple[object, object] | None = None,
     time_offset: float = 0.0,
 ):
     """Robot ``robot``'s streams as ``diffdrive.io.ros.Stream``s: ``/joint_states``,
     ``/imu/data``, ``/pose`` (or, for a position sensor with an ``origin``, ``/fix``, in
-    latitude and longitude) recorded when it arrives, and ``/cmd_vel``; every time plus
+    latitude and longitude, with its covariance) recorded when it arrives, ``/cmd_vel``, and
+    the ``truth`` ``(times (T+1,), poses (T+1, 3))`` as ``nav_msgs/Odometry`` on
+    ``/ground_truth`` (``world -> base_link``; each pose with the twist of the interval ending
+    there, the first with the first's; covariances zero: exact); every time plus
     ``time_offset`` (s)."""
     from diffdrive.io.ros import Stream
 
     streams = _streams(robot, encoders, gyro, absolute, commands, origin, Stream)
+    if truth is not None:
+        streams.append(_truth_stream(*truth, Stream))
     return _shifted(streams, time_offset)
+
+
+def _truth_stream(times, poses, Stream):
+    """The trajectory as ``nav_msgs/Odometry`` rows ``[x, y, theta, vx, vy, omega]``."""
+    from diffdrive import batch
+
+    times, poses = np.asarray(times, dtype=float), np.asarray(poses, dtype=float)
+    if poses.ndim != 2:
+        raise ValueError(f"truth: one robot's poses (T+1, 3), got {poses.shape}")
+    moves = batch.log(batch.relative_to(poses[1:], poses[:-1])) / np.diff(times)[:, None]
+    twists = np.concatenate([moves[:1], moves])
+    values = np.column_stack([poses, twists])
+    return Stream("odometry", "/ground_truth", times, values, frame="world")
 
 
 def _shifted(streams: list, offset: float) -> list:
@@ -84,7 +103,13 @@ def _streams(robot, encoders, gyro, absolute, commands, origin, Stream):
             if origin is None:
                 raise ValueError("a position sensor's fixes need the origin (lat, lon, height)")
             fixes = absolute.geodetic(origin)[robot][keep]
-            streams.append(Stream("fix", "/fix", times, fixes, frame="gps", recorded=arrival))
+            sigma_x, sigma_y, _ = absolute.model.sigma
+            # East, north, up (m^2): the synthetic fixes' height is exact.
+            covariance = np.diag([sigma_x**2, sigma_y**2, 0.0])
+            fix = Stream(
+                "fix", "/fix", times, fixes, "gps", covariance=covariance, recorded=arrival
+            )
+            streams.append(fix)
         else:
             poses = absolute.poses[robot][keep]
             sigma = np.diag(np.square(absolute.model.sigma))
@@ -99,17 +124,24 @@ def _streams(robot, encoders, gyro, absolute, commands, origin, Stream):
 def write_bag(
     path: str | Path, robot: int = 0, *, format=None, time_offset: float | None = None, **readings
 ) -> Path:
-    """Robot ``robot``'s streams (``streams_of``'s ``readings``) in one MCAP file or ROS 2
-    bag (``format``, default by the suffix: ``.mcap``, else a bag folder). ROS reads a stamp
-    of 0 as unset: ``time_offset`` (s) is added to every time, by default 1 s when the
-    trajectory starts at 0 (as ``simulate``'s do) and 0 otherwise."""
+    """Robot ``robot``'s streams (``streams_of``'s ``readings``, the ``truth`` among them) in
+    one MCAP file or ROS 2 bag (``format``, default by the suffix: ``.mcap``, else a bag
+    folder). ROS reads a stamp of 0 as unset: ``time_offset`` (s) is added to every time, the
+    truth's too, by default 1 s when the trajectory starts at 0 (as ``simulate``'s do) and 0
+    otherwise."""
     from diffdrive.io.ros import write_streams
 
     streams = streams_of(robot, **readings)
     if time_offset is None:  # from the streams' own first stamps
         starts = [stream.times[0] for stream in streams if len(stream.times)]
-        time_offset = 1.0 if starts and min(starts) <= 0.0 else 0.0
+        time_offset = bag_time_offset(min(starts) if starts else 1.0)
     return write_streams(path, _shifted(streams, time_offset), format)
+
+
+def bag_time_offset(first: float) -> float:
+    """What ``write_bag`` adds to the times of streams whose first stamp is ``first`` (s): 1 s
+    when it is 0 or before (ROS reads a stamp of 0 as unset), else 0."""
+    return 1.0 if first <= 0.0 else 0.0
 
 
 def write_table(

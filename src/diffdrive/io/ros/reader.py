@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from diffdrive._validate import geodetic_point
 from diffdrive.io.run import Run, WheelKind
 from diffdrive.io.tables import TableError
 
@@ -429,8 +430,10 @@ def _compose_chain(links: dict, chain: list[str], path: Path):
 @dataclass(frozen=True, eq=False)
 class NavSatFix:
     """GPS fixes: ``times`` ``(N,)`` s, ``latitude``, ``longitude`` (deg), ``altitude`` (m),
-    and ``east``, ``north`` (m) in the local tangent plane at the first fix (WGS84, by
-    pymap3d); ``variance`` ``(N,)`` m^2, the mean of the east and north variances."""
+    and ``east``, ``north`` (m) in the local tangent plane (WGS84, by pymap3d) at ``datum``
+    ``(lat deg, lon deg, altitude m)``, the first fix unless given; ``variance`` ``(N,)`` m^2,
+    the mean of the east and north variances. The frame is REP-103's ENU: x east, y north,
+    a heading counter-clockwise from east (as robot_localization's ``navsat_transform``)."""
 
     times: np.ndarray
     latitude: np.ndarray
@@ -441,6 +444,7 @@ class NavSatFix:
     variance: np.ndarray
     stamp_source: str
     dropped: int
+    datum: tuple[float, float, float]
 
     @property
     def positions(self) -> np.ndarray:
@@ -448,13 +452,15 @@ class NavSatFix:
         return np.column_stack([self.east, self.north])
 
 
-def read_navsatfix(path: str | Path, topic: str) -> NavSatFix:
-    """The fixes of a ``sensor_msgs/NavSatFix`` topic with a fix (status >= 0), in a local
-    east-north frame at the first of them."""
+def read_navsatfix(path: str | Path, topic: str, datum: object = None) -> NavSatFix:
+    """The fixes of a ``sensor_msgs/NavSatFix`` topic with a fix (status >= 0), in the local
+    east-north frame at ``datum`` ``(lat deg, lon deg, altitude m)``; without one, at the first
+    fix (a noisy point: the frame is then off any other by that fix's error)."""
     try:
         import pymap3d
     except ModuleNotFoundError:
         raise ImportError("GPS fixes need pymap3d: pip install 'diffdrive[ros]'") from None
+    origin = None if datum is None else geodetic_point("datum", datum)
 
     def row(m):
         position = (m.latitude, m.longitude, m.altitude)
@@ -465,9 +471,9 @@ def read_navsatfix(path: str | Path, topic: str) -> NavSatFix:
 
     ordered, rows, _ = _collect(Path(path), topic, ("sensor_msgs/msg/NavSatFix",), row)
     latitude, longitude, altitude, variance = rows.T
-    east, north, _ = pymap3d.geodetic2enu(
-        latitude, longitude, altitude, latitude[0], longitude[0], altitude[0]
-    )
+    if origin is None:
+        origin = (float(latitude[0]), float(longitude[0]), float(altitude[0]))
+    east, north, _ = pymap3d.geodetic2enu(latitude, longitude, altitude, *origin)
     return NavSatFix(
         ordered.times,
         latitude,
@@ -478,4 +484,5 @@ def read_navsatfix(path: str | Path, topic: str) -> NavSatFix:
         variance,
         ordered.source,
         ordered.dropped,
+        origin,
     )

@@ -120,13 +120,16 @@ class Stream:
     """One topic of ``write_streams``: ``kind`` is ``"joints"`` (``values`` ``(M, 2)`` wheel
     angles, rad, as ``sensor_msgs/JointState`` of the joints ``names``), ``"imu"`` (``(M, 3)``
     angular velocity, rad/s, ``sensor_msgs/Imu``), ``"fix"`` (``(M, 3)`` latitude, longitude
-    (deg), height (m), ``sensor_msgs/NavSatFix``), ``"pose"`` (``(M, 3)`` x, y, theta,
-    ``geometry_msgs/PoseWithCovarianceStamped`` with ``covariance`` ``(3, 3)``) or
-    ``"twist"`` (``(M, 3)`` vx, vy, omega, ``geometry_msgs/Twist``); ``times`` ``(M,)`` s, the
-    stamps (a ``Twist`` has none: its record time); ``recorded`` ``(M,)`` s, when each was
-    recorded (default: its stamp; later for a measurement that arrives late)."""
+    (deg), height (m), ``sensor_msgs/NavSatFix``, with ``covariance`` ``(3, 3)`` m^2 over
+    east, north, up if known), ``"pose"`` (``(M, 3)`` x, y, theta,
+    ``geometry_msgs/PoseWithCovarianceStamped`` with ``covariance`` ``(3, 3)``),
+    ``"odometry"`` (``(M, 6)`` x, y, theta, vx, vy, omega, ``nav_msgs/Odometry`` from
+    ``frame`` to ``child_frame``, exact: a ground truth) or ``"twist"`` (``(M, 3)`` vx, vy,
+    omega, ``geometry_msgs/Twist``); ``times`` ``(M,)`` s, the stamps (a ``Twist`` has none:
+    its record time); ``recorded`` ``(M,)`` s, when each was recorded (default: its stamp;
+    later for a measurement that arrives late)."""
 
-    kind: Literal["joints", "imu", "fix", "pose", "twist"]
+    kind: Literal["joints", "imu", "fix", "pose", "odometry", "twist"]
     topic: str
     times: np.ndarray
     values: np.ndarray
@@ -134,6 +137,7 @@ class Stream:
     names: tuple[str, str] = ("left_wheel_joint", "right_wheel_joint")
     covariance: np.ndarray | None = None
     recorded: np.ndarray | None = None
+    child_frame: str = "base_link"
 
 
 def write_streams(path: str | Path, streams: list[Stream], format: BagFormat | None = None):
@@ -141,7 +145,7 @@ def write_streams(path: str | Path, streams: list[Stream], format: BagFormat | N
     ``format``); ``diffdrive.io.ros``'s readers read every one back."""
     for stream in streams:
         times, values = np.asarray(stream.times, float), np.asarray(stream.values, float)
-        width = 2 if stream.kind == "joints" else 3
+        width = {"joints": 2, "odometry": 6}.get(stream.kind, 3)
         if times.ndim != 1 or values.shape != (len(times), width):
             raise ValueError(
                 f"{stream.topic}: times (M,) and values (M, {width}) must match, got "
@@ -199,16 +203,26 @@ def _imu(store, stamp, stream, value):
     )
 
 
+# sensor_msgs/NavSatFix's position_covariance_type: unknown, and a diagonal or full matrix known.
+_COVARIANCE_UNKNOWN, _DIAGONAL_KNOWN, _COVARIANCE_KNOWN = 0, 2, 3
+
+
 def _fix(store, stamp, stream, value):
     t = store.types
+    if stream.covariance is None:
+        covariance, kind = np.zeros(9), _COVARIANCE_UNKNOWN
+    else:
+        matrix = np.asarray(stream.covariance, dtype=float)
+        diagonal = not np.any(matrix - np.diag(np.diag(matrix)))
+        covariance, kind = matrix.ravel(), _DIAGONAL_KNOWN if diagonal else _COVARIANCE_KNOWN
     return t["sensor_msgs/msg/NavSatFix"](
         header=_header(store, stamp, stream.frame),
         status=t["sensor_msgs/msg/NavSatStatus"](status=0, service=1),
         latitude=float(value[0]),
         longitude=float(value[1]),
         altitude=float(value[2]),
-        position_covariance=np.zeros(9),
-        position_covariance_type=0,
+        position_covariance=covariance,
+        position_covariance_type=kind,
     )
 
 
@@ -235,8 +249,15 @@ def _twist(store, stamp, stream, value):
     )
 
 
+def _ground_truth(store, stamp, stream, value):
+    exact = np.zeros((3, 3))
+    frames = (stream.frame, stream.child_frame)
+    return _odometry(store, stamp, frames, value[:3], exact, value[3:], exact)
+
+
 _MESSAGES = {
     "joints": ("sensor_msgs/msg/JointState", _joints),
+    "odometry": ("nav_msgs/msg/Odometry", _ground_truth),
     "imu": ("sensor_msgs/msg/Imu", _imu),
     "fix": ("sensor_msgs/msg/NavSatFix", _fix),
     "pose": ("geometry_msgs/msg/PoseWithCovarianceStamped", _pose),
