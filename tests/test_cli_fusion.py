@@ -367,3 +367,30 @@ def test_the_start_pose_fit_puts_the_sensor_where_its_lever_arm_says(log_and_fix
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("start pose"))
     x, y = (float(v.strip(" (m")) for v in line.split(": ")[1].split(",")[:2])
     assert math.hypot(x - log["x"][0], y - log["y"][0]) < 0.005
+
+
+# -- wheels from a drive controller's odometry or from twists ----------------------------------
+
+
+def test_the_wheels_from_an_odometry_or_a_twist_topic(synthetic_bag, tmp_path, capsys):
+    """A bag without joints gives its wheels as a controller's Odometry (the motion between its
+    poses) or as Twist commands (each held): both drive the robot along the truth."""
+    from diffdrive.io import ros
+
+    truth = ros.read_odometry(synthetic_bag, "/ground_truth")
+    robot = ["--wheel-radius", "0.042", "--track-width", "0.2"]  # the built-in robot's
+    for topic, tolerance in (("/ground_truth", 1e-9), ("/cmd_vel", 1e-6)):
+        out = tmp_path / f"{topic.strip('/')}.csv"
+        argv = ["odometry", str(synthetic_bag), "--wheel-topic", topic, *robot, "-o", str(out)]
+        assert main(argv) == 0
+        assert f"{topic} (" in capsys.readouterr().out  # the report names what was read
+        table = np.genfromtxt(out, delimiter=",", names=True)
+        poses = np.column_stack([table["x"], table["y"], table["theta"]])
+        at = np.searchsorted(truth.times, table["t"][-1])
+        np.testing.assert_allclose(poses[-1], truth.poses[at] - truth.poses[0], atol=tolerance)
+    argv = ["odometry", str(synthetic_bag), "--wheel-topic", "/imu/data", *robot]
+    assert main(argv) == 1
+    assert "/imu/data holds sensor_msgs/msg/Imu; a wheel topic is one of" in capsys.readouterr().err
+    joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
+    assert main([*argv[:2], "--wheel-topic", "/cmd_vel", *joints, *robot]) == 1
+    assert "the wheels come from joints or from /cmd_vel, not both" in capsys.readouterr().err

@@ -184,6 +184,24 @@ def test_husky_wheel_odometry_against_gps_positions_aligned():
     assert 1.0 < aligned < 10.0  # drift over 359 m; figures in the README
 
 
+def test_husky_gyro_heading_from_the_command_line(tmp_path, capsys):
+    """The Husky has no joint states: its wheels come from the controller's odometry
+    (--wheel-topic), and the gyro heading against GPS is the example's 2.77 m."""
+    robot = ["--wheel-radius", "0.165", "--track-width", "0.555"]
+    imu = ["--gyro-topic", "/imu/data", "--imu-rpy", "90", "0", "0", "--heading", "gyro"]
+    out = tmp_path / "gyro.csv"
+    argv = ["odometry", HUSKY, "--wheel-topic", "/husky_velocity_controller/odom", *robot, *imu]
+    code, printed, err = run([*argv, "--k-left", "1e-3", "--k-right", "1e-3", "-o", out], capsys)
+    assert code == 0, err
+    assert "/husky_velocity_controller/odom (the controller's poses, header stamps)" in printed
+    code, printed, _ = run(
+        ["evaluate", out, "--truth", HUSKY, "--truth-topic", "/fix", "--interpolate", "--json"],
+        capsys,
+    )
+    assert code == 0
+    assert json.loads(printed)["ate_aligned_m"] == pytest.approx(2.77, abs=0.005)
+
+
 # -- writing ---------------------------------------------------------------------------------
 
 

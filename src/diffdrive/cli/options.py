@@ -100,6 +100,13 @@ def log_options() -> argparse.ArgumentParser:
         help="sensor_msgs/JointState topic (default /joint_states)",
     )
     bags.add_argument("--left-joint", metavar="NAME", help="the left wheel's joint name")
+    bags.add_argument(
+        "--wheel-topic",
+        metavar="TOPIC",
+        help="instead of joints: a drive controller's nav_msgs/Odometry (the motion between "
+        "its poses) or Twist commands (each held until the next), through the robot's inverse "
+        "kinematics",
+    )
     bags.add_argument("--right-joint", metavar="NAME", help="the right wheel's joint name")
     bags.add_argument(
         "--reference-topic",
@@ -257,6 +264,8 @@ def read_log_of(args: argparse.Namespace, path: Path | None = None) -> Run:
         left_joint=args.left_joint,
         right_joint=args.right_joint,
         reference_topic=args.reference_topic,
+        wheel_topic=args.wheel_topic,
+        robot=robot_from(args)[0] if args.wheel_topic else None,
     )
 
 

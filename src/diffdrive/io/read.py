@@ -14,6 +14,7 @@ from diffdrive.io.run import Run
 from diffdrive.io.sniff import is_bag
 from diffdrive.io.tables import TableError
 from diffdrive.io.trajectories import read_trajectory
+from diffdrive.model import Robot
 
 __all__ = ["read_run"]
 
@@ -26,22 +27,34 @@ def read_run(
     left_joint: str | None = None,
     right_joint: str | None = None,
     reference_topic: str | None = None,
+    wheel_topic: str | None = None,
+    robot: Robot | None = None,
 ) -> Run:
     """The run in ``path``: a wheel-log table, an OptiOdom run file, or a bag.
 
     ``time_unit`` is the unit of a table's ``t`` (``s``, ``ms``, ``us``, ``ns``; None:
     seconds, refused when plainly not). A bag needs ``left_joint`` and ``right_joint``, the
-    names of the wheel joints on ``joint_topic``; a ``reference_topic`` of it becomes the
-    ground truth, sampled at the run's times along the reference's arcs (the run is cut to
-    the span the reference covers). ``TableError`` names the file, line and column of what
-    is wrong.
+    names of the wheel joints on ``joint_topic``, or a ``wheel_topic`` (a drive controller's
+    ``Odometry``, or ``Twist`` commands: ``ros.read_wheel_motion``, through ``robot``'s
+    inverse kinematics); a ``reference_topic`` of it becomes the ground truth, sampled at the
+    run's times along the reference's arcs (the run is cut to the span the reference covers).
+    ``TableError`` names the file, line and column of what is wrong.
     """
     if not is_bag(path):
-        if reference_topic is not None:
-            raise TableError(f"{path}: a reference topic needs a bag; this is a log file")
+        for name, topic in (("a reference topic", reference_topic), ("a wheel topic", wheel_topic)):
+            if topic is not None:
+                raise TableError(f"{path}: {name} needs a bag; this is a log file")
         return read_log(path, time_unit)
     from diffdrive.io import ros
 
+    if wheel_topic is not None:
+        if left_joint is not None or right_joint is not None:
+            raise TableError(f"{path}: the wheels come from joints or from {wheel_topic}, not both")
+        if robot is None:
+            raise ValueError("a wheel topic needs the robot, whose inverse kinematics it takes")
+        return _with_reference(
+            ros.read_wheel_motion(path, wheel_topic, robot), path, reference_topic
+        )
     if left_joint is None or right_joint is None:
         # What the bag has first: its JointState topic (ros names a missing one), then names.
         joints = ", ".join(ros.joint_names(path, joint_topic)) or "none"
@@ -50,6 +63,11 @@ def read_run(
             f"(the joints on {joint_topic}: {joints})"
         )
     run = ros.read_joint_states(path, left_joint, right_joint, joint_topic)
+    return _with_reference(run, path, reference_topic)
+
+
+def _with_reference(run: Run, path, reference_topic: str | None) -> Run:
+    """``run`` with a bag's ``reference_topic`` as its ground truth, cut to its span."""
     if reference_topic is None:
         return run
     times, poses = read_trajectory(path, topic=reference_topic)
@@ -57,6 +75,6 @@ def read_run(
         raise TableError(f"{path}: {reference_topic} has no heading; a reference needs one")
     inside = (run.times >= times[0]) & (run.times <= times[-1])
     if np.count_nonzero(inside) < 2:
-        raise TableError(f"{path}: {reference_topic} does not span the joint states' times")
+        raise TableError(f"{path}: {reference_topic} does not span the wheels' times")
     truth = interpolate(times, poses, run.times[inside])
     return replace(run.rows(inside), truth=truth, source=f"{run.source} against {reference_topic}")

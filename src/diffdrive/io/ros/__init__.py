@@ -8,6 +8,8 @@ dropped (counted in ``dropped``), since a log's times must increase.
 
 - ``read_joint_states``: wheel positions or velocities, **looked up by joint name**;
 - ``read_odometry``: ``nav_msgs/Odometry`` poses, twists and covariances;
+- ``read_wheel_motion``: the wheels from a drive controller's ``Odometry`` or a ``Twist``
+  topic, for a bag without joint states;
 - ``read_imu``, ``read_twists`` (``Twist``/``TwistStamped`` commands), ``read_tf`` (a
   parent-to-child chain as a trajectory), ``read_navsatfix`` (to a local east-north frame);
 - ``topics``: what a bag holds, and which topics diffdrive can use;
@@ -29,6 +31,7 @@ from diffdrive.io.ros.reader import (
     read_odometry,
     read_tf,
     read_twists,
+    read_wheel_motion,
     topics,
 )
 from diffdrive.io.ros.writer import BAG_FORMATS, Stream, write_odometry, write_streams
@@ -51,6 +54,7 @@ __all__ = [
     "read_odometry",
     "read_tf",
     "read_twists",
+    "read_wheel_motion",
     "topics",
     "write_odometry",
     "write_streams",

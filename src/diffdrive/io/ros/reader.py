@@ -28,16 +28,18 @@ __all__ = [
     "read_odometry",
     "read_tf",
     "read_twists",
+    "read_wheel_motion",
     "topics",
 ]
 
 # What diffdrive can do with a topic of each type, for ``topics`` and ``diffdrive info``.
 USES = {
     "sensor_msgs/msg/JointState": "wheels: odometry/simulate/calibrate --joint-topic",
-    "nav_msgs/msg/Odometry": "a trajectory: --topic, or a reference: --truth-topic",
+    "nav_msgs/msg/Odometry": "a trajectory: --topic, a reference: --truth-topic, or the "
+    "wheels: --wheel-topic",
     "sensor_msgs/msg/Imu": "a gyro (angular velocity, orientation)",
-    "geometry_msgs/msg/Twist": "commands (v, omega)",
-    "geometry_msgs/msg/TwistStamped": "commands (v, omega)",
+    "geometry_msgs/msg/Twist": "commands (v, omega), or the wheels: --wheel-topic",
+    "geometry_msgs/msg/TwistStamped": "commands (v, omega), or the wheels: --wheel-topic",
     "tf2_msgs/msg/TFMessage": "a trajectory of a frame: --topic tf:PARENT:CHILD",
     "sensor_msgs/msg/NavSatFix": "reference positions (local east, north): --truth-topic",
     "geometry_msgs/msg/PoseWithCovarianceStamped": "poses (a camera, a localiser): --topic",
@@ -357,6 +359,51 @@ def read_twists(path: str | Path, topic: str = "/cmd_vel") -> Twists:
     kinds = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
     ordered, rows, _ = _collect(Path(path), topic, kinds, row)
     return Twists(ordered.times, rows, ordered.source, ordered.dropped)
+
+
+# What a wheel topic may be: a drive controller's own odometry, or the twists it drove.
+WHEEL_TOPIC_TYPES = (
+    "nav_msgs/msg/Odometry",
+    "geometry_msgs/msg/TwistStamped",
+    "geometry_msgs/msg/Twist",
+)
+
+
+def read_wheel_motion(path: str | Path, topic: str, robot) -> Run:
+    """The wheels of ``robot`` (any model) as a bag without joint states has them: from a
+    ``nav_msgs/Odometry`` topic (a drive controller's own odometry, the Husky's), the motion
+    between consecutive poses (the SE(2) logarithm of the relative pose: the forward travel
+    and turn the controller integrated) through the robot's inverse kinematics, as
+    accumulated wheel angles; from a ``Twist`` or ``TwistStamped`` topic, each twist's wheel
+    velocities, held until the next message. A sideways part is not used (a wheeled robot's
+    body does not slide); the ``Run``'s ``source`` says what was read."""
+    from diffdrive import batch
+
+    path = Path(path)
+    with _open(path) as reader:
+        kinds = {c.msgtype for c in reader.connections if c.topic == topic}
+    if kinds and not kinds & set(WHEEL_TOPIC_TYPES):
+        raise BagError(
+            f"{path}: {topic} holds {sorted(kinds)[0]}; a wheel topic is one of "
+            f"{', '.join(WHEEL_TOPIC_TYPES)}"
+        )
+    if "nav_msgs/msg/Odometry" in kinds:
+        odometry = read_odometry(path, topic)
+        if len(odometry.times) < 2:
+            raise BagError(f"{path}: {topic} needs 2 or more messages")
+        motion = batch.log(batch.relative_to(odometry.poses[1:], odometry.poses[:-1]))
+        motion[:, 1] = 0.0
+        increments = batch.to_wheel_velocities(robot, motion)
+        angles = np.concatenate([np.zeros((1, 2)), np.cumsum(increments, axis=0)])
+        where = f"{path} {topic} (the controller's poses, {odometry.stamp_source} stamps)"
+        return Run(odometry.times, "angle", angles, None, where)
+    twists = read_twists(path, topic)  # names a topic of another type, or a missing one
+    if len(twists.times) < 2:
+        raise BagError(f"{path}: {topic} needs 2 or more messages")
+    v, omega = twists.twists.T
+    wheels = batch.to_wheel_velocities(robot, np.column_stack([v, 0.0 * v, omega]))
+    where = f"{path} {topic} (twists held until the next, {twists.stamp_source} stamps)"
+    return Run(twists.times, "velocity", wheels, None, where)
 
 
 def read_tf(path: str | Path, parent: str, child: str) -> tuple[np.ndarray, np.ndarray]:
