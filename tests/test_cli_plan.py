@@ -143,3 +143,27 @@ def test_plan_with_a_jerk_limit_reports_what_its_rows_hold(files, capsys) -> Non
     ratio = limit_ratios(table["t"], twists, robot, PathLimits(max_velocity=1, max_jerk=3))
     assert f"jerk: at most {100 * ratio['jerk'].max():.1f} % of its limit" in printed
     assert ratio["jerk"].max() <= 1.0
+
+
+def test_plan_takes_sysid_gains_per_metre(files, capsys) -> None:
+    """--ks, --kv, --ka are SysId's (V, V s/m, V s^2/m): a robot of 3-inch wheels at kV 3.13
+    V s/m reaches about 2.7 m/s under 10 V (per rad/s, kV 3.13 would hold it under 0.21 m/s),
+    and the voltage SysId's model gives on the written rows stays within the limit."""
+    (files / "wp.csv").write_text("x,y\n0,0\n12,0\n")
+    (files / "robot.toml").write_text("wheel_radius = 0.0762\ntrack_width = 0.69\n")
+    out = files / "plan.csv"
+    gains = ["--ks", "1.34", "--kv", "3.13", "--ka", "0.926", "--max-voltage", "10"]
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *gains]
+    assert (
+        main(["plan", *args, "--max-velocity", "4", "--max-acceleration", "3", "-o", str(out)]) == 0
+    )
+    table = read_table(out, ["t", "x", "y", "theta", "v", "omega", "left", "right"])
+    surface = table["left"] * 0.0762  # m/s
+    acceleration = np.gradient(surface, table["t"])
+    volts = 1.34 * np.sign(surface) + 3.13 * surface + 0.926 * acceleration
+    assert table["v"].max() > 2.5
+    assert volts.max() <= 10 * 1.02  # the gradient of the written rows: a little rounding
+    capsys.readouterr()
+    without_ka = [a for a in args if a not in ("--ka", "0.926")]
+    assert main(["plan", *without_ka, "--max-velocity", "4", "-o", str(out)]) == 1
+    assert "--ks, --kv and --ka go together (V, V s/m, V s^2/m" in capsys.readouterr().err

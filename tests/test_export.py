@@ -16,67 +16,249 @@ CALIBRATED = dd.DiffDrive(left_wheel_radius=0.0502, right_wheel_radius=0.0499, t
 MODEL = noise.NoiseModel(1e-4, 0.002, 0.005, 0.001, 0.01, np.zeros((5, 5)), 10, noise.TERMS)
 
 
+# diff_drive_controller's documented parameters and their declared types
+# (ros2_controllers, diff_drive_controller/src/diff_drive_controller_parameter.yaml).
+DIFF_DRIVE_PARAMETERS = {
+    "left_wheel_names": "string_array",
+    "right_wheel_names": "string_array",
+    "wheel_separation": "double",
+    "wheels_per_side": "int",
+    "wheel_radius": "double",
+    "wheel_separation_multiplier": "double",
+    "left_wheel_radius_multiplier": "double",
+    "right_wheel_radius_multiplier": "double",
+    "odom_frame_id": "string",
+    "base_frame_id": "string",
+    "pose_covariance_diagonal": "double_array",
+    "twist_covariance_diagonal": "double_array",
+    "open_loop": "bool",
+    "position_feedback": "bool",
+    "enable_odom_tf": "bool",
+    "cmd_vel_timeout": "double",
+    "publish_limited_velocity": "bool",
+    "velocity_rolling_window_size": "int",
+    "use_stamped_vel": "bool",
+    "publish_rate": "double",
+}
+# Nav2 AMCL's parameters that the differential model's file sets, and their types.
+AMCL_PARAMETERS = {
+    "robot_model_type": "string",
+    "alpha1": "double",
+    "alpha2": "double",
+    "alpha3": "double",
+    "alpha4": "double",
+    "update_min_d": "double",
+    "update_min_a": "double",
+}
+ROS_TYPES = {
+    "double": lambda v: type(v) is float,
+    "int": lambda v: type(v) is int,
+    "string": lambda v: type(v) is str,
+    "bool": lambda v: type(v) is bool,
+    "string_array": lambda v: isinstance(v, list) and all(type(x) is str for x in v),
+    "double_array": lambda v: isinstance(v, list) and all(type(x) is float for x in v),
+}
+WHEELS = ("left_wheel_joint", "right_wheel_joint")
+DRIVE = export.DriveConstants(1.1, 2.9, 0.4, 3.3, 0.6)
+
+
+def wpilib_schema():
+    import json
+
+    return json.loads(export.WPILIB_SCHEMA.read_text())
+
+
 @pytest.mark.parametrize("target", export.TARGETS)
 def test_each_file_has_the_structure_its_consumer_reads(target, tmp_path):
-    path = tmp_path / f"{target}.yaml"
-    figures = export.export(target, CALIBRATED, NOMINAL, MODEL, path)
-    loaded = yaml.safe_load(path.read_text())
+    """Each file read back as its consumer reads it: a ROS 2 parameter file with PyYAML, every
+    parameter one the node documents and of its declared type (ros2 param load refuses a
+    float for an int); WPILib's JSON against its schema."""
+    path = tmp_path / f"{target}.file"
+    options = {"wheel_names": WHEELS} if target == "ros2" else {}
     if target == "wpilib":
-        (node,) = loaded
-        values = loaded[node]
-        assert len(values["stateStdDevs"]) == 3
-        assert all(v > 0 for v in values["stateStdDevs"])
+        options["drive"] = DRIVE
+    figures = export.export(target, CALIBRATED, NOMINAL, MODEL, path, **options)
+    if target == "wpilib":
+        import json
+
+        jsonschema = pytest.importorskip("jsonschema")
+        document = json.loads(path.read_text())
+        jsonschema.validate(document, wpilib_schema())
+        assert document["trackWidth"] == pytest.approx(0.305)
+        assert (document["kS"], document["kV"], document["kA"]) == (1.1, 2.9, 0.4)
+        assert (document["kVAngular"], document["kAAngular"]) == (3.3, 0.6)
+        assert len(document["stateStdDevs"]) == 3
+        assert all(name in document["units"] for name in figures)
         return
+    loaded = yaml.safe_load(path.read_text())
     ((node, body),) = loaded.items()
+    assert node == export.NODES[target]
     assert list(body) == ["ros__parameters"]  # node_name: ros__parameters: ...
     parameters = body["ros__parameters"]
     assert list(parameters) == list(figures)
     for key, value in figures.items():
-        if isinstance(value, str):
+        if isinstance(value, str | int) or (isinstance(value, list) and isinstance(value[0], str)):
             assert parameters[key] == value
         else:  # floats written in full, read back exactly
             np.testing.assert_array_equal(parameters[key], value)
+    declared = {"ros2": DIFF_DRIVE_PARAMETERS, "amcl": AMCL_PARAMETERS}.get(target)
+    if declared is not None:
+        for key, value in parameters.items():
+            assert key in declared, f"{key} is no parameter of {node}"
+            assert ROS_TYPES[declared[key]](value), (key, value, declared[key])
     if target == "ros2":
-        assert node == "diff_drive_controller"
+        assert parameters["left_wheel_names"] == ["left_wheel_joint"]
+        assert parameters["velocity_rolling_window_size"] == 10
         assert parameters["wheel_separation"] == 0.3
         assert parameters["wheel_separation_multiplier"] == pytest.approx(0.305 / 0.3)
         assert parameters["left_wheel_radius_multiplier"] == pytest.approx(1.004)
         for key in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
             assert len(parameters[key]) == 6
-            assert all(isinstance(v, float) and v > 0 for v in parameters[key])
+            assert all(v > 0 for v in parameters[key])
     elif target == "robot_localization":
-        assert node == "ekf_filter_node"
         matrix = np.array(parameters["process_noise_covariance"]).reshape(15, 15)
         assert np.all(np.diag(matrix) > 0)
         assert np.count_nonzero(matrix - np.diag(np.diag(matrix))) == 0
     else:
-        assert node == "amcl"
         assert parameters["robot_model_type"] == "nav2_amcl::DifferentialMotionModel"
         assert all(parameters[f"alpha{i}"] > 0 for i in range(1, 5))
+        assert (parameters["update_min_d"], parameters["update_min_a"]) == (0.25, 0.2)
 
 
 def test_the_figures_follow_their_stated_derivation():
     """With the wheel noise alone: the pose diagonal is Odometry's covariance after 1 m
-    straight, the twist's k v rate / 2 and 2 k v rate / T^2, WPILib's their square roots."""
+    straight; the twist's that of the mean of a 10-update window of per-update velocities
+    (k v rate / (2 window), 2 k v rate / (window T^2)); WPILib's the square roots."""
     model = noise.NoiseModel(1e-4, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
     at = export.Reference(distance=1.0, speed=0.5, rate=50.0)
-    ros = export.parameters("ros2", NOMINAL, NOMINAL, model, at)
+    ros = export.parameters("ros2", NOMINAL, NOMINAL, model, at, wheel_names=WHEELS)
     odometry = dd.Odometry(NOMINAL, k_left=1e-4, k_right=1e-4)
     odometry.update_arrays("increments", np.full(100, 0.2), np.full(100, 0.2))  # 1 m
     covariance = odometry.covariance
     assert ros["pose_covariance_diagonal"][0] == pytest.approx(covariance[0, 0], rel=1e-9)
     assert ros["pose_covariance_diagonal"][5] == pytest.approx(covariance[2, 2], rel=1e-9)
-    assert ros["twist_covariance_diagonal"][0] == pytest.approx(1e-4 * 0.5 * 50 / 2)
-    assert ros["twist_covariance_diagonal"][5] == pytest.approx(2e-4 * 0.5 * 50 / 0.09)
+    assert ros["twist_covariance_diagonal"][0] == pytest.approx(1e-4 * 0.5 * 50 / 2 / 10)
+    assert ros["twist_covariance_diagonal"][5] == pytest.approx(2e-4 * 0.5 * 50 / 0.09 / 10)
     wpilib = export.parameters("wpilib", NOMINAL, NOMINAL, model, at)
     np.testing.assert_allclose(wpilib["stateStdDevs"], np.sqrt(np.diag(covariance)), rtol=1e-9)
-    amcl = export.parameters("amcl", NOMINAL, NOMINAL, model, at)
-    assert amcl["alpha3"] == pytest.approx(covariance[0, 0])  # per m^2 of a 1 m straight
-    assert amcl["alpha1"] == pytest.approx(1e-4 * 1.0 / 0.3, rel=1e-6)  # k turn / T, per rad^2
+    assert "kS" not in wpilib  # no drive identification: no feedforward
     with pytest.raises(ValueError, match="target must be one of"):
         export.parameters("gazebo", NOMINAL, NOMINAL, model, at)
     with pytest.raises(ValueError, match="speed must be > 0"):
         export.Reference(speed=0.0)
+    with pytest.raises(ValueError, match="needs left_wheel_names and right_wheel_names"):
+        export.parameters("ros2", NOMINAL, NOMINAL, model, at)
+
+
+def test_the_controllers_published_twist_has_the_variance_written():
+    """diff_drive_controller's published velocity, simulated as its odometry.cpp computes it
+    (each update's wheel travel over its period, the rolling mean of 10), with wheel noise of
+    variance k |travel| per update: its variance is the file's twist diagonal."""
+    k, v, rate, window = 1e-4, 0.5, 50.0, 10
+    model = noise.NoiseModel(k, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
+    at = export.Reference(speed=v, rate=rate, window=window)
+    written = export.parameters("ros2", NOMINAL, NOMINAL, model, at, wheel_names=WHEELS)
+    rng = np.random.default_rng(5)
+    travel = v / rate
+    wheels = travel + rng.standard_normal((40_000, window, 2)) * np.sqrt(k * travel)
+    linear = (wheels.mean(axis=2) * rate).mean(axis=1)  # per update, then the window's mean
+    angular = ((wheels[..., 1] - wheels[..., 0]) / NOMINAL.track_width * rate).mean(axis=1)
+    assert np.var(linear) == pytest.approx(written["twist_covariance_diagonal"][0], rel=0.03)
+    assert np.var(angular) == pytest.approx(written["twist_covariance_diagonal"][5], rel=0.03)
+
+
+def angle_diff(a, b):
+    """nav2_amcl's angleutils::angle_diff, as its header has it."""
+    a, b = np.arctan2(np.sin(a), np.cos(a)), np.arctan2(np.sin(b), np.cos(b))
+    d1 = a - b
+    d2 = 2 * np.pi - abs(d1)
+    if d1 > 0:
+        d2 *= -1.0
+    return d1 if abs(d1) < abs(d2) else d2
+
+
+def _nav2_sampler(particles, old, new, alphas, rng):
+    """One update of nav2_amcl::DifferentialMotionModel::odometryUpdate, as its source reads,
+    over particles ``(P, 3)``: the odometry moved from ``old`` to ``new`` (odom frame)."""
+
+    a1, a2, a3, a4 = alphas
+    dx, dy = new[0] - old[0], new[1] - old[1]
+    trans = np.hypot(dx, dy)
+    rot1 = 0.0 if trans < 0.01 else angle_diff(np.arctan2(dy, dx), old[2])
+    rot2 = angle_diff(angle_diff(new[2], old[2]), rot1)
+    noise1 = min(abs(angle_diff(rot1, 0.0)), abs(angle_diff(rot1, np.pi)))
+    noise2 = min(abs(angle_diff(rot2, 0.0)), abs(angle_diff(rot2, np.pi)))
+    count = len(particles)
+    rot1_hat = rot1 - rng.normal(0, np.sqrt(a1 * noise1**2 + a2 * trans**2), count)
+    trans_hat = trans - rng.normal(0, np.sqrt(a3 * trans**2 + a4 * (noise1**2 + noise2**2)), count)
+    rot2_hat = rot2 - rng.normal(0, np.sqrt(a1 * noise2**2 + a2 * trans**2), count)
+    particles[:, 0] += trans_hat * np.cos(particles[:, 2] + rot1_hat)
+    particles[:, 1] += trans_hat * np.sin(particles[:, 2] + rot1_hat)
+    particles[:, 2] += rot1_hat + rot2_hat
+
+
+def _amcl(odometry, alphas, at, rng, count=40_000):
+    """AMCL's particles after the odometry ``(K, 3)`` seen at each scan: an update whenever it
+    has moved more than update_min_d along x or y or turned more than update_min_a since the
+    last (AmclNode::shouldUpdateFilter), and one at the end."""
+    particles = np.zeros((count, 3))
+    last = odometry[0]
+    for k, pose in enumerate(odometry[1:], 1):
+        turned = abs(angle_diff(pose[2], last[2]))
+        moved = abs(pose[0] - last[0]) > at.update_min_d or abs(pose[1] - last[1]) > at.update_min_d
+        if moved or turned > at.update_min_a or k == len(odometry) - 1:
+            _nav2_sampler(particles, last, pose, alphas, rng)
+            last = pose
+    return particles
+
+
+def test_amcl_alphas_give_the_models_covariance_through_nav2s_sampler():
+    """A Monte Carlo of Nav2's sampler with the exported alphas, updating as AMCL does at the
+    update_min_d and update_min_a written beside them: after 1 m straight, a 1 rad turn in
+    place and a 2 m arc its covariance is the noise model's within 10 % on each diagonal term
+    (the turn's x and y as their sum: AMCL spreads each update's translation noise along the
+    update's first heading, which no alpha can change; each is as the sampler predicts). The
+    alphas written before were 2x too wide in heading and 0.25x too narrow along the path."""
+    at = export.Reference()
+    model = noise.NoiseModel(1e-4, 0.002, 0.005, 0.0, 0.0, np.zeros((5, 5)), 10, noise.TERMS)
+    figures = export.parameters("amcl", NOMINAL, NOMINAL, model, at)
+    alphas = [figures[f"alpha{i}"] for i in range(1, 5)]
+    fit = export.amcl_fit(NOMINAL, model, at)
+    rng = np.random.default_rng(11)
+    v, spin, r, track = at.speed, at.turn_rate, NOMINAL.left_wheel_radius, NOMINAL.track_width
+    radius = 2.0 / 1.0  # the arc: 2 m turning 1 rad
+    motions = {
+        "straight": (1.0 / v, lambda t: np.column_stack([v * t, 0 * t, 0 * t]), (1.0, 1.0)),
+        "turn": (
+            1.0 / spin,
+            lambda t: np.column_stack([0 * t, 0 * t, spin * t]),
+            (-0.5 * track, 0.5 * track),
+        ),
+        "arc": (
+            2.0 / v,
+            lambda t: np.column_stack(
+                [
+                    radius * np.sin(v * t / radius),
+                    radius * (1 - np.cos(v * t / radius)),
+                    v * t / radius,
+                ]
+            ),
+            (2.0 - 0.5 * track, 2.0 + 0.5 * track),  # each wheel's travel over 1 rad, m
+        ),
+    }
+    for index, (name, (duration, path, arcs)) in enumerate(motions.items()):
+        scans = np.append(np.arange(0.0, duration, 1.0 / at.scan_rate), duration)
+        particles = _amcl(path(np.unique(scans)), alphas, at, rng)
+        sampled = np.diag(np.cov(particles.T))
+        increments = np.tile(np.array(arcs) / r / 100, (100, 1))  # each wheel's travel
+        wanted = np.diag(noise.covariances(NOMINAL, increments, np.zeros(3), model)[1][-1])
+        predicted = np.diag(fit.sampler[index])
+        np.testing.assert_allclose(sampled, predicted, rtol=0.1, err_msg=name)
+        if name == "turn":
+            assert sampled[:2].sum() == pytest.approx(wanted[:2].sum(), rel=0.1)
+            assert sampled[2] == pytest.approx(wanted[2], rel=0.1)
+        else:
+            np.testing.assert_allclose(sampled, wanted, rtol=0.1, err_msg=name)
 
 
 def test_runs_and_a_noise_model_by_hand_are_not_both_taken(tmp_path, capsys):
@@ -115,7 +297,7 @@ def test_a_noise_model_that_would_write_zero_or_wrong_covariances_is_refused(
 
 def test_calibrate_then_export_from_logs(tmp_path, monkeypatch, capsys):
     """Two logs with ground truth: calibrate writes the robot, export identifies the noise
-    on the same logs and writes a ROS 2 file with non-zero covariances."""
+    on the same logs, holds it to them and writes a ROS 2 file with non-zero covariances."""
     monkeypatch.chdir(tmp_path)
     t = np.arange(1001) * 0.02
     logs = []
@@ -131,18 +313,28 @@ def test_calibrate_then_export_from_logs(tmp_path, monkeypatch, capsys):
     assert main(["calibrate", *logs, "--robot", "nominal.toml", "-o", "robot.toml", "-q"]) == 0
     calibrated = dd.io.read_robot(tmp_path / "robot.toml")
     exported = ["--robot", "robot.toml", "--nominal", "nominal.toml", "-o", "ros.yaml"]
-    assert main(["export", "--to", "ros2", *exported, *logs]) == 0
-    parameters = yaml.safe_load((tmp_path / "ros.yaml").read_text())["diff_drive_controller"]
-    parameters = parameters["ros__parameters"]
+    joints = ["--left-joint", "wheel_l", "--right-joint", "wheel_r"]
+    assert main(["export", "--to", "ros2", *exported, *logs]) == 1
+    assert "give --left-joint NAME --right-joint NAME" in capsys.readouterr().err
+    assert main(["export", "--to", "ros2", *exported, *joints, *logs]) == 0
+    printed = capsys.readouterr().out
+    assert "noise model identified on 3 runs; the reference's accuracy 1 mm and 0.1 deg" in printed
+    assert "held to its runs (the reference's own noise added): " in printed
+    text = (tmp_path / "ros.yaml").read_text()
+    assert "# held to its runs" in text  # the figures that passed, in the file
+    parameters = yaml.safe_load(text)["diff_drive_controller"]["ros__parameters"]
     assert all(v > 0 for v in parameters["pose_covariance_diagonal"])
     assert parameters["wheel_radius"] == 0.05
+    assert (parameters["left_wheel_names"], parameters["right_wheel_names"]) == (
+        ["wheel_l"],
+        ["wheel_r"],
+    )
     for side in ("left", "right"):
         multiplier = parameters[f"{side}_wheel_radius_multiplier"]
         assert multiplier == pytest.approx(calibrated[f"{side}_wheel_radius"] / 0.05)
     assert parameters["wheel_separation_multiplier"] == pytest.approx(
         calibrated["track_width"] / 0.3
     )
-    assert "noise model (identified on 3 runs" in capsys.readouterr().out
     assert main(["export", "--to", "amcl", "-o", "none.yaml"]) != 0
     assert "export needs a noise model" in capsys.readouterr().err
     assert not (tmp_path / "none.yaml").exists()
@@ -150,3 +342,99 @@ def test_calibrate_then_export_from_logs(tmp_path, monkeypatch, capsys):
     assert main(["export", "--to", "ros2", "--k", "0.01", "-o", "none.yaml"]) != 0
     assert "writes the robot's geometry" in capsys.readouterr().err
     assert not (tmp_path / "none.yaml").exists()
+
+
+def test_refusals_name_the_figures_that_fail():
+    from diffdrive.evaluation import Consistency
+
+    wide = Consistency(np.ones(10), 0.9, 0.6, 0.97, 3, 10)
+    narrow = Consistency(np.ones(10), 4.2, 0.2, 0.55, 3, 10)
+    assert export.refusals(wide, MODEL) == []
+    (reason,) = export.refusals(narrow, MODEL)
+    assert "holds 55% of the runs' poses inside its 95 % ellipse (ANEES 4.2)" in reason
+    stuck = noise.NoiseModel(0.0, 0.002, 0.005, 0.001, 0.01, np.zeros((5, 5)), 10, noise.TERMS)
+    (reason,) = export.refusals(wide, stuck)
+    assert "wheel noise k came out at its bound, 0 m" in reason
+
+
+def test_the_optiodom_recipe_exports_what_its_runs_hold(tmp_path, monkeypatch, capsys):
+    """The README's calibrate-then-export on an OptiOdom experiment: with the reference's
+    accuracy held at motion capture's, k is found (it was 0, the errors piled onto a 13.6 mm
+    reference) and the model holds its runs; with the reference stated as that 13.6 mm and
+    2.6 degrees, k goes to its bound again and the export is refused, writing nothing, unless
+    --accept-inconsistent, which the file then says."""
+    from data import data_folder
+
+    monkeypatch.chdir(tmp_path)
+    runs = sorted(
+        str(p) for p in (data_folder("optiodom-diffdrive") / "free" / "030120210006").glob("*run*")
+    )
+    (tmp_path / "nominal.toml").write_text("wheel_radius = 0.042\ntrack_width = 0.2\n")
+    assert main(["calibrate", *runs, "--robot", "nominal.toml", "-o", "robot.toml", "-q"]) == 0
+    argv = ["export", "--to", "wpilib", "--robot", "robot.toml", *runs, "-o", "w.json"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    inside = float(printed.split("): ")[1].split("% of")[0])
+    assert inside >= 80.0
+    k = float(printed.split("noise model: k ")[1].split()[0])
+    assert k > 1e-5
+    import json
+
+    deviations = json.loads((tmp_path / "w.json").read_text())["stateStdDevs"]
+    assert deviations[0] > 0.005  # 0.12 mm before
+    assert deviations[2] > 0.01  # 0.066 degree before
+    loose = ["--reference-sigma", "0.0136", "2.6"]
+    assert main([*argv[:-1], "refused.json", *loose]) == 1
+    assert "k came out at its bound, 0 m" in capsys.readouterr().err
+    assert not (tmp_path / "refused.json").exists()
+    assert main([*argv[:-1], "accepted.json", *loose, "--accept-inconsistent", "-q"]) == 0
+    assert "written though its wheel noise k" in capsys.readouterr().err
+    notes = json.loads((tmp_path / "accepted.json").read_text())["notes"]
+    assert any(note.startswith("WRITTEN THOUGH INCONSISTENT") for note in notes)
+
+
+def test_wpilib_takes_the_drive_identify_found(tmp_path, monkeypatch, capsys):
+    """A SysId-like voltage log through ``diffdrive identify`` (kS 1 V, kV 3 V s/m, kA 0.5
+    V s^2/m of the wheels' surface speed), then ``export --to wpilib --drive``: WPILib's units
+    in a JSON file its schema admits."""
+    import json
+
+    from diffdrive.dynamics import DriveModel, Feedforward
+
+    jsonschema = pytest.importorskip("jsonschema")
+    monkeypatch.chdir(tmp_path)
+    r = NOMINAL.left_wheel_radius
+    motor = DriveModel(feedforward=Feedforward(1.0, 3.0 * r, 0.5 * r))  # per rad/s of the wheel
+    t = np.arange(0.0, 40.0, 0.01)
+    ramp = np.where(t < 10, 0.25 * t, -0.25 * (t - 10))
+    steps = np.where(t < 25, 7.0, -7.0)
+    straight = np.where(t < 20, ramp, steps)
+    volts = np.column_stack([straight, straight])
+    volts = np.concatenate([volts, volts * np.array([-1.0, 1.0])])  # then turning both ways
+    times = np.arange(len(volts)) * 0.01
+    wheels = motor.wheel_velocities(times, times, volts)
+    wheels += np.random.default_rng(3).normal(0, 0.002 / r, wheels.shape)
+    columns = [times, wheels[:, 0], wheels[:, 1], volts[:, 0], volts[:, 1]]
+    with open("sysid.csv", "w") as out:
+        out.write("t,left_velocity,right_velocity,left_voltage,right_voltage\n")
+        out.writelines(
+            ",".join(repr(float(v)) for v in row) + "\n" for row in zip(*columns, strict=True)
+        )
+    robot = ["--wheel-radius", "0.05", "--track-width", "0.3"]
+    assert main(["identify", "sysid.csv", *robot, "-o", "drive.toml"]) == 0
+    assert "linear: kS 0.99" in capsys.readouterr().out
+    drive = dd.io.read_drive(tmp_path / "drive.toml")["feedforward"]
+    assert drive["ks"] == pytest.approx(1.0, rel=0.03)
+    assert drive["kv"] == pytest.approx(3.0, rel=0.03)
+    assert drive["ka"] == pytest.approx(0.5, rel=0.05)
+    argv = ["export", "--to", "wpilib", *robot, "--k", "1e-4", "--drive", "drive.toml"]
+    assert main([*argv, "-o", "drivetrain.json", "-q"]) == 0
+    document = json.loads((tmp_path / "drivetrain.json").read_text())
+    jsonschema.validate(document, wpilib_schema())
+    assert document["kV"] == drive["kv"]
+    assert document["trackWidth"] == 0.3
+    assert "V s/m" in document["units"]["kV"]
+    assert main(["export", "--to", "amcl", *robot, "--k", "1e-4", "--drive", "drive.toml"]) == 1
+    assert "--drive: used only with --to wpilib" in capsys.readouterr().err
+    assert main(["identify", "sysid.csv", "-o", "x.toml"]) == 1
+    assert "give --robot FILE, or --wheel-radius and --track-width" in capsys.readouterr().err

@@ -1,11 +1,34 @@
-"""Chi-square quantiles of 1 to 3 degrees of freedom, in closed form: the gates of the
-estimators and the ellipses of ``evaluation.consistency`` (no SciPy needed)."""
+"""Small statistics without SciPy: chi-square quantiles of 1 to 3 degrees of freedom in
+closed form (the gates of the estimators, the ellipses of ``evaluation.consistency``), and
+non-negative least squares of a few unknowns (the gyro's Allan terms, AMCL's alphas)."""
 
 from __future__ import annotations
 
 import math
+from itertools import combinations
 
-__all__ = ["chi2_quantile"]
+import numpy as np
+
+__all__ = ["chi2_quantile", "nonnegative_least_squares"]
+
+
+def nonnegative_least_squares(design: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``x >= 0`` minimising ``|design @ x - target|^2``, ``design`` ``(m, n)`` with a few
+    columns (n up to about 8): the best unconstrained fit on every subset of the columns
+    whose solution is non-negative (the optimum is one of them; 2^n small solves)."""
+    columns = design.shape[1]
+    best, best_cost = np.zeros(columns), float(np.sum(target * target))
+    for size in range(1, columns + 1):
+        for used in combinations(range(columns), size):
+            found, *_ = np.linalg.lstsq(design[:, used], target, rcond=None)
+            if np.any(found < 0):
+                continue
+            trial = np.zeros(columns)
+            trial[list(used)] = found
+            cost = float(np.sum((design @ trial - target) ** 2))
+            if cost < best_cost:
+                best, best_cost = trial, cost
+    return best
 
 
 def _chi2_cdf(x: float, dof: int) -> float:

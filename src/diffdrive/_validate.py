@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -74,13 +75,12 @@ def increasing(name: str, times: np.ndarray) -> None:
 def geodetic_point(name: str, value: object) -> tuple[float, float, float]:
     """``(latitude deg, longitude deg, height m)``: finite, on the globe; ``ValueError`` (or
     ``TypeError``) naming ``name`` and what is wrong."""
-    try:
-        lat, lon, height = value  # type: ignore[misc]
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{name} must be (latitude deg, longitude deg, height m), got {value!r}"
-        ) from None
-    lat, lon, height = (finite(name, v) for v in (lat, lon, height))
+    parts: tuple[object, ...] = ()
+    if isinstance(value, Iterable) and not isinstance(value, str | bytes):
+        parts = tuple(value)
+    if len(parts) != 3:
+        raise ValueError(f"{name} must be (latitude deg, longitude deg, height m), got {value!r}")
+    lat, lon, height = (finite(name, v) for v in parts)
     if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
         raise ValueError(
             f"{name}: latitude must lie in [-90, 90] and longitude in [-180, 180] degrees, "

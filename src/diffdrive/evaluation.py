@@ -312,7 +312,7 @@ def consistency(
         raise ValueError(f"covariances must be finite; covariance {row} is not")
     if aligned:
         motion = alignment(estimate, truth)
-        estimate = batch.compose(motion, estimate)
+        estimate = np.asarray(batch.compose(motion, estimate))
         c, s = math.cos(motion[2]), math.sin(motion[2])
         turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         matrices = turn @ matrices @ turn.T

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._stats import nonnegative_least_squares
 from diffdrive._validate import finite
 from diffdrive.calibration.offline import checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
@@ -67,6 +68,7 @@ __all__ = [
     "identify",
     "identify_gyro",
     "identify_what_it_can",
+    "score",
 ]
 
 TERMS = ("k", "radius_sigma", "track_sigma", "reference_sigma", "reference_heading_sigma")
@@ -193,14 +195,25 @@ def identify(
     windows: int = 8,
     method: Method = "exact",
     iterations: int = 200,
+    fixed: dict[str, float] | None = None,
 ) -> NoiseModel:
     """The noise model of ``robot``'s odometry from ``runs``, each a ``Run`` with ground truth
     or ``(increments (T, 2) rad, truth (T+1, 3))``, the truth as reference, each cut into
-    ``windows``; ``terms`` chooses what is fitted (the others are 0). ``ValueError`` names a
-    term the runs cannot identify."""
+    ``windows``; ``terms`` chooses what is fitted, ``fixed`` holds others at known values
+    (e.g. the reference's, ``{"reference_sigma": 0.001}`` for motion capture; in their own
+    units, m or rad), and the rest are 0. ``ValueError`` names a term the runs cannot
+    identify."""
     unknown = [term for term in terms if term not in TERMS]
     if unknown or not terms:
         raise ValueError(f"terms must be some of {', '.join(TERMS)}, got {terms!r}")
+    held = dict(fixed or {})
+    for name, value in held.items():
+        if name not in TERMS or name in terms:
+            raise ValueError(
+                f"fixed terms must be some of {', '.join(TERMS)} not fitted, got {name!r}"
+            )
+        if not finite(f"fixed {name}", value) >= 0.0:
+            raise ValueError(f"fixed {name} must be >= 0, got {value!r}")
     if windows < 1:
         raise ValueError(f"windows must be 1 or more, got {windows!r}")
     runs = list(runs)
@@ -215,7 +228,10 @@ def identify(
         )
     fitted = np.array([term in terms for term in TERMS])
     data = [_window_terms(robot, i, t, windows, method) for i, t in checked]
-    theta = _fit(data, _start(data, fitted), fitted, iterations)
+    start = _start(data, fitted)
+    for name, value in held.items():  # k is a variance's scale; the sigmas enter squared
+        start[TERMS.index(name)] = value if name == "k" else value * value
+    theta = _fit(data, start, fitted, iterations)
     information = _fisher(data, theta, fitted)
     _refuse_the_unidentified(information, fitted)
     covariance = np.zeros((5, 5))
@@ -237,7 +253,8 @@ def identify_what_it_can(robot: DiffDrive, runs, **options) -> tuple[NoiseModel,
     """``identify`` with every term the runs can identify: the terms it refuses are left
     out one at a time (and returned) until the rest are identified."""
     runs = list(runs)
-    terms: list[str] = list(options.pop("terms", TERMS))
+    held = options.get("fixed") or {}
+    terms: list[str] = [t for t in options.pop("terms", TERMS) if t not in held]
     left_out: list[str] = []
     while True:
         try:
@@ -307,7 +324,8 @@ def _likelihood_and_gradient(data, theta, fitted) -> tuple[float, np.ndarray]:
 
 
 def _start(data, fitted) -> np.ndarray:
-    """Moment matching: each term's scale from its own share alone, divided among them."""
+    """Moment matching: each fitted term's scale from its own share alone, divided among
+    them (the others 0)."""
     theta = np.zeros(5)
     for index in np.flatnonzero(fitted):
         numerator = sum(float(e @ parts[index] @ e) for e, parts in data)
@@ -468,18 +486,7 @@ def identify_gyro(times: object, rates: object) -> GyroFit:
     design = np.column_stack([1.0 / taus, np.full(len(taus), _FLAT), taus / 3.0])
     target = deviations**2
     weighted = design / target[:, None]
-    best, best_cost = np.zeros(3), np.inf
-    for mask in range(1, 8):  # every subset of the three terms: the best non-negative fit
-        used = [i for i in range(3) if mask >> i & 1]
-        found, *_ = np.linalg.lstsq(weighted[:, used], np.ones(len(taus)), rcond=None)
-        if np.any(found < 0):
-            continue
-        trial = np.zeros(3)
-        trial[used] = found
-        cost = float(np.sum((weighted @ trial - 1.0) ** 2))
-        if cost < best_cost:
-            best, best_cost = trial, cost
-    n2, b2, k2 = best
+    n2, b2, k2 = nonnegative_least_squares(weighted, np.ones(len(taus)))
     return GyroFit(float(np.sqrt(n2)), float(np.sqrt(b2)), float(np.sqrt(k2)), taus, deviations)
 
 
@@ -500,7 +507,6 @@ def cross_validate(nominal: DiffDrive, groups: dict, *, calibrate_with=None) -> 
     runs)``, default least squares) and the model identified on the other groups, then the
     consistency of the covariance it predicts on the group's runs. ``{name: HeldOut}``."""
     from diffdrive.calibration import calibrate
-    from diffdrive.evaluation import consistency
 
     if len(groups) < 2:
         raise ValueError(f"cross_validate needs 2 groups of runs or more, got {len(groups)}")
@@ -510,14 +516,21 @@ def cross_validate(nominal: DiffDrive, groups: dict, *, calibrate_with=None) -> 
         others = [run for other, rs in groups.items() if other != name for run in rs]
         robot = fit(nominal, others).equivalent  # the calibrated model's drive
         model, left_out = identify_what_it_can(robot, others)
-        estimates, predicted, truths = [], [], []
-        for increments, truth in checked_runs(list(runs), run_names(runs, None)):
-            poses, covariance = covariances(robot, increments, truth[0], model)
-            estimates.append(poses[1:])
-            predicted.append(covariance[1:])
-            truths.append(truth[1:])
-        found = consistency(
-            np.concatenate(estimates), np.concatenate(predicted), np.concatenate(truths)
-        )
-        scores[name] = HeldOut(model, left_out, found)
+        scores[name] = HeldOut(model, left_out, score(robot, runs, model))
     return scores
+
+
+def score(robot: DiffDrive, runs, model: NoiseModel, method: Method = "exact"):
+    """How honest ``model``'s predicted covariance is on ``runs`` (as ``identify`` takes
+    them): ``evaluation.consistency`` of each run's dead reckoning from its first reference
+    pose against its reference, pooled over the runs, every pose but the starts (known
+    exactly)."""
+    from diffdrive.evaluation import consistency
+
+    estimates, predicted, truths = [], [], []
+    for increments, truth in checked_runs(list(runs), run_names(runs, None)):
+        poses, covariance = covariances(robot, increments, truth[0], model, method)
+        estimates.append(poses[1:])
+        predicted.append(covariance[1:])
+        truths.append(truth[1:])
+    return consistency(np.concatenate(estimates), np.concatenate(predicted), np.concatenate(truths))

@@ -122,7 +122,7 @@ def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
     return 0
 
 
-def _radii_robot(args: argparse.Namespace) -> tuple[DiffDrive, float | None]:
+def _radii_robot(args: argparse.Namespace) -> tuple[Robot, float | None]:
     """--track-from-gyro's robot: its wheel radii given (a gyro sees the track over the
     radii), its track what is estimated, so not needed (1 m stands in until then)."""
     settings = robot_settings(args)

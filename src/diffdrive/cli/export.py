@@ -1,8 +1,11 @@
-"""``diffdrive export``: the calibrated robot and its noise model as other stacks' files."""
+"""``diffdrive export``: the calibrated robot, its noise model and its drive as other stacks'
+files, each checked against the runs it came from before it is written."""
 
 from __future__ import annotations
 
 import argparse
+import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,49 +14,45 @@ from diffdrive.cli.calibrate import _calibration_run
 from diffdrive.cli.options import (
     Command,
     Parents,
+    between,
     refuse_assumed_robot,
     refuse_unused,
     robot_from,
 )
-from diffdrive.export import TARGETS, Reference, export
-from diffdrive.io import read_robot, robot_from_settings
-from diffdrive.noise import TERMS, NoiseModel, identify_what_it_can
+from diffdrive.export import (
+    FILES,
+    MIN_INSIDE_95,
+    TARGETS,
+    DriveConstants,
+    Reference,
+    amcl_fit,
+    export,
+    refusals,
+)
+from diffdrive.io import TableError, is_bag, read_drive, read_robot, robot_from_settings
+from diffdrive.noise import TERMS, NoiseModel, identify_what_it_can, score
 
-FILES = {
-    "ros2": "diff_drive_controller.yaml",
-    "robot_localization": "ekf.yaml",
-    "amcl": "amcl.yaml",
-    "wpilib": "pose_estimator.yaml",
-}
+# The reference's own accuracy where the runs' ground truth is a table's (motion capture, as
+# OptiOdom's): 1 mm and 0.1 degree, well above a motion-capture room's sub-millimetre.
+MOTION_CAPTURE = (0.001, 0.1)
 
 
 def run_export(args: argparse.Namespace) -> int:
-    if args.runs:
-        by_hand = {
-            "--k": args.k is not None,
-            "--radius-sigma": args.radius_sigma is not None,
-            "--track-sigma": args.track_sigma is not None,
-        }
-        refuse_unused(by_hand, "a noise model by hand, where the runs identify one: not both")
-    if not args.runs and args.k is None:
-        raise ValueError(
-            "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
-            "with --radius-sigma and --track-sigma"
-        )
+    _refuse_misplaced(args)
     refuse_assumed_robot(
         args, f"export --to {args.to} writes the robot's geometry and the noise it implies"
     )
+    wheel_names = _wheel_names(args)
+    drive = _drive(args)
     model_robot, ticks = robot_from(args)
     robot = nominal = model_robot.equivalent  # a SkidSteer's equivalent drive: what ROS takes
     if args.nominal is not None:
         settings = read_robot(args.nominal)
         nominal = robot_from_settings(settings, f" (in {args.nominal})").equivalent
+    notes = ["written by diffdrive export"]
+    lines: list[str] = []
     if args.runs:
-        runs = [_calibration_run(args, path, ticks)[0] for path in args.runs]
-        model, left_out = identify_what_it_can(robot, runs)
-        source = f"identified on {len(runs)} runs" + (
-            f" ({', '.join(left_out)} left out: the runs cannot identify them)" if left_out else ""
-        )
+        model, held = _identified(args, robot, ticks, notes, lines)
     else:
         model = NoiseModel(
             args.k,
@@ -65,21 +64,59 @@ def run_export(args: argparse.Namespace) -> int:
             0,
             TERMS[:3],
         )
-        source = "given"
-    at = Reference(args.distance, args.turn, args.speed, args.rate)
+        notes.append("noise model given by hand (--k, --radius-sigma, --track-sigma): not checked")
+        held = []
+    if held and not args.accept_inconsistent:
+        raise ValueError(
+            f"export: the noise model is not fit to write into {args.to}'s file: "
+            + "; ".join(held)
+            + ". --accept-inconsistent writes it anyway, saying so in the file"
+        )
+    if held:
+        notes.append(
+            "WRITTEN THOUGH INCONSISTENT with its runs (--accept-inconsistent): " + "; ".join(held)
+        )
+    at = Reference(
+        args.distance,
+        args.turn,
+        args.speed,
+        args.turn_rate,
+        args.rate,
+        args.window,
+        args.scan_rate,
+        args.update_min_d,
+        args.update_min_a,
+    )
+    if args.to == "amcl":
+        fit = amcl_fit(robot, model, at)
+        x_miss, y_miss = fit.split
+        notes.append(
+            f"alphas matched to Nav2's sampler on {'; '.join(fit.motions)}: within "
+            f"{fit.worst:.0%} of the model on each term (the turn's x and y as their sum; "
+            f"apart, {x_miss:+.0%} and {y_miss:+.0%}: AMCL turns each update's noise at its "
+            "start heading)"
+        )
+    if args.to == "wpilib" and drive is None:
+        notes.append("no drive identification given (--drive): no kS, kV, kA")
     output = args.output or Path(FILES[args.to])
-    note = f"written by diffdrive export; noise model {source}"
-    figures = export(args.to, robot, nominal, model, output, at, note)
+    figures = export(
+        args.to, robot, nominal, model, output, at, notes, wheel_names=wheel_names, drive=drive
+    )
+    for reason in held:  # said even with -q: the file is known to be off
+        print(f"diffdrive export: warning: written though {reason}", file=sys.stderr)
     if not args.quiet:
+        for line in lines:
+            print(line)
         print(
-            f"noise model ({source}): k {model.k:.3g} m, radius sigma {model.radius_sigma:.4g}, "
-            f"track sigma {model.track_sigma:.4g}"
+            f"noise model: k {model.k:.3g} m, radius sigma {model.radius_sigma:.4g}, track "
+            f"sigma {model.track_sigma:.4g}, reference {1000 * model.reference_sigma:.3g} mm "
+            f"and {math.degrees(model.reference_heading_sigma):.3g} deg"
         )
         for name, value in figures.items():
             if isinstance(value, list) and len(value) > 6:
                 value = f"{len(value)} values"
             elif isinstance(value, list):
-                value = ", ".join(f"{v:.6g}" for v in value)
+                value = ", ".join(v if isinstance(v, str) else f"{v:.6g}" for v in value)
             elif isinstance(value, float):
                 value = f"{value:.6g}"
             print(f"  {name}: {value}")
@@ -87,15 +124,133 @@ def run_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_misplaced(args) -> None:
+    """The options that cannot apply to this export, by name."""
+    if args.runs:
+        by_hand = {
+            "--k": args.k is not None,
+            "--radius-sigma": args.radius_sigma is not None,
+            "--track-sigma": args.track_sigma is not None,
+        }
+        refuse_unused(by_hand, "a noise model by hand, where the runs identify one: not both")
+    else:
+        refuse_unused(
+            {
+                "--reference-sigma": args.reference_sigma is not None,
+                "--accept-inconsistent": args.accept_inconsistent,
+            },
+            "used only with runs, which identify the noise model and hold it to them",
+        )
+    if not args.runs and args.k is None:
+        raise ValueError(
+            "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
+            "with --radius-sigma and --track-sigma"
+        )
+    refuse_unused(
+        {"--drive": args.drive is not None and args.to != "wpilib"}, "used only with --to wpilib"
+    )
+    ros2_only = {
+        "--window": args.window != Reference.window,
+    }
+    refuse_unused(
+        {k: v and args.to != "ros2" for k, v in ros2_only.items()}, "used only with --to ros2"
+    )
+    amcl_only = {
+        "--turn-rate": args.turn_rate != Reference.turn_rate,
+        "--scan-rate": args.scan_rate != Reference.scan_rate,
+        "--update-min-d": args.update_min_d != Reference.update_min_d,
+        "--update-min-a": args.update_min_a != Reference.update_min_a,
+    }
+    refuse_unused(
+        {k: v and args.to != "amcl" for k, v in amcl_only.items()}, "used only with --to amcl"
+    )
+
+
+def _wheel_names(args) -> tuple[str, str] | None:
+    """The controller's wheel joints (--left-joint, --right-joint), which ros2 needs."""
+    if args.to != "ros2":
+        return None
+    if args.left_joint is None or args.right_joint is None:
+        raise ValueError(
+            "export --to ros2 writes diff_drive_controller's left_wheel_names and "
+            "right_wheel_names: give --left-joint NAME --right-joint NAME (the wheels' joints "
+            "in the robot's URDF, as a bag's /joint_states names them)"
+        )
+    return args.left_joint, args.right_joint
+
+
+def _drive(args) -> DriveConstants | None:
+    """WPILib's kS, kV, kA from a drive file (``diffdrive identify`` writes one)."""
+    if args.drive is None:
+        return None
+    sections = read_drive(args.drive)
+    if "feedforward" not in sections:
+        raise TableError(
+            f"{args.drive}: no [feedforward] (kS, kV, kA): the drive was identified from "
+            "commands alone, a velocity response; WPILib's feedforward needs a voltage log "
+            "(diffdrive identify of a table with left_voltage, right_voltage)"
+        )
+    linear = sections["feedforward"]
+    angular = sections.get("angular", {})
+    missing = [key for key in ("ks", "kv", "ka") if key not in linear]
+    if missing:
+        raise TableError(f"{args.drive}: [feedforward] lacks {', '.join(missing)}")
+    return DriveConstants(
+        linear["ks"], linear["kv"], linear["ka"], angular.get("kv"), angular.get("ka")
+    )
+
+
+def _identified(args, robot, ticks, notes: list[str], lines: list[str]):
+    """The noise model identified on the runs, the reference's accuracy held at what was
+    stated (or at motion capture's for tables), and the reasons its own runs give against
+    writing it (``export.refusals``)."""
+    read = [_calibration_run(args, path, ticks)[0] for path in args.runs]
+    fixed = None
+    stated = args.reference_sigma
+    if stated is None and not any(is_bag(path) for path in args.runs):
+        stated = MOTION_CAPTURE
+        source = "motion capture's (a table's ground truth), by default"
+    else:
+        source = "as stated (--reference-sigma)" if stated is not None else "identified"
+    if stated is not None:
+        meters, degrees = stated
+        fixed = {"reference_sigma": meters, "reference_heading_sigma": math.radians(degrees)}
+        source = f"{1000 * meters:g} mm and {degrees:g} deg, {source}"
+    model, left_out = identify_what_it_can(robot, read, fixed=fixed)
+    identified = f"identified on {len(read)} runs" + (
+        f" ({', '.join(left_out)} left out: the runs cannot identify them)" if left_out else ""
+    )
+    found = score(robot, read, model)
+    held = (
+        f"held to its runs (the reference's own noise added): {found.inside_95:.0%} of "
+        f"{found.used} poses inside its 95 % ellipse (at least {MIN_INSIDE_95:.0%} needed), "
+        f"ANEES {found.anees:.3g}"
+    )
+    notes += [f"noise model {identified}; the reference's accuracy {source}", held]
+    lines += [f"noise model {identified}; the reference's accuracy {source}", held]
+    at_bound = [
+        t for t in ("radius_sigma", "track_sigma") if t in model.terms and not getattr(model, t)
+    ]
+    if at_bound:
+        lines.append(f"{', '.join(at_bound)} at 0: the runs show no run-to-run change of it")
+    return model, refusals(found, model)
+
+
 EPILOGS = {
     "export": """examples:
-  diffdrive calibrate run1.csv run2.csv -o robot.toml
-  diffdrive export --to ros2 --robot robot.toml --nominal nominal.toml run1.csv run2.csv
+  diffdrive calibrate run1.csv run2.csv --robot nominal.toml -o robot.toml
+  diffdrive export --to ros2 --robot robot.toml --nominal nominal.toml run1.csv run2.csv \\
+      --left-joint left_wheel_joint --right-joint right_wheel_joint
   diffdrive export --to amcl --robot robot.toml --k 1e-4 --radius-sigma 0.002
+  diffdrive identify sysid.csv --robot robot.toml -o drive.toml
+  diffdrive export --to wpilib --robot robot.toml --drive drive.toml run1.csv run2.csv
 
-The noise model is identified on the runs given (ground truth as the reference), or taken from
---k, --radius-sigma and --track-sigma. How each figure is derived: the module
-diffdrive.export, and the comments at the top of the file written.""",
+The noise model is identified on the runs given (ground truth as the reference, its own
+accuracy held at --reference-sigma: by default motion capture's, 1 mm and 0.1 deg, for tables;
+identified for a bag's --reference-topic), then held to them: below 80 % of their poses inside
+its 95 % ellipse, or with its wheel noise k at 0, it is refused (--accept-inconsistent writes
+it, saying so in the file). Or it is taken from --k, --radius-sigma and --track-sigma. How each
+figure is derived: the module diffdrive.export, and the notes at the top of the file.""",
 }
 
 
@@ -103,12 +258,13 @@ def add_to(command: Command, parents: Parents) -> None:
     """The options of ``diffdrive export``."""
     ex = command(
         "export",
-        "the calibrated robot and its noise model as ROS 2, robot_localization, AMCL or "
-        "WPILib parameters",
+        "the calibrated robot, its noise model and its drive as ROS 2, robot_localization, "
+        "AMCL or WPILib files",
         [parents.robot, parents.logs],
         run_export,
         EPILOGS["export"],
     )
+    defaults = Reference()
     ex.add_argument("runs", nargs="*", type=Path, help="runs with ground truth to identify on")
     ex.add_argument("--to", choices=TARGETS, required=True, help="the file to write")
     ex.add_argument("-o", "--output", type=Path, help="default: the target's usual file name")
@@ -116,8 +272,57 @@ def add_to(command: Command, parents: Parents) -> None:
     ex.add_argument("--k", type=float, metavar="M", help="wheel noise, m (without runs)")
     ex.add_argument("--radius-sigma", type=float, metavar="REL", help="per-run radius error")
     ex.add_argument("--track-sigma", type=float, metavar="REL", help="per-run track error")
-    ex.add_argument("--distance", type=float, default=1.0, help="straight motion, m (1)")
-    ex.add_argument("--turn", type=float, default=1.0, help="turn in place, rad (1)")
-    ex.add_argument("--speed", type=float, default=0.5, help="speed, m/s (0.5)")
-    ex.add_argument("--rate", type=float, default=50.0, help="odometry rate, Hz (50)")
+    ex.add_argument(
+        "--reference-sigma",
+        type=float,
+        nargs=2,
+        metavar=("M", "DEG"),
+        help="the runs' reference's own accuracy, m and degrees (default: 0.001 0.1, motion "
+        "capture's, for tables; identified for a bag's --reference-topic)",
+    )
+    ex.add_argument(
+        "--accept-inconsistent",
+        action="store_true",
+        help="write a model its runs refute (fewer than 80 %% inside its 95 %% ellipse, or k at "
+        "0), saying so in the file",
+    )
+    ex.add_argument(
+        "--drive", type=Path, metavar="FILE", help="wpilib: kS, kV, kA from diffdrive identify"
+    )
+    ex.add_argument("--distance", type=float, default=defaults.distance, help="straight, m (1)")
+    ex.add_argument("--turn", type=float, default=defaults.turn, help="turn, rad (1)")
+    ex.add_argument("--speed", type=float, default=defaults.speed, help="speed, m/s (0.5)")
+    ex.add_argument(
+        "--turn-rate", type=float, default=defaults.turn_rate, help="amcl: turn rate, rad/s (1)"
+    )
+    ex.add_argument(
+        "--rate",
+        type=float,
+        default=defaults.rate,
+        help="the controller's update rate, Hz (50): each update's velocity from one period",
+    )
+    ex.add_argument(
+        "--window",
+        type=between(1, 1_000_000),
+        default=defaults.window,
+        help="ros2: velocity_rolling_window_size, updates (10, the controller's default)",
+    )
+    ex.add_argument(
+        "--scan-rate",
+        type=float,
+        default=defaults.scan_rate,
+        help="amcl: the laser's rate, Hz (10): when AMCL looks at the odometry",
+    )
+    ex.add_argument(
+        "--update-min-d",
+        type=float,
+        default=defaults.update_min_d,
+        help="amcl: update_min_d, m (0.25, Nav2's default), written with the alphas",
+    )
+    ex.add_argument(
+        "--update-min-a",
+        type=float,
+        default=defaults.update_min_a,
+        help="amcl: update_min_a, rad (0.2, Nav2's default), written with the alphas",
+    )
     ex.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")

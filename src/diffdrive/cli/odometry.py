@@ -155,7 +155,9 @@ def _within_gyro(log: Run, gyro, note: str) -> tuple[Run, str]:
         raise TableError(f"{log.source}: the gyro does not cover the log's times")
     if not inside.all():
         log = log.rows(inside)
-        note += f"\nthe log is cut to [{log.times[0]:.3f}, {log.times[-1]:.3f}] s, where the gyro is"
+        note += (
+            f"\nthe log is cut to [{log.times[0]:.3f}, {log.times[-1]:.3f}] s, where the gyro is"
+        )
     return log, note
 
 

@@ -62,8 +62,12 @@ def _plan_of(args: argparse.Namespace):
     waypoints = np.column_stack([table[name] for name in columns])
     gains = [args.ks, args.kv, args.ka]
     if any(g is not None for g in gains) and not all(g is not None for g in gains):
-        raise ValueError("--ks, --kv and --ka go together (V, V s/rad, V s^2/rad of the wheel)")
-    feedforward = Feedforward(*gains) if all(g is not None for g in gains) else None
+        raise ValueError("--ks, --kv and --ka go together (V, V s/m, V s^2/m, as SysId gives them)")
+    feedforward = None
+    if all(g is not None for g in gains):
+        # SysId's gains are per m/s of the wheel's surface; the plan's wheels turn in rad/s.
+        radius = 0.5 * (robot.left_wheel_radius + robot.right_wheel_radius)
+        feedforward = Feedforward(*gains).per_radian(radius)
     limits = PathLimits(
         **{name: getattr(args, name) for name in LIMIT_FLAGS}, feedforward=feedforward
     )
@@ -180,7 +184,7 @@ EPILOGS = {
   diffdrive plan waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
       --max-wheel-velocity 20 -o plan.csv --plot plan.png
   diffdrive plan waypoints.csv --robot robot.toml --max-velocity 3 --max-acceleration 2 \\
-      --max-voltage 10 --ks 1.34 --kv 0.24 --ka 0.07 -o plan.csv
+      --max-voltage 10 --ks 1.34 --kv 3.13 --ka 0.926 -o plan.csv
 
 waypoints.csv has columns x, y (m) and optionally theta (rad, the robot's heading); two rows at
 one place with different headings make a turn in place. Written: t, x, y, theta, v, omega and
@@ -200,9 +204,13 @@ def _planning_options(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("waypoints", type=Path, help="CSV of waypoints: x, y[, theta]")
     for name, unit in LIMIT_FLAGS.items():
         sub.add_argument("--" + name.replace("_", "-"), type=float, metavar=unit.upper())
-    sub.add_argument("--ks", type=float, metavar="V", help="wheel feedforward kS")
-    sub.add_argument("--kv", type=float, metavar="V_S/RAD", help="wheel feedforward kV")
-    sub.add_argument("--ka", type=float, metavar="V_S2/RAD", help="wheel feedforward kA")
+    sub.add_argument("--ks", type=float, metavar="V", help="wheel feedforward kS (SysId's)")
+    sub.add_argument(
+        "--kv", type=float, metavar="V_S/M", help="wheel feedforward kV per m/s (SysId's)"
+    )
+    sub.add_argument(
+        "--ka", type=float, metavar="V_S2/M", help="wheel feedforward kA per m/s^2 (SysId's)"
+    )
     sub.add_argument("--reverse", action="store_true", help="drive the path backward")
     sub.add_argument("--stops", metavar="I,J", help="interior waypoints to halt at")
     sub.add_argument("--dt", type=float, default=0.02, help="period, s (0.02)")

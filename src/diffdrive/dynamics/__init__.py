@@ -12,9 +12,13 @@
 
 - ``drive``: ``DriveModel`` (either model, or what an identification found) and
   ``simulate_commands``: commands through the drive to wheel velocities to poses, batched.
+
+- ``identify``: ``identify_drive``, a log's voltages or commands to the drive's kS, kV, kA
+  (in WPILib's units) and velocity response in one call, as ``diffdrive identify`` writes.
 """
 
 from diffdrive.dynamics.drive import DriveModel, simulate_commands
+from diffdrive.dynamics.identify import DriveIdentification, identify_drive
 from diffdrive.dynamics.response import (
     HeldOutResponse,
     VelocityResponse,
@@ -30,6 +34,7 @@ from diffdrive.dynamics.voltage import (
 )
 
 __all__ = [
+    "DriveIdentification",
     "DriveModel",
     "DrivetrainResponse",
     "Feedforward",
@@ -37,6 +42,7 @@ __all__ = [
     "VelocityResponse",
     "VoltageResponse",
     "cross_validate",
+    "identify_drive",
     "identify_drivetrain",
     "identify_velocity_response",
     "identify_voltage_response",

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import finite
+from diffdrive._validate import finite, positive
 from diffdrive.model import Robot
 from diffdrive.types import TwistLike
 
@@ -49,6 +49,13 @@ class Feedforward:
         # identification on noisy data may find a small negative kS and must report it.
         for name in ("ks", "kv", "ka"):
             finite(name, getattr(self, name))
+
+    def per_radian(self, radius: float) -> Feedforward:
+        """These gains, identified on a wheel's surface speed (V s/m, V s^2/m, as SysId and
+        WPILib give them), for the wheel's angular velocity (V s/rad, V s^2/rad) at
+        ``radius`` m: ``kV r`` and ``kA r``; kS stays."""
+        r = positive("radius", radius)
+        return Feedforward(self.ks, self.kv * r, self.ka * r)
 
     def voltage(self, velocity: object, acceleration: object = 0.0) -> np.ndarray:
         """``kS sgn(v) + kV v + kA a`` for velocities and accelerations (arrays broadcast)."""

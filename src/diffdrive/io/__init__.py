@@ -7,7 +7,7 @@
   the others share), with their time units;
 - ``logs``: wheel-log tables; ``optiodom``: the OptiOdom run files (Sousa et al. 2022);
 - ``trajectories``: ``t, x, y, theta`` as CSV, JSON lines or TUM, or a bag's topic;
-- ``robots``: robot files (TOML);
+- ``robots``: robot files (TOML); ``drives``: drive files (TOML, what ``identify`` found);
 - ``stamps``: ``sample_times``, the sample times behind a fixed-rate publisher's stamps that
   are a clock tick early at times (a simulator's ``/joint_states``);
 - ``ros``: ROS 1 bags, ROS 2 bags and MCAP files (the ``ros`` extra), loaded on first use;
@@ -18,6 +18,7 @@ the line and column when known; every writer leaves the target as it was when it
 """
 
 from diffdrive.atomic import atomic_output, atomic_write
+from diffdrive.io.drives import read_drive, write_drive
 from diffdrive.io.logs import read_log
 from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
 from diffdrive.io.read import read_run
@@ -51,6 +52,7 @@ __all__ = [
     "narrower_counter",
     "optiodom_robot",
     "overridden",
+    "read_drive",
     "read_log",
     "read_optiodom_run",
     "read_robot",
@@ -59,6 +61,7 @@ __all__ = [
     "read_trajectory",
     "robot_from_settings",
     "sample_times",
+    "write_drive",
     "write_robot",
     "write_trajectory",
 ]

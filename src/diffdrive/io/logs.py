@@ -3,8 +3,9 @@
 A time column ``t`` and one pair of wheel columns (``diffdrive.io.run.WHEEL_COLUMNS``:
 ``left_ticks, right_ticks``, ``left_angle, right_angle`` or ``left_velocity,
 right_velocity``), and optionally ``x, y, theta`` (ground truth), ``gyro_z`` (the body yaw
-rate of a gyro, rad/s) and ``left_command, right_command`` (the commanded wheel velocities,
-rad/s). A file without a header is read as an OptiOdom run file (``diffdrive.io.optiodom``).
+rate of a gyro, rad/s), ``left_command, right_command`` (the commanded wheel velocities,
+rad/s) and ``left_voltage, right_voltage`` (V, as SysId logs them), each pair whole. A file
+without a header is read as an OptiOdom run file (``diffdrive.io.optiodom``).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ __all__ = ["read_log"]
 
 _TRUTH = ("x", "y", "theta")
 _COMMANDS = ("left_command", "right_command")
+_VOLTAGES = ("left_voltage", "right_voltage")
 
 
 def read_log(path: str | Path, time_unit: str | None = None) -> Run:
@@ -52,13 +54,11 @@ def read_log(path: str | Path, time_unit: str | None = None) -> Run:
     table = read_table(
         path,
         ["t", *columns],
-        (*_TRUTH, "gyro_z", *_COMMANDS),
+        (*_TRUTH, "gyro_z", *_COMMANDS, *_VOLTAGES),
         integers=integers,
         time_unit=time_unit,
     )
-    commands = None
-    if all(name in table for name in _COMMANDS):
-        commands = np.column_stack([table[name] for name in _COMMANDS])
+    commands, voltages = _pair(table, _COMMANDS, path), _pair(table, _VOLTAGES, path)
     if len(table["t"]) < 2:
         raise TableError(f"{path}: a log needs at least 2 rows")
     if time_unit is None:
@@ -77,7 +77,20 @@ def read_log(path: str | Path, time_unit: str | None = None) -> Run:
         table.lines,
         gyro_rates=table.get("gyro_z"),
         commands=commands,
+        voltages=voltages,
     )
+
+
+def _pair(table: Table, names: tuple[str, str], path: Path) -> np.ndarray | None:
+    """The two columns ``names`` side by side, None when neither is there; one alone is
+    refused (the other wheel's would be guessed)."""
+    present = [name for name in names if name in table]
+    if not present:
+        return None
+    if len(present) == 1:
+        missing = next(name for name in names if name not in table)
+        raise TableError(f"{path}:1: {present[0]} needs {missing} beside it")
+    return np.column_stack([table[name] for name in names])
 
 
 def _truth(table: Table, path: Path) -> np.ndarray | None:

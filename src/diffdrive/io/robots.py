@@ -36,14 +36,26 @@ def read_robot(path: str | Path) -> dict[str, float]:
     Returns them as a dict; ``TableError`` names the file (and the line, for a syntax error)
     of anything wrong.
     """
+    path = Path(path)
+    settings = load_toml(path, "a robot file")
+    unknown = sorted(set(settings) - set(ROBOT_KEYS))
+    if unknown:
+        raise TableError(
+            f"{path}: unknown setting {unknown[0]!r}; a robot file may set {', '.join(ROBOT_KEYS)}"
+        )
+    return {key: toml_number(path, key, value) for key, value in settings.items()}
+
+
+def load_toml(path: Path, what: str) -> dict[str, Any]:
+    """The TOML document at ``path`` (``what`` names the kind of file in messages);
+    ``TableError`` names the file and what is wrong with it."""
     if sys.version_info >= (3, 11):
         import tomllib
     else:
         import tomli as tomllib
-    path = Path(path)
     try:
         with path.open("rb") as handle:
-            settings = tomllib.load(handle)
+            return tomllib.load(handle)
     except OSError as exc:
         raise TableError(f"{path}: cannot read: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
@@ -51,26 +63,23 @@ def read_robot(path: str | Path) -> dict[str, float]:
     except UnicodeDecodeError as exc:
         raise TableError(
             f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
-            "a robot file is TOML, which is UTF-8"
+            f"{what} is TOML, which is UTF-8"
         ) from None
-    unknown = sorted(set(settings) - set(ROBOT_KEYS))
-    if unknown:
-        raise TableError(
-            f"{path}: unknown setting {unknown[0]!r}; a robot file may set {', '.join(ROBOT_KEYS)}"
-        )
-    for key, value in settings.items():
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise TableError(f"{path}: {key} must be a number, got {value!r}")
-        try:
-            number = float(value)
-        except OverflowError:  # an integer of hundreds of digits
-            number = math.inf
-        if not math.isfinite(number):
-            shown = (
-                f"{value!r}" if len(repr(value)) < 40 else f"a number of {len(repr(value))} digits"
-            )
-            raise TableError(f"{path}: {key} must be finite, got {shown}")
-    return {key: float(value) for key, value in settings.items()}
+
+
+def toml_number(path: Path, key: str, value: object) -> float:
+    """A TOML value that must be a finite number, as a float; ``TableError`` names the file
+    and key otherwise."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TableError(f"{path}: {key} must be a number, got {value!r}")
+    try:
+        number = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        number = math.inf
+    if not math.isfinite(number):
+        shown = f"{value!r}" if len(repr(value)) < 40 else f"a number of {len(repr(value))} digits"
+        raise TableError(f"{path}: {key} must be finite, got {shown}")
+    return number
 
 
 def write_robot(path: str | Path, settings: dict[str, float], comment: str = "") -> None:

@@ -58,6 +58,7 @@ class Run:
     ticks_per_revolution: float | None = None
     gyro_rates: np.ndarray | None = None
     commands: np.ndarray | None = None
+    voltages: np.ndarray | None = None
 
     @classmethod
     def from_increments(
@@ -105,6 +106,7 @@ class Run:
             lines=cut(self.lines),
             gyro_rates=cut(self.gyro_rates),
             commands=cut(self.commands),
+            voltages=cut(self.voltages),
         )
 
     def increments(
@@ -136,6 +138,18 @@ class Run:
         if not math.isfinite(radians):
             raise TableError(f"ticks per revolution {ticks!r} gives no finite angle per count")
         return count_changes(self.wheels, counter_bits) * radians
+
+    def wheel_velocities(
+        self, ticks_per_revolution: float | None = None, counter_bits: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The wheels' measured velocities ``(N, 2)`` rad/s and their times ``(N,)`` s: a
+        velocity log's own rows (the last, held over nothing, left out), else each interval's
+        turn over its duration, at the interval's middle."""
+        if self.kind == "velocity":
+            return self.times[:-1], self.wheels[:-1].astype(float)
+        increments = self.increments(ticks_per_revolution, counter_bits)
+        middles = 0.5 * (self.times[1:] + self.times[:-1])
+        return middles, increments / np.diff(self.times)[:, None]
 
     def start_pose(self) -> np.ndarray:
         """Where the run starts, ``(3,)``: its first ground-truth pose, else the origin."""

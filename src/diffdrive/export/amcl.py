@@ -1,0 +1,210 @@
+"""Nav2 AMCL's differential motion model as its source has it, and the alphas that match a
+noise model to it.
+
+The sampler (``nav2_amcl::DifferentialMotionModel::odometryUpdate``, after Thrun, Burgard and
+Fox, *Probabilistic Robotics*, table 5.6): each filter update splits the odometry's motion
+since the last update, in the odom frame, into a turn ``rot1`` to the motion's bearing (0 for
+a motion under 1 cm), a straight ``trans`` and a turn ``rot2``; for the noise each turn is
+folded to the nearer of forward and backward (``min(|rot|, pi - |rot|)``). Every particle then
+moves by ``rot1 - n1``, ``trans - nt``, ``rot2 - n2`` with
+
+- ``n1 ~ N(0, alpha1 rot1^2 + alpha2 trans^2)``, ``n2 ~ N(0, alpha1 rot2^2 + alpha2 trans^2)``:
+  the translation spreads **both** turns;
+- ``nt ~ N(0, alpha3 trans^2 + alpha4 (rot1^2 + rot2^2))``.
+
+AMCL updates when the odometry, sampled at each laser scan, has moved more than
+``update_min_d`` along the odom frame's x or y, or turned more than ``update_min_a``, since the
+last update (``AmclNode::shouldUpdateFilter``): the noise is applied per update, so the
+variance a motion collects depends on how it is cut.
+
+Matching (``match_alphas``): along three reference motions (``distance`` m straight, a turn
+in place of ``turn`` rad at ``turn_rate``, an arc of twice ``distance`` turning ``turn``
+rad), all from heading 0 in the odom frame, sampled at ``scan_rate`` and cut into updates by
+that rule (the last piece applied at the motion's end), the particles' covariance is linear in
+the four alphas: the sampler's Jacobians along the nominal path (``sampler_terms``). The
+alphas make the largest relative miss of its diagonal against the noise model's covariance
+after the same motions least (Lawson's iteratively reweighted least squares toward the
+minimax fit, kept non-negative); that miss is reported with them.
+
+One split no alphas can set: in a turn in place the sampler moves a particle along its heading
+at the update's start (a pure turn has no ``rot1`` noise), so a 1 rad turn cut into a few
+updates puts its position spread on the headings 0, 0.3, 0.6, ... where the wheels' noise is
+spread over every heading of the turn. Only ``alpha4`` acts there, on x and y alike; so for
+the turn the fit takes the position's total variance (x plus y) and the heading's, and
+``AlphaFit.split`` gives how far each of x and y is off.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive._stats import nonnegative_least_squares
+
+__all__ = ["AlphaFit", "Motion", "match_alphas", "reference_motions", "sampler_terms"]
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A reference motion: its ``name``, the wheel-angle ``increments`` ``(S, 2)`` rad that
+    drive it (for the noise model), the odometry ``poses`` ``(K, 3)`` at each scan, and
+    whether it turns in place (``spin``: its x and y are matched as their sum)."""
+
+    name: str
+    increments: np.ndarray
+    poses: np.ndarray
+    spin: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class AlphaFit:
+    """``match_alphas``' result: ``alphas`` ``(4,)`` (alpha1 to alpha4), per motion the
+    ``model`` and ``sampler`` covariances ``(3, 3, 3)`` (motion, then 3x3) after it,
+    ``worst``, the largest relative miss of a term matched, and ``split``, the relative miss
+    of the turn in place's x and y each (see the module)."""
+
+    alphas: np.ndarray
+    motions: tuple[str, ...]
+    model: np.ndarray
+    sampler: np.ndarray
+    worst: float
+    split: tuple[float, float]
+
+
+def angle_diff(a: float, b: float) -> float:
+    """``a - b`` (rad) as Nav2's ``angleutils::angle_diff`` has it: both normalised by
+    ``atan2(sin, cos)``, then the shorter way round. AMCL's thresholds compare these values,
+    so the same rounding decides a motion that lands on one."""
+    a, b = math.atan2(math.sin(a), math.cos(a)), math.atan2(math.sin(b), math.cos(b))
+    d1 = a - b
+    d2 = 2.0 * math.pi - abs(d1)
+    if d1 > 0.0:
+        d2 = -d2
+    return d1 if abs(d1) < abs(d2) else d2
+
+
+def update_points(poses: np.ndarray, update_min_d: float, update_min_a: float) -> list[int]:
+    """The indices of ``poses`` ``(K, 3)`` (the odometry at each scan) where AMCL updates:
+    more than ``update_min_d`` along x or y, or ``update_min_a`` of turn, since the last
+    update; the last pose always (the motion's end)."""
+    points, last = [0], poses[0]
+    for k in range(1, len(poses)):
+        dx, dy = poses[k, 0] - last[0], poses[k, 1] - last[1]
+        turned = abs(angle_diff(poses[k, 2], last[2]))
+        if abs(dx) > update_min_d or abs(dy) > update_min_d or turned > update_min_a:
+            points.append(k)
+            last = poses[k]
+    if points[-1] != len(poses) - 1:
+        points.append(len(poses) - 1)
+    return points
+
+
+def _folded(rot: float) -> float:
+    """A turn folded to the nearer of forward and backward, as the sampler's noise takes it."""
+    return min(abs(angle_diff(rot, 0.0)), abs(angle_diff(rot, math.pi)))
+
+
+def sampler_terms(poses: np.ndarray) -> np.ndarray:
+    """The particles' covariance ``(4, 3, 3)`` after AMCL updates at ``poses`` ``(U, 3)`` (the
+    odometry at each update, from a start known exactly), per unit of each alpha: the
+    sampler's noise propagated through its Jacobians along the nominal path. The covariance
+    for ``alphas`` is ``alphas @ terms`` over the first axis."""
+    terms = np.zeros((4, 3, 3))
+    for before, after in pairwise(poses):
+        dx, dy = after[0] - before[0], after[1] - before[1]
+        trans = math.hypot(dx, dy)
+        rot1 = 0.0 if trans < 0.01 else angle_diff(math.atan2(dy, dx), before[2])
+        rot2 = angle_diff(angle_diff(after[2], before[2]), rot1)
+        r1, r2 = _folded(rot1), _folded(rot2)
+        # Per alpha, the variances of (n1, nt, n2).
+        variances = np.array(
+            [
+                [r1 * r1, 0.0, r2 * r2],
+                [trans * trans, 0.0, trans * trans],
+                [0.0, trans * trans, 0.0],
+                [0.0, r1 * r1 + r2 * r2, 0.0],
+            ]
+        )
+        bearing = before[2] + rot1
+        c, s = math.cos(bearing), math.sin(bearing)
+        moved = np.array([[1.0, 0.0, -trans * s], [0.0, 1.0, trans * c], [0.0, 0.0, 1.0]])
+        by_noise = np.array([[trans * s, -c, 0.0], [-trans * c, -s, 0.0], [-1.0, 0.0, -1.0]])
+        terms = moved @ terms @ moved.T + np.einsum("ij,aj,kj->aik", by_noise, variances, by_noise)
+    return terms
+
+
+def reference_motions(robot, at) -> list[Motion]:
+    """The three motions the alphas are matched on, at ``at``'s speed, turn rate and scan
+    rate (see the module): each driven by its wheels' increments in 100 even steps, and its
+    odometry at every scan and at its end. ``robot``: the (equivalent) differential drive."""
+    r_l, r_r, track = robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width
+    curvature = at.turn / (2.0 * at.distance)
+    made = []
+    for name, twist, duration in (
+        (f"{at.distance:g} m straight", (at.speed, 0.0, 0.0), at.distance / at.speed),
+        (f"{at.turn:g} rad turn in place", (0.0, 0.0, at.turn_rate), at.turn / at.turn_rate),
+        (
+            f"{2 * at.distance:g} m arc turning {at.turn:g} rad",
+            (at.speed, 0.0, at.speed * curvature),
+            2.0 * at.distance / at.speed,
+        ),
+    ):
+        v, _, omega = twist
+        left = (v - 0.5 * track * omega) * duration / r_l
+        right = (v + 0.5 * track * omega) * duration / r_r
+        increments = np.tile([left / 100, right / 100], (100, 1))
+        scans = np.unique(np.append(np.arange(0.0, duration, 1.0 / at.scan_rate), duration))
+        poses = batch.exp(np.tile(twist, (len(scans), 1)), scans)
+        made.append(Motion(name, increments, poses, spin=v == 0.0))
+    return made
+
+
+def _matched(covariance: np.ndarray, spin: bool) -> np.ndarray:
+    """The terms matched of covariances ``(..., 3, 3)``: the diagonal, or for a turn in place
+    the position's total and the heading's."""
+    diagonal = np.diagonal(covariance, axis1=-2, axis2=-1)
+    if spin:
+        return np.stack([diagonal[..., 0] + diagonal[..., 1], diagonal[..., 2]], axis=-1)
+    return diagonal
+
+
+def _minimax(rows: np.ndarray, rounds: int = 100) -> np.ndarray:
+    """Non-negative ``x`` making the largest ``|rows @ x - 1|`` least, near enough: least
+    squares reweighted each round by the residuals (Lawson 1961), a floor keeping every row
+    in play."""
+    weights = np.ones(len(rows))
+    for _ in range(rounds):
+        root = np.sqrt(weights)
+        found = nonnegative_least_squares(rows * root[:, None], root)
+        residual = np.abs(rows @ found - 1.0)
+        weights = weights * np.maximum(residual, 1e-4 * residual.max())
+        weights /= weights.max()
+    return found
+
+
+def match_alphas(motions: list[Motion], model_covariances: np.ndarray, at) -> AlphaFit:
+    """The alphas whose sampler covariance (``sampler_terms`` at the update points of each
+    motion) best matches ``model_covariances`` ``(3, 3, 3)`` (the noise model's after each
+    motion), term by term relative to its own size: the least largest miss."""
+    rows, per_motion = [], []
+    for motion, covariance in zip(motions, model_covariances, strict=True):
+        points = update_points(motion.poses, at.update_min_d, at.update_min_a)
+        terms = sampler_terms(motion.poses[points])
+        per_motion.append(terms)
+        wanted = _matched(covariance, motion.spin)
+        made = _matched(terms, motion.spin)  # (4, terms)
+        rows += [made[:, i] / wanted[i] for i in range(len(wanted)) if wanted[i] > 0.0]
+    alphas = _minimax(np.array(rows))
+    sampler = np.array([np.tensordot(alphas, terms, axes=1) for terms in per_motion])
+    misses, split = [], (0.0, 0.0)
+    for motion, made, wanted in zip(motions, sampler, model_covariances, strict=True):
+        ours, theirs = _matched(made, motion.spin), _matched(wanted, motion.spin)
+        misses += [abs(a / b - 1.0) for a, b in zip(ours, theirs, strict=True) if b > 0.0]
+        if motion.spin:
+            split = (made[0, 0] / wanted[0, 0] - 1.0, made[1, 1] / wanted[1, 1] - 1.0)
+    names = tuple(motion.name for motion in motions)
+    return AlphaFit(alphas, names, np.asarray(model_covariances), sampler, max(misses), split)

@@ -1,0 +1,195 @@
+"""The figures of each target's file, from the calibrated robot, its noise model and its drive.
+
+How each figure is derived (``Reference`` holds the choices, all stated in the file):
+
+- ``"ros2"``, ros2_controllers' ``diff_drive_controller``: ``wheel_separation`` and
+  ``wheel_radius`` (the nominal robot's) with the multipliers that make them the calibrated
+  ones; ``left_wheel_names`` and ``right_wheel_names``; ``velocity_rolling_window_size``; the
+  pose covariance diagonal, the noise model's after ``distance`` m straight (the controller
+  publishes one constant matrix, so it is the model's at one distance); the twist covariance
+  diagonal of the velocity the controller publishes: the mean of the per-update velocities
+  over its rolling window of ``window`` updates at ``rate`` Hz, each from the wheels' travel
+  over one period (``k |travel|`` each), so ``var(v) = k v rate / (2 window) + (v
+  radius_sigma)^2 / 2`` and ``var(w) = 2 k v rate / (window T^2) + 2 (v radius_sigma /
+  T)^2`` at ``speed`` (the radius error does not average out);
+- ``"robot_localization"``: the ``process_noise_covariance`` of its ``ekf_node``: the
+  variance per second of x, y (``k speed / 2`` plus the radius error's) and yaw (``2 k speed
+  / T^2``) when driving at ``speed``; the other entries its documented defaults;
+- ``"amcl"``: Nav2 AMCL's ``alpha1`` to ``alpha4`` matched to its differential sampler as
+  written, updating at the ``update_min_d`` and ``update_min_a`` written beside them
+  (``diffdrive.export.amcl``);
+- ``"wpilib"``: the track width (the calibrated, effective one), the ``stateStdDevs`` of
+  ``DifferentialDrivePoseEstimator`` (the standard deviations after ``distance`` m straight:
+  how far the odometry is trusted between measurements) and, from a drive identification,
+  kS, kV, kA in WPILib's units (V, V s/m, V s^2/m) and the angular channel's kV, kA.
+
+Unused axes of a 2-D robot (z, roll, pitch) get 1e6 (unknown), its sideways velocity 1e-9
+(known zero; some consumers invert the matrix).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from diffdrive._validate import finite, positive, whole
+from diffdrive.export.amcl import match_alphas, reference_motions
+from diffdrive.model import DiffDrive
+from diffdrive.noise import NoiseModel, covariances
+
+__all__ = ["TARGETS", "DriveConstants", "Reference", "parameters"]
+
+TARGETS = ("ros2", "robot_localization", "amcl", "wpilib")
+UNKNOWN, KNOWN_ZERO = 1e6, 1e-9
+# robot_localization's documented default process noise diagonal (ekf.yaml).
+_RL_DEFAULT = (0.05, 0.05, 0.06, 0.03, 0.03, 0.06, 0.025, 0.025, 0.04, 0.01, 0.01, 0.02, 0.01,
+               0.01, 0.015)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The motions and settings the figures are taken at: ``distance`` m straight, a turn in
+    place of ``turn`` rad at ``turn_rate`` rad/s, ``speed`` m/s; the controller's update
+    ``rate`` (Hz) and rolling ``window`` (updates, diff_drive_controller's
+    ``velocity_rolling_window_size``); AMCL's ``scan_rate`` (Hz, when it checks the
+    odometry), ``update_min_d`` (m) and ``update_min_a`` (rad), its defaults."""
+
+    distance: float = 1.0
+    turn: float = 1.0
+    speed: float = 0.5
+    turn_rate: float = 1.0
+    rate: float = 50.0
+    window: int = 10
+    scan_rate: float = 10.0
+    update_min_d: float = 0.25
+    update_min_a: float = 0.2
+
+    def __post_init__(self) -> None:
+        for name in ("distance", "turn", "speed", "turn_rate", "rate", "scan_rate"):
+            positive(name, getattr(self, name))
+        for name in ("update_min_d", "update_min_a"):
+            if not finite(name, getattr(self, name)) >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        object.__setattr__(self, "window", whole("window", self.window, 1))
+
+
+@dataclass(frozen=True)
+class DriveConstants:
+    """A drivetrain's feedforward in WPILib's units: ``ks`` (V), ``kv`` (V s/m), ``ka`` (V
+    s^2/m) of the wheels' mean (the linear channel) and, if identified, the angular channel's
+    ``kv_angular`` and ``ka_angular`` (V s/m, V s^2/m of the wheels' speed from turning), as
+    ``LinearSystemId.identifyDrivetrainSystem`` takes them."""
+
+    ks: float
+    kv: float
+    ka: float
+    kv_angular: float | None = None
+    ka_angular: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("ks", "kv", "ka", "kv_angular", "ka_angular"):
+            value = getattr(self, name)
+            if value is not None:
+                finite(name, value)
+
+
+def _motion_covariance(robot: DiffDrive, model: NoiseModel, increments: np.ndarray):
+    """The model's covariance (reference terms left out) after wheel-angle ``increments``
+    ``(S, 2)`` rad from the origin."""
+    quiet = replace(model, reference_sigma=0.0, reference_heading_sigma=0.0)
+    return covariances(robot, increments, np.zeros(3), quiet)[1][-1]
+
+
+def _straight(robot: DiffDrive, distance: float) -> np.ndarray:
+    left, right = distance / robot.left_wheel_radius, distance / robot.right_wheel_radius
+    return np.tile([left / 100, right / 100], (100, 1))
+
+
+def parameters(
+    target: str,
+    robot: DiffDrive,
+    nominal: DiffDrive,
+    model: NoiseModel,
+    at: Reference,
+    *,
+    wheel_names: tuple[str, str] | None = None,
+    drive: DriveConstants | None = None,
+) -> dict[str, object]:
+    """The figures of ``target`` for the calibrated ``robot`` (the ``nominal`` one gives the
+    base values ROS multiplies), as a dict: see the module. ``wheel_names`` (left, right) are
+    the ROS 2 controller's joints; ``drive`` WPILib's feedforward."""
+    if target not in TARGETS:
+        raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
+    # NoiseModel refuses a negative or non-finite term; all three 0 is its own mistake here.
+    if not any((model.k, model.radius_sigma, model.track_sigma)):
+        # Zero covariances read as perfectly known (a filter then ignores every other sensor)
+        # or as unset: the mistake these files are written to end (turtlebot3#1069).
+        raise ValueError(
+            "the noise model has no wheel noise (k, radius_sigma and track_sigma all 0): every "
+            "covariance would be zero; identify it from runs or give a term > 0"
+        )
+    if target == "ros2":
+        return _ros2(robot, nominal, model, at, wheel_names)
+    if target == "amcl":
+        return _amcl(robot, model, at)
+    k, sigma, track = model.k, model.radius_sigma, robot.track_width
+    if target == "robot_localization":
+        diagonal = list(_RL_DEFAULT)
+        diagonal[0] = diagonal[1] = k * at.speed / 2 + (at.speed * sigma) ** 2 / 2
+        diagonal[5] = 2 * k * at.speed / track**2
+        return {"process_noise_covariance": np.diag(diagonal).ravel().tolist()}
+    straight = _motion_covariance(robot, model, _straight(robot, at.distance))
+    figures: dict[str, object] = {
+        "trackWidth": track,
+        "stateStdDevs": np.sqrt(np.diag(straight)).tolist(),
+    }
+    if drive is not None:
+        figures.update(kS=drive.ks, kV=drive.kv, kA=drive.ka)
+        if drive.kv_angular is not None and drive.ka_angular is not None:
+            figures.update(kVAngular=drive.kv_angular, kAAngular=drive.ka_angular)
+    return figures
+
+
+def _ros2(robot, nominal, model, at, wheel_names) -> dict[str, object]:
+    if wheel_names is None:
+        raise ValueError(
+            "diff_drive_controller needs left_wheel_names and right_wheel_names: give the "
+            "wheels' joint names"
+        )
+    straight = _motion_covariance(robot, model, _straight(robot, at.distance))
+    k, sigma, track, v = model.k, model.radius_sigma, robot.track_width, at.speed
+    # The published velocity: the mean over the window of each update's travel over its
+    # period, so the travel's noise averages over window updates; a radius error does not.
+    var_v = k * v * at.rate / (2 * at.window) + (v * sigma) ** 2 / 2
+    var_w = 2 * k * v * at.rate / (at.window * track**2) + 2 * (v * sigma / track) ** 2
+    base = nominal.left_wheel_radius
+    return {
+        "left_wheel_names": [wheel_names[0]],
+        "right_wheel_names": [wheel_names[1]],
+        "wheel_separation": nominal.track_width,
+        "wheel_radius": base,
+        "wheel_separation_multiplier": track / nominal.track_width,
+        "left_wheel_radius_multiplier": robot.left_wheel_radius / base,
+        "right_wheel_radius_multiplier": robot.right_wheel_radius / base,
+        "velocity_rolling_window_size": at.window,
+        "pose_covariance_diagonal": [
+            straight[0, 0], straight[1, 1], UNKNOWN, UNKNOWN, UNKNOWN, straight[2, 2]
+        ],
+        "twist_covariance_diagonal": [var_v, KNOWN_ZERO, UNKNOWN, UNKNOWN, UNKNOWN, var_w],
+    }  # fmt: skip
+
+
+def _amcl(robot, model, at) -> dict[str, object]:
+    fit = amcl_fit(robot, model, at)
+    figures: dict[str, object] = {"robot_model_type": "nav2_amcl::DifferentialMotionModel"}
+    figures.update({f"alpha{i + 1}": float(alpha) for i, alpha in enumerate(fit.alphas)})
+    figures.update(update_min_d=at.update_min_d, update_min_a=at.update_min_a)
+    return figures
+
+
+def amcl_fit(robot: DiffDrive, model: NoiseModel, at: Reference):
+    """AMCL's alphas matched to the noise model on the reference motions (an ``AlphaFit``)."""
+    motions = reference_motions(robot, at)
+    targets = np.array([_motion_covariance(robot, model, m.increments) for m in motions])
+    return match_alphas(motions, targets, at)
