@@ -15,6 +15,7 @@ from diffdrive.cli.options import (
     TRAJECTORY_FILES,
     Command,
     Parents,
+    add_datum_option,
     refuse_unused,
 )
 from diffdrive.demo import (
@@ -359,12 +360,5 @@ def add_to(command: Command, parents: Parents) -> None:
         help="with --consistency: move the trajectory onto the truth by the rigid motion that "
         "fits them best first, its covariances turned with it (for frames of their own)",
     )
-    ev.add_argument(
-        "--datum",
-        type=float,
-        nargs=3,
-        metavar=("LAT", "LON", "ALT"),
-        help="a NavSatFix topic's frame origin (deg, deg, m): x east, y north (default: its "
-        "first fix)",
-    )
+    add_datum_option(ev)
     ev.add_argument("--json", action="store_true")

@@ -16,6 +16,7 @@ from diffdrive.cli.options import (
     TWIST_COVARIANCE_COLUMNS,
     Command,
     Parents,
+    add_datum_option,
     add_imu_options,
     estimate_columns,
     gyro_of,
@@ -252,14 +253,7 @@ def add_to(command: Command, parents: Parents) -> None:
         "--pose-topic", metavar="TOPIC", help="PoseWithCovarianceStamped or Odometry topic"
     )
     fused.add_argument("--gps-topic", metavar="TOPIC", help="NavSatFix topic of the bag")
-    fused.add_argument(
-        "--datum",
-        type=float,
-        nargs=3,
-        metavar=("LAT", "LON", "ALT"),
-        help="the GPS frame's origin (deg, deg, m), as robot_localization's navsat_transform "
-        "datum: x east, y north, theta counter-clockwise from east (default: the first fix)",
-    )
+    add_datum_option(fused)
     fused.add_argument(
         "--measurements",
         type=Path,

@@ -436,6 +436,18 @@ def gyro_of(args: argparse.Namespace, log: Run, path: Path | None = None):
     return None
 
 
+def add_datum_option(group) -> None:
+    """``--datum LAT LON ALT``: the GPS frame's origin, as navsat_transform's datum."""
+    group.add_argument(
+        "--datum",
+        type=float,
+        nargs=3,
+        metavar=("LAT", "LON", "ALT"),
+        help="the GPS frame's origin (deg, deg, m), as robot_localization's navsat_transform "
+        "datum: x east, y north, theta counter-clockwise from east (default: the first fix)",
+    )
+
+
 def add_imu_options(group, topic: bool = True) -> None:
     """``--gyro-topic`` (unless ``topic`` is False) and ``--imu-rpy``, the IMU's mounting."""
     if topic:
