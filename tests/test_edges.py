@@ -249,8 +249,8 @@ def test_a_trajectory_of_one_pose_samples_that_pose():
             TypeError,
             "counter_bits must be a whole number of bits or None, got 8.0",
         ),
-        (lambda: dd.wrap_angle(math.inf), ValueError, "angle must be finite to wrap, got inf"),
-        (lambda: dd.se2.sinc(math.inf), ValueError, "sinc needs a finite u, got inf"),
+        (lambda: dd.wrap_angle(math.inf), ValueError, "angle must be finite, got inf"),
+        (lambda: dd.se2.sinc(math.inf), ValueError, "u must be finite, got inf"),
         (lambda: dd.desaturate((1.0, 2.0), "1"), TypeError, "max_wheel_velocity must be a real"),
         (lambda: dd.Limits(max_velocity="2"), TypeError, "max_velocity must be a number"),
         (

@@ -155,8 +155,8 @@ def test_bad_waypoints_are_refused_by_name(waypoints, message) -> None:
 @pytest.mark.parametrize(
     ("settings_", "message"),
     [
-        ({"max_velocity": 0.0}, "max_velocity must be a finite number > 0"),
-        ({"max_velocity": -1.0}, "max_velocity must be a finite number > 0"),
+        ({"max_velocity": 0.0}, "max_velocity must be > 0, got 0.0"),
+        ({"max_velocity": -1.0}, "max_velocity must be > 0, got -1.0"),
         ({"max_acceleration": 1.0}, "no limit bounds the speed"),
         ({"max_velocity": 1.0, "max_voltage": 10.0}, "go together"),
         (

@@ -77,7 +77,7 @@ QUIET = Gyro([0.0, 3.0], [0.0, 0.0])
         ),
         (lambda: worst([None]), TypeError, r"errors\[0\] must be RunErrors"),
         (lambda: dd.wrap_angle(10**400), ValueError, "angle must be finite"),
-        (lambda: dd.se2.sinc(10**400), ValueError, "sinc needs a finite u"),
+        (lambda: dd.se2.sinc(10**400), ValueError, "u must be finite, got an integer too large"),
         (
             lambda: dd.simulate(ROBOT, lambda t: np.ones((len(t), 2)), dt=1e-12, duration=1e6),
             ValueError,

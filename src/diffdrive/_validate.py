@@ -25,11 +25,33 @@ def finite(name: str, value: object) -> float:
     return number
 
 
+def floats(name: str, value: object) -> np.ndarray:
+    """``value`` as an array of floats; ``TypeError`` naming ``name`` for text and what is not
+    numbers, ``ValueError`` for integers too large for a float."""
+    if isinstance(value, str | bytes):
+        raise TypeError(f"{name} must be numbers, not text: got {value!r}")
+    try:
+        return np.asarray(value, dtype=float)
+    except OverflowError:
+        raise ValueError(f"{name} must be finite, got an integer too large for a float") from None
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be numbers, got {value!r}") from None
+
+
 def positive(name: str, value: object) -> float:
     """``value`` as a float; ``ValueError`` naming ``name`` unless it is finite and > 0."""
     number = finite(name, value)
     if number <= 0.0:
         raise ValueError(f"{name} must be > 0, got {number}")
+    return number
+
+
+def length(name: str, value: object) -> float:
+    """A robot's length (a radius, a track): ``positive``, and not so small that what divides
+    by it overflows (5e-324 m gives a turn of inf)."""
+    number = positive(name, value)
+    if not math.isfinite(1.0 / number):
+        raise ValueError(f"{name} must be a length that divides to a finite number, got {number}")
     return number
 
 
@@ -87,3 +109,15 @@ def geodetic_point(name: str, value: object) -> tuple[float, float, float]:
             f"got {lat:g}, {lon:g}"
         )
     return lat, lon, height
+
+
+MOST_SAMPLES = 10_000_000  # samples of one path, rows of one plan, steps of one simulation
+
+
+def check_samples(count: float, what: str, advice: str) -> None:
+    """Refuse ``count`` samples (or rows, or steps) of ``what`` beyond ``MOST_SAMPLES``, with
+    ``advice`` (the arrays would take gigabytes, and the size is usually a unit gone wrong)."""
+    if not count <= MOST_SAMPLES:
+        raise ValueError(
+            f"{what} would take {count:.3g} samples (at most {MOST_SAMPLES:,}): {advice}"
+        )

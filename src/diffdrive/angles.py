@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+from diffdrive._validate import finite
+
 TAU = 2.0 * math.pi
 
 
@@ -12,12 +14,6 @@ def wrap_angle(angle: float) -> float:
 
     Headings stay unwrapped in poses and trajectories; wrap only to display or compare.
     """
-    try:
-        finite_angle = math.isfinite(angle)
-    except OverflowError:  # an int too large for a float
-        finite_angle = False
-    if not finite_angle:
-        raise ValueError(f"angle must be finite to wrap, got {angle!r}")
-    wrapped = math.remainder(angle, TAU)
+    wrapped = math.remainder(finite("angle", angle), TAU)
     # remainder() rounds half to even, so -pi (and 3*pi, ...) lands on -pi: move it to +pi.
     return wrapped + TAU if wrapped <= -math.pi else wrapped

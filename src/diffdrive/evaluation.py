@@ -41,7 +41,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive._stats import chi2_quantile
-from diffdrive._validate import increasing
+from diffdrive._validate import floats, increasing, positive
 
 __all__ = [
     "Consistency",
@@ -79,7 +79,7 @@ class RunErrors:
 
 
 def _check(estimate: object, truth: object) -> tuple[np.ndarray, np.ndarray]:
-    estimate, truth = np.asarray(estimate, dtype=float), np.asarray(truth, dtype=float)
+    estimate, truth = floats("estimate", estimate), floats("truth", truth)
     if estimate.ndim != 2 or estimate.shape[1] != 3 or estimate.shape != truth.shape:
         raise ValueError(
             f"estimate and truth must both have shape (T+1, 3), got {estimate.shape} and "
@@ -117,8 +117,11 @@ def alignment(estimate: object, truth: object) -> np.ndarray:
     onto ``truth``'s: least squares over the positions (Umeyama's method without scale)."""
     estimate, truth = _check(estimate, truth)
     p, q = estimate[:, :2], truth[:, :2]
-    p_mean, q_mean = p.mean(axis=0), q.mean(axis=0)
-    cross = (q - q_mean).T @ (p - p_mean)
+    p_mean, q_mean = _mean(p), _mean(q)
+    # Scaled to order one first: the cross moments of positions of 1e200 m overflow.
+    centred_p, centred_q = p - p_mean, q - q_mean
+    scale = max(float(np.abs(centred_p).max()), float(np.abs(centred_q).max()), 1e-300)
+    cross = (centred_q / scale).T @ (centred_p / scale)
     u, _, vt = np.linalg.svd(cross)
     d = np.sign(np.linalg.det(u @ vt))
     rotation = u @ np.diag([1.0, d]) @ vt
@@ -136,7 +139,24 @@ def ate(estimate: object, truth: object, aligned: bool = False) -> float:
     estimate, truth = _check(estimate, truth)
     if aligned:
         estimate = align(estimate, truth)
-    return float(np.sqrt(np.mean(np.sum((estimate[:, :2] - truth[:, :2]) ** 2, axis=1))))
+    return _rms(np.hypot(*(estimate[:, :2] - truth[:, :2]).T))
+
+
+def _rms(values: np.ndarray) -> float:
+    """The root mean square of ``values``, scaled first: errors of 1e200 m square past the
+    floats, their RMS does not."""
+    scale = float(np.abs(values).max()) if len(values) else 0.0
+    if not scale > 0.0:
+        return 0.0
+    if not np.isfinite(scale):
+        return math.inf
+    return scale * float(np.sqrt(np.mean((values / scale) ** 2)))
+
+
+def _mean(points: np.ndarray) -> np.ndarray:
+    """The mean of ``points`` ``(N, 2)`` without overflow: scaled to order one first."""
+    scale = max(float(np.abs(points).max()), 1e-300)
+    return scale * (points / scale).mean(axis=0)
 
 
 def rpe(
@@ -155,8 +175,7 @@ def rpe(
     the module. Distances are measured along the estimate unless ``pairs_from_truth``.
     """
     estimate, truth = _check(estimate, truth)
-    if not (np.isfinite(delta) and delta > 0):
-        raise ValueError(f"delta must be finite and > 0, got {delta!r}")
+    delta = positive("delta", delta)
     if pairs not in RPE_PAIRS:
         raise ValueError(f"pairs must be one of {', '.join(RPE_PAIRS)}, got {pairs!r}")
     if unit == "m":
@@ -165,7 +184,7 @@ def rpe(
     elif unit == "s":
         if times is None:
             raise ValueError("rpe with unit 's' needs the times")
-        along = np.asarray(times, dtype=float)
+        along = floats("times", times)
         if along.shape != (len(truth),) or not np.all(np.isfinite(along)):
             raise ValueError(f"times must be finite with shape ({len(truth)},), got {along.shape}")
     elif unit == "poses":
@@ -325,7 +344,15 @@ def consistency(
     block = matrices[:, axes][:, :, axes]
     block = 0.5 * (block + np.swapaxes(block, 1, 2))
     scale = np.maximum(np.abs(block).max(axis=(1, 2)), np.finfo(float).tiny)
-    usable = np.linalg.eigvalsh(block).min(axis=1) > 1e-12 * scale
+    smallest = np.linalg.eigvalsh(block).min(axis=1)
+    if np.any(smallest < -1e-9 * scale):
+        # Not a covariance at all: skipped as "known exactly", it would pass for honest.
+        row = int(np.argmax(smallest < -1e-9 * scale))
+        raise ValueError(
+            f"covariance {row} is not positive semi-definite (an eigenvalue of "
+            f"{smallest[row]:.3g}): not a covariance"
+        )
+    usable = smallest > 1e-12 * scale
     if not usable.any():
         raise ValueError(
             "no pose has a positive definite covariance: the estimate carries none (zeros?)"

@@ -27,7 +27,7 @@ from typing import ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from diffdrive._step import wheel_move
-from diffdrive._validate import finite, positive
+from diffdrive._validate import finite, length
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
 __all__ = ["DiffDrive", "Robot", "check_robot"]
@@ -71,10 +71,10 @@ class DiffDrive:
                 else "track_width (the full wheel-to-wheel distance) or half_track is required"
             )
         if half_track is not None:
-            track_width = 2.0 * positive("half_track", half_track)
+            track_width = 2.0 * length("half_track", half_track)
         object.__setattr__(self, "left_wheel_radius", left)
         object.__setattr__(self, "right_wheel_radius", right)
-        object.__setattr__(self, "track_width", positive("track_width", track_width))
+        object.__setattr__(self, "track_width", length("track_width", track_width))
         object.__setattr__(self, "axle_offset", finite("axle_offset", axle_offset))
 
     @property
@@ -255,11 +255,11 @@ def wheel_radii(
             raise ValueError(
                 "give either wheel_radius or left_wheel_radius and right_wheel_radius, not both"
             )
-        radius = positive("wheel_radius", wheel_radius)
+        radius = length("wheel_radius", wheel_radius)
         return radius, radius
     if left is None or right is None:
         raise ValueError("give wheel_radius, or both left_wheel_radius and right_wheel_radius")
-    return positive("left_wheel_radius", left), positive("right_wheel_radius", right)
+    return length("left_wheel_radius", left), length("right_wheel_radius", right)
 
 
 def path_radius(twist: Twist) -> float:

@@ -47,7 +47,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive._stats import nonnegative_least_squares
-from diffdrive._validate import finite
+from diffdrive._validate import finite, rng_of, whole
 from diffdrive.calibration.offline import checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
 from diffdrive.integrate import Method
@@ -214,8 +214,7 @@ def identify(
             )
         if not finite(f"fixed {name}", value) >= 0.0:
             raise ValueError(f"fixed {name} must be >= 0, got {value!r}")
-    if windows < 1:
-        raise ValueError(f"windows must be 1 or more, got {windows!r}")
+    windows = whole("windows", windows, 1)
     runs = list(runs)
     if not runs:
         raise ValueError("identify needs at least one run")
@@ -400,16 +399,18 @@ def draw_reference(
     increments: object,
     start: object,
     model: NoiseModel,
-    rng: np.random.Generator,
+    rng: np.random.Generator | int | None,
     method: Method = "exact",
 ) -> np.ndarray:
     """One reference ``(T+1, 3)`` for a run with wheel-angle ``increments`` ``(T, 2)`` rad
-    from ``start``, drawn as ``model`` says it arises: the run's geometry drawn once, each
+    from ``start``, drawn from ``rng`` (a NumPy generator, or a seed) as ``model`` says it
+    arises: the run's geometry drawn once, each
     wheel's travel in each step with variance ``k |travel|``, the reference's own noise at each
     pose. ``reference - covariances(...)[0]`` is then an error the model's covariance should
     cover: the check that the model could have made the errors it is scored on."""
     increments = np.asarray(increments, dtype=float)
     start = np.asarray(start, dtype=float)
+    rng = rng if isinstance(rng, np.random.Generator) else rng_of(rng)
     base = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
     sigmas = np.array([model.radius_sigma, model.radius_sigma, model.track_sigma])
     geometry = base * (1.0 + sigmas * rng.standard_normal(3))

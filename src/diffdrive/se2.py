@@ -16,7 +16,7 @@ import sys
 import numpy as np
 
 from diffdrive import _step
-from diffdrive._validate import finite
+from diffdrive._validate import finite, floats
 from diffdrive.angles import wrap_angle
 from diffdrive.types import Pose, Twist
 
@@ -42,13 +42,7 @@ relative_to = Pose.relative_to
 def sinc(u: float) -> float:
     """``sin(u)/u`` (unnormalised), 1 at u = 0, smooth through 0 (``diffdrive._step``'s rule);
     u must be finite."""
-    try:
-        finite_u = math.isfinite(u)
-    except OverflowError:  # an int too large for a float
-        finite_u = False
-    if not finite_u:
-        raise ValueError(f"sinc needs a finite u, got {u!r}")
-    return _step.sinc(u)
+    return _step.sinc(finite("u", u))
 
 
 def exp(twist: Twist, dt: float = 1.0) -> Pose:
@@ -100,9 +94,9 @@ def from_matrix(matrix: object, atol: float = math.sqrt(sys.float_info.epsilon))
 
     Raises ``ValueError`` if the matrix is not a rigid motion to within ``atol``.
     """
-    m = np.asarray(matrix, dtype=np.float64)
+    m = floats("matrix", matrix)
     if m.shape != (3, 3):
-        raise ValueError(f"from_matrix expects shape (3, 3), got {m.shape}")
+        raise ValueError(f"matrix must be a homogeneous transform of shape (3, 3), got {m.shape}")
     rotation = m[:2, :2]
     if not (
         np.allclose(rotation.T @ rotation, np.eye(2), rtol=0.0, atol=atol)

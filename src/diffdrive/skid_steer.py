@@ -31,7 +31,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from diffdrive._validate import finite, positive
+from diffdrive._validate import finite, length, positive
 from diffdrive.model import DiffDrive, path_radius, wheel_radii
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
@@ -80,6 +80,7 @@ class SkidSteer:
                 f"icr_left - icr_right (the ICR spread, the effective track) overflows: "
                 f"{left} and {right}"
             )
+        length("icr_left - icr_right (the ICR spread, the effective track)", left - right)
         if (
             isinstance(wheels_per_side, bool)
             or not isinstance(wheels_per_side, int | np.integer)

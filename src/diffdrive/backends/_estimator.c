@@ -897,6 +897,7 @@ static PyObject *add_fast(Est *e, PyObject *const *args, Py_ssize_t nargs) {
     for (int i = 0; i < k; ++i)
         if (!isfinite(m.value[i])) Py_RETURN_NONE;
     double sigma[3], row[3];
+    int matrix = 0; /* a k x k matrix was given, not standard deviations */
     if (kind != POSE && plain_number(args[3], &sigma[0]) == 0) {
         for (int i = 1; i < k; ++i) sigma[i] = sigma[0];
     } else if (plain_numbers(args[3], sigma, k) < 0) {
@@ -917,14 +918,17 @@ static PyObject *add_fast(Est *e, PyObject *const *args, Py_ssize_t nargs) {
                     Py_RETURN_NONE;
         double L[9];
         if (cholesky(m.cov, k, L) < 0) Py_RETURN_NONE;
+        /* measurements.SINGULAR: a pivot at rounding's size is a singular matrix. */
+        for (int i = 0; i < k; ++i)
+            if (!(L[i * k + i] * L[i * k + i] > 1e-12 * m.cov[i * k + i])) Py_RETURN_NONE;
         for (int i = 0; i < k; ++i)
             for (int j = 0; j < k; ++j) {
                 double a = m.cov[i * k + j], b = m.cov[j * k + i];
                 m.cov[i * k + j] = 0.5 * (a + b);
             }
-        sigma[0] = NAN; /* a matrix, not standard deviations */
+        matrix = 1;
     }
-    if (!isnan(sigma[0])) {
+    if (!matrix) { /* standard deviations; NaN among them is refused by name in Python */
         memset(m.cov, 0, sizeof m.cov);
         for (int i = 0; i < k; ++i) {
             double variance = sigma[i] * sigma[i];

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import increasing
+from diffdrive._validate import finite, increasing, positive
 from diffdrive.model import DiffDrive
 
 __all__ = ["GyroTrack", "track_from_gyro"]
@@ -90,6 +90,12 @@ def track_from_gyro(
     ):
         raise ValueError("times, increments and gyro_angles must be finite")
     increasing("times", times)
+    if not finite("k", k) >= 0.0:
+        raise ValueError(f"k must be >= 0 m, got {k!r}")
+    if ticks_per_revolution is not None:
+        positive("ticks_per_revolution", ticks_per_revolution)
+    if not finite("angle_random_walk", angle_random_walk) >= 0.0:
+        raise ValueError(f"angle_random_walk must be >= 0, got {angle_random_walk!r}")
     dt = np.diff(times)
     r_l, r_r = robot.left_wheel_radius, robot.right_wheel_radius
     arcs = increments * np.array([r_l, r_r])
@@ -115,6 +121,12 @@ def track_from_gyro(
     gyro = angle_random_walk * angle_random_walk * float(np.mean(dt))
     ratio = math.inf if wheel == 0 else gyro / wheel  # var(y noise) / var(x noise), rad^2/m^2
     slope = _deming(u, y, ratio)
+    if not slope > 0.0:
+        # The gyro turns one way when the wheels turn the other: its sign, not a track.
+        raise ValueError(
+            "the gyro turns against the wheels (a track < 0): an IMU mounted upside down or "
+            "a gyro of the other sign (--imu-rpy 180 0 0), or the wheels swapped"
+        )
     blocks = np.array_split(np.arange(len(u)), 10)
     leave_out = []
     for block in blocks:

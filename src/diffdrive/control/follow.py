@@ -21,9 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._validate import rng_of
+from diffdrive._validate import check_samples, floats, positive, rng_of, whole
 from diffdrive.control.limiter import Limiter
-from diffdrive.control.path import check_samples
 from diffdrive.control.planning import Plan
 from diffdrive.control.tracking import Tracker, first_order
 from diffdrive.evaluation import PathErrors, path_errors
@@ -53,10 +52,32 @@ class FollowResult:
 
 
 def _per_robot(name: str, value: object, robots: int) -> np.ndarray:
-    array = np.broadcast_to(np.asarray(value, dtype=float), (robots,)).copy()
+    """``value`` as one number per robot ``(robots,)``: one, or ``robots`` of them."""
+    given = floats(name, value)
+    if given.shape not in ((), (1,), (robots,)):
+        raise ValueError(
+            f"{name} must be one number or one per robot ({robots}), got {given.size} values"
+        )
+    array = np.broadcast_to(given, (robots,)).copy()
     if not np.all(np.isfinite(array)) or np.any(array < 0.0):
         raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
     return array
+
+
+def _start_poses(start: object, plan: Plan, robots: int) -> np.ndarray:
+    """The robots' start poses ``(robots, 3)``: the plan's first, or ``start`` ``(3,)`` or
+    ``(robots, 3)``."""
+    if start is None:
+        return np.broadcast_to(plan.poses[0], (robots, 3))
+    poses = floats("start", start)
+    if poses.shape not in ((3,), (robots, 3)):
+        raise ValueError(
+            f"start must be one pose (x, y, theta) or one per robot ({robots}, 3), got shape "
+            f"{poses.shape}"
+        )
+    if not np.all(np.isfinite(poses)):
+        raise ValueError(f"start must be finite poses, got {start!r}")
+    return np.broadcast_to(poses, (robots, 3))
 
 
 def follow(
@@ -84,10 +105,8 @@ def follow(
     """
     if not isinstance(plan, Plan):
         raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
-    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
-        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
-    if not (isinstance(robots, int) and robots >= 1):
-        raise ValueError(f"robots must be a whole number >= 1, got {robots!r}")
+    dt = positive("dt", dt)
+    robots = whole("robots", robots, 1)
     delays = _per_robot("delay", delay, robots)
     lag = float(_per_robot("lag", lag, 1)[0])
     noise = np.asarray(wheel_noise, dtype=float)
@@ -111,9 +130,7 @@ def follow(
     steps = max(math.ceil((plan.duration + settle) / dt), 1)
     times = plan.times[0] + dt * np.arange(steps + 1)
     poses = np.empty((robots, steps + 1, 3))
-    poses[:, 0] = plan.poses[0] if start is None else np.asarray(start, dtype=float)
-    if not np.all(np.isfinite(poses[:, 0])):
-        raise ValueError(f"start must be finite (3,) or ({robots}, 3) poses, got {start!r}")
+    poses[:, 0] = _start_poses(start, plan, robots)
     estimates = poses.copy()
     commands = np.zeros((robots, steps, 2))
     applied = np.zeros((robots, steps, 2))

@@ -20,9 +20,11 @@ A ``Limiter`` follows targets for a few channels at once: ``(v, omega)`` with
    target's curvature, so desaturation after the limiter keeps it too.
 
 The outputs never exceed the velocity and acceleration limits: a jerk-limited profile that
-would run past a velocity limit stops at it. The jerk limit holds except where a hard limit
-overrides it: at a zero crossing into a direction with a lower acceleration limit than the
-acceleration at the crossing, and on reaching a velocity limit. A refused call (a non-finite
+would run past a velocity limit stops at it, and one that would carry a channel past rest away
+from its target (its acceleration left from a target that changed) stops at rest. The jerk
+limit holds except where a hard limit overrides it: at rest, at a zero crossing into a
+direction with a lower acceleration limit than the acceleration at the crossing, and on
+reaching a velocity limit. A refused call (a non-finite
 target, ``dt <= 0``, or a step whose output or acceleration would overflow to infinity, such
 as from -1e308 to 1e308) raises ``ValueError`` and changes nothing; outputs are always finite.
 """
@@ -274,13 +276,33 @@ class Limiter:
                 )
                 * dt
             )
-            return goal if abs(1.0 - fraction) <= 1e-12 else v + fraction * gap
+            if abs(1.0 - fraction) <= 1e-12:
+                return goal
+            return _through_rest(v, v + fraction * gap, goal, acc_fwd, acc_rev, dt)
         jerk = np.where(has_jerk, jerk, 1.0)  # channels without a jerk limit: unused
         a_new = _jerk_limited(gap, a, bound, falling, rising, jerk, dt)
         # The acceleration decides the step, even past the goal: stopping short of it would
         # make the acceleration jump. The profile lands on the goal when it can.
         lands = np.abs(gap - a_new * dt) <= 1e-12 * np.maximum(1.0, np.abs(goal))
-        return np.where(has_jerk, np.where(lands, goal, v + a_new * dt), value)
+        stepped = _through_rest(v, v + a_new * dt, goal, acc_fwd, acc_rev, dt)
+        return np.where(has_jerk, np.where(lands, goal, stepped), value)
+
+
+def _through_rest(v, new, goal, acc_fwd, acc_rev, dt):
+    """A jerk-limited step ``v`` -> ``new`` held to the hard limits at rest: it stops there
+    rather than go on past it away from the ``goal`` (an acceleration left over from a target
+    that changed would carry it the wrong way), and past rest toward the goal it speeds up
+    the other way within that direction's acceleration limit, over the part of the step
+    after rest (the acceleration of the step held)."""
+    into_reverse, into_forward = (new < 0.0) & (v >= 0.0), (new > 0.0) & (v <= 0.0)
+    # Past a goal of rest itself the profile may run on a little, as past any goal.
+    away = (into_reverse & (goal > 0.0)) | (into_forward & (goal < 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        to_rest = np.where(v != 0.0, np.abs(v) * dt / np.abs(new - v), 0.0)
+    speed = np.where(into_reverse, acc_rev, acc_fwd) * np.maximum(dt - to_rest, 0.0)
+    crossing = into_reverse | into_forward
+    limited = np.where(crossing, np.sign(new) * np.minimum(np.abs(new), speed), new)
+    return np.where(away, 0.0, limited)
 
 
 def _rate_along(a: np.ndarray, gap: np.ndarray) -> float | None:

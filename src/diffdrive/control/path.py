@@ -26,22 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import finite, positive
+from diffdrive._validate import check_samples, finite, positive, whole
 
 __all__ = ["TANGENT_SCALE", "Leg", "from_segments", "from_waypoints"]
 
 TANGENT_SCALE = 1.2  # tangent length over chord length at each waypoint (WPILib's)
 _STEP = 0.02  # m (drive) or rad (turn): the default spacing of samples along a leg
-MOST_SAMPLES = 10_000_000  # samples of one path, or rows of one plan: beyond, refused
-
-
-def check_samples(count: float, what: str, advice: str) -> None:
-    """Refuse ``count`` samples (or rows) of ``what`` beyond ``MOST_SAMPLES``, with ``advice``
-    (the arrays would take gigabytes, and the size is usually a unit gone wrong)."""
-    if not count <= MOST_SAMPLES:
-        raise ValueError(
-            f"{what} would take {count:.3g} samples (at most {MOST_SAMPLES:,}): {advice}"
-        )
 
 
 # Coefficients of t^0..t^5 of the quintic Hermite basis, in the order
@@ -332,7 +322,7 @@ def from_waypoints(
     step = positive("step", step)
     count = len(points) - 1
     backward = _directions(reverse, count)
-    halts = {int(i) for i in stops}
+    halts = {whole("stops", i, 1) for i in stops}
     for index in halts:
         if not 0 < index < count:
             raise ValueError(f"stops: {index} is not an interior waypoint (1 to {count - 1})")

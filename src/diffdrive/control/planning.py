@@ -25,8 +25,9 @@ from typing import Any, cast
 
 import numpy as np
 
+from diffdrive._validate import check_samples, positive
 from diffdrive.control import _timing
-from diffdrive.control.path import Leg, check_samples, from_waypoints
+from diffdrive.control.path import Leg, from_waypoints
 from diffdrive.dynamics.voltage import Feedforward
 from diffdrive.model import Robot, check_robot
 from diffdrive.trajectory import Trajectory
@@ -60,13 +61,12 @@ class PathLimits:
     def __post_init__(self) -> None:
         for name in (*_NUMBERS, "max_jerk"):
             value = getattr(self, name)
-            if value is not None and (
-                isinstance(value, bool)
-                or not isinstance(value, int | float)
-                or not math.isfinite(value)
-                or value <= 0.0
-            ):
-                raise ValueError(f"{name} must be a finite number > 0 or None, got {value!r}")
+            if value is None:
+                continue
+            if isinstance(value, bool):
+                raise TypeError(f"{name} must be a number > 0 or None, got {value!r}")
+            # NumPy's scalars are numbers too; text is not (positive refuses it by name).
+            object.__setattr__(self, name, positive(name, value))
         if (self.max_voltage is None) != (self.feedforward is None):
             raise ValueError("max_voltage and feedforward go together: give both or neither")
         for side, ff in zip(("left", "right"), self.feedforwards(), strict=True):
@@ -395,6 +395,17 @@ def _time_run(curve: dict[str, np.ndarray], robot: Robot, limits: PathLimits, wh
     )
 
 
+def _runs_of_legs(given: object) -> bool:
+    """Whether ``given`` is ``path.from_segments``' runs of legs, not rows of waypoints."""
+    return (
+        isinstance(given, list)
+        and bool(given)
+        and isinstance(given[0], list)
+        and bool(given[0])
+        and isinstance(given[0][0], Leg)
+    )
+
+
 def plan(
     waypoints: object,
     robot: Robot,
@@ -413,8 +424,9 @@ def plan(
     check_robot(robot)
     if not isinstance(limits, PathLimits):
         raise TypeError(f"limits must be PathLimits, got {type(limits).__name__}")
-    if isinstance(waypoints, list) and waypoints and isinstance(waypoints[0], list):
-        runs = waypoints
+    runs: list[list[Leg]]
+    if _runs_of_legs(waypoints):
+        runs = waypoints  # type: ignore[assignment]
     else:
         runs = from_waypoints(waypoints, reverse=reverse, stops=stops, step=step)
     keys = ("times", "poses", "speed", "accelerations", "lin", "ang", "dang", "kappa", "dkappa")

@@ -29,7 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._validate import positive
+from diffdrive._validate import finite, positive
 from diffdrive.control.planning import Plan
 
 __all__ = [
@@ -87,7 +87,7 @@ class Ramsete:
 
     def __post_init__(self) -> None:
         positive("b", self.b)
-        if not 0.0 < self.zeta < 1.0:
+        if not 0.0 < finite("zeta", self.zeta) < 1.0:
             raise ValueError(f"zeta must be in (0, 1), got {self.zeta!r}")
 
     def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:

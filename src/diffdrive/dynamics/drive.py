@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import finite
+from diffdrive._validate import check_samples, finite, positive
 from diffdrive.dynamics.response import VelocityResponse, held_commands, simulate_response
 from diffdrive.dynamics.voltage import Feedforward, VoltageResponse
 from diffdrive.integrate import Method
@@ -53,10 +53,12 @@ class DriveModel:
             raise ValueError(
                 f"gain must be > 0 (the wheel's velocity per commanded), got {self.gain}"
             )
-        if not self.max_acceleration > 0.0:
-            raise ValueError(
-                f"max_acceleration must be > 0 (inf: none), got {self.max_acceleration}"
-            )
+        limit = self.max_acceleration
+        if isinstance(limit, str | bytes | bool) or not isinstance(limit, int | float | np.number):
+            raise TypeError(f"max_acceleration must be a number > 0 (inf: none), got {limit!r}")
+        if not limit > 0.0:
+            raise ValueError(f"max_acceleration must be > 0 (inf: none), got {limit}")
+        object.__setattr__(self, "max_acceleration", float(limit))
         ff = self.feedforward
         if ff is not None and not (ff.ks >= 0.0 and ff.kv > 0.0 and ff.ka > 0.0):
             raise ValueError(f"the feedforward needs kS >= 0, kV > 0 and kA > 0, got {ff}")
@@ -92,11 +94,7 @@ class DriveModel:
         ):
             raise ValueError("times, command_times and commands must be finite")
         batch = values.shape[:-2]
-        start = (
-            np.zeros((*batch, 2))
-            if initial is None
-            else np.broadcast_to(np.asarray(initial, dtype=float), (*batch, 2))
-        )
+        start = _initial(initial, batch, "initial")
         # Every wheel of every robot is a channel: (M, channels).
         channels = np.moveaxis(values.reshape(-1, len(stamps), 2), 1, 0).reshape(len(stamps), -1)
         first = start.reshape(-1)
@@ -128,6 +126,28 @@ class DriveModel:
         return out
 
 
+def _initial(given: object, batch: tuple[int, ...], name: str) -> np.ndarray:
+    """The wheels' start ``(*batch, 2)`` rad/s (rest when None), or ``ValueError`` naming
+    ``name``: finite, and one pair or one per robot."""
+    if given is None:
+        return np.zeros((*batch, 2))
+    try:
+        start = np.asarray(given, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be wheel velocities (left, right), got {given!r}") from None
+    if start.shape[-1:] != (2,):
+        raise ValueError(f"{name} must be (left, right) wheel velocities, got shape {start.shape}")
+    try:
+        start = np.broadcast_to(start, (*batch, 2))
+    except ValueError:
+        raise ValueError(
+            f"{name} must be one (left, right) or one per robot {(*batch, 2)}, got {start.shape}"
+        ) from None
+    if not np.all(np.isfinite(start)):
+        raise ValueError(f"{name} must be finite, got {start.tolist()}")
+    return start
+
+
 def simulate_commands(
     robot: Robot,
     model: DriveModel,
@@ -145,8 +165,7 @@ def simulate_commands(
     ``duration`` s (default: to the last command plus the delay and five time constants)
     from the first command's stamp; a ``Trajectory`` whose wheel velocities are each step's
     mean."""
-    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
-        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    dt = positive("dt", dt)
     stamps = np.asarray(command_times, dtype=float)
     if stamps.ndim != 1 or len(stamps) < 1:
         raise ValueError("command_times must be one or more stamps (s)")
@@ -157,9 +176,13 @@ def simulate_commands(
             else (model.feedforward.ka / model.feedforward.kv)
         )
         duration = float(stamps[-1] - stamps[0]) + model.delay + 5.0 * settle + dt
-    steps = max(math.ceil(finite("duration", duration) / dt), 1)
+    count = positive("duration", duration) / dt
+    check_samples(count, f"{duration:g} s in steps of {dt:g} s", "is the step in seconds?")
+    steps = max(math.ceil(count), 1)
     times = stamps[0] + dt * np.arange(steps + 1)
-    wheels = model.wheel_velocities(times, stamps, commands, initial_wheels)
+    batch = np.asarray(commands, dtype=float).shape[:-2]
+    start = _initial(initial_wheels, batch, "initial_wheels")
+    wheels = model.wheel_velocities(times, stamps, commands, start)
     means = 0.5 * (wheels[..., 1:, :] + wheels[..., :-1, :])
     trajectory = simulate(robot, means, dt=dt, initial_pose=initial_pose, method=method)
     return Trajectory(robot, times, trajectory.poses, means, method)  # type: ignore[arg-type]

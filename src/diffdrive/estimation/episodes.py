@@ -79,7 +79,8 @@ def steady_episodes(
     found too. ``bias`` ``(N,)``: how far each scaled innovation moves per rad/s of bias;
     ``shared`` ``(N, 2)``: each wheel's noise variance in it, which its direction carries too
     (both come from the measured turn), so a plain fit would find a fraction of about
-    ``k / travel`` in pure noise; the fit takes that expectation out (errors in variables).
+    ``k / travel`` in pure noise; the fit takes that expectation out (errors in variables),
+    as far as the innovations show that noise (``_steady``).
 
     A radius, track or gyro scale error moves every interval's innovation along the wheels'
     directions all the time: the geometry's error, which a slip test should not call slip;
@@ -91,13 +92,28 @@ def steady_episodes(
     for _ in range(2):
         if not outside.any():
             break
-        noise = np.zeros(3)
-        noise[:2] = shared[outside].sum(axis=0)
-        normal = design[outside].T @ design[outside] - np.diag(noise)
-        steady = np.linalg.lstsq(normal, design[outside].T @ scaled[outside] - noise, rcond=None)[0]
-        found = slip_episodes(scaled - design @ steady, directions)
+        found = slip_episodes(
+            scaled - design @ _steady(scaled, design, shared, outside), directions
+        )
         outside = ~(flagged | found)
     return found
+
+
+def _steady(scaled, design, shared, outside) -> np.ndarray:
+    """The steady share (each wheel's fraction, the bias error) fitted over ``outside``, the
+    wheels' noise in the directions taken out as far as the innovations show it: scaled by
+    their mean square (1 when the noise is as modelled; near 0 on a log with less noise than
+    modelled, a noise-free one, where taking it all out leaves a matrix that is not positive
+    definite and a share of hundreds), and not at all if it would still leave one."""
+    z, rows = scaled[outside], design[outside]
+    seen = min(1.0, float(np.mean(z * z)))
+    noise = np.zeros(3)
+    noise[:2] = seen * shared[outside].sum(axis=0)
+    plain = rows.T @ rows
+    normal = plain - np.diag(noise)
+    if np.linalg.eigvalsh(normal)[0] <= 1e-9 * max(np.abs(np.diag(plain)).max(), 1e-300):
+        normal, noise = plain, np.zeros(3)
+    return np.linalg.lstsq(normal, rows.T @ z - noise, rcond=None)[0]
 
 
 def episode_ratio(scaled: np.ndarray, directions: np.ndarray) -> float:

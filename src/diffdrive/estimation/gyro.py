@@ -120,6 +120,8 @@ def gyro_odometry(
         raise ValueError(
             f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"
         )
+    if not isinstance(gyro, Gyro):
+        raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
     turned = np.diff(gyro.angles(times))
     if commanded is not None:
         commanded = np.asarray(commanded, dtype=float)

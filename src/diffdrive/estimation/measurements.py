@@ -36,6 +36,10 @@ def _floats(given: object, what: str, where: str) -> np.ndarray:
         raise TypeError(f"{where}: {what} must be numbers, got {given!r}") from None
 
 
+# A Cholesky pivot below this share of its diagonal entry marks a singular covariance.
+SINGULAR = 1e-12
+
+
 def _covariance(given: object, size: int, where: str) -> np.ndarray:
     matrix = _floats(given, "covariance", where)
     if matrix.ndim == 0 and size < 3:  # one standard deviation for every axis
@@ -59,9 +63,13 @@ def _covariance(given: object, size: int, where: str) -> np.ndarray:
     if not np.allclose(matrix, matrix.T, rtol=1e-9, atol=0.0):
         raise ValueError(f"{where}: covariance is not symmetric")
     try:
-        np.linalg.cholesky(matrix)
+        factor = np.linalg.cholesky(matrix)
     except np.linalg.LinAlgError:
         raise ValueError(f"{where}: covariance is not positive definite") from None
+    # A pivot at rounding's size is a singular matrix that rounding made pass: refused, as the
+    # C core refuses it (the same rule there).
+    if np.any(np.diag(factor) ** 2 <= SINGULAR * np.diag(matrix)):
+        raise ValueError(f"{where}: covariance is singular (not positive definite)")
     return 0.5 * (matrix + matrix.T)
 
 

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from diffdrive._step import wheel_move
-from diffdrive._validate import finite, positive
+from diffdrive._validate import finite, floats, positive
 from diffdrive.backends import odometry_python
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
@@ -218,7 +218,7 @@ class _OdometryMethods(_Base):
         window are kept, so the next reading moves on from here without a jump.
         """
         pose = Pose() if pose is None else Pose.coerce(pose, "pose")
-        matrix = np.zeros((3, 3)) if covariance is None else np.asarray(covariance, dtype=float)
+        matrix = np.zeros((3, 3)) if covariance is None else floats("covariance", covariance)
         if matrix.shape != (3, 3):
             raise ValueError(f"covariance must be 3x3, got shape {matrix.shape}")
         if not np.all(np.isfinite(matrix)) or not np.allclose(matrix, matrix.T):

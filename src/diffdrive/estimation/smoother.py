@@ -140,14 +140,21 @@ def estimate_trajectory(
         )
     if heading != "wheels" and gyro is None:
         raise ValueError(f"heading {heading!r} needs a gyro")
+    if gyro is not None and not isinstance(gyro, Gyro):
+        raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
     turned = None if gyro is None else np.diff(gyro.angles(times))
     wanted = None if commanded is None else np.asarray(commanded, dtype=float)
     if wanted is not None and wanted.shape != increments.shape:
         raise ValueError(f"commanded must be {increments.shape}, got {wanted.shape}")
-    ordered = sorted(measurements, key=lambda m: m.order)
-    for m in ordered:
+    given = list(measurements)
+    for m in given:
         if not isinstance(m, Measurement):
-            raise TypeError(f"measurements must be Measurements, got {type(m).__name__}")
+            raise TypeError(
+                f"measurements must be Measurements (Measurement.make, measurements_of), got "
+                f"{type(m).__name__}"
+            )
+    ordered = sorted(given, key=lambda m: m.order)
+    for m in ordered:
         if not times[0] <= m.t <= times[-1]:
             raise ValueError(
                 f"{m.kind} measurement at t = {m.t!r} s lies outside the log "

@@ -22,12 +22,11 @@ one record in four: 0.2 % of the early stamps, against all of them in the stamps
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import increasing
+from diffdrive._validate import increasing, positive
 
 __all__ = ["SampleTimes", "sample_times"]
 
@@ -50,8 +49,7 @@ def sample_times(times: object, tick: float = 1e-3, *, share: float = 0.8) -> Sa
     if stamps.ndim != 1 or len(stamps) < 10:
         raise ValueError(f"times must be (N,) s with N >= 10, got shape {stamps.shape}")
     increasing("times", stamps)
-    if not (math.isfinite(tick) and tick > 0.0):
-        raise ValueError(f"tick must be a finite time > 0 s, got {tick!r}")
+    tick = positive("tick", tick)
     if not 0.0 < share <= 1.0:
         raise ValueError(f"share must lie in (0, 1], got {share!r}")
     guess = float(np.median(np.diff(stamps)))

@@ -112,9 +112,12 @@ def gyro_readings(
     rng = rng_of(seed)
     durations = motion.durations
     omega = motion.increments[..., 2] / durations  # (B, T): each interval's mean rate
-    # At a sample, the rate between its two intervals': what a gyro sampled there reads of a
-    # smooth turn, and what linear interpolation between samples integrates back.
-    truth = np.concatenate([omega[:, :1], 0.5 * (omega[:, 1:] + omega[:, :-1]), omega[:, -1:]], 1)
+    # At a sample, its two intervals' mean rates weighed by their durations: each interval's
+    # turn shared evenly between its two ends, so that linear interpolation between samples
+    # (Gyro.angles) integrates back the trajectory's turn, on even and uneven stamps alike.
+    before, after = durations[:-1], durations[1:]
+    inner = (omega[:, :-1] * before + omega[:, 1:] * after) / (before + after)
+    truth = np.concatenate([omega[:, :1], inner, omega[:, -1:]], 1)
     samples = len(motion.times)
     bias = np.full((count, samples), model.bias)
     # Each sample's noise spans the interval it starts (the last, the one before it).

@@ -2,9 +2,11 @@
 
 A trajectory is its sample ``times`` ``(T+1,)`` s, strictly increasing, and its ``poses``
 ``(T+1, 3)`` or, for a batch of robots, ``(N, T+1, 3)`` (a ``simulate`` result, or a
-reference read from a file or bag). Between two samples the body moves along the constant
-twist that joins them (the SE(2) logarithm of the relative pose), as ``simulate``'s exact step
-does; so a trajectory that ``simulate`` made gives its own wheel motion back to rounding.
+reference read from a file or bag). Its headings may be wrapped to (-pi, pi] (all within
+[-pi, pi]: each step then turns less than pi) or unwrapped (some beyond: each step's own
+turn). Between two samples the body moves along the constant twist that joins them (the SE(2)
+logarithm of the relative pose), as ``simulate``'s exact step does; so a trajectory that
+``simulate`` made gives its own wheel motion back to rounding.
 """
 
 from __future__ import annotations
@@ -72,9 +74,12 @@ def motion_of(robot: Robot, times: object, poses: object) -> Motion:
     moved = batch.compose(p, np.array([0.0, offset, 0.0])) if offset else p
     relative = batch.relative_to(moved[:, 1:], moved[:, :-1])
     increments = batch.log(relative)
-    # The log wraps each turn to (-pi, pi]; an unwrapped trajectory's own turn is kept.
-    increments[..., 2] = np.diff(p[..., 2], axis=-1)
-    return Motion(t, p, increments)
+    # The log wraps each turn to (-pi, pi]. Headings that all lie in [-pi, pi] are read as
+    # wrapped, as most tools write them (a jump across +-pi is a small turn); beyond, they are
+    # unwrapped, and their own turn is kept (a fast spin may turn more than pi in a sample).
+    if np.abs(p[..., 2]).max() > np.pi:
+        increments[..., 2] = np.diff(p[..., 2], axis=-1)
+    return Motion(t, p, np.asarray(increments))
 
 
 def robot_geometry(
