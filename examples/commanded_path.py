@@ -7,7 +7,7 @@ velocity/acceleration/jerk ``Limiter`` and wheel desaturation first (``drive_com
 is what the robot would do. Prints the end points and draws both paths and the forward speed.
 
     pip install -e '.[plot]'
-    python examples/commanded_path.py [--output docs/figures/commanded_path.png]
+    python examples/commanded_path.py [--output out/figures/commanded_path.png]
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def draw(commanded: dd.Trajectory, limited: dd.Trajectory, output: Path) -> None
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--output", type=Path, default=Path("docs/figures/commanded_path.png"))
+    parser.add_argument("--output", type=Path, default=Path("out/figures/commanded_path.png"))
     args = parser.parse_args(argv)
     commanded, limited = paths()
     for name, trajectory in [("commanded", commanded), ("limited", limited)]:

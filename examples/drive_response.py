@@ -91,7 +91,7 @@ def draw(segment: tuple, output: Path) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bags", type=Path, default=BAGS)
-    parser.add_argument("--output", type=Path, default=Path("docs/figures/drive_response.png"))
+    parser.add_argument("--output", type=Path, default=Path("out/figures/drive_response.png"))
     parser.add_argument("--folds", type=int, default=5, help="blocks held out in turn")
     args = parser.parse_args(argv)
     recorded = held_out(args.bags, restore=False, folds=args.folds)

@@ -8,7 +8,7 @@ wheel odometry with noise k = 1e-4 m per wheel, each with the LTV tracker wrappe
 path with the runs, and each wheel's velocity and voltage against its limit.
 
     pip install -e '.[plot,control]'
-    python examples/follow_path.py [--output docs/figures/follow_path.png]
+    python examples/follow_path.py [--output out/figures/follow_path.png]
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def run():
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--output", type=Path, default=Path("docs/figures/follow_path.png"))
+    parser.add_argument("--output", type=Path, default=Path("out/figures/follow_path.png"))
     args = parser.parse_args(argv)
     planned, followed = run()
     print(

@@ -108,7 +108,7 @@ def draw(synthetic_runs: dict, husky_runs: dict, output: Path) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bags", type=Path, default=BAGS)
-    parser.add_argument("--output", type=Path, default=Path("docs/figures/gyro_slip.png"))
+    parser.add_argument("--output", type=Path, default=Path("out/figures/gyro_slip.png"))
     args = parser.parse_args(argv)
     runs = synthetic()
     truth, slip = runs["truth"], runs["slip"]

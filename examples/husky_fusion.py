@@ -187,7 +187,7 @@ def consistency_against_gps(data: dict, figure: Path, k: float = 1e-3) -> dict:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bags", type=Path, default=BAGS)
-    parser.add_argument("--figure", type=Path, default=Path("docs/figures/noise_husky.png"))
+    parser.add_argument("--figure", type=Path, default=Path("out/figures/noise_husky.png"))
     args = parser.parse_args(argv)
     data = read(args.bags)
     found = heading_sources(data)

@@ -126,7 +126,7 @@ def draw(result: dict, output: Path) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--output", type=Path, default=Path("docs/figures/late_vision.png"))
+    parser.add_argument("--output", type=Path, default=Path("out/figures/late_vision.png"))
     args = parser.parse_args(argv)
     runs = {
         "wheels and gyro": [run(seed, camera=False) for seed in range(args.seeds)],

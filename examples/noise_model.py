@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA)
     parser.add_argument("--bags", type=Path, default=DATA.parent / "ros-bags")
-    parser.add_argument("--figure", type=Path, default=Path("docs/figures/noise_turtlebot3.png"))
+    parser.add_argument("--figure", type=Path, default=Path("out/figures/noise_turtlebot3.png"))
     args = parser.parse_args(argv)
     experiments = load(args.data)
     for same_kind in (True, False):

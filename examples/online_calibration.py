@@ -11,7 +11,7 @@ the first circular experiment (one run each way), against the batch answers.
 
     pip install -e '.[examples]'
     python examples/online_calibration.py [--data ../shared/data/optiodom-diffdrive]
-        [--output docs/figures/online_calibration.png]
+        [--output out/figures/online_calibration.png]
 """
 
 from __future__ import annotations
@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> None:
         "--data", type=Path, default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive"
     )
     parser.add_argument(
-        "--output", type=Path, default=ROOT / "docs" / "figures" / "online_calibration.png"
+        "--output", type=Path, default=Path("out/figures/online_calibration.png")
     )
     args = parser.parse_args(argv)
     drawn = None

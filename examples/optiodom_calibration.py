@@ -22,7 +22,7 @@ Prints both Markdown tables and draws one run: ground truth, nominal and calibra
 
     pip install -e '.[examples]'
     python examples/optiodom_calibration.py [--data ../shared/data/optiodom-diffdrive]
-        [--output docs/figures/optiodom_calibration.png]
+        [--output out/figures/optiodom_calibration.png]
 """
 
 from __future__ import annotations
@@ -189,7 +189,7 @@ def main(argv: list[str] | None = None) -> None:
         "--data", type=Path, default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive"
     )
     parser.add_argument(
-        "--output", type=Path, default=ROOT / "docs" / "figures" / "optiodom_calibration.png"
+        "--output", type=Path, default=Path("out/figures/optiodom_calibration.png")
     )
     args = parser.parse_args(argv)
     if not args.data.is_dir():

@@ -96,7 +96,7 @@ def draw(tb3: dict, gps: dict, output: Path) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bags", type=Path, default=BAGS)
-    parser.add_argument("--output", type=Path, default=Path("docs/figures/ros_bags.png"))
+    parser.add_argument("--output", type=Path, default=Path("out/figures/ros_bags.png"))
     args = parser.parse_args(argv)
     tb3, gps = turtlebot3(args.bags), husky(args.bags)
     robot = tb3["result"].robot

@@ -13,7 +13,7 @@ unicycle equations, run interval by interval for the held history. Prints the er
 them on log axes.
 
     pip install -e '.[examples]'
-    python examples/step_size_error.py [--output docs/figures/step_size_error.png]
+    python examples/step_size_error.py [--output out/figures/step_size_error.png]
 """
 
 from __future__ import annotations
@@ -118,7 +118,7 @@ def draw(tables: dict[str, dict[str, list[float]]], output: Path) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--output", type=Path, default=Path("docs/figures/step_size_error.png"))
+    parser.add_argument("--output", type=Path, default=Path("out/figures/step_size_error.png"))
     args = parser.parse_args(argv)
     tables = {history: errors(history) for history in STEPS}
     for history, table in tables.items():

@@ -593,3 +593,136 @@ def test_odometry_says_it_assumed_the_robot_when_told_only_the_ticks(tmp_path, c
     )
     assert code == 0
     assert "robot:" not in out
+
+
+# -- what a new user trips over (issue 43) -----------------------------------------------------
+
+
+def test_version_and_no_negative_zero(tmp_path, capsys):
+    with pytest.raises(SystemExit, match="0"):
+        main(["--version"])
+    assert capsys.readouterr().out.strip() == f"diffdrive {dd.__version__}"
+    code, out, _ = run(["fk", "1", "-1e-3"], capsys)
+    assert code == 0
+    assert "-0 " not in out  # vy was printed as -0 m/s
+    waypoints = tmp_path / "w.csv"
+    waypoints.write_text("x,y\n0,0\n1,0\n2,1\n3,1\n")
+    plan = tmp_path / "p.csv"
+    code, _, _ = run(["plan", waypoints, *ROBOT, "--max-velocity", "1", "-o", plan, "-q"], capsys)
+    assert code == 0
+    cells = plan.read_text().replace("\n", ",").split(",")
+    assert "-0.0" not in cells
+
+
+def test_a_path_shorter_than_the_rpe_window_still_gets_its_other_measures(tmp_path, capsys):
+    short = tmp_path / "short.csv"
+    short.write_text("t,x,y,theta\n0,0,0,0\n0.1,0.05,0,0\n0.2,0.1,0,0\n")
+    code, out, err = run(["evaluate", short, "--truth", short, "--json"], capsys)
+    assert code == 0
+    metrics = json.loads(out)
+    assert metrics["ate_m"] == 0.0
+    assert metrics["rpe_1m_consecutive_m"] is None
+    assert "the RPE over 1 m is not computed: no pair of poses is 1.0 m apart" in err
+
+
+def test_option_errors_name_the_option(tmp_path, capsys):
+    waypoints = tmp_path / "w.csv"
+    waypoints.write_text("x,y\n0,0\n1,0\n2,1\n3,1\n")
+    with pytest.raises(SystemExit, match="2"):
+        main(["plan", str(waypoints), *ROBOT, "--max-velocity", "1", "--stops", "1.5"])
+    assert "argument --stops: waypoint indices (whole numbers from 0)" in capsys.readouterr().err
+    code, _, err = run(["synth", "--time-offset", "0", "-o", tmp_path / "x.mcap"], capsys)
+    assert code == 1
+    assert "--time-offset 0: the bag's first stamp would be 0 s" in err
+    with pytest.raises(SystemExit, match="0"):
+        main(["plan", "--help"])
+    helped = capsys.readouterr().out
+    assert "robot (required: a robot file or the geometry flags" in helped
+    assert "built-in example robot" not in helped
+
+
+def test_a_folder_that_cannot_be_written_is_named_not_the_hidden_file(
+    tmp_path, capsys, monkeypatch
+):
+    import tempfile
+
+    def refused(*args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(tmp_path / ".x.abc123.csv"))
+
+    monkeypatch.setattr(tempfile, "mkstemp", refused)
+    code, _, err = run(["simulate", "-o", tmp_path / "x.csv"], capsys)
+    assert code == 1
+    assert f"cannot write {tmp_path / 'x.csv'}: Permission denied (in {tmp_path})" in err
+    assert ".x.abc123" not in err
+
+
+def test_a_missing_extra_is_one_line_naming_it(tmp_path, capsys, monkeypatch):
+    """After make demo alone (no scipy, no rosbags) the commands that need them said so in a
+    traceback."""
+    import sys
+
+    for module in ("scipy", "scipy.optimize", "scipy.linalg"):
+        monkeypatch.setitem(sys.modules, module, None)
+    waypoints = tmp_path / "w.csv"
+    waypoints.write_text("x,y\n0,0\n2,0\n")
+    argv = ["follow", waypoints, *ROBOT, "--max-velocity", "1", "--tracker", "ltv"]
+    code, _, err = run([*argv, "-o", tmp_path / "f.csv"], capsys)
+    assert code == 1
+    assert "LTVUnicycle (the Riccati equation) needs scipy: pip install 'diffdrive[control]'" in err
+    assert "Traceback" not in err
+    code, _, err = run(["calibrate", "-o", tmp_path / "r.toml", "--cv", "none"], capsys)
+    assert code == 1
+    assert "calibration needs scipy: pip install 'diffdrive[calibration]'" in err
+
+
+def test_the_first_plan_says_it_compiles(tmp_path, capsys, monkeypatch):
+    import diffdrive.cli.plan as cli_plan
+
+    monkeypatch.setattr(cli_plan, "compiles_first", lambda: True)
+    waypoints = tmp_path / "w.csv"
+    waypoints.write_text("x,y\n0,0\n2,0\n")
+    code, _, err = run(
+        ["plan", waypoints, *ROBOT, "--max-velocity", "1", "-o", tmp_path / "p.csv"], capsys
+    )
+    assert code == 0
+    assert "compiling the path-timing kernel with numba, once" in err
+
+
+@pytest.mark.slow
+def test_a_closed_pipe_ends_quietly(tmp_path):
+    """``diffdrive info BAG | head -1`` printed 'Broken pipe': a reader that goes away ends
+    the command quietly, whenever it goes."""
+    import subprocess
+    import sys
+
+    python = f"{sys.executable} -m diffdrive"
+    commands = [f"{python} fk 1 2 | true", f"{python} fk 1 2 --json | true"]
+    commands += [f"{python} simulate -o t.csv && {python} evaluate t.csv --truth t.csv | true"]
+    for command in commands * 2:
+        result = subprocess.run(command, shell=True, capture_output=True, text=True, cwd=tmp_path)
+        assert "Broken pipe" not in result.stderr, command
+        assert "Traceback" not in result.stderr, command
+        assert "Exception ignored" not in result.stderr, command
+
+
+def test_gps_as_the_estimate_compares_positions(tmp_path, capsys):
+    """evaluate with a NavSatFix topic as the estimate failed on its NaN heading."""
+    pytest.importorskip("rosbags")
+    bag = tmp_path / "run.mcap"
+    gps = ["--gps", "48.1", "11.6", "520", "--pose-sigma", "0.3", "0.3", "0", "--seed", "1"]
+    assert main(["synth", *gps, "-o", str(bag), "-q"]) == 0
+    truth = ["--truth", bag, "--truth-topic", "/ground_truth", "--interpolate", "--json"]
+    code, out, err = run(["evaluate", bag, "--topic", "/fix", *truth], capsys)
+    assert code == 0, err
+    metrics = json.loads(out)
+    assert metrics["max_heading_error_deg"] is None
+    assert 0.05 < metrics["ate_aligned_m"] < 1.0
+
+
+def test_a_cusp_in_reverse_says_theta_is_the_robots_heading(tmp_path, capsys):
+    waypoints = tmp_path / "w.csv"
+    waypoints.write_text("x,y,theta\n0,0,0\n1,0,0\n")
+    argv = ["plan", waypoints, *ROBOT, "--max-velocity", "1", "--reverse", "-o", tmp_path / "p.csv"]
+    code, _, err = run(argv, capsys)
+    assert code == 1
+    assert "theta is the robot's heading: driving in reverse, the path leaves against it" in err

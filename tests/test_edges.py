@@ -274,17 +274,21 @@ def test_bad_numbers_name_their_parameter(call, error, message):
         call()
 
 
-def test_sigterm_during_a_write_leaves_no_temporary_file(tmp_path):
+@pytest.mark.slow
+@pytest.mark.parametrize("interrupt", [signal.SIGTERM, signal.SIGINT], ids=["term", "ctrl-c"])
+def test_an_interrupted_write_leaves_no_temporary_file_and_no_traceback(tmp_path, interrupt):
     command = [sys.executable, "-m", "diffdrive", "simulate", "--dt", "1e-5", "-o", "big.csv"]
     with subprocess.Popen(
-        command, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        command, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
     ) as process:
         deadline = time.monotonic() + 60
         while not list(tmp_path.glob(".big.*")) and time.monotonic() < deadline:
             assert process.poll() is None, "finished before it could be interrupted"
             time.sleep(0.02)
-        process.send_signal(signal.SIGTERM)
-        assert process.wait(timeout=30) == 128 + signal.SIGTERM
+        process.send_signal(interrupt)
+        assert process.wait(timeout=30) == 128 + interrupt
+        printed = process.stderr.read()
+    assert "Traceback" not in printed
     assert list(tmp_path.iterdir()) == []
 
 

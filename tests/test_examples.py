@@ -198,3 +198,13 @@ def test_follow_path_plans_within_the_limits_and_draws(tmp_path, capsys):
     for ratio in limit_ratios(planned.times, planned.twists, script.ROBOT, script.LIMITS).values():
         assert ratio.max() <= 1 + 1e-9
     assert followed.poses.shape[0] == script.ROBOTS
+
+
+def test_no_example_draws_over_the_tracked_figures_by_default():
+    """Run with no arguments, an example wrote docs/figures/*.png, which git tracks: its
+    default is out/figures/ now, and --output docs/figures/NAME.png redraws the README's."""
+    folder = Path(__file__).resolve().parents[1] / "examples"
+    for script in sorted(folder.glob("*.py")):
+        text = script.read_text()
+        assert 'default=Path("docs' not in text, script.name
+        assert '"docs" / "figures"' not in text, script.name

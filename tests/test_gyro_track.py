@@ -90,3 +90,23 @@ def test_calibrate_finds_the_track_from_a_bag_imu(tmp_path, monkeypatch, capsys)
     assert "--track-from-gyro takes one log, got 2" in capsys.readouterr().err
     assert main(["calibrate", bag, *joints, *gyro, "--track-width", "0.3", "-o", "x.toml"]) == 1
     assert "--track-from-gyro keeps the wheel radii" in capsys.readouterr().err
+
+
+def test_bad_noise_settings_and_a_reversed_gyro_are_refused():
+    """NaN or negative k, a tick count of 0 (ZeroDivisionError) or below, and a gyro that
+    turns against the wheels (a track of -0.3 m) were taken."""
+    t = np.arange(201) * 0.02
+    increments = np.stack([0.2 + 0.05 * np.sin(t[:-1]), 0.25 + 0.05 * np.cos(t[:-1])], -1)
+    turned = (increments[:, 1] - increments[:, 0]) * 0.05 / 0.3
+    robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    assert track_from_gyro(robot, t, increments, turned).track == pytest.approx(0.3)
+    for options, message in (
+        ({"k": float("nan")}, "k must be finite"),
+        ({"k": -1e-4}, "k must be >= 0"),
+        ({"ticks_per_revolution": 0}, "ticks_per_revolution must be > 0"),
+        ({"ticks_per_revolution": -5}, "ticks_per_revolution must be > 0"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            track_from_gyro(robot, t, increments, turned, **options)
+    with pytest.raises(ValueError, match="the gyro turns against the wheels"):
+        track_from_gyro(robot, t, increments, -turned)

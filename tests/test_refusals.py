@@ -188,3 +188,194 @@ def test_a_robot_file_with_a_number_of_hundreds_of_digits_is_named(tmp_path):
     robot.write_text("wheel_radius = 0.05\ntrack_width = 1" + "0" * 400 + "\n")
     with pytest.raises(dd.io.TableError, match="track_width must be finite, got a number of 401"):
         dd.io.read_robot(robot)
+
+
+# -- the fourth campaign (issue 43): silent wrong answers, crashes, messages ----------------
+
+
+def _estimator(core):
+    """E() of the campaign: a wheels-heading estimator two readings in."""
+    e = core(dd.DiffDrive(wheel_radius=0.1, track_width=1.0), "wheels")
+    e.update_positions(0.0, 0.0, t=0.0)
+    e.update_positions(0.19, 0.21, t=0.02)
+    return e
+
+
+@pytest.mark.parametrize(
+    "core", [dd.estimation.PoseEstimator, dd.estimation.fusion.PythonPoseEstimator]
+)
+@pytest.mark.parametrize(
+    ("add", "message"),
+    [
+        (lambda e, p: e.add_position(0.02, (p.x + 0.003, p.y), math.nan), "must be > 0"),
+        (lambda e, p: e.add_heading(0.02, 0.1, math.nan), "must be > 0"),
+        (
+            lambda e, p: e.add_position(0.02, (p.x, p.y), [[0.01, 0.01], [0.01, 0.01]]),
+            "not positive definite|singular",
+        ),
+        (
+            lambda e, p: e.add_position(0.02, (p.x, p.y), [[1.0, 1 - 1e-15], [1 - 1e-15, 1.0]]),
+            "singular",  # Cholesky passes on rounding; a pivot of 2e-15 is refused
+        ),
+    ],
+)
+def test_a_nan_or_singular_covariance_is_refused_by_both_cores(core, add, message):
+    """The compiled estimator took a NaN standard deviation as an exact measurement (NaN was
+    its 'a matrix was given' marker): the pose jumped onto the fix and the covariance lost
+    its positive semi-definiteness. Both cores now refuse it, and a singular covariance."""
+    e = _estimator(core)
+    before, covariance = e.pose, e.covariance
+    with pytest.raises(ValueError, match=message):
+        add(e, before)
+    assert e.pose == before
+    np.testing.assert_array_equal(e.covariance, covariance)
+
+
+@pytest.mark.parametrize(
+    "core", [dd.estimation.PoseEstimator, dd.estimation.fusion.PythonPoseEstimator]
+)
+def test_a_queued_fix_with_a_huge_lever_arm_is_gated_out_and_the_estimator_goes_on(core):
+    """The pure-Python core jammed for good: every later reading 'would overflow'."""
+    e = _estimator(core)
+    assert e.add_position(0.05, (0.1, 0.0), 0.1, lever_arm=(1e300, 0.0)) is False  # waits
+    for k in (3, 4, 5):
+        e.update_positions(0.095 * k, 0.105 * k, t=0.02 * (k - 1))
+    assert (e.accepted, e.rejected) == (0, 1)
+    assert np.isfinite(e.pose.x)
+
+
+@pytest.mark.parametrize(
+    ("call", "error", "message"),
+    [
+        (
+            lambda: dd.dynamics.DriveModel(time_constant=0.1).wheel_velocities(
+                [0.0, 0.1, 0.2], [0.0], [[1.0, 1.0]], initial=[math.nan, 0.0]
+            ),
+            ValueError,
+            r"initial must be finite",  # NaN rows before
+        ),
+        (
+            lambda: dd.dynamics.simulate_commands(
+                ROBOT, dd.dynamics.DriveModel(), [0.0], [[1.0, 1.0]], dt=0.01, duration=-5
+            ),
+            ValueError,
+            "duration must be > 0",  # a one-step trajectory before
+        ),
+        (
+            lambda: dd.dynamics.simulate_commands(
+                ROBOT, dd.dynamics.DriveModel(), [0.0], [[1.0, 1.0]], dt=1e-7, duration=1e7
+            ),
+            ValueError,
+            "would take 1e\\+14 samples",  # a MemoryError before
+        ),
+        (
+            lambda: dd.dynamics.simulate_commands(
+                ROBOT,
+                dd.dynamics.DriveModel(),
+                [0.0],
+                [[1.0, 1.0]],
+                dt=0.01,
+                duration=1.0,
+                initial_wheels=[math.nan, 0.0],
+            ),
+            ValueError,
+            "initial_wheels must be finite",  # named an argument the caller never gave
+        ),
+        (
+            lambda: dd.evaluation.consistency(
+                np.zeros((3, 3)),
+                np.array([np.eye(3), np.diag([1.0, -1.0, 1.0]), np.eye(3)]),
+                np.full((3, 3), 0.1),
+            ),
+            ValueError,
+            "covariance 1 is not positive semi-definite",  # skipped as known exactly
+        ),
+        (lambda: dd.SkidSteer(0.05, 5e-324, 0.0), ValueError, "divides to a finite number"),
+        (
+            lambda: dd.DiffDrive(wheel_radius=1e-320, track_width=0.3),
+            ValueError,
+            "wheel_radius must be a length that divides",
+        ),
+        (
+            lambda: dd.control.plan(
+                np.array([[0, 0], [1, 0], [2, 1], [3, 1.0]]),
+                ROBOT,
+                dd.control.PathLimits(max_velocity=1),
+                stops=[1.5],
+            ),
+            ValueError,
+            "stops must be a whole number from 1, got 1.5",
+        ),
+        (
+            lambda: dd.estimation.estimate_trajectory(
+                ROBOT, [0.0, 1.0], [[0.1, 0.1]], heading="wheels", measurements=[(1.0, (0, 0, 0))]
+            ),
+            TypeError,
+            "measurements must be Measurements",  # AttributeError before
+        ),
+        (
+            lambda: gyro_odometry(ROBOT, [0.0, 1.0], [[0.1, 0.1]], None),
+            TypeError,
+            "gyro must be a Gyro",  # AttributeError before
+        ),
+        (lambda: dd.control.Ramsete(zeta="0.5"), TypeError, "zeta must be a real number"),
+        (
+            lambda: dd.dynamics.DriveModel(max_acceleration="1"),
+            TypeError,
+            "max_acceleration must be a number",
+        ),
+        (
+            lambda: dd.io.sample_times(np.arange(100) * 0.01, tick="1e-3"),
+            TypeError,
+            "tick must be a real number",
+        ),
+        (lambda: dd.se2.sinc("a"), TypeError, "u must be a real number"),
+        (lambda: dd.wrap_angle("a"), TypeError, "angle must be a real number"),
+        (lambda: dd.se2.from_matrix("a"), TypeError, "matrix must be numbers"),
+        (lambda: dd.evaluation.rpe("a", np.zeros((2, 3)), 1.0), TypeError, "estimate must be"),
+        (
+            lambda: dd.evaluation.rpe(np.zeros((2, 3)), np.zeros((2, 3)), 1.0, "s", times="a"),
+            TypeError,
+            "times must be numbers",
+        ),
+        (lambda: dd.Odometry(ROBOT).reset(None, "a"), TypeError, "covariance must be numbers"),
+    ],
+)
+def test_the_campaigns_findings_are_refused_by_name(call, error, message):
+    with pytest.raises(error, match=message):
+        call()
+
+
+def test_integers_fractions_numpy_scalars_and_lists_of_rows():
+    """What the campaign found taken without a word, or refused though sensible."""
+    from diffdrive import noise
+
+    increments = np.tile([0.2, 0.25], (50, 1))
+    runs = [(increments, dd.simulate(ROBOT, increments / 0.02, dt=0.02).poses)] * 3
+    with pytest.raises(ValueError, match=r"windows must be a whole number from 1, got 2\.5"):
+        noise.identify(ROBOT, runs, windows=2.5)
+    with pytest.raises(TypeError, match="windows must be a real number, not text"):
+        noise.identify(ROBOT, runs, windows="3")
+    limits = dd.control.PathLimits(max_velocity=np.float32(1.5))  # a NumPy scalar: a number
+    assert limits.max_velocity == 1.5
+    planned = dd.control.plan([[0, 0], [1, 0], [1, 1]], ROBOT, limits)  # a list of rows
+    follow = dd.control.follow(planned, dd.control.Ramsete(), robots=np.int64(2))
+    assert follow.poses.shape[0] == 2
+    model = noise.NoiseModel(1e-4, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
+    drawn = noise.draw_reference(ROBOT, increments, np.zeros(3), model, 5)  # an int seed
+    again = noise.draw_reference(ROBOT, increments, np.zeros(3), model, 5)
+    np.testing.assert_array_equal(drawn, again)
+    with pytest.raises(ValueError, match=r"start must be one pose \(x, y, theta\) or one per"):
+        dd.control.follow(planned, dd.control.Ramsete(), start=[0, 0])
+    with pytest.raises(ValueError, match=r"delay must be one number or one per robot \(3\)"):
+        dd.control.follow(planned, dd.control.Ramsete(), delay=[0, 0.02], robots=3)
+
+
+def test_huge_poses_give_finite_measures():
+    """ATE of a pose 1e200 m off was inf (its square overflowed), and the alignment of poses
+    of 1e300 m raised LinAlgError."""
+    error = dd.evaluation.ate(np.array([[1e200, 0, 0], [0, 0, 0]]), np.zeros((2, 3)))
+    assert error == pytest.approx(1e200 / math.sqrt(2))
+    far = np.array([[1e300, 0, 0], [0, 1e300, 0], [1, 1, 0]])
+    aligned = dd.evaluation.align(far, far)
+    np.testing.assert_allclose(aligned[:, :2], far[:, :2], rtol=0, atol=1e300 * 1e-12)

@@ -37,9 +37,12 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     # signals would not do: another thread, such as a BLAS pool's, takes them instead.)
     held = _hold_interrupts()
     try:
-        handle, temporary = tempfile.mkstemp(
-            dir=path.parent or ".", prefix=f".{path.stem}.", suffix=path.suffix
-        )
+        try:
+            handle, temporary = tempfile.mkstemp(
+                dir=path.parent or ".", prefix=f".{path.stem}.", suffix=path.suffix
+            )
+        except OSError as exc:  # named by the target, not the hidden file it never made
+            raise TableError(f"cannot write {path}: {exc.strerror} (in {folder})") from None
         os.close(handle)
         _release(held)
         held = None
@@ -48,7 +51,10 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(temporary, 0o666 & ~umask)
-        os.replace(temporary, path)
+        try:
+            os.replace(temporary, path)
+        except OSError as exc:
+            raise TableError(f"cannot write {path}: {exc.strerror}") from None
     except BaseException:
         if temporary is not None:
             with contextlib.suppress(FileNotFoundError):

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._optional import optional
 from diffdrive._progress import progress_bar
 from diffdrive.model import Robot
 
@@ -30,9 +31,8 @@ _ROBOT_COLOUR = "0.25"
 def _figure(**options):
     """A matplotlib Figure that draws off-screen, without pyplot: the user's backend and
     pyplot's list of open figures are left alone."""
-    from matplotlib.figure import Figure
-
-    return Figure(**options)
+    figure = optional("matplotlib.figure", "plot", "drawing figures").Figure
+    return figure(**options)
 
 
 def _three_panels():

@@ -49,6 +49,7 @@ from typing import Literal
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._optional import optional
 from diffdrive._progress import progress_bar
 from diffdrive._validate import whole
 from diffdrive.integrate import Method, check_method
@@ -454,7 +455,7 @@ def _solve(nominal, residuals, free: np.ndarray, extra=(), initial=(), **options
     """Least squares over the ``free`` parameters, relative to the nominal ones (so that all
     are of order 1), and the ``extra`` ones from ``initial``: ``(parameters, covariance (zero
     for fixed ones), condition, {extra: value})``."""
-    from scipy.optimize import least_squares
+    least_squares = optional("scipy.optimize", "calibration", "calibration").least_squares
 
     start = _parameters(nominal)
     count = int(free.sum())
@@ -672,7 +673,7 @@ def _position_errors(robot, runs, integration: Method, heading_offset: float = 0
 def _minimax(nominal, runs, integration: Method, parameters: np.ndarray, axle=None, offset=0.0):
     """The parameters, from ``parameters``, that minimise the largest position error (the
     extra parameters stay as least squares found them)."""
-    from scipy.optimize import minimize
+    minimize = optional("scipy.optimize", "calibration", "minimax calibration").minimize
 
     def largest(relative: np.ndarray) -> float:
         robot = _robot_with(nominal, parameters * relative, axle)

@@ -5,12 +5,14 @@ With no arguments it runs the main job on a built-in example (``report``)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
 
+from diffdrive import __version__
 from diffdrive.cli import (
     calibrate,
     evaluate,
@@ -42,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         "kinematics of a built-in example robot, and a simulation of its built-in driving "
         "history with each integration method.",
     )
+    parser.add_argument("--version", action="version", version=f"diffdrive {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     formatter = argparse.RawDescriptionHelpFormatter
 
@@ -71,7 +74,13 @@ def build_parser() -> argparse.ArgumentParser:
     pictures.add_argument(
         "input", nargs="?", type=Path, help="trajectory (CSV, JSON lines, TUM); none: built-in"
     )
-    parents = Parents(robot=robot_options(), logs=log_options(), times=times, pictures=pictures)
+    parents = Parents(
+        robot=robot_options(),
+        logs=log_options(),
+        times=times,
+        pictures=pictures,
+        robot_required=robot_options(required=True),
+    )
     modules = (
         simulate,
         odometry,
@@ -104,13 +113,35 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     previous = _exit_on_sigterm()
     try:
-        return args.run(args)
+        code = args.run(args)
+        sys.stdout.flush()  # here, not at exit: a closed pipe is then this handler's
+        return code
+    except BrokenPipeError:
+        # The reader went away (``diffdrive info BAG | head -1``): nothing more to say to it.
+        _quiet_stdout()
+        return 141  # 128 + SIGPIPE, as a program the pipe killed
+    except KeyboardInterrupt:
+        print(f"diffdrive {args.command}: interrupted; no file was half-written", file=sys.stderr)
+        return 130  # 128 + SIGINT
+    except ImportError as exc:  # an optional part missing: its message names the extra
+        print(f"diffdrive {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except (ValueError, TypeError, OSError) as exc:
         print(f"diffdrive {args.command}: error: {exc}", file=sys.stderr)
         return 1
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _quiet_stdout() -> None:
+    """Point standard output at /dev/null: Python's flush at exit would fail on the closed
+    pipe again and print a traceback."""
+    import os
+
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
 
 
 def _exit_on_sigterm():

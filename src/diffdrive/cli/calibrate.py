@@ -315,10 +315,14 @@ def calibration_report(nominal: Robot, result, runs, integration: Method) -> str
 EPILOGS = {
     "calibrate": f"""examples:
   diffdrive calibrate                      the built-in example runs -> robot.toml
-  diffdrive calibrate runs/*_run-*.csv --method least_squares -o robot.toml
+  diffdrive calibrate runs/*_run-*.csv --robot nominal.toml --method least_squares -o robot.toml
+  diffdrive calibrate run.bag --left-joint L --right-joint R --wheel-radius 0.033 \
+      --track-from-gyro --gyro-topic /imu -o robot.toml     the track from a gyro
 
 runs with ground truth, each as below (x, y, theta needed; OptiOdom files count 2796.8 a
-turn unless told).
+turn unless told). Runs need the nominal robot (--robot, or the geometry flags: the fit starts
+from it); the built-in robot is the default for the built-in runs only, and --track-from-gyro
+needs only the radii.
 {LOG_COLUMNS}""",
 }
 

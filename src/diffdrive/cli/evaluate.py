@@ -216,7 +216,8 @@ def plan_metrics(args) -> dict:
 def evaluation_metrics(args, times, estimate, truth) -> dict:
     """The paper's measures, ATE and RPE; a truth without headings (GPS) gives the position
     measures only (the others are None)."""
-    positions_only = bool(np.isnan(truth[:, 2]).any())
+    # GPS on either side (a NavSatFix topic as the estimate, or as the truth) has no heading.
+    positions_only = bool(np.isnan(truth[:, 2]).any() or np.isnan(estimate[:, 2]).any())
     if positions_only:  # compare positions: the headings take no part
         estimate, truth = estimate.copy(), truth.copy()
         estimate[:, 2] = truth[:, 2] = 0.0
@@ -233,9 +234,19 @@ def evaluation_metrics(args, times, estimate, truth) -> dict:
     name = f"rpe_{args.rpe:g}{args.rpe_unit}_{args.rpe_pairs}"
     metrics[f"{name}_m"] = metrics[f"{name}_deg"] = None
     if not positions_only:
-        metrics[f"{name}_m"], metrics[f"{name}_deg"] = rpe(
-            estimate, truth, args.rpe, unit=args.rpe_unit, times=times, pairs=args.rpe_pairs
-        )
+        try:
+            metrics[f"{name}_m"], metrics[f"{name}_deg"] = rpe(
+                estimate, truth, args.rpe, unit=args.rpe_unit, times=times, pairs=args.rpe_pairs
+            )
+        except ValueError as exc:
+            if "no pair of poses" not in str(exc):
+                raise
+            # A path shorter than the window: the other measures stand; this one is named.
+            print(
+                f"evaluate: the RPE over {args.rpe:g} {args.rpe_unit} is not computed: {exc} "
+                "(a shorter --rpe window, or --rpe-unit poses)",
+                file=sys.stderr,
+            )
     return metrics
 
 

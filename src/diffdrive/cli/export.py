@@ -260,7 +260,7 @@ def add_to(command: Command, parents: Parents) -> None:
         "export",
         "the calibrated robot, its noise model and its drive as ROS 2, robot_localization, "
         "AMCL or WPILib files",
-        [parents.robot, parents.logs],
+        [parents.robot_required, parents.logs],
         run_export,
         EPILOGS["export"],
     )

@@ -113,7 +113,7 @@ def add_to(command: Command, parents: Parents) -> None:
     identify = command(
         "identify",
         "how the drive answers: kS, kV, kA from voltages, the velocity response from commands",
-        [parents.robot, parents.logs],
+        [parents.robot_required, parents.logs],
         run_identify,
         EPILOGS["identify"],
     )

@@ -58,9 +58,15 @@ TRAJECTORY_FILES = """trajectory files: CSV (t, x, y, theta), JSON lines or TUM
 (t x y z qx qy qz qw), told apart by their content; a robot column holds several robots."""
 
 
-def robot_options() -> argparse.ArgumentParser:
+def robot_options(required: bool = False) -> argparse.ArgumentParser:
+    """The robot's options; ``required``: the command refuses to assume the built-in one."""
     options = argparse.ArgumentParser(add_help=False)
-    group = options.add_argument_group(f"robot (default: {ROBOT_DEFAULTS})")
+    title = (
+        "robot (required: a robot file or the geometry flags; the built-in one is not assumed)"
+        if required
+        else f"robot (default: {ROBOT_DEFAULTS})"
+    )
+    group = options.add_argument_group(title)
     group.add_argument("--robot", type=Path, help="a robot file (TOML) with the settings below")
     helps = {
         "ticks_per_revolution": "encoder counts per wheel revolution",
@@ -357,7 +363,7 @@ def print_values(values: dict[str, float], as_json: bool, units: dict[str, str])
         print(json.dumps({k: (v if math.isfinite(v) else str(v)) for k, v in values.items()}))
         return
     for name, value in values.items():
-        print(f"{name:15} {value:12.6g} {units[name]}")
+        print(f"{name:15} {value + 0.0:12.6g} {units[name]}")  # + 0.0: no "-0" printed
 
 
 # argparse's own pattern misses the exponent form (-1e-3), which it then takes for an option.
@@ -410,6 +416,7 @@ class Parents:
     logs: argparse.ArgumentParser
     times: argparse.ArgumentParser
     pictures: argparse.ArgumentParser
+    robot_required: argparse.ArgumentParser
 
 
 def gyro_of(args: argparse.Namespace, log: Run, path: Path | None = None):

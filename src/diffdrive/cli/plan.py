@@ -4,6 +4,7 @@ trackers driving robots along it."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ from diffdrive.control import (
     limit_ratios,
     plan,
 )
+from diffdrive.control._timing import compiles_first
 from diffdrive.dynamics import Feedforward
 from diffdrive.io import read_table
 from diffdrive.io.tables import read_header
@@ -50,6 +52,12 @@ def _plan_of(args: argparse.Namespace):
     # built-in robot's would give a plan for another robot.
     refuse_assumed_robot(args, f"{args.command} needs the robot")
     robot, _ = robot_from(args)
+    if compiles_first():  # said once: the first plan would otherwise sit silent for long
+        print(
+            f"diffdrive {args.command}: compiling the path-timing kernel with numba, once "
+            "(about half a minute); later runs load it from the cache",
+            file=sys.stderr,
+        )
     unused = [name for name in read_header(args.waypoints) if name not in ("x", "y", "theta")]
     if unused:
         # A heading under another name would be dropped and the spline's own taken instead.
@@ -71,7 +79,7 @@ def _plan_of(args: argparse.Namespace):
     limits = PathLimits(
         **{name: getattr(args, name) for name in LIMIT_FLAGS}, feedforward=feedforward
     )
-    stops = [int(i) for i in args.stops.split(",")] if args.stops else []
+    stops = args.stops or []
     try:
         return robot, plan(waypoints, robot, limits, reverse=args.reverse, stops=stops)
     except ValueError as error:
@@ -200,6 +208,16 @@ Written: robot 0's true poses with its cross-track, along-track and heading erro
 }
 
 
+def _indices(text: str) -> list[int]:
+    """``--stops``: waypoint indices separated by commas."""
+    try:
+        return [int(part) for part in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"waypoint indices (whole numbers from 0) separated by commas, got {text!r}"
+        ) from None
+
+
 def _planning_options(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("waypoints", type=Path, help="CSV of waypoints: x, y[, theta]")
     for name, unit in LIMIT_FLAGS.items():
@@ -212,7 +230,12 @@ def _planning_options(sub: argparse.ArgumentParser) -> None:
         "--ka", type=float, metavar="V_S2/M", help="wheel feedforward kA per m/s^2 (SysId's)"
     )
     sub.add_argument("--reverse", action="store_true", help="drive the path backward")
-    sub.add_argument("--stops", metavar="I,J", help="interior waypoints to halt at")
+    sub.add_argument(
+        "--stops",
+        type=_indices,
+        metavar="I,J",
+        help="interior waypoints to halt at, counted from 0, separated by commas",
+    )
     sub.add_argument("--dt", type=float, default=0.02, help="period, s (0.02)")
     sub.add_argument("--plot", type=Path, metavar="PNG", help="draw the plan (and the runs)")
 
@@ -222,7 +245,7 @@ def add_to(command: Command, parents: Parents) -> None:
     planned = command(
         "plan",
         "the fastest timing of a path through waypoints within every wheel's limits",
-        [parents.robot, output_options("plan.csv")],
+        [parents.robot_required, output_options("plan.csv")],
         run_plan,
         EPILOGS["plan"],
     )
@@ -230,7 +253,7 @@ def add_to(command: Command, parents: Parents) -> None:
     followed = command(
         "follow",
         "simulate a tracker driving robots along a plan, with delay, lag and noisy odometry",
-        [parents.robot, output_options("follow.csv")],
+        [parents.robot_required, output_options("follow.csv")],
         run_follow,
         EPILOGS["follow"],
     )

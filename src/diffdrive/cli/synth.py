@@ -56,6 +56,13 @@ def run_synth(args: argparse.Namespace) -> int:
             streams["absolute"] = absolute
         origin = tuple(args.gps) if args.gps else None
         offset = sensors.bag_time_offset(times[0]) if args.time_offset is None else args.time_offset
+        if not math.isfinite(offset):
+            raise ValueError(f"--time-offset must be finite (s), got {offset}")
+        if not times[0] + offset > 0.0:
+            raise ValueError(
+                f"--time-offset {offset:g}: the bag's first stamp would be {times[0] + offset:g} "
+                f"s, and ROS reads a stamp of 0 as unset; give an offset above {0.0 - times[0]:g}"
+            )
         sensors.write_bag(
             args.output,
             format=format,

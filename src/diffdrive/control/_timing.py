@@ -28,9 +28,12 @@ numba is installed (``diffdrive[fast]``), and otherwise runs it as it is.
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import os
 from collections.abc import Callable
 from functools import cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -241,6 +244,17 @@ def parameterise(ds, lin, ang, dang, wc, wd, lim, ff, ceiling, u):
         if lower_where_outside(ds, lin, ang, dang, wc, wd, lim, ff, u, top) == 0:
             return OK, 0
     return UNSETTLED, 0
+
+
+def compiles_first() -> bool:
+    """Whether the first plan of this process will compile the kernel (numba installed, and
+    no machine code of it cached on disk yet: tens of seconds, once)."""
+    if importlib.util.find_spec("numba") is None:
+        return False
+    folders = [Path(__file__).parent / "__pycache__"]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        folders.append(Path(os.environ["NUMBA_CACHE_DIR"]))
+    return not any(any(folder.rglob("_timing.parameterise-*.nbi")) for folder in folders)
 
 
 @cache

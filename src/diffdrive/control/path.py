@@ -249,7 +249,8 @@ def _quintics(points: np.ndarray, step: float, first: int, smooth: bool) -> list
         if cusp[index]:
             raise ValueError(
                 f"{where} has a cusp (its tangent vanishes): move the waypoints apart or "
-                "change their headings"
+                "change their headings (theta is the robot's heading: driving in reverse, the "
+                "path leaves against it)"
             )
         if loops[index]:
             raise ValueError(

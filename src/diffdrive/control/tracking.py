@@ -29,6 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from diffdrive import batch
+from diffdrive._optional import optional
 from diffdrive._validate import finite, positive
 from diffdrive.control.planning import Plan
 
@@ -114,7 +115,9 @@ class LTVUnicycle:
         dt: float = 0.02,
         max_velocity: float = 9.0,
     ) -> None:
-        from scipy.linalg import solve_discrete_are
+        solve_discrete_are = optional(
+            "scipy.linalg", "control", "LTVUnicycle (the Riccati equation)"
+        ).solve_discrete_are
 
         for name, values, size in (("q", q, 3), ("r", r, 2)):
             if len(values) != size or not all(v > 0 and math.isfinite(v) for v in values):

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive._optional import optional
 from diffdrive._validate import increasing
 
 __all__ = [
@@ -370,7 +371,9 @@ def cross_validate(
 def _refined(tried: list[float], best: int, fitted, at_best):
     """The acceleration limit between the grid's neighbours of the best one tried (half and
     twice it at an end), by bounded Brent on its logarithm: the limit and its fit."""
-    from scipy.optimize import minimize_scalar  # the examples' and tests' extra
+    minimize_scalar = optional(
+        "scipy.optimize", "calibration", "refining the acceleration limit between those tried"
+    ).minimize_scalar
 
     low = tried[best - 1] if best > 0 else tried[best] / 2.0
     high = tried[best + 1] if best + 1 < len(tried) else 2.0 * tried[best]

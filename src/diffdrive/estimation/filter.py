@@ -225,7 +225,11 @@ def absolute_update(
     if size == 3:
         H[2, 2] = 1.0
         innovation[2] = wrap_angle(m.value[2] - x[2])
-    S = H @ P @ H.T + m.covariance
+    with np.errstate(over="ignore", invalid="ignore"):
+        S = H @ P @ H.T + m.covariance
+        finite = bool(np.all(np.isfinite(S)) and np.all(np.isfinite(innovation)))
+    if not finite:  # a lever arm of 1e300 m: gated out, as the C core's Cholesky refuses it
+        return x, P, False, math.inf
     try:
         factor = np.linalg.cholesky(S)
     except np.linalg.LinAlgError:

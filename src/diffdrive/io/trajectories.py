@@ -289,7 +289,8 @@ def write_trajectory(
     arrays = [times, poses[..., 0], poses[..., 1], poses[..., 2], *extra.values()]
     if robots:
         arrays.insert(0, np.broadcast_to(np.arange(robots)[:, None], times.shape))
-    columns_flat = [np.ascontiguousarray(column).reshape(-1) for column in arrays]
+    # + 0.0 turns -0.0 into 0.0: a velocity of -0.0 reads as a sign where there is none.
+    columns_flat = [np.ascontiguousarray(column).reshape(-1) + 0.0 for column in arrays]
     _orjson()  # loaded before the file is begun: a SIGTERM inside its import crashes it
     # A block of rows at a time: the text of a whole log would take ten times its numbers.
     with atomic_write(path) as stream:

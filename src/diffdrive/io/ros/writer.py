@@ -16,6 +16,7 @@ from typing import Literal
 
 import numpy as np
 
+from diffdrive._optional import optional
 from diffdrive.io.tables import TableError
 
 __all__ = ["BAG_FORMATS", "Stream", "write_odometry", "write_streams"]
@@ -83,8 +84,10 @@ def write_odometry(
 def _bag(path: str | Path, format: BagFormat | None) -> Iterator[tuple]:
     """A ``rosbags`` writer and type store for a bag at ``path``, written whole or not at all
     (``format``: ``"mcap"``, one file; ``"ros2"``, a bag folder; None: by the suffix)."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
+    rosbag2 = optional("rosbags.rosbag2", "ros", "writing ROS bags and MCAP")
+    typesys = optional("rosbags.typesys", "ros", "writing ROS bags and MCAP")
+    StoragePlugin, Writer = rosbag2.StoragePlugin, rosbag2.Writer
+    Stores, get_typestore = typesys.Stores, typesys.get_typestore
 
     path = Path(path)
     format = format or ("mcap" if path.suffix == ".mcap" else "ros2")
