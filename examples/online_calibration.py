@@ -102,9 +102,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--data", type=Path, default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive"
     )
-    parser.add_argument(
-        "--output", type=Path, default=Path("out/figures/online_calibration.png")
-    )
+    parser.add_argument("--output", type=Path, default=Path("out/figures/online_calibration.png"))
     args = parser.parse_args(argv)
     drawn = None
     for window in (20, 1):

@@ -188,9 +188,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--data", type=Path, default=ROOT.parent / "shared" / "data" / "optiodom-diffdrive"
     )
-    parser.add_argument(
-        "--output", type=Path, default=Path("out/figures/optiodom_calibration.png")
-    )
+    parser.add_argument("--output", type=Path, default=Path("out/figures/optiodom_calibration.png"))
     args = parser.parse_args(argv)
     if not args.data.is_dir():
         raise SystemExit(f"the OptiOdom data is expected in {args.data}")
