@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 
 from diffdrive._stats import chi2_quantile
-from diffdrive._validate import finite
+from diffdrive._validate import finite, floats
 
 __all__ = ["MEASUREMENT_KINDS", "Measurement", "chi2_quantile"]
 
@@ -28,12 +28,7 @@ _SIZE = {"pose": 3, "position": 2, "heading": 1}
 
 def _floats(given: object, what: str, where: str) -> np.ndarray:
     """``given`` as a float array; ``ValueError`` or ``TypeError`` naming it otherwise."""
-    try:
-        return np.asarray(given, dtype=float)
-    except OverflowError:
-        raise ValueError(f"{where}: {what} must be finite, got an integer too large") from None
-    except (TypeError, ValueError):
-        raise TypeError(f"{where}: {what} must be numbers, got {given!r}") from None
+    return floats(f"{where}: {what}", given)
 
 
 # A Cholesky pivot below this share of its diagonal entry marks a singular covariance.
