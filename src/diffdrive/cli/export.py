@@ -51,8 +51,9 @@ def run_export(args: argparse.Namespace) -> int:
         nominal = robot_from_settings(settings, f" (in {args.nominal})").equivalent
     notes = ["written by diffdrive export"]
     lines: list[str] = []
+    score = ""
     if args.runs:
-        model, held = _identified(args, robot, ticks, notes, lines)
+        model, held, score = _identified(args, robot, ticks, notes, lines)
     else:
         model = NoiseModel(
             args.k,
@@ -70,7 +71,7 @@ def run_export(args: argparse.Namespace) -> int:
         raise ValueError(
             f"export: the noise model is not fit to write into {args.to}'s file: "
             + "; ".join(held)
-            + ". --accept-inconsistent writes it anyway, saying so in the file"
+            + f" ({score}). --accept-inconsistent writes it anyway, saying so in the file"
         )
     if held:
         notes.append(
@@ -202,8 +203,8 @@ def _drive(args) -> DriveConstants | None:
 
 def _identified(args, robot, ticks, notes: list[str], lines: list[str]):
     """The noise model identified on the runs, the reference's accuracy held at what was
-    stated (or at motion capture's for tables), and the reasons its own runs give against
-    writing it (``export.refusals``)."""
+    stated (or at motion capture's for tables), the reasons its own runs give against
+    writing it (``export.refusals``) and the line of its score on them."""
     read = [_calibration_run(args, path, ticks)[0] for path in args.runs]
     fixed = None
     stated = args.reference_sigma
@@ -233,7 +234,7 @@ def _identified(args, robot, ticks, notes: list[str], lines: list[str]):
     ]
     if at_bound:
         lines.append(f"{', '.join(at_bound)} at 0: the runs show no run-to-run change of it")
-    return model, refusals(found, model)
+    return model, refusals(found, model), held
 
 
 EPILOGS = {
