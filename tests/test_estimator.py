@@ -149,6 +149,40 @@ def test_a_late_measurement_lands_at_its_stamp_as_if_it_had_come_in_time():
     assert late.accepted == on_time.accepted == 29
 
 
+def test_numpy_lists_and_tuples_are_the_same_measurement():
+    """A measurement's numbers as NumPy arrays and scalars (as a log hands them over), lists
+    or tuples: the same estimate to the bit (the C core reads all three directly)."""
+    rng = np.random.default_rng(5)
+    increments = noisy_increments(rng)
+    poses = TRUTH[::10] + rng.normal(size=(len(T[::10]), 3)) * VISION_SIGMA
+    cov = np.diag(np.square(VISION_SIGMA))
+    forms = {
+        "numpy": lambda p: (np.float64(p[0]), np.asarray(p), cov),
+        "float32 falls back": lambda p: (p[0], p.astype(np.float32), cov.astype(np.float32)),
+        "lists": lambda p: (float(p[0]), p.tolist(), cov.tolist()),
+        "tuples": lambda p: (float(p[0]), tuple(p.tolist()), tuple(map(tuple, cov.tolist()))),
+    }
+    states = {}
+    for name, form in forms.items():
+        estimator = PoseEstimator(
+            ROBOT, "wheels", dd.Pose(*TRUTH[0]), k_left=K, k_right=K, initial_time=0.0
+        )
+        for step in range(1, 200):
+            estimator.update_increments(*increments[step - 1], T[step])
+            if step % 10 == 0:
+                _, pose, sigma = form(poses[step // 10])
+                estimator.add_pose(T[step], pose, sigma)
+                _, position, _ = form(poses[step // 10][:2])
+                estimator.add_position(T[step - 5], position, VISION_SIGMA[0])
+        states[name] = (estimator.state, estimator.state_covariance, estimator.accepted)
+    reference = states.pop("lists")
+    for name, (state, covariance, accepted) in states.items():
+        tolerance = 1e-6 if name == "float32 falls back" else 0.0
+        np.testing.assert_allclose(state, reference[0], atol=tolerance, err_msg=name)
+        np.testing.assert_allclose(covariance, reference[1], atol=tolerance, err_msg=name)
+        assert accepted == reference[2] > 30
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.permutations(range(8)))
 def test_the_result_does_not_depend_on_the_order_measurements_arrive_in(order):

@@ -480,7 +480,7 @@ static void trim(Est *e) {
 /* A float from a real number (not text, not a bool-free check: as float() takes it); -1 with
  * nothing set when obj is not a plain number. */
 static int plain_number(PyObject *obj, double *out) {
-    if (PyFloat_CheckExact(obj)) {
+    if (PyFloat_Check(obj)) { /* a float, or NumPy's float64 (a subclass) */
         *out = PyFloat_AS_DOUBLE(obj);
         return 0;
     }
@@ -531,9 +531,25 @@ static int finite_number(PyObject *obj, const char *name, double *out) {
     return 0;
 }
 
+/* n doubles from an object that exports them as a contiguous buffer (a NumPy float64 array of
+ * n elements, whatever its shape); -1 for anything else. */
+static int buffer_doubles(PyObject *obj, double *out, Py_ssize_t n) {
+    if (!PyObject_CheckBuffer(obj)) return -1;
+    Py_buffer view;
+    if (PyObject_GetBuffer(obj, &view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        return -1;
+    }
+    int ok = view.format != NULL && strcmp(view.format, "d") == 0 &&
+             view.itemsize == (Py_ssize_t)sizeof(double) && view.len == n * (Py_ssize_t)sizeof(double);
+    if (ok) memcpy(out, view.buf, n * sizeof(double));
+    PyBuffer_Release(&view);
+    return ok ? 0 : -1;
+}
+
 /* n plain numbers from a sequence (a list, tuple or array of floats); -1, nothing set, if not. */
 static int plain_numbers(PyObject *obj, double *out, Py_ssize_t n) {
-    if (!(PyList_Check(obj) || PyTuple_Check(obj))) return -1;
+    if (!(PyList_Check(obj) || PyTuple_Check(obj))) return buffer_doubles(obj, out, n);
     if (PySequence_Fast_GET_SIZE(obj) != n) return -1;
     PyObject **items = PySequence_Fast_ITEMS(obj);
     for (Py_ssize_t i = 0; i < n; ++i)
@@ -901,14 +917,16 @@ static PyObject *add_fast(Est *e, PyObject *const *args, Py_ssize_t nargs) {
     if (kind != POSE && plain_number(args[3], &sigma[0]) == 0) {
         for (int i = 1; i < k; ++i) sigma[i] = sigma[0];
     } else if (plain_numbers(args[3], sigma, k) < 0) {
-        /* a k x k matrix as nested lists or tuples */
-        if (!(PyList_Check(args[3]) || PyTuple_Check(args[3])) ||
-            PySequence_Fast_GET_SIZE(args[3]) != k)
-            Py_RETURN_NONE;
-        PyObject **rows = PySequence_Fast_ITEMS(args[3]);
-        for (int i = 0; i < k; ++i) {
-            if (plain_numbers(rows[i], row, k) < 0) Py_RETURN_NONE;
-            for (int j = 0; j < k; ++j) m.cov[i * k + j] = row[j];
+        /* a k x k matrix: a NumPy array, or nested lists or tuples */
+        if (buffer_doubles(args[3], m.cov, k * k) < 0) {
+            if (!(PyList_Check(args[3]) || PyTuple_Check(args[3])) ||
+                PySequence_Fast_GET_SIZE(args[3]) != k)
+                Py_RETURN_NONE;
+            PyObject **rows = PySequence_Fast_ITEMS(args[3]);
+            for (int i = 0; i < k; ++i) {
+                if (plain_numbers(rows[i], row, k) < 0) Py_RETURN_NONE;
+                for (int j = 0; j < k; ++j) m.cov[i * k + j] = row[j];
+            }
         }
         for (int i = 0; i < k * k; ++i)
             if (!isfinite(m.cov[i])) Py_RETURN_NONE;
