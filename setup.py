@@ -17,6 +17,7 @@ CORE = Extension(
         "src/diffdrive/backends/_module.c",
         "src/diffdrive/backends/_odometry.c",
         "src/diffdrive/backends/_estimator.c",
+        "src/diffdrive/backends/_partition.c",
     ],
     depends=["src/diffdrive/backends/_odometry.h"],
     optional=True,

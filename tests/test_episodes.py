@@ -10,12 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from diffdrive.estimation import Gyro, estimate_trajectory
+from diffdrive.estimation import Gyro, episodes, estimate_trajectory
 from diffdrive.estimation.episodes import (
     EDGE_COST,
     EPISODE_PENALTY,
     episode_ratio,
     partition,
+    partition_python,
     slip_episodes,
 )
 
@@ -55,6 +56,29 @@ def test_the_partition_is_the_best_of_all(values, weights, penalty, cost, longes
     assert all(found[i][1] <= found[i + 1][0] for i in range(len(found) - 1))
     best = exhaustive(scaled, directions, penalty, cost, longest)
     assert gain(scaled, directions, found, penalty, cost) == pytest.approx(best, rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.skipif(episodes._partition is None, reason="the C core was not built")
+@settings(max_examples=40, deadline=None)
+@given(
+    st.integers(1, 300),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([1, 7, 50]),
+    st.booleans(),
+)
+def test_the_c_partition_is_its_numpy_twin(n, seed, longest, ties):
+    """Any log: the C programme finds the NumPy one's episodes exactly, ties (repeated
+    values, wheels that do not turn) included."""
+    rng = np.random.default_rng(seed)
+    scaled = rng.normal(size=n) * rng.choice([1.0, 4.0], size=n)
+    directions = rng.normal(size=(n, 2))
+    if ties:
+        scaled = np.round(scaled)
+        directions = np.round(directions)  # zeros among them: a wheel that does not turn
+    for penalty, cost in ((EPISODE_PENALTY, EDGE_COST), (2.0, 0.0), (8.0, 0.5)):
+        assert partition(scaled, directions, penalty, cost, longest) == partition_python(
+            scaled, directions, penalty, cost, longest
+        )
 
 
 def test_one_interval_alone_is_flagged_when_its_square_passes_the_penalty():

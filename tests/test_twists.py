@@ -57,6 +57,13 @@ def test_the_covariance_is_the_noise_it_comes_from():
     np.testing.assert_allclose(sample, covariances[1], rtol=0.02, atol=1e-9)
 
 
+def test_a_known_turn_scale_adds_nothing_to_a_huge_turn():
+    """A wheel spun 1e300 rad (a glitch the estimator still integrates, spinning in place): a
+    turn scale of zero variance adds zero, not 0 * inf = NaN."""
+    _, covariances = interval_twists(ROBOT, [0.0, 0.1], [[1e300, -1e300]], 1e-4, 1e-4)
+    assert np.all(np.isfinite(covariances))
+
+
 def test_a_turn_from_elsewhere_and_a_turn_scale():
     times, increments = np.array([0.0, 0.2, 0.4]), np.array([[1.0, 1.2], [1.0, 1.0]])
     twists, covariances = interval_twists(

@@ -9,6 +9,11 @@
  * absolute measurements are kept in one array in the order of Measurement.order (stamp, kind,
  * values, covariance), and a measurement stamped in the past is applied at its stamp and the
  * intervals since replayed.
+ *
+ * A whole log (_run_log, estimate_trajectory's pass) runs without the history: forward
+ * interval by interval, then, for the smoother, back, each interval run again from its
+ * filtered start with the smoother's record of each step (advance_record: filter.advance's
+ * joint, in full) and the Rauch-Tung-Striebel correction applied through it.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -42,6 +47,18 @@ typedef struct {
     double score;
     double x[N], P[NN];
 } Interval;
+
+/* The smoother's record of one step (filter.Step): the state before it given the data to its
+ * end, the state after it (before any absolute measurement), and the gain C. */
+typedef struct {
+    double before[N], before_cov[NN], after[N], after_cov[NN], gain[NN];
+} Step;
+
+/* Where run_interval records the smoother's steps (NULL: it keeps none). */
+typedef struct {
+    Step *steps;
+    Py_ssize_t count;
+} Record;
 
 typedef struct {
     PyObject_HEAD
@@ -221,6 +238,236 @@ static void advance(const Est *e, double *x, double *P, double dl, double dr, do
         advance_n(e, x, P, dl, dr, g, dt, slip, 3);
 }
 
+/* The eigenvalues w and eigenvectors V (columns, row-major) of a symmetric m x m matrix A
+ * (m <= N), by cyclic Jacobi rotations: to rounding, as numpy.linalg.eigh. */
+static void symmetric_eigen(const double *A, int m, double *w, double *V) {
+    double a[NN];
+    memcpy(a, A, sizeof(double) * m * m);
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) V[i * m + j] = i == j ? 1.0 : 0.0;
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        double off = 0.0, scale = 0.0;
+        for (int i = 0; i < m; ++i)
+            for (int j = 0; j < m; ++j) {
+                if (i != j) off += a[i * m + j] * a[i * m + j];
+                scale += a[i * m + j] * a[i * m + j];
+            }
+        if (off <= 1e-300 || off <= 1e-32 * scale) break;
+        for (int p = 0; p < m - 1; ++p)
+            for (int q = p + 1; q < m; ++q) {
+                double apq = a[p * m + q];
+                if (apq == 0.0) continue;
+                double theta = 0.5 * (a[q * m + q] - a[p * m + p]) / apq;
+                double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
+                for (int k = 0; k < m; ++k) { /* columns p and q of a */
+                    double akp = a[k * m + p], akq = a[k * m + q];
+                    a[k * m + p] = c * akp - s * akq;
+                    a[k * m + q] = s * akp + c * akq;
+                }
+                for (int k = 0; k < m; ++k) { /* rows p and q */
+                    double apk = a[p * m + k], aqk = a[q * m + k];
+                    a[p * m + k] = c * apk - s * aqk;
+                    a[q * m + k] = s * apk + c * aqk;
+                }
+                for (int k = 0; k < m; ++k) {
+                    double vkp = V[k * m + p], vkq = V[k * m + q];
+                    V[k * m + p] = c * vkp - s * vkq;
+                    V[k * m + q] = s * vkp + c * vkq;
+                }
+            }
+    }
+    for (int i = 0; i < m; ++i) w[i] = a[i * m + i];
+}
+
+/* The inverse of a symmetric m x m matrix A with a unit diagonal (m <= N) by Cholesky, when
+ * every eigenvalue is surely above pinv's cut (1e-12 of the largest): the smallest is at
+ * least 1 / trace(A^-1), the largest at most trace(A) = m. 0 (nothing promised) otherwise. */
+static int well_conditioned_inverse(const double *A, int m, double *inverse) {
+    double L[NN] = {0};
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j <= i; ++j) {
+            double sum = A[i * m + j];
+            for (int q = 0; q < j; ++q) sum -= L[i * m + q] * L[j * m + q];
+            if (i == j) {
+                if (!(sum > 0.0)) return 0;
+                L[i * m + i] = sqrt(sum);
+            } else {
+                L[i * m + j] = sum / L[j * m + j];
+            }
+        }
+    double Li[NN] = {0}; /* L^-1, lower */
+    for (int i = 0; i < m; ++i) {
+        Li[i * m + i] = 1.0 / L[i * m + i];
+        for (int j = 0; j < i; ++j) {
+            double sum = 0.0;
+            for (int q = j; q < i; ++q) sum += L[i * m + q] * Li[q * m + j];
+            Li[i * m + j] = -sum / L[i * m + i];
+        }
+    }
+    double trace = 0.0;
+    for (int i = 0; i < m; ++i)
+        for (int j = i; j < m; ++j) {
+            double sum = 0.0; /* (L^-T L^-1)_ij over the rows below both */
+            for (int q = j; q < m; ++q) sum += Li[q * m + i] * Li[q * m + j];
+            inverse[i * m + j] = inverse[j * m + i] = sum;
+            if (i == j) trace += sum;
+        }
+    return isfinite(trace) && 1.0 / trace > 1e-9 * m;
+}
+
+/* filter._solve_right: cross @ pinv(covariance) over the estimated states, the covariance
+ * scaled to unit variances first (pinv as numpy's, hermitian, rcond 1e-12). */
+static void solve_right(const Est *e, const double *cross, const double *cov, double *gain) {
+    int active[N], m = 0;
+    active[m++] = 0;
+    active[m++] = 1;
+    active[m++] = 2;
+    if (e->est_bias && e->heading == FUSED) active[m++] = BIAS;
+    if (e->est_scale) active[m++] = SCALE;
+    double block[NN], sigma[N], w[N], V[NN], inverse[NN];
+    for (int i = 0; i < m; ++i) {
+        double d = cov[active[i] * N + active[i]];
+        sigma[i] = d > 0.0 ? sqrt(d) : 0.0;
+        if (sigma[i] == 0.0) sigma[i] = 1.0;
+    }
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j)
+            block[i * m + j] = cov[active[i] * N + active[j]] / (sigma[i] * sigma[j]);
+    if (well_conditioned_inverse(block, m, inverse)) { /* pinv is the inverse: by Cholesky */
+        for (int i = 0; i < m; ++i)
+            for (int j = 0; j < m; ++j) inverse[i * m + j] /= sigma[i] * sigma[j];
+    } else {
+        symmetric_eigen(block, m, w, V);
+        double largest = 0.0;
+        for (int i = 0; i < m; ++i) largest = fmax(largest, fabs(w[i]));
+        for (int i = 0; i < m; ++i)
+            for (int j = 0; j < m; ++j) {
+                double sum = 0.0;
+                for (int q = 0; q < m; ++q)
+                    if (fabs(w[q]) > 1e-12 * largest) sum += V[i * m + q] * V[j * m + q] / w[q];
+                inverse[i * m + j] = sum / (sigma[i] * sigma[j]);
+            }
+    }
+    memset(gain, 0, sizeof(double) * NN);
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < m; ++q) sum += cross[active[i] * N + active[q]] * inverse[q * m + j];
+            gain[active[i] * N + active[j]] = sum;
+        }
+}
+
+/* filter.advance's smoother record of one step from x, P (the joint of the state after, the
+ * state before and the noises, the wheels' turn measured in it with a fused heading): the
+ * same maths as advance_n, written out in full. */
+static void advance_record(const Est *e, const double *x, const double *P, double dl, double dr,
+                           double g, double dt, int slip, Step *out) {
+    enum { J = 2 * N + 3 };
+    double left = e->r_l * dl, right = e->r_r * dr;
+    double forward = 0.5 * (left + right), wheel_turn = (right - left) / e->track;
+    double scale = x[SCALE], inflation = slip ? e->slip_infl : 1.0;
+    double noise[3] = {inflation * e->k_per_r_l * fabs(dl), inflation * e->k_per_r_r * fabs(dr),
+                       e->heading != WHEELS ? e->arw2 * dt : 0.0};
+    double bnf[3] = {0.5 * e->r_l, 0.5 * e->r_r, 0.0}, bnt[3], bst[N] = {0}, turn;
+    if (e->heading == WHEELS) {
+        turn = scale * wheel_turn;
+        bnt[0] = -scale * e->r_l / e->track;
+        bnt[1] = scale * e->r_r / e->track;
+        bnt[2] = 0.0;
+        bst[SCALE] = wheel_turn;
+    } else {
+        turn = g - x[BIAS] * dt;
+        bnt[0] = bnt[1] = 0.0;
+        bnt[2] = 1.0;
+        bst[BIAS] = -dt;
+    }
+    double dx, dy, bf[2], bt[2];
+    move_jacobians(forward, e->axle, turn, e->weight, e->chord, x[2], &dx, &dy, bf, bt);
+    double F[NN] = {0}, G[N * 3] = {0};
+    for (int i = 0; i < N; ++i) F[i * N + i] = 1.0;
+    F[0 * N + 2] = -dy;
+    F[1 * N + 2] = dx;
+    for (int j = 0; j < N; ++j) {
+        F[0 * N + j] += bt[0] * bst[j];
+        F[1 * N + j] += bt[1] * bst[j];
+        F[2 * N + j] += bst[j];
+    }
+    for (int k = 0; k < 3; ++k) {
+        G[0 * 3 + k] = bf[0] * bnf[k] + bt[0] * bnt[k];
+        G[1 * 3 + k] = bf[1] * bnf[k] + bt[1] * bnt[k];
+        G[2 * 3 + k] = bnt[k];
+    }
+    double FP[NN], moved[NN], GQ[N * 3];
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < N; ++q) sum += F[i * N + q] * P[q * N + j];
+            FP[i * N + j] = sum;
+        }
+    for (int i = 0; i < N; ++i)
+        for (int k = 0; k < 3; ++k) GQ[i * 3 + k] = G[i * 3 + k] * noise[k];
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < N; ++q) sum += FP[i * N + q] * F[j * N + q];
+            for (int k = 0; k < 3; ++k) sum += GQ[i * 3 + k] * G[j * 3 + k];
+            moved[i * N + j] = sum;
+        }
+    if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
+    double joint[J * J];
+    double mean[J] = {0};
+    memset(joint, 0, sizeof joint);
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            joint[i * J + j] = moved[i * N + j];
+            joint[i * J + N + j] = FP[i * N + j];
+            joint[(N + j) * J + i] = FP[i * N + j];
+            joint[(N + i) * J + N + j] = P[i * N + j];
+        }
+    for (int i = 0; i < N; ++i)
+        for (int k = 0; k < 3; ++k) joint[i * J + 2 * N + k] = joint[(2 * N + k) * J + i] = GQ[i * 3 + k];
+    for (int k = 0; k < 3; ++k) joint[(2 * N + k) * J + 2 * N + k] = noise[k];
+    for (int i = 0; i < N; ++i) {
+        mean[i] = x[i];
+        mean[N + i] = x[i];
+    }
+    mean[0] += dx;
+    mean[1] += dy;
+    mean[2] += turn;
+    if (e->heading == FUSED && !slip) {
+        double H[J] = {0}, spread[J], s = 0.0;
+        H[2] = 1.0 / scale;
+        H[N + 2] = -1.0 / scale;
+        H[SCALE] = -turn / (scale * scale);
+        H[2 * N] = e->r_l / e->track;
+        H[2 * N + 1] = -e->r_r / e->track;
+        for (int i = 0; i < J; ++i) {
+            double sum = 0.0;
+            for (int q = 0; q < J; ++q) sum += joint[i * J + q] * H[q];
+            spread[i] = sum;
+        }
+        for (int i = 0; i < J; ++i) s += H[i] * spread[i];
+        s += 1e-18;
+        double innovation = wheel_turn - turn / scale;
+        for (int i = 0; i < J; ++i) mean[i] += spread[i] / s * innovation;
+        for (int i = 0; i < J; ++i)
+            for (int j = 0; j < J; ++j) joint[i * J + j] -= spread[i] / s * spread[j];
+    }
+    double cross[NN];
+    for (int i = 0; i < N; ++i) {
+        out->before[i] = mean[N + i];
+        out->after[i] = mean[i];
+        for (int j = 0; j < N; ++j) {
+            out->before_cov[i * N + j] =
+                0.5 * (joint[(N + i) * J + N + j] + joint[(N + j) * J + N + i]);
+            out->after_cov[i * N + j] = 0.5 * (joint[i * J + j] + joint[j * J + i]);
+            cross[i * N + j] = 0.5 * (joint[(N + i) * J + j] + joint[j * J + N + i]);
+        }
+    }
+    solve_right(e, cross, out->after_cov, out->gain);
+}
+
 /* Cholesky of a k x k (k <= 3) matrix into L (lower); -1 unless positive definite. */
 static int cholesky(const double *A, int k, double *L) {
     memset(L, 0, sizeof(double) * k * k);
@@ -384,7 +631,7 @@ static void slice_of(const Est *e, Py_ssize_t i, Py_ssize_t *lo, Py_ssize_t *hi)
  * and the outcomes kept) or to stop (recording nothing): x, P hold its start state (iv->x,
  * iv->P) on the way in, the state at the end on the way out. */
 static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int record,
-                         double stop, double *x, double *P) {
+                         double stop, double *x, double *P, Record *steps) {
     double duration = iv->t1 - iv->t0;
     if (record) {
         if (isnan(iv->g)) {
@@ -402,8 +649,15 @@ static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int
         /* at the end, the share is 1 (what the division gives there too, exactly) */
         double share = cut == iv->t1 || !(duration > 0.0) ? 1.0 : (cut - iv->t0) / duration;
         double part = share - done;
-        if (cut > t)
+        if (cut > t && steps != NULL) { /* the smoother's record: its state after is x's */
+            Step *step = &steps->steps[steps->count++];
+            advance_record(e, x, P, part * iv->dl, part * iv->dr, part * iv->g, cut - t,
+                           iv->slip, step);
+            memcpy(x, step->after, sizeof step->after);
+            memcpy(P, step->after_cov, sizeof step->after_cov);
+        } else if (cut > t) {
             advance(e, x, P, part * iv->dl, part * iv->dr, part * iv->g, cut - t, iv->slip);
+        }
         done = share;
         t = cut;
         while (j < nm && m[j].t <= cut) {
@@ -433,7 +687,7 @@ static void replay(Est *e, Py_ssize_t k, double *x, double *P) {
             lo = hi;
             while (hi < e->ms0 + e->nms && e->ms[hi].t <= e->iv[i].t1) ++hi;
         }
-        run_interval(e, &e->iv[i], e->ms + lo, hi - lo, 1, 0.0, x, P);
+        run_interval(e, &e->iv[i], e->ms + lo, hi - lo, 1, 0.0, x, P, NULL);
     }
 }
 
@@ -744,7 +998,7 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
     double x[N], P[NN];
     memcpy(x, iv.x, sizeof x);
     memcpy(P, iv.P, sizeof P);
-    run_interval(e, &iv, tail, due, 1, 0.0, x, P);
+    run_interval(e, &iv, tail, due, 1, 0.0, x, P, NULL);
     if (!finite_state(x, P)) {
         int restored = odometry_restore(e->wheels, saved);
         Py_DECREF(saved);
@@ -1063,7 +1317,7 @@ static PyObject *pose_at(Est *e, PyObject *arg) {
         Interval copy = e->iv[lo];
         memcpy(x, copy.x, sizeof x);
         memcpy(P, copy.P, sizeof P);
-        run_interval(e, &copy, e->ms + a, b - a, 0, t, x, P);
+        run_interval(e, &copy, e->ms + a, b - a, 0, t, x, P, NULL);
     }
     return Py_BuildValue("(NN)", tuple_of(x, N), tuple_of(P, NN));
 }
@@ -1121,6 +1375,192 @@ static void est_dealloc(Est *e) {
     Py_TYPE(e)->tp_free((PyObject *)e);
 }
 
+/* -- a whole log ------------------------------------------------------------------------ */
+
+/* A float64 buffer of exactly n numbers (writable if asked), or -1 with a ValueError naming it. */
+static int doubles_view(PyObject *obj, Py_buffer *view, Py_ssize_t n, int writable,
+                        const char *name) {
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, view, flags) < 0) return -1;
+    if (view->format == NULL || strcmp(view->format, "d") != 0 ||
+        view->len != n * (Py_ssize_t)sizeof(double)) {
+        PyBuffer_Release(view);
+        PyErr_Format(PyExc_ValueError, "_run_log: %s must be %zd contiguous float64", name, n);
+        return -1;
+    }
+    return 0;
+}
+
+/* The RTS step backwards through one record: x, P smoothed after it in, before it out. */
+static void smooth_step(const Step *s, double *x, double *P) {
+    double dx[N], G[NN], GD[NN];
+    for (int i = 0; i < N; ++i) dx[i] = x[i] - s->after[i];
+    for (int i = 0; i < N; ++i) {
+        double sum = s->before[i];
+        for (int q = 0; q < N; ++q) sum += s->gain[i * N + q] * dx[q];
+        x[i] = sum;
+    }
+    for (int i = 0; i < NN; ++i) G[i] = P[i] - s->after_cov[i];
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double sum = 0.0;
+            for (int q = 0; q < N; ++q) sum += s->gain[i * N + q] * G[q * N + j];
+            GD[i * N + j] = sum;
+        }
+    for (int i = 0; i < N; ++i)
+        for (int j = i; j < N; ++j) {
+            double a = 0.0, b = 0.0;
+            for (int q = 0; q < N; ++q) {
+                a += GD[i * N + q] * s->gain[j * N + q];
+                b += GD[j * N + q] * s->gain[i * N + q];
+            }
+            P[i * N + j] = P[j * N + i] =
+                0.5 * ((s->before_cov[i * N + j] + a) + (s->before_cov[j * N + i] + b));
+        }
+}
+
+enum { LOG_TIMES, LOG_LEFT, LOG_RIGHT, LOG_GYRO, LOG_FORCED, LOG_MT, LOG_MKIND, LOG_MVALUE,
+       LOG_MCOV, LOG_MLEVER, LOG_STATES, LOG_COVS, LOG_SLIPS, LOG_SCORES, LOG_OK, LOG_MSCORE,
+       LOG_VIEWS };
+
+/* _run_log(times, left, right, gyro, forced, m_t, m_kind, m_value, m_cov, m_lever, smooth,
+ *          states, covariances, slips, scores, accepted, distances): estimate_trajectory's
+ * pass over a whole log from the state now, in float64 arrays (see the Python twin's
+ * docstring). Returns -1, or the interval (-2: the start) whose state would overflow. */
+static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 17) {
+        PyErr_SetString(PyExc_TypeError, "_run_log takes 17 arguments");
+        return NULL;
+    }
+    static const char *names[LOG_VIEWS] = {
+        "times", "left", "right", "gyro", "forced", "m_t", "m_kind", "m_value", "m_cov",
+        "m_lever", "states", "covariances", "slips", "scores", "accepted", "distances"};
+    PyObject *objs[LOG_VIEWS];
+    for (int i = 0; i < LOG_VIEWS; ++i) objs[i] = args[i < 10 ? i : i + 1];
+    int smooth = PyObject_IsTrue(args[10]);
+    if (smooth < 0) return NULL;
+    Py_buffer probe;
+    Py_ssize_t n, nm;
+    if (PyObject_GetBuffer(objs[LOG_TIMES], &probe, PyBUF_SIMPLE) < 0) return NULL;
+    n = probe.len / (Py_ssize_t)sizeof(double);
+    PyBuffer_Release(&probe);
+    if (PyObject_GetBuffer(objs[LOG_MT], &probe, PyBUF_SIMPLE) < 0) return NULL;
+    nm = probe.len / (Py_ssize_t)sizeof(double);
+    PyBuffer_Release(&probe);
+    if (n < 2) {
+        PyErr_SetString(PyExc_ValueError, "_run_log: times must hold at least 2 stamps");
+        return NULL;
+    }
+    const Py_ssize_t sizes[LOG_VIEWS] = {n, n - 1, n - 1, n - 1, n - 1, nm, nm, 3 * nm, 9 * nm,
+                                         2 * nm, N * n, NN * n, n, n, nm, nm};
+    Py_buffer views[LOG_VIEWS];
+    int got = 0;
+    PyObject *result = NULL;
+    Meas *ms = NULL;
+    Step *steps = NULL;
+    for (; got < LOG_VIEWS; ++got)
+        if (doubles_view(objs[got], &views[got], sizes[got], got >= LOG_STATES, names[got]) < 0)
+            goto done;
+    const double *t = views[LOG_TIMES].buf, *dl = views[LOG_LEFT].buf, *dr = views[LOG_RIGHT].buf;
+    const double *g = views[LOG_GYRO].buf, *forced = views[LOG_FORCED].buf;
+    const double *mt = views[LOG_MT].buf, *mkind = views[LOG_MKIND].buf;
+    const double *mvalue = views[LOG_MVALUE].buf, *mcov = views[LOG_MCOV].buf;
+    const double *mlever = views[LOG_MLEVER].buf;
+    double *states = views[LOG_STATES].buf, *covs = views[LOG_COVS].buf;
+    double *slips = views[LOG_SLIPS].buf, *scores = views[LOG_SCORES].buf;
+    double *accepted = views[LOG_OK].buf, *distances = views[LOG_MSCORE].buf;
+    ms = PyMem_Calloc(nm ? nm : 1, sizeof(Meas));
+    if (ms == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t j = 0; j < nm; ++j) {
+        int kind = (int)mkind[j];
+        if (kind < POSE || kind > HEADING || (j && mt[j] < mt[j - 1]) || !(mt[j] >= t[0]) ||
+            !(mt[j] <= t[n - 1])) {
+            PyErr_Format(PyExc_ValueError,
+                         "_run_log: measurement %zd: a kind 0 to 2, stamps in order inside the "
+                         "log",
+                         j);
+            goto done;
+        }
+        Meas *m = &ms[j];
+        m->t = mt[j];
+        m->kind = kind;
+        m->size = kind == POSE ? 3 : kind == POSITION ? 2 : 1;
+        memcpy(m->value, mvalue + 3 * j, 3 * sizeof(double));
+        for (int a = 0; a < m->size * m->size; ++a) m->cov[a] = mcov[9 * j + a];
+        memcpy(m->lever, mlever + 2 * j, 2 * sizeof(double));
+    }
+    if (smooth) { /* room for the steps of the interval with the most measurements */
+        Py_ssize_t most = 0;
+        for (Py_ssize_t k = 1, j = 0, lo; k < n; ++k) {
+            for (lo = j; j < nm && ms[j].t <= t[k]; ++j) {}
+            most = j - lo > most ? j - lo : most;
+        }
+        steps = PyMem_Malloc((most + 1) * sizeof(Step));
+        if (steps == NULL) {
+            PyErr_NoMemory();
+            goto done;
+        }
+    }
+    double x[N], P[NN];
+    memcpy(x, e->x, sizeof x);
+    memcpy(P, e->P, sizeof P);
+    Py_ssize_t j = 0, failed = -1;
+    Py_BEGIN_ALLOW_THREADS;
+    for (; j < nm && ms[j].t == t[0]; ++j) /* at the start itself */
+        absolute_update(e, x, P, &ms[j], &ms[j].ok, &ms[j].score);
+    if (!finite_state(x, P)) failed = -2;
+    memcpy(states, x, sizeof x);
+    memcpy(covs, P, sizeof P);
+    slips[0] = scores[0] = 0.0;
+    for (Py_ssize_t k = 1; k < n && failed == -1; ++k) {
+        Interval iv = {t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0};
+        Py_ssize_t lo = j;
+        while (j < nm && ms[j].t <= t[k]) ++j;
+        run_interval(e, &iv, ms + lo, j - lo, 1, 0.0, x, P, NULL);
+        if (!finite_state(x, P)) failed = k - 1;
+        memcpy(states + N * k, x, sizeof x);
+        memcpy(covs + NN * k, P, sizeof P);
+        slips[k] = iv.slip;
+        scores[k] = iv.score;
+    }
+    for (Py_ssize_t q = 0; q < nm && failed == -1; ++q) {
+        accepted[q] = ms[q].ok;
+        distances[q] = ms[q].score;
+    }
+    if (smooth && failed == -1) {
+        /* Backwards: each interval run again from its filtered start, its steps recorded,
+         * and smoothed through them; its start's filtered state is then overwritten by the
+         * smoothed one, which the interval before it reads next. */
+        Py_ssize_t hi = nm;
+        memcpy(x, states + N * (n - 1), sizeof x);
+        memcpy(P, covs + NN * (n - 1), sizeof P);
+        for (Py_ssize_t k = n - 1; k >= 1; --k) {
+            Py_ssize_t lo = hi;
+            while (lo > 0 && ms[lo - 1].t > t[k - 1]) --lo;
+            Interval iv = {t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0};
+            double fx[N], fP[NN];
+            memcpy(fx, states + N * (k - 1), sizeof fx);
+            memcpy(fP, covs + NN * (k - 1), sizeof fP);
+            Record record = {steps, 0};
+            run_interval(e, &iv, ms + lo, hi - lo, 1, 0.0, fx, fP, &record);
+            for (Py_ssize_t s = record.count - 1; s >= 0; --s) smooth_step(&steps[s], x, P);
+            memcpy(states + N * (k - 1), x, sizeof x);
+            memcpy(covs + NN * (k - 1), P, sizeof P);
+            hi = lo;
+        }
+    }
+    Py_END_ALLOW_THREADS;
+    result = PyLong_FromSsize_t(failed);
+done:
+    for (int i = 0; i < got; ++i) PyBuffer_Release(&views[i]);
+    PyMem_Free(ms);
+    PyMem_Free(steps);
+    return result;
+}
+
 #define FASTCALL_KW (METH_FASTCALL | METH_KEYWORDS)
 static PyMethodDef est_methods[] = {
     {"update_ticks", (PyCFunction)(void (*)(void))update_ticks, FASTCALL_KW,
@@ -1140,6 +1580,7 @@ static PyMethodDef est_methods[] = {
     {"_history_start", (PyCFunction)history_start, METH_NOARGS, NULL},
     {"_slip", (PyCFunction)slip_now, METH_NOARGS, NULL},
     {"_pose_at", (PyCFunction)pose_at, METH_O, NULL},
+    {"_run_log", (PyCFunction)(void (*)(void))run_whole_log, METH_FASTCALL, NULL},
     {NULL, NULL, 0, NULL},
 };
 

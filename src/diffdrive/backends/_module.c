@@ -1,15 +1,22 @@
 /* The extension diffdrive.backends._odometry: its two types, each from its own source
- * (_odometry.c: OdometryCore; _estimator.c: EstimatorCore, built on the first). */
+ * (_odometry.c: OdometryCore; _estimator.c: EstimatorCore, built on the first), and the slip
+ * episodes' partitioning (_partition.c). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include "_odometry.h"
+
+static PyMethodDef functions[] = {
+    {"_partition", (PyCFunction)(void (*)(void))dd_partition, METH_FASTCALL, NULL},
+    {NULL, NULL, 0, NULL},
+};
 
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT,
     .m_name = "diffdrive.backends._odometry",
     .m_doc = "The compiled cores of diffdrive.Odometry and diffdrive.estimation.PoseEstimator.",
     .m_size = -1,
+    .m_methods = functions,
 };
 
 PyMODINIT_FUNC PyInit__odometry(void) {

@@ -19,6 +19,9 @@ void odometry_arcs(PyObject *core, double arcs[2]);
 PyObject *odometry_snapshot(PyObject *core);
 int odometry_restore(PyObject *core, PyObject *saved);
 
+/* _partition.c: the episodes' optimal partitioning. */
+PyObject *dd_partition(PyObject *module, PyObject *const *args, Py_ssize_t nargs);
+
 int odometry_add_type(PyObject *module);
 int estimator_add_type(PyObject *module);
 

@@ -1,5 +1,6 @@
-"""Signatures of the C extension ``diffdrive.backends._odometry`` (``_odometry.c``), for type
-checkers and editors. Use ``diffdrive.Odometry``, which subclasses ``OdometryCore``."""
+"""Signatures of the C extension ``diffdrive.backends._odometry`` (``_odometry.c``,
+``_estimator.c``, ``_partition.c``), for type checkers and editors. Use ``diffdrive.Odometry``,
+which subclasses ``OdometryCore``."""
 
 from typing import Any
 
@@ -106,3 +107,15 @@ class EstimatorCore:
     def _history_start(self) -> float: ...
     def _slip(self) -> tuple[bool, float, float]: ...
     def _pose_at(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]: ...
+    def _run_log(self, *arrays_and_smooth: Any) -> int:
+        """As ``diffdrive.estimation.estimator_python.EstimatorCore._run_log``."""
+
+def _partition(
+    along: Any,  # (n, 2) float64, C-contiguous
+    weight: Any,  # the same
+    penalty: float,
+    edge_cost: float,
+    longest: int,
+    start: Any,  # (n + 1,) float64, filled
+) -> None:
+    """``diffdrive.estimation.episodes.partition``'s dynamic programme."""

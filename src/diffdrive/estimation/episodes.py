@@ -33,7 +33,20 @@ takes out the log's steady share of each wheel's turn, fitted outside the flagge
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
+
 import numpy as np
+
+# The C programme beside the estimator's core where it was built (DIFFDRIVE_PURE_PYTHON=1: the
+# twin anyway, as the cores).
+_partition: Callable[..., None] | None
+try:
+    if os.environ.get("DIFFDRIVE_PURE_PYTHON") == "1":
+        raise ImportError("DIFFDRIVE_PURE_PYTHON=1")
+    from diffdrive.backends._odometry import _partition
+except ImportError:
+    _partition = None
 
 __all__ = [
     "EDGE_COST",
@@ -128,7 +141,23 @@ def episode_ratio(scaled: np.ndarray, directions: np.ndarray) -> float:
 def partition(
     scaled: np.ndarray, directions: np.ndarray, penalty: float, edge_cost: float, longest: int
 ) -> list[tuple[int, int]]:
-    """The episodes ``[first, end)`` of the best partition (see the module), in order."""
+    """The episodes ``[first, end)`` of the best partition (see the module), in order: by the
+    C core's dynamic programme where it was built (``backends/_partition.c``), else by its
+    twin here (``partition_python``); the same sums in the same order, the same episodes."""
+    if _partition is None:
+        return partition_python(scaled, directions, penalty, edge_cost, longest)
+    along = np.ascontiguousarray(directions * scaled[:, None], dtype=float)
+    weight = np.ascontiguousarray(directions * directions, dtype=float)
+    start = np.empty(len(scaled) + 1)
+    _partition(along, weight, float(penalty), float(edge_cost), int(longest), start)
+    ends = np.flatnonzero(start >= 0.0)
+    return list(zip(start[ends].astype(int).tolist(), ends.tolist(), strict=True))
+
+
+def partition_python(
+    scaled: np.ndarray, directions: np.ndarray, penalty: float, edge_cost: float, longest: int
+) -> list[tuple[int, int]]:
+    """``partition`` in NumPy: the reference the C programme is held to."""
     n = len(scaled)
     along, weight = directions * scaled[:, None], directions * directions
     best = np.zeros(n + 1)
@@ -147,8 +176,9 @@ def partition(
             best[end], start[end] = gain[k], first + k
         else:
             best[end] = best[end - 1]
+    # back from the end, episode by episode
     found = []
-    end = n
+    end = len(start) - 1
     while end > 0:
         if start[end] >= 0:
             found.append((int(start[end]), end))

@@ -17,7 +17,7 @@ import numpy as np
 from diffdrive._step import METHODS
 from diffdrive._validate import finite
 from diffdrive.estimation import filter as ekf
-from diffdrive.estimation.measurements import Measurement, _floats
+from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement, _floats
 from diffdrive.types import WheelVelocities
 
 HEADING_NAMES = ("wheels", "gyro", "fused")
@@ -332,6 +332,102 @@ class EstimatorCore:
             raise ValueError(f"{where}: it would overflow the state; refused, nothing changed")
         self._state, self._P = x, P
         return target.outcomes[target.measurements.index(m)][0]
+
+    # -- a whole log ----------------------------------------------------------------------
+
+    def _run_log(
+        self,
+        times: np.ndarray,
+        left: np.ndarray,
+        right: np.ndarray,
+        gyro: np.ndarray,
+        forced: np.ndarray,
+        m_t: np.ndarray,
+        m_kind: np.ndarray,
+        m_value: np.ndarray,
+        m_cov: np.ndarray,
+        m_lever: np.ndarray,
+        smooth: bool,
+        states: np.ndarray,
+        covariances: np.ndarray,
+        slips: np.ndarray,
+        scores: np.ndarray,
+        accepted: np.ndarray,
+        distances: np.ndarray,
+    ) -> int:
+        """``estimate_trajectory``'s pass over a whole log from the state now, leaving the
+        estimator as it was. In: ``times`` ``(n,)`` s; per interval the wheels' turns ``left``
+        and ``right`` ``(n-1,)`` rad, the gyro's ``(n-1,)`` rad (NaN: none) and ``forced``
+        ``(n-1,)`` (nonzero: slipping whatever its score); the absolute measurements in
+        ``Measurement.order``: ``m_t`` ``(M,)`` s inside the log, ``m_kind`` ``(M,)`` (an
+        index into ``MEASUREMENT_KINDS``), ``m_value`` ``(M, 3)``, ``m_cov`` ``(M, 9)`` (the
+        ``k x k`` covariance row by row, first) and ``m_lever`` ``(M, 2)`` m. Out (float64,
+        filled in place): the state ``(n, 5)`` and covariance ``(n, 25)`` at the start and at
+        each interval's end (smoothed with ``smooth``), each interval's slip flag and score
+        ``(n,)`` (row 0: none), each measurement's outcome and squared Mahalanobis distance
+        ``(M,)``. Measurements stamped at ``times[0]`` are applied at the start. Returns -1,
+        or the interval whose state would overflow (-2: the start)."""
+        made = []
+        for j in range(len(m_t)):
+            kind = MEASUREMENT_KINDS[int(m_kind[j])]
+            k = {"pose": 3, "position": 2, "heading": 1}[kind]
+            value, cov = np.array(m_value[j, :k]), np.array(m_cov[j, : k * k]).reshape(k, k)
+            lever = (float(m_lever[j, 0]), float(m_lever[j, 1]))
+            made.append(Measurement(kind, float(m_t[j]), value, cov, lever))
+        x, P = self._state, self._P
+        j = 0
+        with np.errstate(all="ignore"):
+            while j < len(made) and made[j].t == times[0]:  # at the start itself
+                x, P, accepted[j], distances[j] = ekf.absolute_update(
+                    x, P, made[j], self._offset, self._gate
+                )
+                j += 1
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            return -2
+        states[0], covariances[0], slips[0], scores[0] = x, P.ravel(), 0.0, 0.0
+        intervals: list[Interval] = []
+        saved = self._smoother
+        self._smoother = smooth
+        try:
+            for k in range(1, len(times)):
+                interval = Interval(
+                    float(times[k - 1]),
+                    float(times[k]),
+                    (float(left[k - 1]), float(right[k - 1])),
+                    float(gyro[k - 1]),
+                    bool(forced[k - 1]),
+                    (x, P),
+                )
+                first = j
+                while j < len(made) and made[j].t <= times[k]:
+                    j += 1
+                interval.measurements = made[first:j]
+                try:
+                    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+                        x, P = self._run(interval)
+                    finite_state = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(P)))
+                except (ValueError, OverflowError, np.linalg.LinAlgError):
+                    finite_state = False
+                if not finite_state:
+                    return k - 1
+                states[k], covariances[k] = x, P.ravel()
+                slips[k], scores[k] = interval.slip, interval.slip_score
+                intervals.append(interval)
+        finally:
+            self._smoother = saved
+        outcomes = [o for i in intervals for o in i.outcomes]
+        head = len(made) - len(outcomes)
+        for q, (ok, score) in enumerate(outcomes):
+            accepted[head + q], distances[head + q] = ok, score
+        if smooth:  # Rauch-Tung-Striebel, backwards
+            for k in range(len(times) - 1, 0, -1):
+                states[k], covariances[k] = x, P.ravel()
+                for step in reversed(intervals[k - 1].steps):
+                    x = step.before + step.gain @ (x - step.after)
+                    P = step.before_cov + step.gain @ (P - step.after_cov) @ step.gain.T
+                    P = 0.5 * (P + P.T)
+            states[0], covariances[0] = x, P.ravel()
+        return -1
 
     # -- the history ----------------------------------------------------------------------
 

@@ -71,22 +71,22 @@ class Step:
     gain: np.ndarray
 
 
-def slip_innovation(
-    c: Config, x: np.ndarray, P: np.ndarray, dl: float, dr: float, g: float, dt: float
-) -> tuple[float, float, float, float]:
+def slip_innovation(c: Config, x, P, dl, dr, g, dt) -> tuple:
     """The wheels' turn less the gyro's over one interval (rad), its variance while neither
     wheel slips (rad^2), and how far it moves per unit of the left and the right wheel's slip
-    fraction (``ratio / (1 + ratio)``: the share of the measured turn the ground did not make)."""
+    fraction (``ratio / (1 + ratio)``: the share of the measured turn the ground did not make).
+    One interval (floats; ``x`` ``(5,)``, ``P`` ``(5, 5)``) or many (arrays ``(n,)``; ``x``
+    ``(n, 5)``, ``P`` ``(n, 5, 5)``)."""
     r_l, r_r, track, offset = c.drive
     wheel_turn = wheel_move(r_l, r_r, track, offset, dl, dr)[2]
-    scale = x[SCALE]
-    spread = c.k[0] * abs(r_l * dl) + c.k[1] * abs(r_r * dr)
-    innovation = scale * wheel_turn - (g - x[BIAS] * dt)
+    scale = x[..., SCALE]
+    spread = c.k[0] * np.abs(r_l * dl) + c.k[1] * np.abs(r_r * dr)
+    innovation = scale * wheel_turn - (g - x[..., BIAS] * dt)
     variance = (
         scale * scale * spread / (track * track)
         + c.arw2 * dt
-        + dt * dt * P[BIAS, BIAS]
-        + wheel_turn * wheel_turn * P[SCALE, SCALE]
+        + dt * dt * P[..., BIAS, BIAS]
+        + wheel_turn * wheel_turn * P[..., SCALE, SCALE]
         + 1e-18
     )
     return innovation, variance, -scale * r_l * dl / track, scale * r_r * dr / track

@@ -24,8 +24,9 @@ than ``ahead`` s past the newest wheel reading, raises ``ValueError``; one up to
 past it waits for the wheels. ``pose_at(t)`` gives the pose and covariance at any stamp
 inside the history.
 
-Cores. The readings, the history and the replay are in C (``backends/_estimator.c``, built
-with Odometry's core) where a C compiler was found, else in their pure-Python twin
+Cores. The readings, the history and the replay, and ``estimate_trajectory``'s pass over a
+whole log (``_run_log``), are in C (``backends/_estimator.c``, built with Odometry's core)
+where a C compiler was found, else in their pure-Python twin
 (``estimation/estimator_python.py``, also ``PythonPoseEstimator``); ``COMPILED`` says which.
 Both run ``diffdrive.estimation.filter``'s maths, the C one mirroring it; the tests hold the
 two to each other.
@@ -342,7 +343,7 @@ class PoseEstimator(_EstimatorMethods, _Core):
 
 class PythonPoseEstimator(_EstimatorMethods, estimator_python.EstimatorCore):
     """``PoseEstimator`` on the pure-Python core, whether or not the C core was built: the
-    same results, slower; ``estimate_trajectory`` runs it for the smoother's records."""
+    same results, slower: the reference the tests hold the C core to."""
 
 
 def _start_state(robot: Robot, pose: object, covariance: object, bias: float, scale: float):
@@ -366,13 +367,31 @@ def _three(row: np.ndarray) -> tuple[float, float, float]:
     return float(row[0]), float(row[1]), float(row[2])
 
 
+def body_poses(states: np.ndarray, offset: float) -> np.ndarray:
+    """The body origin's poses ``(..., 3)`` from states ``(..., 5)`` of the equivalent drive's
+    reference point, ``offset`` m to the left of it: the reference pose composed with ``(0,
+    -offset, 0)``."""
+    states = np.asarray(states, dtype=float)
+    poses = states[..., :3].copy()
+    if offset:
+        poses[..., 0] += offset * np.sin(states[..., 2])
+        poses[..., 1] -= offset * np.cos(states[..., 2])
+    return poses
+
+
+def body_covariances(states: np.ndarray, covariances: np.ndarray, offset: float) -> np.ndarray:
+    """The body origin's pose covariances ``(..., 3, 3)`` from states ``(..., 5)`` and their
+    covariances ``(..., 5, 5)`` (see ``body_poses``)."""
+    block = np.asarray(covariances, dtype=float)[..., :3, :3]
+    if not offset:
+        return block.copy()
+    moved = offset_jacobian(np.asarray(states)[..., 2], -offset)
+    return moved @ block @ np.swapaxes(moved, -1, -2)
+
+
 def _body_pose(x: Sequence[float] | np.ndarray, offset: float) -> Pose:
-    pose = Pose(float(x[0]), float(x[1]), float(x[2]))
-    return pose.compose(Pose(0.0, -offset)) if offset else pose
+    return Pose(*body_poses(np.asarray(x, dtype=float), offset).tolist())
 
 
 def _body_covariance(x: np.ndarray, P: np.ndarray, offset: float) -> np.ndarray:
-    if not offset:
-        return P[:3, :3].copy()
-    moved = offset_jacobian(x[2], -offset)
-    return moved @ P[:3, :3] @ moved.T
+    return body_covariances(x, P, offset)

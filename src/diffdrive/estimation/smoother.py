@@ -21,13 +21,15 @@ import numpy as np
 from diffdrive._validate import increasing
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.episodes import steady_episodes
-from diffdrive.estimation.fusion import PythonPoseEstimator, _body_covariance, _body_pose
+from diffdrive.estimation.fusion import PoseEstimator, body_covariances, body_poses
 from diffdrive.estimation.imu import Gyro
-from diffdrive.estimation.measurements import Measurement
+from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement
 from diffdrive.estimation.twists import interval_twists
 from diffdrive.model import Robot
 
 SLIP_TESTS = ("episodes", "interval")
+# measurements as the cores take them: stamps, kinds, values, covariances, lever arms
+_Packed = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 __all__ = ["Estimate", "estimate_trajectory", "measurements_of"]
 
@@ -163,89 +165,7 @@ def estimate_trajectory(
     if slip_test not in SLIP_TESTS:
         raise ValueError(f"slip_test must be one of {SLIP_TESTS}, got {slip_test!r}")
     options.setdefault("history", float("inf"))
-    log = (robot, heading, initial_pose, initial_covariance, times, increments, turned, wanted)
-    estimator, states, covariances, slips, scores = _forward(log, ordered, smooth, options)
-    forced = None
-    # Again with the episodes' wheel turns left out, and once more if what they had pulled
-    # into the estimate (the bias, in a fused heading) moved the episodes found.
-    for _ in range(2 if slip_test == "episodes" and turned is not None else 0):
-        found = _episodes(estimator)
-        if forced is None and not np.any(found & ~slips[1:]):
-            break
-        if forced is not None and np.array_equal(found, forced):
-            break
-        forced = found
-        estimator, states, covariances, slips, scores = _forward(
-            log, ordered, smooth, options, forced
-        )
-    intervals = estimator._intervals
-    outcomes = [o for i in intervals for o in i.outcomes]
-    accepted = np.array([ok for ok, _ in outcomes], dtype=bool)
-    distances = np.array([score for _, score in outcomes])
-    head = ordered[: len(ordered) - len(outcomes)]  # applied at the start
-    if head:
-        accepted = np.concatenate([np.ones(len(head), dtype=bool), accepted])
-        distances = np.concatenate([np.zeros(len(head)), distances])
-    if smooth:
-        states, covariances = _smooth(intervals, states[-1], covariances[-1], len(times))
-    offset = robot.reference_offset
-    poses = np.array([_body_pose(x, offset).to_array() for x in states])
-    pose_covariances = np.array(
-        [_body_covariance(x, P, offset) for x, P in zip(states, covariances, strict=True)]
-    )
-    twists, twist_covariances = _twists(robot, estimator.config, log, states, covariances, slips)
-    return Estimate(
-        times,
-        poses,
-        pose_covariances,
-        states,
-        covariances,
-        slips,
-        scores,
-        tuple(ordered),
-        accepted,
-        distances,
-        smooth,
-        heading,
-        twists,
-        twist_covariances,
-    )
-
-
-def _twists(robot: Robot, c: ekf.Config, log, states, covariances, slips):
-    """The body twist over each interval and its covariance (``interval_twists``): the
-    wheels' turn times the estimated turn scale, or the gyro's turn less the estimated bias,
-    each interval's wheel noise inflated as the filter inflated it."""
-    times, increments, turned = log[4], log[5], log[6]
-    inflation = np.where(slips[1:], c.slip_inflation, 1.0)
-    if c.heading == "wheels":
-        return interval_twists(
-            robot,
-            times,
-            increments,
-            *c.k,
-            turn_scale=states[1:, ekf.SCALE],
-            turn_scale_variances=covariances[1:, ekf.SCALE, ekf.SCALE],
-            noise_scale=inflation,
-        )
-    dt = np.diff(times)
-    return interval_twists(
-        robot,
-        times,
-        increments,
-        *c.k,
-        turns=turned - states[1:, ekf.BIAS] * dt,
-        turn_variances=c.arw2 * dt + dt * dt * covariances[1:, ekf.BIAS, ekf.BIAS],
-        noise_scale=inflation,
-    )
-
-
-def _forward(log, ordered: list[Measurement], smooth: bool, options: dict, forced=None):
-    """One pass forward: the estimator (its history whole) and per row the state, covariance,
-    slip flag and score; ``forced`` ``(N-1,)`` flags intervals as slipping whatever their
-    score."""
-    robot, heading, initial_pose, initial_covariance, times, increments, turned, wanted = log
-    estimator = PythonPoseEstimator(  # the Python core keeps the smoother's records
+    estimator = PoseEstimator(
         robot,
         heading,
         initial_pose,
@@ -254,75 +174,209 @@ def _forward(log, ordered: list[Measurement], smooth: bool, options: dict, force
         ahead=0.0,
         **options,
     )
-    estimator._smoother = smooth
-    first = 0
-    while first < len(ordered) and ordered[first].t == times[0]:
-        estimator.add(ordered[first])
-        first += 1
-    n = len(times)
-    states, covariances = np.empty((n, ekf.N)), np.empty((n, ekf.N, ekf.N))
-    slips, scores = np.zeros(n, dtype=bool), np.zeros(n)
-    states[0], covariances[0] = estimator.state, estimator.state_covariance
-    for k in range(1, n):
-        last = first
-        while last < len(ordered) and ordered[last].t <= times[k]:
-            last += 1
-        estimator._forced = forced is not None and bool(forced[k - 1])
-        estimator._pending = ordered[first:last]  # applied inside this interval, at their stamps
-        first = last
-        try:
-            estimator.update_increments(
-                increments[k - 1, 0],
-                increments[k - 1, 1],
-                times[k],
-                gyro_angle=None if turned is None else turned[k - 1],
-                commanded=None if wanted is None else wanted[k - 1],
-            )
-        except ValueError as exc:
-            where = f"interval {k - 1} ({times[k - 1]:g} to {times[k]:g} s)"
-            raise ValueError(f"{where}: {exc}") from None
-        states[k], covariances[k] = estimator.state, estimator.state_covariance
-        slips[k], scores[k] = estimator.slip, estimator.slip_score
-    return estimator, states, covariances, slips, scores
-
-
-def _episodes(estimator: PythonPoseEstimator) -> np.ndarray:
-    """``steady_episodes`` over the forward pass's intervals, each from its start state."""
-    c = estimator.config
-    r_l, r_r, track, _ = c.drive
-    rows = []
-    for i in estimator._intervals:
-        innovation, variance, by_left, by_right = ekf.slip_innovation(
-            c, *i.start, *i.wheels, i.gyro, i.t1 - i.t0
-        )
-        scale = i.start[0][ekf.SCALE]
-        wheel_noise = (c.k[0] * abs(r_l * i.wheels[0]), c.k[1] * abs(r_r * i.wheels[1]))
-        rows.append(
-            (innovation, by_left, by_right, i.t1 - i.t0, *wheel_noise, scale * scale, variance)
-        )
-    table = np.array(rows)
-    deviation = np.sqrt(table[:, -1])
-    shared = table[:, 4:6] * (table[:, 6] / (track * track * table[:, -1]))[:, None]
-    flagged = np.array([i.slip for i in estimator._intervals], dtype=bool)
-    return steady_episodes(
-        table[:, 0] / deviation,
-        table[:, 1:3] / deviation[:, None],
-        flagged,
-        table[:, 3] / deviation,
-        shared,
+    _check_log(times, increments, turned, options.get("max_wheel_speed"))
+    missed = _commands_missed(estimator, times, increments, wanted)
+    gyro_turns = np.full(len(increments), np.nan) if turned is None else turned
+    log = _Log(times, increments, gyro_turns, missed, _packed(ordered))
+    episodes = slip_test == "episodes" and turned is not None
+    run = _run(estimator, log, smooth and not episodes, None)
+    forced = None
+    # Again with the episodes' wheel turns left out, and once more if what they had pulled
+    # into the estimate (the bias, in a fused heading) moved the episodes found.
+    for _ in range(2 if episodes else 0):
+        found = _episodes(estimator.config, log, run)
+        if forced is None and not np.any(found & ~run.slips[1:]):
+            break
+        if forced is not None and np.array_equal(found, forced):
+            break
+        forced = found
+        run = _run(estimator, log, False, forced)
+    if smooth and episodes:  # the smoother over the last forward pass
+        run = _run(estimator, log, True, forced)
+    offset = robot.reference_offset
+    twists, twist_covariances = _twists(robot, estimator.config, log, run)
+    return Estimate(
+        times,
+        body_poses(run.states, offset),
+        body_covariances(run.states, run.covariances, offset),
+        run.states,
+        run.covariances,
+        run.slips,
+        run.scores,
+        tuple(ordered),
+        run.accepted,
+        run.distances,
+        smooth,
+        heading,
+        twists,
+        twist_covariances,
     )
 
 
-def _smooth(intervals, last_state: np.ndarray, last_covariance: np.ndarray, n: int):
-    """The Rauch-Tung-Striebel pass backwards: the smoothed state and covariance at the start
-    of the log and at the end of each interval."""
-    states, covariances = np.empty((n, ekf.N)), np.empty((n, ekf.N, ekf.N))
-    x, P = last_state, last_covariance
-    for k in range(n - 1, 0, -1):
-        states[k], covariances[k] = x, P
-        for step in reversed(intervals[k - 1].steps):
-            x = step.before + step.gain @ (x - step.after)
-            P = step.before_cov + step.gain @ (P - step.after_cov) @ step.gain.T
-            P = 0.5 * (P + P.T)
-    states[0], covariances[0] = x, P
-    return states, covariances
+@dataclass(frozen=True)
+class _Log:
+    """A whole log as the cores take it: ``times`` ``(N,)``, ``increments`` ``(N-1, 2)``, the
+    gyro's turns ``(N-1,)`` (NaN: none), the intervals the commands flag ``(N-1,)`` and the
+    measurements as arrays (``_packed``)."""
+
+    times: np.ndarray
+    increments: np.ndarray
+    turned: np.ndarray
+    commanded: np.ndarray
+    measurements: _Packed
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One pass of a core over a ``_Log`` (see ``EstimatorCore._run_log``)."""
+
+    states: np.ndarray
+    covariances: np.ndarray
+    slips: np.ndarray
+    scores: np.ndarray
+    accepted: np.ndarray
+    distances: np.ndarray
+
+
+def _run(estimator: PoseEstimator, log: _Log, smooth: bool, forced: np.ndarray | None) -> _Run:
+    """A pass forward (and with ``smooth``, back) over ``log``, the intervals ``forced``
+    ``(N-1,)`` flagged as slipping besides those the commands flag."""
+    n, m = len(log.times), len(log.measurements[0])
+    flagged = log.commanded if forced is None else log.commanded | forced
+    states, covariances = np.empty((n, ekf.N)), np.empty((n, ekf.N * ekf.N))
+    slips, scores, accepted, distances = np.empty(n), np.empty(n), np.empty(m), np.empty(m)
+    failed = estimator._run_log(
+        log.times,
+        np.ascontiguousarray(log.increments[:, 0]),
+        np.ascontiguousarray(log.increments[:, 1]),
+        log.turned,
+        flagged.astype(float),
+        *log.measurements,
+        smooth,
+        states,
+        covariances,
+        slips,
+        scores,
+        accepted,
+        distances,
+    )
+    if failed == -2:
+        raise ValueError(
+            f"a measurement at the log's start ({log.times[0]:g} s) would overflow the state; "
+            "refused"
+        )
+    if failed >= 0:
+        where = f"interval {failed} ({log.times[failed]:g} to {log.times[failed + 1]:g} s)"
+        raise ValueError(f"{where}: the update would overflow the state; refused")
+    return _Run(
+        states,
+        covariances.reshape(n, ekf.N, ekf.N),
+        slips.astype(bool),
+        scores,
+        accepted.astype(bool),
+        distances,
+    )
+
+
+def _packed(ordered: list[Measurement]) -> _Packed:
+    """The measurements (in ``Measurement.order``) as the cores' arrays: stamps ``(M,)``,
+    kinds ``(M,)``, values ``(M, 3)``, covariances ``(M, 9)`` (the ``k x k`` first, row by
+    row) and lever arms ``(M, 2)``."""
+    m = len(ordered)
+    stamps, kinds = np.empty(m), np.empty(m)
+    values, covariances, arms = np.zeros((m, 3)), np.zeros((m, 9)), np.zeros((m, 2))
+    for j, measurement in enumerate(ordered):
+        k = len(measurement.value)
+        stamps[j], kinds[j] = measurement.t, MEASUREMENT_KINDS.index(measurement.kind)
+        values[j, :k] = measurement.value
+        covariances[j, : k * k] = measurement.covariance.ravel()
+        arms[j] = measurement.lever_arm
+    return stamps, kinds, values, covariances, arms
+
+
+def _check_log(times, increments, turned, max_wheel_speed) -> None:
+    """What ``Odometry`` and ``PoseEstimator`` refuse in a reading, refused for the whole log
+    before it runs, naming the first bad interval."""
+    dt = np.diff(times)
+    with np.errstate(over="ignore", invalid="ignore"):
+        speed = np.abs(increments).max(axis=1) / dt
+    limit = np.inf if max_wheel_speed is None else float(max_wheel_speed)
+    problems = (
+        (~np.all(np.isfinite(increments), axis=1), "the wheel increments must be finite"),
+        (~np.isfinite(speed), "a wheel turns faster than the largest float"),
+        (speed > limit, f"a wheel turns over max_wheel_speed {limit!r} rad/s"),
+        (
+            np.zeros(len(dt), dtype=bool) if turned is None else ~np.isfinite(turned),
+            "the gyro's turn must be finite",
+        ),
+    )
+    for bad, what in problems:
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            where = f"interval {k} ({times[k]:g} to {times[k + 1]:g} s)"
+            rates = increments[k] / dt[k]
+            raise ValueError(
+                f"{where}: {what}: wheel increments {increments[k].tolist()} rad "
+                f"({rates.tolist()} rad/s)"
+            )
+
+
+def _commands_missed(estimator: PoseEstimator, times, increments, wanted) -> np.ndarray:
+    """The intervals whose wheels missed their commanded velocities ``wanted`` ``(N-1, 2)``
+    rad/s beyond ``COMMAND_THRESHOLD`` (chi-square, two degrees of freedom, at the
+    estimator's ``command_sigma``); none if ``wanted`` is None."""
+    if wanted is None:
+        return np.zeros(len(increments), dtype=bool)
+    miss = increments / np.diff(times)[:, None] - wanted
+    sigma2 = estimator.command_sigma * estimator.command_sigma
+    return (miss * miss).sum(axis=1) / sigma2 > ekf.COMMAND_THRESHOLD
+
+
+def _twists(robot: Robot, c: ekf.Config, log: _Log, run: _Run):
+    """The body twist over each interval and its covariance (``interval_twists``): the
+    wheels' turn times the estimated turn scale, or the gyro's turn less the estimated bias,
+    each interval's wheel noise inflated as the filter inflated it."""
+    states, covariances = run.states, run.covariances
+    inflation = np.where(run.slips[1:], c.slip_inflation, 1.0)
+    if c.heading == "wheels":
+        return interval_twists(
+            robot,
+            log.times,
+            log.increments,
+            *c.k,
+            turn_scale=states[1:, ekf.SCALE],
+            turn_scale_variances=covariances[1:, ekf.SCALE, ekf.SCALE],
+            noise_scale=inflation,
+        )
+    dt = np.diff(log.times)
+    return interval_twists(
+        robot,
+        log.times,
+        log.increments,
+        *c.k,
+        turns=log.turned - states[1:, ekf.BIAS] * dt,
+        turn_variances=c.arw2 * dt + dt * dt * covariances[1:, ekf.BIAS, ekf.BIAS],
+        noise_scale=inflation,
+    )
+
+
+def _episodes(c: ekf.Config, log: _Log, run: _Run) -> np.ndarray:
+    """``steady_episodes`` over a forward pass's intervals, each from its start state (the
+    filter's at the end of the interval before)."""
+    r_l, r_r, track, _ = c.drive
+    dl, dr, dt = log.increments[:, 0], log.increments[:, 1], np.diff(log.times)
+    starts, start_covariances = run.states[:-1], run.covariances[:-1]
+    innovation, variance, by_left, by_right = ekf.slip_innovation(
+        c, starts, start_covariances, dl, dr, log.turned, dt
+    )
+    scale = starts[:, ekf.SCALE]
+    wheel_noise = np.column_stack([c.k[0] * np.abs(r_l * dl), c.k[1] * np.abs(r_r * dr)])
+    deviation = np.sqrt(variance)
+    shared = wheel_noise * (scale * scale / (track * track * variance))[:, None]
+    return steady_episodes(
+        innovation / deviation,
+        np.column_stack([by_left, by_right]) / deviation[:, None],
+        run.slips[1:],
+        dt / deviation,
+        shared,
+    )

@@ -71,7 +71,10 @@ def interval_twists(
         scale = _per_interval(turn_scale, 1.0, count, "turn_scale")
         scale_var = _per_interval(turn_scale_variances, 0.0, count, "turn_scale_variances")
         turn = scale * wheel_turn
-        var_turn = scale * scale * (var_left + var_right) / track**2 + wheel_turn**2 * scale_var
+        # as a square of the product: no 0 * inf where the scale is known and the turn huge
+        with np.errstate(over="ignore"):
+            by_scale = (wheel_turn * np.sqrt(scale_var)) ** 2
+        var_turn = scale * scale * (var_left + var_right) / track**2 + by_scale
         cov_forward_turn = scale * 0.5 * (var_right - var_left) / track
     else:
         turn = _per_interval(turns, 0.0, count, "turns")
@@ -82,10 +85,15 @@ def interval_twists(
     mixing = np.array([[1.0, shift], [0.0, sideways], [0.0, 1.0]])
     moves = np.column_stack([forward, turn])
     twists = moves @ mixing.T / dt[:, None]
-    inner = np.empty((count, 2, 2))
-    inner[:, 0, 0], inner[:, 1, 1] = var_forward, var_turn
-    inner[:, 0, 1] = inner[:, 1, 0] = cov_forward_turn
-    covariances = np.einsum("ij,tjk,lk->til", mixing, inner, mixing) / (dt * dt)[:, None, None]
+    # mixing @ [[var f, cov], [cov, var w]] @ mixing.T, term by term (over dt^2)
+    along_f, along_w = mixing[:, 0], mixing[:, 1]
+    per_dt2 = 1.0 / (dt * dt)
+    covariances = (
+        (var_forward * per_dt2)[:, None, None] * np.outer(along_f, along_f)
+        + (cov_forward_turn * per_dt2)[:, None, None]
+        * (np.outer(along_f, along_w) + np.outer(along_w, along_f))
+        + (var_turn * per_dt2)[:, None, None] * np.outer(along_w, along_w)
+    )
     return np.concatenate([twists[:1], twists]), np.concatenate([covariances[:1], covariances])
 
 

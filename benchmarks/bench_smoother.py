@@ -1,0 +1,91 @@
+"""``estimate_trajectory`` on a long log: the C core's whole-log pass against its Python twin
+(the core every whole log ran on before), side by side in one run.
+
+The log: a 0.1 m / 0.5 m drive at 100 Hz along a winding path, wheel noise ``k`` = 1e-4 m, a
+gyro with a bias of 2e-3 rad/s and white rate noise, heading ``"fused"`` (the bias a state,
+the slip test and its episodes on), and, in a second variant, a position fix every second.
+Timed: the filter (``smooth=False``) and the filter with the smoother, in microseconds per
+wheel interval, medians of ``--repeats`` runs; the C core on ``--intervals`` (10^6: 2.8 hours
+of driving), the Python twin on ``--twin-intervals``. Targets (issue 40): on 10^6 intervals
+with a gyro, the filter at most 3 us an interval, the filter and smoother at most 6 us.
+
+    python benchmarks/bench_smoother.py [--intervals 1000000] [--twin-intervals 20000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+
+import numpy as np
+
+import diffdrive as dd
+from diffdrive.estimation import Gyro, estimate_trajectory, fusion, measurements_of
+from diffdrive.estimation import smoother as whole
+from timing import median_time  # benchmarks/timing.py
+
+ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.5)
+RATE = 100.0
+TARGETS = {False: 3.0, True: 6.0}  # us per interval: the filter, and with the smoother
+
+
+def log(intervals: int, fixes: bool, seed: int = 0):
+    """times, increments, the gyro and the measurements of a synthetic log."""
+    rng = np.random.default_rng(seed)
+    times = np.arange(intervals + 1) / RATE
+    t = times[:-1]
+    wheels = np.column_stack([8 + 3 * np.cos(t / 2.3), 8 + 3 * np.sin(t / 3.1)])
+    truth = dd.simulate(ROBOT, wheels, times=times).poses
+    travel = wheels / RATE
+    noise = np.sqrt(1e-4 * np.abs(0.1 * travel)) / 0.1
+    increments = travel + rng.normal(size=travel.shape) * noise
+    rate = np.gradient(np.unwrap(truth[:, 2]), times) + 2e-3 + rng.normal(size=len(times)) * 0.02
+    measured = []
+    if fixes:
+        every = int(RATE)
+        seen = truth[::every, :2] + rng.normal(size=(len(times[::every]), 2)) * 0.5
+        measured = measurements_of("position", times[::every], seen, 0.5)
+    return times, increments, Gyro(times, rate), measured
+
+
+def per_interval(times, increments, gyro, measured, smooth, repeats) -> float:
+    def run():
+        return estimate_trajectory(
+            ROBOT, times, increments, gyro=gyro, measurements=measured, smooth=smooth
+        )
+
+    return median_time(run, repeats) / (len(times) - 1) * 1e6
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--intervals", type=int, default=1_000_000)
+    parser.add_argument("--twin-intervals", type=int, default=20_000)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    print(f"{platform.processor() or platform.machine()}, Python {platform.python_version()}")
+    if not fusion.COMPILED:
+        raise SystemExit("the C core was not built: nothing to compare")
+    print(f"us per wheel interval, medians of {args.repeats} runs\n")
+    print("| log | pass | C core | Python twin | twin / C | target |")
+    print("|---|---|---|---|---|---|")
+    for fixes in (False, True):
+        name = "gyro, fixes at 1 Hz" if fixes else "gyro"
+        big = log(args.intervals, fixes)
+        small = log(args.twin_intervals, fixes)
+        for smooth in (False, True):
+            c = per_interval(*big, smooth, args.repeats)
+            whole.PoseEstimator = fusion.PythonPoseEstimator  # the twin, for this timing only
+            try:
+                twin = per_interval(*small, smooth, args.repeats)
+            finally:
+                whole.PoseEstimator = fusion.PoseEstimator
+            passes = "filter and smoother" if smooth else "filter"
+            print(
+                f"| {name} | {passes} | {c:.2f} | {twin:.0f} | {twin / c:.0f} | "
+                f"<= {TARGETS[smooth]:.0f} |"
+            )
+
+
+if __name__ == "__main__":
+    main()

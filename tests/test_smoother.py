@@ -1,0 +1,164 @@
+"""estimate_trajectory's whole-log pass (``smoother``): the C core held to its Python twin
+interval by interval, filter and smoother; the whole-log filter held to the streaming
+estimator fed the same log; the pipeline (episodes included) the same on both cores."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import diffdrive as dd
+from diffdrive.estimation import Gyro, GyroNoise, Measurement, estimate_trajectory, fusion
+from diffdrive.estimation import smoother as whole
+
+ROBOT = dd.SkidSteer(0.1, 0.45, -0.35, icr_x=0.03)  # an axle offset and a reference offset
+needs_c = pytest.mark.skipif(not fusion.COMPILED, reason="the C core was not built")
+
+# one interval: left and right increments (rad), dt (s), the gyro's turn (rad), forced
+intervals = st.tuples(
+    st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(1e-3, 0.05), st.floats(-0.05, 0.05),
+    st.booleans(),
+)  # fmt: skip
+# one measurement: kind, where in the log (0: its start, 1: its end), values, lever arm
+sightings = st.tuples(
+    st.sampled_from(["pose", "position", "heading"]),
+    st.one_of(st.just(0.0), st.just(1.0), st.floats(0.0, 1.0)),
+    st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-0.5, 0.5)),
+    st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3)),
+)
+
+
+def make_log(steps, seen):
+    times = np.concatenate([[0.0], np.cumsum([dt for _, _, dt, _, _ in steps])])
+    increments = np.array([(left, right) for left, right, _, _, _ in steps])
+    turns = np.array([g for _, _, _, g, _ in steps])
+    forced = np.array([f for *_, f in steps])
+    made = []
+    for kind, where, value, arm in seen:
+        stamp = float(times[-1] * where)
+        size = {"pose": 3, "position": 2, "heading": 1}[kind]
+        sigma = (0.3, 0.2, 0.1)[:size]
+        made.append(Measurement.make(kind, stamp, value[:size], sigma, arm if size > 1 else None))
+    return times, increments, turns, forced, sorted(made, key=lambda m: m.order)
+
+
+def run_core(kind, heading, scale, log, smooth):
+    times, increments, turns, forced, ordered = log
+    options = dict(k_left=1e-4, k_right=2e-4, turn_scale_sigma=0.1 if scale else 0.0)
+    estimator = kind(
+        ROBOT, heading, (0.1, -0.2, 0.3), np.eye(3) * 1e-3, initial_time=0.0, history=np.inf,
+        ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), **options,
+    )  # fmt: skip
+    log_of = whole._Log(
+        times, increments, turns if heading != "wheels" else np.full(len(turns), np.nan),
+        np.zeros(len(turns), dtype=bool), whole._packed(ordered),
+    )  # fmt: skip
+    return whole._run(estimator, log_of, smooth, forced)
+
+
+@needs_c
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(intervals, min_size=1, max_size=40),
+    st.lists(sightings, max_size=8),
+    st.sampled_from(["wheels", "gyro", "fused"]),
+    st.booleans(),
+    st.booleans(),
+)
+def test_the_c_whole_log_pass_is_its_python_twin(steps, seen, heading, scale, smooth):
+    """Any log, forced intervals and measurements of every kind (at the start, at interval
+    ends, inside intervals, several at one stamp): the C pass and the Python one give the
+    same state and covariance at every row, filtered and smoothed, the same slip flags and
+    scores, and the same outcomes."""
+    log = make_log(steps, seen)
+    c = run_core(fusion.PoseEstimator, heading, scale, log, smooth)
+    python = run_core(fusion.PythonPoseEstimator, heading, scale, log, smooth)
+    np.testing.assert_allclose(c.states, python.states, rtol=1e-9, atol=1e-11)
+    scale_of = np.maximum(np.abs(python.covariances).max(axis=(1, 2)), 1e-12)[:, None, None]
+    np.testing.assert_allclose(c.covariances / scale_of, python.covariances / scale_of, atol=1e-8)
+    np.testing.assert_array_equal(c.slips, python.slips)
+    np.testing.assert_allclose(c.scores, python.scores, rtol=1e-7, atol=1e-9)
+    np.testing.assert_array_equal(c.accepted, python.accepted)
+    np.testing.assert_allclose(c.distances, python.distances, rtol=1e-7, atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(intervals, min_size=1, max_size=40), st.lists(sightings, max_size=6))
+def test_the_whole_log_filter_is_the_streaming_estimator(steps, seen):
+    """The whole-log filter on a log is the streaming PoseEstimator fed the same readings,
+    each measurement given as soon as the wheels reach its stamp."""
+    log = make_log(steps, seen)
+    times, increments, turns, _, ordered = log
+    unforced = (*log[:3], np.zeros(len(turns), dtype=bool), ordered)
+    run = run_core(fusion.PoseEstimator, "fused", True, unforced, False)
+    streaming = fusion.PoseEstimator(
+        ROBOT, "fused", (0.1, -0.2, 0.3), np.eye(3) * 1e-3, initial_time=0.0, history=np.inf,
+        ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), k_left=1e-4, k_right=2e-4,
+        turn_scale_sigma=0.1,
+    )  # fmt: skip
+    given_ = 0
+    while given_ < len(ordered) and ordered[given_].t == 0.0:
+        streaming.add(ordered[given_])
+        given_ += 1
+    for k in range(1, len(times)):
+        streaming.update_increments(*increments[k - 1], times[k], gyro_angle=turns[k - 1])
+        while given_ < len(ordered) and ordered[given_].t <= times[k]:
+            streaming.add(ordered[given_])
+            given_ += 1
+        np.testing.assert_allclose(run.states[k], streaming.state, rtol=1e-9, atol=1e-11)
+        assert run.slips[k] == streaming.slip
+    assert int(run.accepted.sum()) == streaming.accepted
+
+
+@needs_c
+def test_the_pipeline_is_the_same_on_both_cores(monkeypatch):
+    """A log with a slip episode the per-interval test misses, GPS-like fixes and the
+    smoother: estimate_trajectory on the C core and on the Python one agree row by row."""
+    rng = np.random.default_rng(3)
+    robot = dd.DiffDrive(wheel_radius=0.1, track_width=0.5)
+    times = np.arange(0.0, 20.0 + 1e-9, 0.02)
+    t = times[:-1]
+    wheels = np.column_stack([8.0 + 2.0 * np.cos(t / 2.3), 8.0 + 2.0 * np.sin(t / 3)])
+    truth = dd.simulate(robot, wheels, times=times).poses
+    increments = wheels * 0.02 + rng.normal(size=wheels.shape) * 3e-3
+    increments[300:340, 0] *= 1.3  # the left wheel spins a third again as far as it rolls
+    rate = np.gradient(np.unwrap(truth[:, 2]), times) + 0.01 + rng.normal(size=len(times)) * 0.01
+    fixes = truth[::50, :2] + rng.normal(size=(len(times[::50]), 2)) * 0.2
+    measurements = whole.measurements_of("position", times[::50], fixes, 0.2)
+    results = []
+    for core in (fusion.PoseEstimator, fusion.PythonPoseEstimator):
+        monkeypatch.setattr(whole, "PoseEstimator", core)
+        results.append(
+            estimate_trajectory(
+                robot,
+                times,
+                increments,
+                gyro=Gyro(times, rate),
+                measurements=measurements,
+                k_left=1e-4,
+                k_right=1e-4,
+            )
+        )
+    c, python = results
+    assert np.any(c.slip[300:341])
+    np.testing.assert_array_equal(c.slip, python.slip)
+    np.testing.assert_allclose(c.poses, python.poses, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(c.covariances, python.covariances, rtol=1e-6, atol=1e-14)
+    np.testing.assert_allclose(c.twists, python.twists, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(c.accepted, python.accepted)
+
+
+def test_a_bad_interval_is_named_before_anything_runs():
+    times = np.arange(6) * 0.1
+    increments = np.ones((5, 2))
+    increments[3, 1] = np.nan
+    with pytest.raises(ValueError, match=r"interval 3 \(0.3 to 0.4 s\): the wheel increments"):
+        estimate_trajectory(ROBOT, times, increments, heading="wheels")
+    increments[3, 1] = 1.0
+    with pytest.raises(ValueError, match=r"interval 0 .*over max_wheel_speed 5.0 rad/s"):
+        estimate_trajectory(ROBOT, times, increments, heading="wheels", max_wheel_speed=5.0)
+    huge = np.full((5, 2), 1e307)  # 1e308 rad/s: finite, but the covariance overflows
+    with pytest.raises(ValueError, match=r"interval 0 \(0 to 0.1 s\): the update would overflow"):
+        estimate_trajectory(ROBOT, times, huge, heading="wheels")
