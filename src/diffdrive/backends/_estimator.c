@@ -128,6 +128,50 @@ static double slip_score(const Est *e, const double *x, const double *P, double 
     return innovation * innovation / variance;
 }
 
+/* One step's move and its linearisation, as filter.advance builds them: the wheels' turn,
+ * the turn, the move (dx, dy), the noises' variances (left, right wheel angle; gyro), and the
+ * nonzero blocks of F - I (A: rows 0 to 2, columns 2 to 4) and of G (rows 0 to 2). */
+typedef struct {
+    double wheel_turn, turn, dx, dy, noise[3], A[3][3], G[3][3];
+} Move;
+
+static ALWAYS_INLINE void
+move_terms(const Est *e, const double *x, double dl, double dr, double g, double dt, int slip,
+           Move *m) {
+    double left = e->r_l * dl, right = e->r_r * dr;
+    double forward = 0.5 * (left + right), scale = x[SCALE];
+    double inflation = slip ? e->slip_infl : 1.0;
+    m->wheel_turn = (right - left) / e->track;
+    /* k |r dl| / r^2 = (k / r) |dl|: the radii are positive (checked in __init__) */
+    m->noise[0] = inflation * e->k_per_r_l * fabs(dl);
+    m->noise[1] = inflation * e->k_per_r_r * fabs(dr);
+    m->noise[2] = e->heading != WHEELS ? e->arw2 * dt : 0.0;
+    double bnf[3] = {0.5 * e->r_l, 0.5 * e->r_r, 0.0}, bnt[3], bst[N] = {0};
+    if (e->heading == WHEELS) {
+        m->turn = scale * m->wheel_turn;
+        bnt[0] = -scale * e->r_l / e->track;
+        bnt[1] = scale * e->r_r / e->track;
+        bnt[2] = 0.0;
+        bst[SCALE] = m->wheel_turn;
+    } else {
+        m->turn = g - x[BIAS] * dt;
+        bnt[0] = bnt[1] = 0.0;
+        bnt[2] = 1.0;
+        bst[BIAS] = -dt;
+    }
+    double bf[2], bt[2];
+    move_jacobians(forward, e->axle, m->turn, e->weight, e->chord, x[2], &m->dx, &m->dy, bf, bt);
+    const double columns[3][3] = {{-m->dy, bt[0] * bst[BIAS], bt[0] * bst[SCALE]},
+                                  {m->dx, bt[1] * bst[BIAS], bt[1] * bst[SCALE]},
+                                  {0.0, bst[BIAS], bst[SCALE]}};
+    memcpy(m->A, columns, sizeof columns);
+    for (int i = 0; i < 3; ++i) {
+        m->G[0][i] = bf[0] * bnf[i] + bt[0] * bnt[i];
+        m->G[1][i] = bf[1] * bnf[i] + bt[1] * bnt[i];
+        m->G[2][i] = bnt[i];
+    }
+}
+
 /* filter.advance without the smoother's record, in place on x and P, for n estimated states
  * (3: the pose; 4: and the bias; 5: and the scale). The states that are not estimated have
  * zero rows and columns in P and keep them, untouched. Always inlined into advance with n a
@@ -135,40 +179,14 @@ static double slip_score(const Est *e, const double *x, const double *P, double 
 static ALWAYS_INLINE void
 advance_n(const Est *e, double *x, double *P, double dl, double dr, double g, double dt, int slip,
           const int n) {
-    double left = e->r_l * dl, right = e->r_r * dr;
-    double wheel_turn = (right - left) / e->track, forward = 0.5 * (left + right);
-    double scale = x[SCALE], inflation = slip ? e->slip_infl : 1.0;
-    /* k |r dl| / r^2 = (k / r) |dl|: the radii are positive (checked in __init__) */
-    double noise[3] = {inflation * e->k_per_r_l * fabs(dl), inflation * e->k_per_r_r * fabs(dr),
-                       e->heading != WHEELS ? e->arw2 * dt : 0.0};
-    double bnf[3] = {0.5 * e->r_l, 0.5 * e->r_r, 0.0}, bnt[3], bst[N] = {0};
-    double turn;
-    if (e->heading == WHEELS) {
-        turn = scale * wheel_turn;
-        bnt[0] = -scale * e->r_l / e->track;
-        bnt[1] = scale * e->r_r / e->track;
-        bnt[2] = 0.0;
-        bst[SCALE] = wheel_turn;
-    } else {
-        turn = g - x[BIAS] * dt;
-        bnt[0] = bnt[1] = 0.0;
-        bnt[2] = 1.0;
-        bst[BIAS] = -dt;
-    }
-    double dx, dy, bf[2], bt[2];
-    move_jacobians(forward, e->axle, turn, e->weight, e->chord, x[2], &dx, &dy, bf, bt);
+    Move mv;
+    move_terms(e, x, dl, dr, g, dt, slip, &mv);
+    const double wheel_turn = mv.wheel_turn, turn = mv.turn, dx = mv.dx, dy = mv.dy;
+    const double *noise = mv.noise, scale = x[SCALE];
     /* A = F - I is zero but for columns 2 to 4 of rows 0 to 2, and G is zero below row 2:
      * FP = P + A P and moved = FP F^T + G Q G^T over those entries only (a column of A past n
      * meets a zero row of P: it adds an exact zero). */
-    double A[3][3] = {{-dy, bt[0] * bst[BIAS], bt[0] * bst[SCALE]},
-                      {dx, bt[1] * bst[BIAS], bt[1] * bst[SCALE]},
-                      {0.0, bst[BIAS], bst[SCALE]}}; /* columns 2, 3, 4 */
-    double G[3][3], GQ[3][3];
-    for (int i = 0; i < 3; ++i) {
-        G[0][i] = bf[0] * bnf[i] + bt[0] * bnt[i];
-        G[1][i] = bf[1] * bnf[i] + bt[1] * bnt[i];
-        G[2][i] = bnt[i];
-    }
+    double (*A)[3] = mv.A, (*G)[3] = mv.G, GQ[3][3];
     for (int i = 0; i < 3; ++i)
         for (int k = 0; k < 3; ++k) GQ[i][k] = G[i][k] * noise[k];
     double after[N];
@@ -364,40 +382,17 @@ static void solve_right(const Est *e, const double *cross, const double *cov, do
 static void advance_record(const Est *e, const double *x, const double *P, double dl, double dr,
                            double g, double dt, int slip, Step *out) {
     enum { J = 2 * N + 3 };
-    double left = e->r_l * dl, right = e->r_r * dr;
-    double forward = 0.5 * (left + right), wheel_turn = (right - left) / e->track;
-    double scale = x[SCALE], inflation = slip ? e->slip_infl : 1.0;
-    double noise[3] = {inflation * e->k_per_r_l * fabs(dl), inflation * e->k_per_r_r * fabs(dr),
-                       e->heading != WHEELS ? e->arw2 * dt : 0.0};
-    double bnf[3] = {0.5 * e->r_l, 0.5 * e->r_r, 0.0}, bnt[3], bst[N] = {0}, turn;
-    if (e->heading == WHEELS) {
-        turn = scale * wheel_turn;
-        bnt[0] = -scale * e->r_l / e->track;
-        bnt[1] = scale * e->r_r / e->track;
-        bnt[2] = 0.0;
-        bst[SCALE] = wheel_turn;
-    } else {
-        turn = g - x[BIAS] * dt;
-        bnt[0] = bnt[1] = 0.0;
-        bnt[2] = 1.0;
-        bst[BIAS] = -dt;
-    }
-    double dx, dy, bf[2], bt[2];
-    move_jacobians(forward, e->axle, turn, e->weight, e->chord, x[2], &dx, &dy, bf, bt);
-    double F[NN] = {0}, G[N * 3] = {0};
+    Move mv;
+    move_terms(e, x, dl, dr, g, dt, slip, &mv);
+    const double wheel_turn = mv.wheel_turn, turn = mv.turn, dx = mv.dx, dy = mv.dy;
+    const double *noise = mv.noise, scale = x[SCALE];
+    double F[NN] = {0}, G[N * 3] = {0}; /* in full: I + A, and G with its zero rows */
     for (int i = 0; i < N; ++i) F[i * N + i] = 1.0;
-    F[0 * N + 2] = -dy;
-    F[1 * N + 2] = dx;
-    for (int j = 0; j < N; ++j) {
-        F[0 * N + j] += bt[0] * bst[j];
-        F[1 * N + j] += bt[1] * bst[j];
-        F[2 * N + j] += bst[j];
-    }
-    for (int k = 0; k < 3; ++k) {
-        G[0 * 3 + k] = bf[0] * bnf[k] + bt[0] * bnt[k];
-        G[1 * 3 + k] = bf[1] * bnf[k] + bt[1] * bnt[k];
-        G[2 * 3 + k] = bnt[k];
-    }
+    for (int i = 0; i < 3; ++i)
+        for (int c = 0; c < 3; ++c) {
+            F[i * N + 2 + c] += mv.A[i][c];
+            G[i * 3 + c] = mv.G[i][c];
+        }
     double FP[NN], moved[NN], GQ[N * 3];
     for (int i = 0; i < N; ++i)
         for (int j = 0; j < N; ++j) {
