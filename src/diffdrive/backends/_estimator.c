@@ -97,26 +97,6 @@ static double wrap(double a) {
     return w <= -M_PI ? w + 2.0 * M_PI : w;
 }
 
-/* _step.move_jacobians */
-static ALWAYS_INLINE void
-move_jacobians(double forward, double offset, double turn, double weight, int chord, double heading,
-               double *dx, double *dy, double bf[2], double bt[2]) {
-    double angle = heading + weight * turn, ca = cos(angle), sa = sin(angle);
-    double sideways = offset * turn;
-    double gx = ca * forward - sa * sideways, gy = sa * forward + ca * sideways;
-    double scale = 1.0, slope = 0.0;
-    if (chord) {
-        scale = dd_sinc(0.5 * turn);
-        slope = 0.5 * dd_sinc_derivative(0.5 * turn);
-    }
-    bt[0] = slope * gx + scale * (-sa * offset - gy * weight);
-    bt[1] = slope * gy + scale * (ca * offset + gx * weight);
-    *dx = scale * gx;
-    *dy = scale * gy;
-    bf[0] = scale * ca;
-    bf[1] = scale * sa;
-}
-
 static double slip_score(const Est *e, const double *x, const double *P, double dl, double dr,
                          double g, double dt) {
     double wheel_turn = (e->r_r * dr - e->r_l * dl) / e->track, scale = x[SCALE];
@@ -160,7 +140,8 @@ move_terms(const Est *e, const double *x, double dl, double dr, double g, double
         bst[BIAS] = -dt;
     }
     double bf[2], bt[2];
-    move_jacobians(forward, e->axle, m->turn, e->weight, e->chord, x[2], &m->dx, &m->dy, bf, bt);
+    dd_move_jacobians(forward, e->axle, m->turn, e->weight, e->chord, x[2], &m->dx, &m->dy, bf,
+                      bt);
     const double columns[3][3] = {{-m->dy, bt[0] * bst[BIAS], bt[0] * bst[SCALE]},
                                   {m->dx, bt[1] * bst[BIAS], bt[1] * bst[SCALE]},
                                   {0.0, bst[BIAS], bst[SCALE]}};

@@ -72,24 +72,6 @@ static Num num(double v) {
 
 /* -- the maths of one step ------------------------------------------------------------- */
 
-/* sin(u)/u by the rule of diffdrive._step.sinc, which this file mirrors: its Taylor form to
- * u^8 below 1/16, libm above, with the same operations in the same order. */
-static double sinc(double u) {
-    if (fabs(u) >= 1.0 / 16.0) return sin(u) / u;
-    double u2 = u * u;
-    return 1.0 - u2 * (1.0 / 6) *
-                     (1.0 - u2 * (1.0 / 20) * (1.0 - u2 * (1.0 / 42) * (1.0 - u2 * (1.0 / 72))));
-}
-
-/* d/du of sin(u)/u: (u cos u - sin u)/u^2, with its Taylor form near 0 where that cancels. */
-static double sinc_derivative(double u) {
-    if (fabs(u) < 0.05) {
-        double u2 = u * u;
-        return -u / 3.0 * (1.0 - u2 / 10.0 * (1.0 - u2 / 28.0 * (1.0 - u2 / 54.0)));
-    }
-    return (u * cos(u) - sin(u)) / (u * u);
-}
-
 typedef struct {
     double dx, dy, dtheta; /* world-frame move of the pose */
     double travel;         /* how far the reference point moved, m */
@@ -97,34 +79,25 @@ typedef struct {
     double jac_wheels[6];  /* d(new pose)/d(wheel-angle increments [left, right]), 3x2 */
 } Step;
 
-/* One step from wheel-angle increments (rad) at heading theta, with its Jacobians. */
+/* One step from wheel-angle increments (rad) at heading theta, with its Jacobians: the move's
+ * (the header's dd_move_jacobians, the estimator's too) taken through each wheel's arc
+ * (d forward = 1/2, d turn = -+1/track per metre), as odometry_python's step. */
 static void step(const Core *c, double theta, double dphi_left, double dphi_right, Step *s) {
     double left = c->r_left * dphi_left, right = c->r_right * dphi_right;
-    double turn = (right - left) / c->track;
-    double forward = 0.5 * (left + right), sideways = c->offset * turn;
+    double turn = (right - left) / c->track, forward = 0.5 * (left + right);
     double weight = c->method == EULER ? 0.0 : 0.5; /* direction: theta + weight * turn */
-    double angle = theta + weight * turn, ca = cos(angle), sa = sin(angle);
-    double scale = 1.0, scale_slope = 0.0; /* the chord factor and its derivative in turn */
-    if (c->method == EXACT) {
-        scale = sinc(0.5 * turn);
-        scale_slope = 0.5 * sinc_derivative(0.5 * turn);
-    }
-    double gx = ca * forward - sa * sideways, gy = sa * forward + ca * sideways;
-    s->dx = scale * gx;
-    s->dy = scale * gy;
+    double bf[2], bt[2];
+    dd_move_jacobians(forward, c->offset, turn, weight, c->method == EXACT, theta, &s->dx, &s->dy,
+                      bf, bt);
     s->dtheta = turn;
-    s->travel = hypot(forward, sideways);
+    s->travel = hypot(forward, c->offset * turn);
     double jp[9] = {1.0, 0.0, -s->dy, 0.0, 1.0, s->dx, 0.0, 0.0, 1.0};
     memcpy(s->jac_pose, jp, sizeof jp);
-    /* Per wheel arc (m): d forward = 1/2, d turn = -+1/track, d sideways = offset d turn. */
     double dturn[2] = {-1.0 / c->track, 1.0 / c->track};
     double radius[2] = {c->r_left, c->r_right};
     for (int w = 0; w < 2; ++w) {
-        double df = 0.5, dside = c->offset * dturn[w], da = weight * dturn[w];
-        double dgx = ca * df - sa * dside - gy * da;
-        double dgy = sa * df + ca * dside + gx * da;
-        s->jac_wheels[w] = radius[w] * (scale_slope * dturn[w] * gx + scale * dgx);
-        s->jac_wheels[2 + w] = radius[w] * (scale_slope * dturn[w] * gy + scale * dgy);
+        s->jac_wheels[w] = radius[w] * (0.5 * bf[0] + dturn[w] * bt[0]);
+        s->jac_wheels[2 + w] = radius[w] * (0.5 * bf[1] + dturn[w] * bt[1]);
         s->jac_wheels[4 + w] = radius[w] * dturn[w];
     }
 }
@@ -815,8 +788,6 @@ static PyTypeObject CoreType = {
 
 /* -- what the estimator core (_estimator.c) takes from this one ---------------------------- */
 
-double dd_sinc(double u) { return sinc(u); }
-double dd_sinc_derivative(double u) { return sinc_derivative(u); }
 
 int odometry_check(PyObject *obj) { return PyObject_TypeCheck(obj, &CoreType); }
 
