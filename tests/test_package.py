@@ -50,6 +50,45 @@ def test_the_heavier_modules_are_attributes_loaded_on_first_use():
     assert out[:2] == ["False True", "True"]
 
 
+def test_import_loads_the_core_and_the_rest_on_first_use():
+    """``import diffdrive`` loads the core (types, model, se2, integrate, simulate, odometry);
+    the estimators, control, dynamics and the rest come with the first name that needs them,
+    each the object its module defines."""
+    code = (
+        "import sys, diffdrive as dd\n"
+        "late = ['control', 'dynamics', 'estimation.fusion', 'estimation.smoother', 'io']\n"
+        "print([m for m in late if 'diffdrive.' + m in sys.modules])\n"
+        "from diffdrive.control.limiter import Limiter\n"
+        "from diffdrive.estimation.smoother import estimate_trajectory\n"
+        "from diffdrive import estimation\n"
+        "print(dd.Limiter is Limiter, estimation.estimate_trajectory is estimate_trajectory)\n"
+    )
+    out = python_lines(code)
+    assert out[:2] == ["[]", "True True"]
+
+
+def test_a_submodule_imported_first_does_not_hide_the_function_it_names():
+    """``control.follow`` is the function even when ``diffdrive.control.follow`` (the module)
+    was imported before the name was first reached."""
+    code = (
+        "import diffdrive.control.follow as module\n"
+        "import sys\n"
+        "from diffdrive import control\n"
+        "print(control.follow is sys.modules['diffdrive.control.follow'].follow)\n"
+        "print(sorted(set(control.__all__) - set(dir(control))))\n"
+    )
+    assert python_lines(code)[:2] == ["True", "[]"]
+
+
+def test_every_lazy_name_is_its_modules():
+    from diffdrive import control, estimation
+
+    for package in (control, estimation):
+        assert sorted(package.__all__) == sorted(package._NAMES)
+        for name in package.__all__:
+            assert getattr(package, name) is not None, name
+
+
 def test_unknown_attributes_still_raise():
     import pytest
 

@@ -7,12 +7,12 @@ file format. Conventions: docs/conventions.md. The heavier parts (``calibration`
 stays light.
 """
 
-import importlib as _importlib
+from typing import TYPE_CHECKING
 
-from diffdrive import batch, control, estimation, integrate, se2
+from diffdrive import integrate, se2
+from diffdrive._lazy import attach
 from diffdrive.angles import wrap_angle
-from diffdrive.control import Limiter, Limits, OpenLoopOdometry, desaturate, drive_commands
-from diffdrive.estimation import Odometry
+from diffdrive.estimation.odometry import Odometry
 from diffdrive.model import DiffDrive
 from diffdrive.simulation import simulate
 from diffdrive.skid_steer import SkidSteer
@@ -21,33 +21,35 @@ from diffdrive.types import Pose, Twist, WheelPositions, WheelVelocities
 
 __version__ = "0.1.0"
 
-# Submodules loaded when first reached as attributes (dd.calibration, dd.plot, ...).
-_LAZY = (
-    "calibration",
-    "demo",
-    "distributed",
-    "dynamics",
-    "encoders",
-    "evaluation",
-    "io",
-    "learn",
-    "montecarlo",
-    "noise",
-    "plot",
-    "sensors",
+# The control names load diffdrive.control's modules on first use; the submodules below are
+# loaded when first reached as attributes (dd.calibration, dd.plot, ...).
+__getattr__, __dir__ = attach(
+    __name__,
+    dict.fromkeys(
+        ["Limiter", "Limits", "OpenLoopOdometry", "desaturate", "drive_commands"], "control"
+    ),
+    (
+        "batch",
+        "calibration",
+        "control",
+        "demo",
+        "distributed",
+        "dynamics",
+        "encoders",
+        "estimation",
+        "evaluation",
+        "io",
+        "learn",
+        "montecarlo",
+        "noise",
+        "plot",
+        "sensors",
+    ),
 )
 
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        return _importlib.import_module(f"diffdrive.{name}")
-    raise AttributeError(f"module 'diffdrive' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    """The public names and the submodules that load on first use, each once."""
-    return sorted({*__all__, *_LAZY})
-
+if TYPE_CHECKING:  # what the names are, for type checkers
+    from diffdrive import batch, control, estimation
+    from diffdrive.control import Limiter, Limits, OpenLoopOdometry, desaturate, drive_commands
 
 __all__ = [
     "DiffDrive",

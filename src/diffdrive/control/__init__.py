@@ -13,15 +13,22 @@
 - ``rollouts``: many candidate command sequences through a delay and acceleration limits.
 """
 
-from diffdrive.control.commands import KEEP, desaturate
-from diffdrive.control.follow import FollowResult, delay_margin, follow
-from diffdrive.control.limiter import Limiter, Limits
-from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
-from diffdrive.control.path import from_segments, from_waypoints
-from diffdrive.control.planning import PathLimits, Plan, limit_ratios, plan
-from diffdrive.control.rollouts import rollouts
-from diffdrive.control.tracking import LTVUnicycle, Predictive, PurePursuit, Ramsete, Tracker
+from typing import TYPE_CHECKING
 
+from diffdrive._lazy import attach
+
+# Each name loads its module on first use.
+_NAMES = {
+    **dict.fromkeys(["KEEP", "desaturate"], "commands"),
+    **dict.fromkeys(["FollowResult", "delay_margin", "follow"], "follow"),
+    **dict.fromkeys(["Limiter", "Limits"], "limiter"),
+    **dict.fromkeys(["OpenLoopOdometry", "drive_commands"], "open_loop"),
+    **dict.fromkeys(["from_segments", "from_waypoints"], "path"),
+    **dict.fromkeys(["PathLimits", "Plan", "limit_ratios", "plan"], "planning"),
+    "rollouts": "rollouts",
+    **dict.fromkeys(["LTVUnicycle", "Predictive", "PurePursuit", "Ramsete", "Tracker"], "tracking"),
+}
+__getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
     "KEEP",
     "FollowResult",
@@ -45,3 +52,13 @@ __all__ = [
     "plan",
     "rollouts",
 ]
+
+if TYPE_CHECKING:  # what the names are, for type checkers
+    from diffdrive.control.commands import KEEP, desaturate
+    from diffdrive.control.follow import FollowResult, delay_margin, follow
+    from diffdrive.control.limiter import Limiter, Limits
+    from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
+    from diffdrive.control.path import from_segments, from_waypoints
+    from diffdrive.control.planning import PathLimits, Plan, limit_ratios, plan
+    from diffdrive.control.rollouts import rollouts
+    from diffdrive.control.tracking import LTVUnicycle, Predictive, PurePursuit, Ramsete, Tracker

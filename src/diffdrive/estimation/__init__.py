@@ -14,21 +14,31 @@ Every estimator runs the robot model's equivalent drive through ``diffdrive._ste
 the pose ``(x, y, theta)`` first in its state and covariance.
 """
 
-from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
-from diffdrive.estimation.gyro import GyroOdometry, GyroTrajectory, gyro_odometry
-from diffdrive.estimation.imu import Gyro, rotation_from_rpy
-from diffdrive.estimation.measurements import Measurement, chi2_quantile
-from diffdrive.estimation.odometry import (
-    COMPILED,
-    UPDATE_KINDS,
-    Odometry,
-    PythonOdometry,
-    RefusedUpdateError,
-    odometry_of_run,
-    offset_jacobian,
-)
-from diffdrive.estimation.smoother import Estimate, estimate_trajectory, measurements_of
+from typing import TYPE_CHECKING
 
+from diffdrive._lazy import attach
+
+# Each name loads its module on first use: Odometry alone needs none of the filter's.
+_NAMES = {
+    **dict.fromkeys(["HEADINGS", "GyroNoise", "PoseEstimator"], "fusion"),
+    **dict.fromkeys(["GyroOdometry", "GyroTrajectory", "gyro_odometry"], "gyro"),
+    **dict.fromkeys(["Gyro", "rotation_from_rpy"], "imu"),
+    **dict.fromkeys(["Measurement", "chi2_quantile"], "measurements"),
+    **dict.fromkeys(
+        [
+            "COMPILED",
+            "UPDATE_KINDS",
+            "Odometry",
+            "PythonOdometry",
+            "RefusedUpdateError",
+            "odometry_of_run",
+            "offset_jacobian",
+        ],
+        "odometry",
+    ),
+    **dict.fromkeys(["Estimate", "estimate_trajectory", "measurements_of"], "smoother"),
+}
+__getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
     "COMPILED",
     "HEADINGS",
@@ -51,3 +61,19 @@ __all__ = [
     "offset_jacobian",
     "rotation_from_rpy",
 ]
+
+if TYPE_CHECKING:  # what the names are, for type checkers
+    from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
+    from diffdrive.estimation.gyro import GyroOdometry, GyroTrajectory, gyro_odometry
+    from diffdrive.estimation.imu import Gyro, rotation_from_rpy
+    from diffdrive.estimation.measurements import Measurement, chi2_quantile
+    from diffdrive.estimation.odometry import (
+        COMPILED,
+        UPDATE_KINDS,
+        Odometry,
+        PythonOdometry,
+        RefusedUpdateError,
+        odometry_of_run,
+        offset_jacobian,
+    )
+    from diffdrive.estimation.smoother import Estimate, estimate_trajectory, measurements_of

@@ -37,7 +37,6 @@ import numpy as np
 
 from diffdrive._step import wheel_move
 from diffdrive._validate import finite, floats, positive
-from diffdrive.backends import odometry_python
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import Robot, check_robot
@@ -50,21 +49,25 @@ __all__ = [
     "COMPILED",
     "UPDATE_KINDS",
     "Odometry",
-    "PythonOdometry",
+    "PythonOdometry",  # noqa: F822 (made on first use, by __getattr__)
     "RefusedUpdateError",
     "odometry_of_run",
     "offset_jacobian",
 ]
 
 # The C core when it was built (pip builds it where a C compiler is found), else its
-# pure-Python twin; DIFFDRIVE_PURE_PYTHON=1 asks for the twin anyway.
+# pure-Python twin (imported only then, or for PythonOdometry); DIFFDRIVE_PURE_PYTHON=1 asks
+# for the twin anyway.
 try:
     if os.environ.get("DIFFDRIVE_PURE_PYTHON") == "1":
         raise ImportError("DIFFDRIVE_PURE_PYTHON=1")
     from diffdrive.backends._odometry import OdometryCore as _Core
+
+    COMPILED: bool = True
 except ImportError:
-    _Core = odometry_python.OdometryCore  # type: ignore[assignment, misc]
-COMPILED: bool = _Core is not odometry_python.OdometryCore
+    from diffdrive.backends.odometry_python import OdometryCore as _Core  # type: ignore[assignment]
+
+    COMPILED = False
 
 UpdateKind = Literal["ticks", "positions", "increments", "velocities"]
 UPDATE_KINDS: tuple[UpdateKind, ...] = ("ticks", "positions", "increments", "velocities")
@@ -88,7 +91,7 @@ UPDATE_OF_RUN: dict[str, UpdateKind] = {
 
 
 if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
-    _Base = odometry_python.OdometryCore
+    from diffdrive.backends.odometry_python import OdometryCore as _Base
 else:
     _Base = object
 
@@ -360,9 +363,19 @@ class Odometry(_OdometryMethods, _Core):
     __doc__ = _OdometryMethods.__doc__
 
 
-class PythonOdometry(_OdometryMethods, odometry_python.OdometryCore):
-    """``Odometry`` on the pure-Python core, whether or not the C core was built: the same
-    results, slower (for tests, and where a C compiler never ran)."""
+def __getattr__(name: str) -> type:
+    """``PythonOdometry``, made when first reached: the twin's module loads only then."""
+    if name != "PythonOdometry":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from diffdrive.backends.odometry_python import OdometryCore as PythonCore
+
+    class PythonOdometry(_OdometryMethods, PythonCore):
+        """``Odometry`` on the pure-Python core, whether or not the C core was built: the
+        same results, slower (for tests, and where a C compiler never ran)."""
+
+    PythonOdometry.__module__, PythonOdometry.__qualname__ = __name__, "PythonOdometry"
+    globals()["PythonOdometry"] = PythonOdometry
+    return PythonOdometry
 
 
 def offset_jacobian(theta: object, offset: float) -> np.ndarray:
