@@ -150,6 +150,23 @@ def test_the_pipeline_is_the_same_on_both_cores(monkeypatch):
     np.testing.assert_array_equal(c.accepted, python.accepted)
 
 
+def test_strided_and_integer_arrays_are_a_log_like_any_other():
+    """Every other row of a longer log (views, not copies) and integer increments: the same
+    estimate as the same numbers in fresh float arrays."""
+    times = np.arange(40) * 0.05
+    increments = np.tile([3, 4], (39, 1))  # rad, integers
+    rate = np.full(40, 0.2)
+    strided = estimate_trajectory(
+        ROBOT, times[::2], increments[::2][:19], gyro=Gyro(times[::2], rate[::2])
+    )
+    fresh = estimate_trajectory(
+        ROBOT, times[::2].copy(), increments[::2][:19].astype(float),
+        gyro=Gyro(times[::2].copy(), rate[::2].copy()),
+    )  # fmt: skip
+    np.testing.assert_array_equal(strided.poses, fresh.poses)
+    np.testing.assert_array_equal(strided.covariances, fresh.covariances)
+
+
 def test_a_bad_interval_is_named_before_anything_runs():
     times = np.arange(6) * 0.1
     increments = np.ones((5, 2))

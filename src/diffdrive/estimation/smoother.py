@@ -245,11 +245,12 @@ def _run(estimator: PoseEstimator, log: _Log, smooth: bool, forced: np.ndarray |
     flagged = log.commanded if forced is None else log.commanded | forced
     states, covariances = np.empty((n, ekf.N)), np.empty((n, ekf.N * ekf.N))
     slips, scores, accepted, distances = np.empty(n), np.empty(n), np.empty(m), np.empty(m)
+    # the cores read contiguous float64 (a caller's times may be a strided view)
     failed = estimator._run_log(
-        log.times,
-        np.ascontiguousarray(log.increments[:, 0]),
-        np.ascontiguousarray(log.increments[:, 1]),
-        log.turned,
+        np.ascontiguousarray(log.times, dtype=float),
+        np.ascontiguousarray(log.increments[:, 0], dtype=float),
+        np.ascontiguousarray(log.increments[:, 1], dtype=float),
+        np.ascontiguousarray(log.turned, dtype=float),
         flagged.astype(float),
         *log.measurements,
         smooth,
