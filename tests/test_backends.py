@@ -3,8 +3,9 @@
 Every method, axle offsets, turns on both sides of the sinc threshold, straight runs and spins,
 float32 and float64, and a long run, each held to a plain loop of the scalar step
 (``integrate.step``, seed 000's recurrence for euler): ``simulate`` (NumPy prefix sums and the
-numba kernel), ``Odometry`` (the C update and its pure-Python twin), the gyro filter with the
-heading from the wheels and from a perfect gyro, the Monte Carlo kernel with no noise, and
+numba kernel), ``Odometry`` (the C update and its pure-Python twin), ``estimate_trajectory``'s
+whole-log pass (both cores, filtered and smoothed), the gyro filter with the heading from the
+wheels and from a perfect gyro, the Monte Carlo kernel with no noise, and
 ``batch.rollout`` and ``simulate`` in NumPy, array-api-strict, JAX and PyTorch. Then JAX's
 gradient of a final-pose loss with respect to the geometry, against finite differences.
 """
@@ -19,7 +20,14 @@ import pytest
 
 import diffdrive as dd
 from diffdrive import batch, integrate
-from diffdrive.estimation import COMPILED, GyroOdometry, PoseEstimator, PythonOdometry
+from diffdrive.estimation import (
+    COMPILED,
+    GyroOdometry,
+    PoseEstimator,
+    PythonOdometry,
+    estimate_trajectory,
+    smoother,
+)
 from diffdrive.estimation.fusion import PythonPoseEstimator
 from diffdrive.montecarlo import monte_carlo
 
@@ -134,6 +142,23 @@ def _estimator(kind):
     return run
 
 
+def _whole_log(kind, smooth):
+    """estimate_trajectory's pass over the whole log (the C core's ``_run_log`` or its twin's),
+    heading from the wheels; with no measurement the smoother gives the filter's path back."""
+
+    def run(case, method, dtype):
+        times = np.arange(len(case.wheels) + 1) * case.dt
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(smoother, "PoseEstimator", kind)
+            estimate = estimate_trajectory(
+                case.robot, times, case.wheels * case.dt, heading="wheels",
+                initial_pose=case.start, method=method, smooth=smooth,
+            )  # fmt: skip
+        return estimate.poses
+
+    return run
+
+
 def _monte_carlo(case, method, dtype):
     result = monte_carlo(
         case.robot,
@@ -175,6 +200,9 @@ BACKENDS = {
     "gyro filter, gyro heading": (_gyro("gyro"), ("float64",)),
     "pose estimator (C), wheel heading": (_estimator(PoseEstimator), ("float64",)),
     "pose estimator (pure Python), wheel heading": (_estimator(PythonPoseEstimator), ("float64",)),
+    "whole log (C)": (_whole_log(PoseEstimator, False), ("float64",)),
+    "whole log (pure Python)": (_whole_log(PythonPoseEstimator, False), ("float64",)),
+    "whole log smoothed (C)": (_whole_log(PoseEstimator, True), ("float64",)),
     "monte carlo (numba)": (_monte_carlo, ("float64",)),
     "rollout numpy": (_rollout(np.asarray), ("float32", "float64")),
     "rollout array-api-strict": (_rollout(xps.asarray), ("float32", "float64")),
