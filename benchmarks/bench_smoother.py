@@ -22,6 +22,7 @@ import numpy as np
 import diffdrive as dd
 from diffdrive.estimation import Gyro, estimate_trajectory, fusion, measurements_of
 from diffdrive.estimation import smoother as whole
+from diffdrive.estimation.episodes import EDGE_COST, EPISODE_PENALTY, LONGEST, partition
 from timing import median_time  # benchmarks/timing.py
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.5)
@@ -57,6 +58,26 @@ def per_interval(times, increments, gyro, measured, smooth, repeats) -> float:
     return median_time(run, repeats) / (len(times) - 1) * 1e6
 
 
+def parts(times, increments, gyro, repeats) -> dict[str, float]:
+    """us per interval of the pieces: the C pass alone, forward and with the smoother, and
+    the episodes' partition."""
+    estimator = fusion.PoseEstimator(ROBOT, "fused", initial_time=0.0, history=np.inf, ahead=0.0)
+    n = len(times) - 1
+    log_ = whole._Log(
+        times, increments, np.diff(gyro.angles(times)), np.zeros(n, bool), whole._packed([])
+    )
+    rng = np.random.default_rng(1)
+    scaled, directions = rng.normal(size=n), rng.normal(size=(n, 2))
+    work = {
+        "the C pass, forward": lambda: whole._run(estimator, log_, False, None),
+        "the C pass, forward and back": lambda: whole._run(estimator, log_, True, None),
+        "the episodes' partition": lambda: partition(
+            scaled, directions, EPISODE_PENALTY, EDGE_COST, LONGEST
+        ),
+    }
+    return {name: median_time(run, repeats) / n * 1e6 for name, run in work.items()}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--intervals", type=int, default=1_000_000)
@@ -85,6 +106,9 @@ def main() -> None:
                 f"| {name} | {passes} | {c:.2f} | {twin:.0f} | {twin / c:.0f} | "
                 f"<= {TARGETS[smooth]:.0f} |"
             )
+    print("\nits pieces, gyro log, us per interval:")
+    for piece, cost in parts(*log(args.intervals, False)[:3], args.repeats).items():
+        print(f"  {piece}: {cost:.2f}")
 
 
 if __name__ == "__main__":
