@@ -30,11 +30,10 @@ from diffdrive.estimation import (
 )
 from diffdrive.estimation.fusion import PythonPoseEstimator
 from diffdrive.montecarlo import monte_carlo
+from optional import Library
 
-jax = pytest.importorskip("jax", reason="jax is part of the test extra")
-torch = pytest.importorskip("torch", reason="torch is part of the test extra")
-xps = pytest.importorskip("array_api_strict", reason="array-api-strict is in the test extra")
-jnp = jax.numpy
+jax, jnp = Library("jax"), Library("jax.numpy")
+torch, xps = Library("torch"), Library("array_api_strict")
 
 
 @dataclass(frozen=True, eq=False)  # hashed by identity, for the cache of the reference
@@ -191,6 +190,23 @@ def _jax_array(values: np.ndarray):
     return jnp.asarray(values)
 
 
+def _torch_array(values: np.ndarray):
+    return torch.asarray(values)
+
+
+def _strict_array(values: np.ndarray):
+    return xps.asarray(values)
+
+
+@functools.cache
+def _jitted_rollout():
+    return jax.jit(batch.rollout, static_argnums=(0, 2, 4))
+
+
+def _jax_rollout(*args):
+    return _jitted_rollout()(*args)
+
+
 BACKENDS = {
     "simulate numpy": (_simulate("numpy"), ("float32", "float64")),
     "simulate numba": (_simulate("numba"), ("float32", "float64")),
@@ -205,16 +221,16 @@ BACKENDS = {
     "whole log smoothed (C)": (_whole_log(PoseEstimator, True), ("float64",)),
     "monte carlo (numba)": (_monte_carlo, ("float64",)),
     "rollout numpy": (_rollout(np.asarray), ("float32", "float64")),
-    "rollout array-api-strict": (_rollout(xps.asarray), ("float32", "float64")),
+    "rollout array-api-strict": (_rollout(_strict_array), ("float32", "float64")),
     # Compiled as a whole (as JAX users run it), not one primitive at a time.
     "rollout jax": (
-        _rollout(_jax_array, jax.jit(batch.rollout, static_argnums=(0, 2, 4))),
+        _rollout(_jax_array, _jax_rollout),
         ("float32", "float64"),
     ),
-    "rollout torch": (_rollout(torch.asarray), ("float32", "float64")),
-    "simulate array-api-strict": (_simulate_in(xps.asarray), ("float32", "float64")),
+    "rollout torch": (_rollout(_torch_array), ("float32", "float64")),
+    "simulate array-api-strict": (_simulate_in(_strict_array), ("float32", "float64")),
     "simulate jax": (_simulate_in(_jax_array), ("float32", "float64")),
-    "simulate torch": (_simulate_in(torch.asarray), ("float32", "float64")),
+    "simulate torch": (_simulate_in(_torch_array), ("float32", "float64")),
 }
 
 
@@ -238,9 +254,22 @@ def _tolerance(case: Case, dtype: str, backend: str) -> float:
     return 1e-11 * scale
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
+# The long run and the other array libraries (their first calls compile) take 0.2-2 s each.
+OTHER_LIBRARY = ("jax", "torch", "array-api-strict")
+
+
+@pytest.mark.parametrize(
+    "backend",
+    [
+        pytest.param(name, marks=pytest.mark.slow) if name.endswith(OTHER_LIBRARY) else name
+        for name in BACKENDS
+    ],
+)
 @pytest.mark.parametrize("method", integrate.METHODS)
-@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+@pytest.mark.parametrize(
+    "case",
+    [pytest.param(c, id=c.name, marks=[pytest.mark.slow] * (c.name == "long run")) for c in CASES],
+)
 def test_every_backend_follows_the_scalar_step(case, method, backend):
     run, dtypes = BACKENDS[backend]
     want = loop(case, method)
@@ -253,19 +282,21 @@ def test_every_backend_follows_the_scalar_step(case, method, backend):
 
 
 # How to make an array of each library other than NumPy, and its type.
-OTHER_LIBRARIES = [
-    (torch.asarray, torch.Tensor),
-    (xps.asarray, type(xps.asarray(0.0))),
-    (_jax_array, jax.Array),
-]
+OTHER_LIBRARIES = {
+    "torch": (_torch_array, lambda: torch.Tensor),
+    "array-api-strict": (_strict_array, lambda: type(xps.asarray(0.0))),
+    "jax": (_jax_array, lambda: jax.Array),
+}
 
 
 def test_the_c_core_was_built_here():
     assert COMPILED, "the C extension is missing: Odometry runs on its pure-Python twin"
 
 
-@pytest.mark.parametrize(("convert", "kind"), OTHER_LIBRARIES)
-def test_results_stay_in_the_callers_library(convert, kind):
+@pytest.mark.slow
+@pytest.mark.parametrize("library", OTHER_LIBRARIES)
+def test_results_stay_in_the_callers_library(library):
+    convert, kind = OTHER_LIBRARIES[library][0], OTHER_LIBRARIES[library][1]()
     wheels = convert(_weave(10, 0.1).astype(np.float32))
     poses = batch.rollout(ROBOT, wheels, 0.1)
     assert isinstance(poses, kind)
@@ -276,9 +307,11 @@ def test_results_stay_in_the_callers_library(convert, kind):
         dd.simulation.integrate_increments(increments, dtype=np.float64)
 
 
-@pytest.mark.parametrize(("convert", "kind"), OTHER_LIBRARIES)
-def test_a_trajectory_of_another_library_derives_everything_in_it(convert, kind):
+@pytest.mark.slow
+@pytest.mark.parametrize("library", OTHER_LIBRARIES)
+def test_a_trajectory_of_another_library_derives_everything_in_it(library):
     """simulate's Trajectory of a batch of robots, each property against NumPy's."""
+    convert, kind = OTHER_LIBRARIES[library][0], OTHER_LIBRARIES[library][1]()
     wheels = np.stack([_weave(40, 0.05), _weave(40, 0.05)[::-1]])  # (2, 40, 2)
     start = np.array([[0.0, 0.0, 0.0], [1.0, -1.0, 2.0]])
     times = np.concatenate([[0.0], np.cumsum(np.linspace(0.03, 0.07, 40))])
@@ -338,6 +371,7 @@ def test_an_array_geometry_broadcasts_one_robot_per_row():
         batch.rollout(ROBOT, wheels, 0.0)
 
 
+@pytest.mark.slow
 def test_jax_differentiates_a_final_pose_loss_with_respect_to_the_geometry():
     wheels = jnp.asarray(_weave(300, 0.02))
     target = jnp.asarray([1.0, 0.5, 0.3])

@@ -282,6 +282,7 @@ def test_output_shapes_follow_the_input(shape):
     assert batch.to_matrix(np.zeros((*shape, 3))).shape == (*shape, 3, 3)
 
 
+@pytest.mark.slow
 @given(geometry(), batch_of(2))
 def test_every_batch_twist_is_F_times_the_wheels_and_does_not_slip(params, wheels):
     robot = DiffDrive(**params)

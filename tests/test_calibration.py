@@ -287,6 +287,7 @@ def test_umbmark_reproduces_the_authors_parameters(row):
     assert 2 * robot.left_wheel_radius == pytest.approx(float(row["calib_Dl_m"]), abs=5e-7)
 
 
+@pytest.mark.slow
 def test_minimax_beats_optiodom_on_every_experiment_with_the_papers_protocol():
     data_folder("optiodom-diffdrive")
     ours, theirs = [], []

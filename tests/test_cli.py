@@ -9,6 +9,7 @@ from diffdrive.cli import kinematics_report, main
 from diffdrive.demo import example_robot
 
 
+@pytest.mark.slow
 def test_main_job_prints_the_example_robot_and_says_where_the_outputs_went(
     capsys, tmp_path, monkeypatch
 ):
@@ -36,6 +37,7 @@ def test_unknown_option_is_a_usage_error():
     assert exit_info.value.code == 2
 
 
+@pytest.mark.slow
 def test_runs_as_a_subprocess(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "diffdrive"],
@@ -216,6 +218,7 @@ def test_a_usage_error_exits_2(capsys):
     assert exit_info.value.code == 2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "argv",
     [
@@ -234,6 +237,7 @@ def test_each_subcommand_runs_as_a_subprocess(tmp_path, argv):
     assert result.stdout
 
 
+@pytest.mark.slow
 def test_a_runtime_error_exits_1_without_a_traceback(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "diffdrive", "simulate", "missing.csv"],
@@ -257,6 +261,7 @@ def rendered(path):
     return matplotlib.image.imread(path)
 
 
+@pytest.mark.slow
 def test_plot_draws_a_non_blank_figure_of_the_expected_size(tmp_path, capsys):
     trajectory, picture = tmp_path / "t.csv", tmp_path / "t.png"
     assert run(["simulate", "-o", trajectory, "-q"], capsys)[0] == 0
@@ -274,6 +279,7 @@ def test_plot_writes_svg_by_its_suffix(tmp_path, capsys):
     assert picture.read_text().lstrip().startswith("<?xml")
 
 
+@pytest.mark.slow
 def test_animate_writes_a_gif_of_many_frames(tmp_path, capsys):
     from PIL import Image
 
@@ -297,6 +303,7 @@ def test_plot_of_a_bad_trajectory_file_writes_nothing(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]
 
 
+@pytest.mark.slow
 def test_plot_runs_as_a_subprocess(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "diffdrive", "plot"], capture_output=True, text=True, cwd=tmp_path
@@ -305,6 +312,7 @@ def test_plot_runs_as_a_subprocess(tmp_path):
     assert (tmp_path / "trajectory.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_odometry_runs_as_a_subprocess_and_is_quiet_when_piped(tmp_path):
     rows = "\n".join(f"{k * 0.01},{k * 0.1},{k * 0.12}" for k in range(20_000))
     (tmp_path / "log.csv").write_text("t,left_angle,right_angle\n" + rows + "\n")
@@ -332,6 +340,7 @@ def test_odometry_with_no_log_runs_the_built_in_one(tmp_path, capsys, monkeypatc
 # -- calibrate and evaluate --------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_calibrate_the_built_in_runs_to_a_robot_file_that_reads_back(tmp_path, capsys):
     from diffdrive.io import read_robot
 
@@ -496,6 +505,7 @@ def test_evaluate_names_the_option_it_refuses(tmp_path, capsys, option, message)
     assert message in err
 
 
+@pytest.mark.slow
 def test_calibrate_and_evaluate_run_as_subprocesses(tmp_path):
     for argv in (["calibrate", "-q"], ["evaluate"]):
         result = subprocess.run(
@@ -509,6 +519,7 @@ def test_calibrate_and_evaluate_run_as_subprocesses(tmp_path):
     assert "ate_aligned_m" in result.stdout
 
 
+@pytest.mark.slow
 def test_what_calibrate_reports_is_what_its_robot_file_gives(tmp_path, capsys):
     """The largest error calibrate prints is the one odometry gets with the file it wrote, even
     with a heading offset fitted (the reference's, which the file does not carry)."""
@@ -705,6 +716,7 @@ def test_a_closed_pipe_ends_quietly(tmp_path):
         assert "Exception ignored" not in result.stderr, command
 
 
+@pytest.mark.slow
 def test_gps_as_the_estimate_compares_positions(tmp_path, capsys):
     """evaluate with a NavSatFix topic as the estimate failed on its NaN heading."""
     pytest.importorskip("rosbags")

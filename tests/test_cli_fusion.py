@@ -207,6 +207,7 @@ def synthetic_bag(tmp_path_factory):
     return folder / "run.mcap"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", list(PATHS))
 @pytest.mark.parametrize("format", ["mcap", "ros2"])
 def test_odom_carries_the_twist_and_both_covariances_of_the_csv(synthetic_bag, path, format):
@@ -252,6 +253,7 @@ def test_no_wheel_noise_is_refused_for_a_bag(synthetic_bag, tmp_path, capsys):
 # -- time bases and frames ----------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, capsys):
     """/ground_truth: the trajectory with its twists, stamped as the joints; a GPS fix with
     the covariance synth knows. Against the trajectory file (1 s earlier) evaluate warns."""
@@ -304,6 +306,7 @@ def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, cap
     assert json.loads(captured.out)["max_heading_error_deg"] < 1e-6
 
 
+@pytest.mark.slow
 def test_gps_in_the_datums_frame_and_the_consistency_of_frames_apart(tmp_path, monkeypatch, capsys):
     """The GPS estimate in east-north at --datum lies in the truth's frame (at the first fix it
     is that fix's error off); --consistency in frames apart is named, and --align scores it."""

@@ -254,6 +254,7 @@ def test_odometry_and_evaluate_give_the_built_in_example_the_same_error(
 # -- files that fit together -----------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix", ["tum", "jsonl", "csv"])
 def test_what_simulate_writes_evaluate_and_plot_read(tmp_path, capsys, suffix):
     written = tmp_path / f"trajectory.{suffix}"
@@ -277,6 +278,7 @@ def test_odometry_reads_the_optiodom_run_files_calibrate_reads(tmp_path, capsys)
     assert "position error max 0.0130 m" in out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("text", "name"),
     [

@@ -32,6 +32,7 @@ def test_plan_writes_rows_within_the_limits_it_reports(files, capsys) -> None:
     assert (files / "p.png").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_follow_reports_robot_zero_as_written(files, capsys) -> None:
     out = files / "follow.csv"
     args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
@@ -79,6 +80,7 @@ def test_a_sampling_or_seed_that_cannot_be_used_is_named(files, capsys, command,
     assert not (files / "x.csv").exists()
 
 
+@pytest.mark.slow
 def test_evaluate_against_the_plan_agrees_with_follow(files, capsys) -> None:
     args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
     assert main(["plan", *args, "-o", str(files / "plan.csv"), "-q"]) == 0

@@ -27,6 +27,7 @@ def test_desaturate_keeps_the_limit_and_the_curvature(wheels, limit):
         assert out == dd.WheelVelocities(*wheels)
 
 
+@pytest.mark.slow
 @given(geometry(), wheel_pairs, st.floats(1.0, 50), st.sampled_from(["omega", "v"]))
 @settings(max_examples=200)
 def test_desaturate_keeping_omega_or_v(params, wheels, limit, keep):
@@ -118,6 +119,7 @@ def test_no_limit_is_ever_exceeded(limits, stream):
             assert change[0] <= dec_rev + tolerance
 
 
+@pytest.mark.slow
 @given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), min_size=1, max_size=40))
 @settings(max_examples=50)
 @example(
@@ -338,6 +340,7 @@ def test_a_batched_limiter_limits_each_row_as_its_own_would(limits) -> None:
         many.step([0.1, 0.2], 0.02)
 
 
+@pytest.mark.slow
 @given(
     st.lists(st.sampled_from([-1.0, 0.0, 0.5, 1.0]), min_size=1, max_size=60),
     st.sampled_from([2.0, 8.0, 32.0]),

@@ -11,9 +11,16 @@ from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive import integrate, simulation
-from diffdrive.backends import numba_simulate as _compiled
 from diffdrive.backends import simulate_kernel
 from strategies import geometry
+
+
+def _compiled():
+    """The numba kernel's module, imported at use rather than at collection."""
+    from diffdrive.backends import numba_simulate
+
+    return numba_simulate
+
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 # Robot-steps from which "auto" takes the kernel once it is loaded (2^17: past its call cost).
@@ -36,6 +43,7 @@ def assert_same_trajectory(numpy_path, compiled):
 histories = st.sampled_from(["velocities", "irregular times", "positions", "function"])
 
 
+@pytest.mark.slow
 @given(
     geometry(),
     st.sampled_from(integrate.METHODS),
@@ -115,10 +123,10 @@ def test_chunks_use_the_threads_only_where_they_pay():
 
 def test_taylor_forms_are_within_an_ulp_of_libm():
     for u in np.concatenate([np.geomspace(1e-12, 1 / 16, 2000), -np.geomspace(1e-9, 0.06, 50)]):
-        sinc, cosine = _compiled._sinc_cos(u)
+        sinc, cosine = _compiled()._sinc_cos(u)
         assert abs(sinc - math.sin(u) / u) <= 2 * math.ulp(1.0), u
         assert abs(cosine - math.cos(u)) <= 2 * math.ulp(1.0), u
-    assert _compiled._sinc_cos(0.0) == (1.0, 1.0)
+    assert _compiled()._sinc_cos(0.0) == (1.0, 1.0)
 
 
 def test_a_million_steps_on_a_circle_end_on_the_circle():
@@ -186,5 +194,5 @@ def test_one_sinc_in_every_layer():
     for u in np.concatenate([grid, -grid]):
         want = _step.sinc(float(u))
         assert se2.sinc(float(u)) == want
-        assert _compiled.STEP["sinc"](float(u)) == want
+        assert _compiled().STEP["sinc"](float(u)) == want
         assert abs(float(batch.sinc(np.float64(u))) - want) <= math.ulp(1.0), u

@@ -12,8 +12,14 @@ from diffdrive.calibration import calibrate
 from diffdrive.montecarlo import monte_carlo, plan
 from diffdrive.simulation import dead_reckon
 
-pytest.importorskip("distributed", reason="dask distributed is part of the test extra")
 pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _dask():
+    """Imported here, not at collection (0.3 s)."""
+    pytest.importorskip("distributed", reason="dask distributed is part of the test extra")
+
 
 ROBOT = dd.DiffDrive(0.05, 0.3)
 DT = 0.02

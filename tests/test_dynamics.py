@@ -23,6 +23,7 @@ def logged(noise, seed=0, delay=0.037, tau=0.12, gain=0.95, acceleration=math.in
     return commands, velocities + rng.normal(size=velocities.shape) * noise
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("noise", [0.01, 0.1, 0.5])
 def test_the_response_comes_back_at_three_noise_levels(noise):
     """Gains within 2 %, the delay within 5 ms, the time constant within 5 %."""
@@ -35,6 +36,7 @@ def test_the_response_comes_back_at_three_noise_levels(noise):
     assert np.all(np.sqrt(np.diag(found.covariance)) < [0.01, 0.01])
 
 
+@pytest.mark.slow
 def test_an_acceleration_limit_is_found_between_those_tried():
     commands, measured = logged(0.05, seed=1, acceleration=60.0)
     found = identify_velocity_response(
@@ -46,6 +48,7 @@ def test_an_acceleration_limit_is_found_between_those_tried():
     assert unlimited.acceleration == math.inf  # none tried, none fitted
 
 
+@pytest.mark.slow
 def test_cross_validation_scores_each_block_with_a_response_identified_without_it():
     """Five blocks of a log of 60 s: each fold's response is the truth again (from the other
     48 s), its held-out RMSE is the noise, and it predicts far better than the wheels at their
@@ -134,6 +137,7 @@ def test_logs_that_cannot_show_the_response_are_refused():
         identify_velocity_response(T, measured, COMMAND_TIMES, commands, accelerations=(0.0,))
 
 
+@pytest.mark.slow
 def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys, tmp_path):
     """Five folds, over the stamps as recorded and over the simulator's sample times: the
     pooled RMSE with the response and at once, their ratio, and the share of the largest
@@ -202,6 +206,7 @@ def sysid_routine(delay, noise=0.005, seed=0):
     return np.arange(len(volts)) * DT, volts, measured + rng.normal(size=len(volts)) * noise
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("delay", [0.0, 0.02, 0.05])
 def test_ks_kv_ka_from_sysids_routine_with_the_delay_from_the_data(delay):
     """Within 2 % of the truth, and within 1 % of SysId's regression given the true delay;
@@ -248,6 +253,7 @@ def test_feedforward_drives_a_twist_through_inverse_kinematics():
     assert gains.wheel_voltages(robot, (0.0, 0.0, 0.0)) == (0.0, 0.0)
 
 
+@pytest.mark.slow
 def test_a_drivetrains_linear_and_angular_channels():
     """Each channel its own ``motor``: the linear driven by the routine, the angular (half the
     wheels' difference) by the routine a third of the way on; mixed into the two wheels, each

@@ -109,6 +109,7 @@ def test_overflowing_times_or_angles_are_refused(call, message):
         call()
 
 
+@pytest.mark.slow
 def test_a_long_streaming_run_does_not_drift_from_the_batch_kernel():
     pytest.importorskip("numba")
     robot = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.0502, track_width=0.3)
@@ -342,6 +343,7 @@ def test_the_velocity_window_has_bounded_memory():
 TABLE_TEXT = st.text(alphabet="tlefrighx_anguvocdy,;\t \n#.-+e0123456789\ufeff\u00e9", max_size=300)
 
 
+@pytest.mark.slow
 @given(
     content=st.one_of(st.binary(max_size=300), TABLE_TEXT.map(str.encode)),
     command=st.sampled_from(["simulate", "odometry", "calibrate", "evaluate", "plot"]),

@@ -386,6 +386,7 @@ def test_the_turn_scale_state_learns_wheels_that_under_turn():
     assert final(learnt) < final(fixed)
 
 
+@pytest.mark.slow
 def test_fusing_late_vision_pays_and_the_covariance_is_honest():
     """Two loops, 10 seeds: vision 0.25 s late lowers the median mean error below 85 %
     of the wheels and gyro alone, and the truth lies inside the 95 % ellipse at 93-97 % of

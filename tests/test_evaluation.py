@@ -237,6 +237,7 @@ def test_consistency_by_hand():
     np.testing.assert_allclose(positions.nees[1:], [1.0 + 1.0, 4.0])
 
 
+@pytest.mark.slow
 def test_odometrys_covariance_is_honest_over_many_robots():
     """10^4 robots whose wheels have exactly Odometry's noise (diffdrive.sensors): the final
     poses' NEES against Odometry's covariance averages 1 (ANEES within 5 %), and 95 % of the

@@ -4,6 +4,7 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -15,6 +16,7 @@ def load(name: str):
     return module
 
 
+@pytest.mark.slow
 def test_step_size_error_shows_the_orders_and_exact_on_held_commands(tmp_path, capsys):
     script = load("step_size_error")
     output = tmp_path / "figure.png"
@@ -40,6 +42,7 @@ def test_step_size_error_shows_the_orders_and_exact_on_held_commands(tmp_path, c
     assert f"{euler} m, {rk2} m and {exact} m at 1 ms steps" in " ".join(readme.split())
 
 
+@pytest.mark.slow
 def test_commanded_path_draws_both_paths_within_the_wheel_limit(tmp_path, capsys):
     script = load("commanded_path")
     output = tmp_path / "paths.png"
@@ -56,6 +59,7 @@ def test_commanded_path_draws_both_paths_within_the_wheel_limit(tmp_path, capsys
     np.testing.assert_allclose(limited.wheel_velocities[-1], [0.0, 0.0])  # the timeout
 
 
+@pytest.mark.slow
 def test_optiodom_calibration_table_and_figure_on_two_experiments(tmp_path):
     from data import data_folder
 
@@ -79,6 +83,7 @@ def test_optiodom_calibration_table_and_figure_on_two_experiments(tmp_path):
     assert matplotlib.image.imread(tmp_path / "figure.png").shape[:2] == (600, 700)
 
 
+@pytest.mark.slow
 def test_ros_bags_example_calibrates_the_turtlebot3_and_aligns_the_husky_to_gps(tmp_path, capsys):
     from data import data_folder
 
@@ -97,6 +102,7 @@ def test_ros_bags_example_calibrates_the_turtlebot3_and_aligns_the_husky_to_gps(
     assert line.split("ATE ")[1] in " ".join(readme.split())  # the README quotes the figures
 
 
+@pytest.mark.slow
 def test_gyro_slip_example_fuses_better_on_the_synthetic_run(tmp_path, capsys):
     from data import data_folder
 
@@ -115,6 +121,7 @@ def test_gyro_slip_example_fuses_better_on_the_synthetic_run(tmp_path, capsys):
         assert part.split()[1] + " m" in readme
 
 
+@pytest.mark.slow
 def test_online_calibration_example_settles_near_batch_least_squares(tmp_path, capsys):
     from data import data_folder
 
@@ -132,6 +139,7 @@ def test_online_calibration_example_settles_near_batch_least_squares(tmp_path, c
         assert ", ".join(f"{d:+.2f} %" for d in differences) in readme
 
 
+@pytest.mark.slow
 def test_late_vision_example_fuses_the_camera_and_draws(tmp_path, capsys):
     script = load("late_vision")
     output = tmp_path / "late.png"
@@ -142,6 +150,7 @@ def test_late_vision_example_fuses_the_camera_and_draws(tmp_path, capsys):
     assert output.stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_husky_fusion_example_prints_the_figures_the_readme_quotes(capsys, tmp_path):
     from data import data_folder
 
@@ -161,6 +170,7 @@ def test_husky_fusion_example_prints_the_figures_the_readme_quotes(capsys, tmp_p
     assert figure.stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys, tmp_path):
     from data import data_folder
 
@@ -185,6 +195,7 @@ def test_noise_model_example_prints_the_held_out_counts_the_readme_quotes(capsys
     assert turtle.split("reference ")[1].split(" m")[0] + " m" in readme
 
 
+@pytest.mark.slow
 def test_follow_path_plans_within_the_limits_and_draws(tmp_path, capsys):
     script = load("follow_path")
     output = tmp_path / "follow.png"

@@ -357,6 +357,7 @@ def test_refusals_name_the_figures_that_fail():
     assert "wheel noise k came out at its bound, 0 m" in reason
 
 
+@pytest.mark.slow
 def test_the_optiodom_recipe_exports_what_its_runs_hold(tmp_path, monkeypatch, capsys):
     """The README's calibrate-then-export on an OptiOdom experiment: with the reference's
     accuracy held at motion capture's, k is found (it was 0, the errors piled onto a 13.6 mm

@@ -45,6 +45,7 @@ def test_noise_on_both_sides_needs_their_ratio():
         assert found.bracket[0] > 1.5 * 0.31
 
 
+@pytest.mark.slow
 def test_the_turtlebot3_track_from_its_imu_alone():
     """Given the wheel radii the increments calibration finds, the IMU gives the 0.2955 m that
     calibration finds against /odom, within 1 %; a plain ratio misses by more than 2 %."""

@@ -118,6 +118,7 @@ def test_the_same_run_from_a_table_and_an_optiodom_file_reads_alike(tmp_path):
     np.testing.assert_array_equal(again.increments(ticks), optiodom.increments())
 
 
+@pytest.mark.slow
 def test_a_bag_gives_a_run_with_its_reference_as_truth():
     pytest.importorskip("rosbags")
     bag = data_folder("ros-bags") / "turtlebot3_fuse.bag"
@@ -142,6 +143,7 @@ def test_a_topic_of_a_file_and_a_reference_of_a_log_are_refused(tmp_path):
         read_run(path, reference_topic="/odom")
 
 
+@pytest.mark.slow
 def test_evaluate_and_plot_read_an_optiodom_run_file_as_its_ground_truth(tmp_path, capsys):
     """odometry and calibrate read OptiOdom files; evaluate and plot refused them (no 't')."""
     from diffdrive.cli import main

@@ -10,10 +10,20 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from matplotlib.figure import Figure
 
 from diffdrive import DiffDrive, Pose, simulate
-from diffdrive.learn import drawings, lessons, missing_extra
+from diffdrive.learn import lessons, missing_extra
+
+
+def _draws_a_figure(picture: str, lesson) -> bool:
+    """Whether the drawing ``picture`` of ``lesson`` is a matplotlib Figure. Matplotlib is
+    imported here, not at collection (0.7 s)."""
+    from matplotlib.figure import Figure
+
+    from diffdrive.learn import drawings
+
+    return isinstance(getattr(drawings, picture)(lesson), Figure)
+
 
 pytest.importorskip("marimo", reason="marimo (the learn extra) is in the test group")
 
@@ -63,7 +73,7 @@ def test_forward_lesson_names_straight_spinning_and_standing_still(
     text = lesson.markdown()
     assert f'data-testid="dd-turning-radius">{radius_shown}<' in text
     assert words in text
-    assert isinstance(drawings.forward_picture(lesson), Figure)
+    assert _draws_a_figure("forward_picture", lesson)
 
 
 # -- 2. inverse kinematics: v = 1 m/s, omega = 2 rad/s -> wheels (1 -+ 0.3) / 0.05 = 14, 26 -----
@@ -79,7 +89,7 @@ def test_inverse_lesson_desaturates_keeping_the_curvature():
     text = lesson.markdown()
     assert shown(text, "sat-curvature") == pytest.approx(2.0)
     assert "same circle" in text
-    assert isinstance(drawings.inverse_picture(lesson), Figure)
+    assert _draws_a_figure("inverse_picture", lesson)
 
 
 def test_inverse_lesson_within_the_limit_and_keeping_omega():
@@ -102,7 +112,7 @@ def test_modern_robotics_lesson_shows_the_pseudo_inverse_sliding_sideways():
     text = lesson.markdown()
     assert shown(text, "true-vy") == pytest.approx(0.1)
     assert shown(text, "pinv-slip") == pytest.approx(-0.1)
-    assert isinstance(drawings.modern_robotics_picture(lesson), Figure)
+    assert _draws_a_figure("modern_robotics_picture", lesson)
     on_axle = lessons.modern_robotics(0.05, 0.3, 0.0, 4.0, 10.0)
     assert on_axle.pinv_twist == pytest.approx(on_axle.true_twist)
     assert on_axle.pinv_slip == pytest.approx([0.0, 0.0])
@@ -124,7 +134,7 @@ def test_integration_lesson_orders_of_the_three_methods():
     assert np.all(np.diff(steps) < 0)
     assert np.all(np.diff(curves["euler"]) < 0)  # smaller steps, smaller errors
     assert shown(coarse.markdown(), "error-euler") == pytest.approx(c["euler"], rel=1e-2)
-    assert isinstance(drawings.integration_picture(coarse), Figure)
+    assert _draws_a_figure("integration_picture", coarse)
 
 
 def test_integration_rounds_the_step_to_whole_steps_and_says_so():
@@ -151,7 +161,7 @@ def test_check_answer_table_is_seed_000_by_hand():
     assert shown(text, "euler-x") == pytest.approx(x, rel=1e-5)
     assert shown(text, "exact-y") == pytest.approx(lesson.exact.y, rel=1e-5)
     assert r"0 + 0.1\times0.45\times\cos(0) = 0.045" in text  # each step written out
-    assert isinstance(drawings.check_picture(lesson), Figure)
+    assert _draws_a_figure("check_picture", lesson)
 
 
 def test_check_answer_takes_the_half_or_the_full_track():
@@ -200,6 +210,7 @@ def test_check_answer_agrees_with_simulate(radius, half_track, left, right, step
 # -- the page's cells, run as plain Python ------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_the_page_runs_as_plain_python_with_the_library_numbers():
     from diffdrive.learn import page
 

@@ -136,6 +136,7 @@ def test_unequal_wheel_radii():
 # -- properties ----------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @given(geometry(), reals(), reals())
 def test_inverse_kinematics_undoes_forward_kinematics(params, left, right):
     robot = DiffDrive(**params)

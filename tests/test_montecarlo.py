@@ -13,6 +13,7 @@ T = np.arange(400) * DT
 WHEELS = np.stack([8 + 3 * np.sin(T), 8 - 3 * np.sin(0.7 * T)], axis=-1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 def test_the_spread_matches_odometry_covariance(backend):
     result = monte_carlo(
@@ -46,6 +47,7 @@ def test_without_noise_every_robot_drives_the_nominal_path():
     np.testing.assert_allclose(result.covariance, 0.0, atol=1e-20)
 
 
+@pytest.mark.slow
 def test_a_geometry_error_spreads_the_heading_as_its_formula_says():
     # Straight at 0.4 m/s for 8 s: a right-left radius difference e turns the robot by
     # (e_r - e_l) * r * phi / track; with sigma 1 % on each, the heading's deviation is

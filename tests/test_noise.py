@@ -52,6 +52,7 @@ def runs(
     return made, truths
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("seconds", "windows", "within"),
     [(10, 8, 0.25), (60, 30, 0.10)],
@@ -72,6 +73,7 @@ def test_the_terms_of_synthetic_runs_are_found(seconds, windows, within):
     assert found.terms == noise.TERMS
 
 
+@pytest.mark.slow
 def test_the_predicted_covariance_is_honest_on_runs_it_did_not_see():
     """The model identified on 150 runs predicts the covariance of 100 others: ANEES near 1
     and about 95 % of poses inside the 95 % ellipse."""
@@ -91,6 +93,7 @@ def test_the_predicted_covariance_is_honest_on_runs_it_did_not_see():
     assert result.inside_95 == pytest.approx(0.95, abs=0.04)
 
 
+@pytest.mark.slow
 def test_references_drawn_from_a_model_match_the_covariance_it_predicts():
     """2000 references drawn on one run: the sample covariance of their error at the end is
     the predicted one within 10 % (trace and each diagonal term), and ANEES over the run is
@@ -156,6 +159,7 @@ def test_what_the_runs_cannot_identify_is_refused_by_name():
         noise.identify(ROBOT, [])
 
 
+@pytest.mark.slow
 def test_k_alone_is_odometrys_own():
     """Runs with wheel noise only: k found within 10 %, and the predicted covariance with the
     other terms at 0 is Odometry's."""
@@ -202,6 +206,7 @@ def test_the_allan_deviation_refuses_what_it_cannot_use():
         noise.allan_deviation(np.arange(200) * 0.01, np.full(200, np.nan))
 
 
+@pytest.mark.slow
 def test_cross_validation_holds_each_group_out():
     """Three groups of runs of one robot: each scored by a model calibrated and identified on
     the other two; on runs like those, the predicted covariance is about right."""

@@ -63,6 +63,7 @@ def observed(odometry):
     )
 
 
+@pytest.mark.slow
 @settings(max_examples=150)
 @given(
     st.sampled_from(["euler", "rk2", "exact"]),

@@ -25,6 +25,7 @@ def intervals(seed=0, n=4000):
     return wheels, noisy, truth
 
 
+@pytest.mark.slow
 def test_it_converges_to_the_robot_that_made_the_data():
     wheels, relative, truth = intervals()
     online = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, window=1)
@@ -116,6 +117,7 @@ def test_a_window_composes_the_relative_poses_and_sums_the_wheels():
     np.testing.assert_allclose(by_cycle.parameters, by_window.parameters, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_measurements_that_cannot_be_right_are_gated_out():
     wheels, relative, _ = intervals(2, 2000)
     clean = OnlineCalibrator(NOMINAL, sigma_distance=3e-4, sigma_turn=3e-4, window=1)

@@ -3,6 +3,8 @@
 import subprocess
 import sys
 
+import pytest
+
 import diffdrive as dd
 
 
@@ -120,6 +122,7 @@ def test_auto_loads_numba_only_for_calls_where_it_pays_off():
     assert out[:2] == ["False", "True"]
 
 
+@pytest.mark.slow
 def test_the_wheel_carries_the_type_information_and_the_page(tmp_path):
     """A built wheel, not the editable tree: py.typed, the C extension's stub, the marimo page."""
     import zipfile

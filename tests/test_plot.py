@@ -16,6 +16,7 @@ def trajectory():
     return dd.simulate(ROBOT, np.tile([6.0, 9.0], (50, 1)), dt=0.05)
 
 
+@pytest.mark.slow
 def test_plotting_keeps_the_users_backend_and_opens_no_pyplot_figure(tmp_path):
     import sys
 
@@ -51,6 +52,7 @@ def test_the_animated_robot_has_no_line_from_a_corner_to_its_centre(tmp_path, mo
         assert np.isnan(y[5])
 
 
+@pytest.mark.slow
 def test_the_animation_shows_its_progress_when_asked(tmp_path, capsys):
     path = trajectory()
     animate(ROBOT, path.times, path.poses, tmp_path / "c.gif", frames=4, progress=True)
@@ -66,6 +68,7 @@ def test_a_trajectory_prints_as_a_short_summary():
     assert "<(4, 3, 3) array>" in repr(many)
 
 
+@pytest.mark.slow
 def test_the_plot_says_which_robot_it_assumed_for_the_wheels(tmp_path, monkeypatch):
     """The wheel-velocity panel of a file's path was drawn with the built-in robot, silently,
     when no robot was given (the TurtleBot and Husky panels were wrong)."""
@@ -89,6 +92,7 @@ def test_the_plot_says_which_robot_it_assumed_for_the_wheels(tmp_path, monkeypat
     assert made[-1].axes[2].get_title() == ""
 
 
+@pytest.mark.slow
 def test_error_bands_count_what_they_draw_and_fixes_draw_x_and_y_alone(tmp_path):
     """Errors of 1 sigma everywhere but one 3-sigma heading: inside all three at all but that
     pose; against fixes without headings the heading is neither drawn nor counted."""

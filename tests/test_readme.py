@@ -3,9 +3,12 @@
 import re
 from pathlib import Path
 
+import pytest
+
 README = Path(__file__).resolve().parents[1] / "README.md"
 
 
+@pytest.mark.slow
 def test_readme_python_blocks_run():
     from data import data_folder
 
@@ -23,6 +26,7 @@ def test_readme_starts_with_the_two_setup_commands():
     assert [line.split("#")[0].strip() for line in commands] == ["make demo", "make test"]
 
 
+@pytest.mark.slow
 def test_the_command_line_walkthrough_makes_the_pictures_shown(tmp_path):
     """Runs the README's command-line block as written, then compares the figure it drew."""
     import shlex
@@ -75,6 +79,7 @@ def test_every_link_inside_the_readme_lands_on_a_heading():
     assert sorted(set(links) - anchors) == []
 
 
+@pytest.mark.slow
 def test_the_bag_walkthrough_runs_as_written(tmp_path, monkeypatch, capsys):
     import shlex
 

@@ -165,6 +165,7 @@ def test_joint_state_arguments_are_checked(tmp_path):
         ros.read_joint_states(bag, "left_wheel_joint", "left_wheel_joint")
 
 
+@pytest.mark.slow
 def test_writing_a_long_trajectory_takes_memory_by_the_block_not_by_the_log(tmp_path):
     """A 6-million-row log peaked at 3.6 GiB in `diffdrive simulate`, nearly all of it the
     text of the whole output at once; the text is now made a block of rows at a time."""

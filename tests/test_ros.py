@@ -46,6 +46,7 @@ def test_topics_say_what_diffdrive_can_use():
     assert found["/scan"].use == ""
 
 
+@pytest.mark.slow
 def test_joints_are_looked_up_by_name_not_by_index():
     """The TurtleBot3 bag lists the right wheel first."""
     log = ros.read_joint_states(TB3, "wheel_left_joint", "wheel_right_joint")
@@ -151,6 +152,7 @@ def test_joint_states_that_mix_header_stamps_and_record_times_use_record_times(t
     assert np.all(np.diff(x) > 0)  # it never drives back
 
 
+@pytest.mark.slow
 def test_husky_odometry_imu_and_gps():
     odometry = ros.read_odometry(HUSKY, "/husky_velocity_controller/odom")
     assert len(odometry.times) == 3952
@@ -171,6 +173,7 @@ def test_husky_odometry_imu_and_gps():
     assert gps.variance[0] == pytest.approx(0.81)
 
 
+@pytest.mark.slow
 def test_husky_wheel_odometry_against_gps_positions_aligned():
     odometry = ros.read_odometry(HUSKY, "/husky_velocity_controller/odom")
     gps = ros.read_navsatfix(HUSKY, "/fix")
@@ -184,6 +187,7 @@ def test_husky_wheel_odometry_against_gps_positions_aligned():
     assert 1.0 < aligned < 10.0  # drift over 359 m; figures in the README
 
 
+@pytest.mark.slow
 def test_husky_gyro_heading_from_the_command_line(tmp_path, capsys):
     """The Husky has no joint states: its wheels come from the controller's odometry
     (--wheel-topic), and the gyro heading against GPS is the example's 2.77 m."""
@@ -263,6 +267,7 @@ def test_an_existing_bag_folder_is_not_replaced(tmp_path):
 # -- TurtleBot3: dead reckoning and calibration against /odom ---------------------------------
 
 
+@pytest.mark.slow
 def test_turtlebot3_calibration_from_joint_states_against_odom(tmp_path, capsys):
     robot_file = tmp_path / "tb3.toml"
     argv = [
@@ -326,6 +331,7 @@ def test_turtlebot3_calibration_from_joint_states_against_odom(tmp_path, capsys)
     assert 1.0 < metrics["max_position_error_m"] < 6.0
 
 
+@pytest.mark.slow
 def test_the_cli_takes_a_bag_wherever_it_takes_a_log(tmp_path, capsys):
     code, out, _ = run(["info", TB3], capsys)
     assert code == 0
@@ -344,6 +350,7 @@ def test_the_cli_takes_a_bag_wherever_it_takes_a_log(tmp_path, capsys):
     assert "/odom" in err
 
 
+@pytest.mark.slow
 def test_evaluate_wheel_odometry_against_gps_from_the_command_line(capsys):
     argv = [
         "evaluate",
@@ -467,6 +474,7 @@ def test_bag_errors_come_in_the_order_a_user_needs_them(capsys, tmp_path, monkey
     assert USES["tf2_msgs/msg/TFMessage"].endswith("--topic tf:PARENT:CHILD")
 
 
+@pytest.mark.slow
 def test_a_wrong_imu_mounting_is_named_when_the_gyro_and_wheels_disagree_that_often(
     capsys, tmp_path, monkeypatch
 ):
@@ -483,6 +491,7 @@ def test_a_wrong_imu_mounting_is_named_when_the_gyro_and_wheels_disagree_that_of
     assert "flagged as slip" not in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_calibrate_warns_of_offsets_no_robot_of_its_size_has(capsys, tmp_path):
     """Both offsets on the TurtleBot3 against /odom: a 0.34 m axle offset and a 28.6 degree
     heading offset were accepted without a word."""

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.integrate import solve_ivp
 
 import diffdrive as dd
 from diffdrive import integrate, simulation
@@ -106,6 +105,8 @@ DURATION = 10.0
 
 
 def reference_final_pose():
+    from scipy.integrate import solve_ivp  # here, not at collection
+
     def rates(t, pose):
         twist = dd.batch.to_twist(ROBOT, phi_dot(t))
         return dd.batch.pose_derivative(pose, twist)
@@ -130,6 +131,7 @@ def test_a_function_history_agrees_with_solve_ivp():
     np.testing.assert_allclose(trajectory.final_pose, reference_final_pose(), atol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("method", "order"), [("euler", 1), ("rk2", 2), ("exact", 2)])
 def test_convergence_order(method, order):
     errors = [final_error(method, steps) for steps in (200, 400, 800)]
@@ -169,6 +171,7 @@ def test_blocks_do_not_change_the_result(params):
     np.testing.assert_allclose(blocked.poses, whole.poses, atol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("backend", "slack"), [("numpy", 0.0), ("numba", 1e-13)])
 def test_float32_is_kept_and_stays_accurate_over_a_million_steps(backend, slack):
     steps = 1_000_000

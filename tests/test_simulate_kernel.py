@@ -80,6 +80,7 @@ def test_a_damaged_or_foreign_entry_is_compiled_afresh(tmp_path, damage):
     assert not fresh(tmp_path)[0]  # and stored it whole
 
 
+@pytest.mark.slow
 def test_an_unwritable_cache_still_gives_the_kernel(tmp_path, monkeypatch):
     blocker = tmp_path / "a file"
     blocker.write_text("")

@@ -58,6 +58,7 @@ def run_core(kind, heading, scale, log, smooth):
     return whole._run(estimator, log_of, smooth, forced)
 
 
+@pytest.mark.slow
 @needs_c
 @settings(max_examples=60, deadline=None)
 @given(
@@ -112,6 +113,7 @@ def test_the_whole_log_filter_is_the_streaming_estimator(steps, seen):
     assert int(run.accepted.sum()) == streaming.accepted
 
 
+@pytest.mark.slow
 @needs_c
 def test_the_pipeline_is_the_same_on_both_cores(monkeypatch):
     """A log with a slip episode the per-interval test misses, GPS-like fixes and the

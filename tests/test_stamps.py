@@ -45,6 +45,7 @@ def test_the_turtlebot3_joint_states_are_restored_to_the_simulators_ticks():
     assert noise(found.times) < 0.005
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(
     st.floats(5.0, 60.0),  # the period in ticks

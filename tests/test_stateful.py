@@ -10,6 +10,7 @@ the edges that broke these objects before: 1e308, huge integers, tiny and huge d
 import math
 
 import numpy as np
+import pytest
 from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
@@ -47,6 +48,7 @@ times = st.one_of(st.floats(-1.0, 1e3), st.sampled_from([1e308, 1e-300, math.inf
 steps = st.one_of(st.floats(1e-6, 10.0), st.sampled_from([1e-300, 1e308, 0.0, -0.1, math.nan]))
 REFUSED = (ValueError, TypeError)
 SETTINGS = settings(max_examples=60, stateful_step_count=25)
+pytestmark = pytest.mark.slow  # each machine about a second
 
 
 def attempt(call):

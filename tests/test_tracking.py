@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -13,6 +14,7 @@ from diffdrive.control import (
     Limits,
     LTVUnicycle,
     PathLimits,
+    Plan,
     Predictive,
     PurePursuit,
     Ramsete,
@@ -24,31 +26,38 @@ from diffdrive.control import (
 from diffdrive.evaluation import path_errors
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
-# The trajectory of WPILib's LTVUnicycleControllerTest (2 waypoints, 8.8 m/s, 0.1 m/s^2).
-WPILIB_TEST = plan(
-    [(2.75, 22.521, 0.0), (24.73, 19.68, 5.846)],
-    ROBOT,
-    PathLimits(max_velocity=8.8, max_acceleration=0.1),
-)
-SHORT = plan(
-    [(0, 0, 0), (3, 1, 0.5), (5, 3, 1.5)], ROBOT, PathLimits(max_velocity=1.0, max_acceleration=1.0)
-)
+
+
+# Planned once, at first use rather than at collection.
+@functools.cache
+def wpilib_test() -> Plan:
+    """The trajectory of WPILib's LTVUnicycleControllerTest (2 waypoints, 8.8 m/s, 0.1 m/s^2)."""
+    limits = PathLimits(max_velocity=8.8, max_acceleration=0.1)
+    return plan([(2.75, 22.521, 0.0), (24.73, 19.68, 5.846)], ROBOT, limits)
+
+
+@functools.cache
+def short() -> Plan:
+    limits = PathLimits(max_velocity=1.0, max_acceleration=1.0)
+    return plan([(0, 0, 0), (3, 1, 0.5), (5, 3, 1.5)], ROBOT, limits)
+
+
 LTV_TEST_TUNING = {"q": (0.0625, 0.125, 2.5), "r": (4.0, 4.0)}
 
 
 def test_ramsete_is_its_law_worked_by_hand() -> None:
     t = 2.0
-    ref = SHORT.sample(t)
+    ref = short().sample(t)
     v_r, w_r = ref["twist"]
     x, y, h = ref["pose"]
     # The robot 0.1 m to the right of the reference (its own frame), same heading.
     pose = np.array([[x + 0.1 * math.sin(h), y - 0.1 * math.cos(h), h]])
-    command = Ramsete(b=2.0, zeta=0.7).command(SHORT, t, pose)[0]
+    command = Ramsete(b=2.0, zeta=0.7).command(short(), t, pose)[0]
     k = 2 * 0.7 * math.sqrt(w_r**2 + 2.0 * v_r**2)
     assert command[0] == pytest.approx(v_r, abs=1e-12)
     assert command[1] == pytest.approx(w_r + 2.0 * v_r * 0.1, abs=1e-9)
     assert k > 0
-    on_track = Ramsete().command(SHORT, t, ref["pose"][None])[0]
+    on_track = Ramsete().command(short(), t, ref["pose"][None])[0]
     assert on_track == pytest.approx(ref["twist"])
 
 
@@ -69,43 +78,48 @@ def test_ltv_gains_are_the_riccati_solution() -> None:
     P = solve_discrete_are(Ad, Bd, Q, R)
     expected = np.linalg.solve(Bd.T @ P @ Bd + R, Bd.T @ P @ Ad)
     assert tracker.gain(v) == pytest.approx(expected, rel=1e-3)
-    ref = SHORT.sample(1.0)
-    assert tracker.command(SHORT, 1.0, ref["pose"][None])[0] == pytest.approx(ref["twist"])
+    ref = short().sample(1.0)
+    assert tracker.command(short(), 1.0, ref["pose"][None])[0] == pytest.approx(ref["twist"])
 
 
 @pytest.mark.parametrize("tracker", [Ramsete(), LTVUnicycle(), PurePursuit()], ids=type)
 def test_every_tracker_follows_without_delay(tracker) -> None:
-    errors = follow(SHORT, tracker, start=SHORT.poses[0] + [0.0, 0.05, 0.0], settle=2.0).errors()
+    errors = follow(
+        short(), tracker, start=short().poses[0] + [0.0, 0.05, 0.0], settle=2.0
+    ).errors()
     # Starting 5 cm off, each comes back and stays on the path.
     assert np.abs(errors.cross_track[:, -50:]).max() < 0.02
     assert np.abs(errors.heading[:, -50:]).max() < 0.1
 
 
+@pytest.mark.slow
 def test_the_predictive_tracker_holds_the_path_through_delay_and_lag() -> None:
     """The target: WPILib's LTV test trajectory, 0.1 s delay and 0.1 s lag: mean position
     error at most 5 mm, maximum at most 20 mm (Ramsete: 17.8 and 56.6 mm)."""
     predictive = Predictive(LTVUnicycle(**LTV_TEST_TUNING), delay=0.1, dt=0.02, lag=0.1)
-    errors = follow(WPILIB_TEST, predictive, delay=0.1, lag=0.1).errors().summary()
+    errors = follow(wpilib_test(), predictive, delay=0.1, lag=0.1).errors().summary()
     assert errors["mean_position"] <= 0.005
     assert errors["max_position"] <= 0.020
-    plain = follow(WPILIB_TEST, Ramsete(), delay=0.1, lag=0.1).errors().summary()
+    plain = follow(wpilib_test(), Ramsete(), delay=0.1, lag=0.1).errors().summary()
     assert plain["mean_position"] > 3 * errors["mean_position"]
-    diverging = follow(WPILIB_TEST, LTVUnicycle(**LTV_TEST_TUNING), delay=0.1, lag=0.1)
+    diverging = follow(wpilib_test(), LTVUnicycle(**LTV_TEST_TUNING), delay=0.1, lag=0.1)
     assert not np.all(np.abs(diverging.errors().cross_track) < 1.0)
 
 
+@pytest.mark.slow
 def test_delay_margins_by_simulation() -> None:
     tuned = LTVUnicycle(**LTV_TEST_TUNING)
-    margin = delay_margin(WPILIB_TEST, tuned, lag=0.1, max_delay=0.2)
+    margin = delay_margin(wpilib_test(), tuned, lag=0.1, max_delay=0.2)
     assert 0.0 <= margin < 0.1  # WPILib's test tuning fails before 0.1 s (issue: 40 ms)
     predictive = Predictive(tuned, delay=0.1, dt=0.02, lag=0.1)
-    assert delay_margin(WPILIB_TEST, predictive, lag=0.1, known=0.1, max_delay=0.1) >= 0.0
+    assert delay_margin(wpilib_test(), predictive, lag=0.1, known=0.1, max_delay=0.1) >= 0.0
 
 
+@pytest.mark.slow
 def test_a_batch_with_noisy_odometry_and_a_limiter() -> None:
     limiter = Limiter.for_wheels(Limits(max_velocity=12.0, max_acceleration=15.0))
-    result = follow(SHORT, Ramsete(), robots=8, wheel_noise=(1e-4, 1e-4), seed=3, limiter=limiter)
-    again = follow(SHORT, Ramsete(), robots=8, wheel_noise=(1e-4, 1e-4), seed=3, limiter=limiter)
+    result = follow(short(), Ramsete(), robots=8, wheel_noise=(1e-4, 1e-4), seed=3, limiter=limiter)
+    again = follow(short(), Ramsete(), robots=8, wheel_noise=(1e-4, 1e-4), seed=3, limiter=limiter)
     assert np.array_equal(result.poses, again.poses)
     assert np.abs(result.commands).max() <= 12.0 + 1e-9
     assert np.abs(np.diff(result.commands, axis=1)).max() <= 15.0 * 0.02 + 1e-9
@@ -167,9 +181,9 @@ def test_a_delay_between_periods_is_refused_not_rounded() -> None:
     with pytest.raises(
         ValueError, match=r"delay must be a whole number of periods dt \(0.02 s\): got 0.05"
     ):
-        follow(SHORT, Ramsete(), delay=0.05)
+        follow(short(), Ramsete(), delay=0.05)
 
 
 def test_a_batch_that_would_fill_the_memory_is_refused() -> None:
     with pytest.raises(ValueError, match="fewer robots, or a larger dt"):
-        follow(SHORT, Ramsete(), robots=10**6)
+        follow(short(), Ramsete(), robots=10**6)

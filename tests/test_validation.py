@@ -98,6 +98,7 @@ def test_the_calibrate_report_gives_in_sample_and_held_out_side_by_side(tmp_path
     assert "track_width = 0.3\n" in (tmp_path / "r.toml").read_text()
 
 
+@pytest.mark.slow
 def test_held_out_optiodom_squares_beat_the_authors_in_sample_figure_with_the_offsets():
     """The README's held-out table: square/230620202042, six runs, one held out at a time."""
     from data import data_folder
