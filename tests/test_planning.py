@@ -41,6 +41,17 @@ def test_on_an_arc_the_outer_wheel_sets_the_speed() -> None:
     assert result.poses[-1, 2] == pytest.approx(math.pi)
 
 
+def test_a_gentle_arc_keeps_every_digit() -> None:
+    # 10 m of a 1e7 m radius: the end is (2R sin(a/2) cos(a/2), 2R sin(a/2)^2) with a = 1e-6
+    # rad, 5e-6 m to the left, which a (sin t - sin t0) / kappa form would get to about 1e-9 m.
+    radius, angle = 1e7, 1e-6
+    (leg,) = from_segments((1.0, 2.0, 0.0), [("arc", radius, angle)])[0]
+    half = math.sin(angle / 2)
+    want = [1.0 + 2 * radius * half * math.cos(angle / 2), 2.0 + 2 * radius * half * half]
+    assert [leg.x[-1], leg.y[-1]] == pytest.approx(want, rel=0, abs=1e-14)
+    assert leg.heading[-1] == pytest.approx(angle, rel=1e-12)
+
+
 def test_a_turn_in_place_between_two_waypoints_at_one_place() -> None:
     limits = PathLimits(max_velocity=1, max_angular_velocity=1.0, max_angular_acceleration=1.0)
     result = plan([(0, 0, 0), (0, 0, math.pi / 2)], ROBOT, limits)

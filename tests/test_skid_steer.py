@@ -156,6 +156,7 @@ def test_bad_skid_steer_geometry_is_refused(make, message):
         make()
 
 
+@pytest.mark.slow
 def test_the_command_line_takes_a_skid_steer_robot_file(tmp_path, capsys):
     from diffdrive.cli import main
 
@@ -199,3 +200,35 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
         np.testing.assert_allclose(
             gyro.covariance, moved @ drive.covariance @ moved.T, rtol=1e-12, atol=1e-18
         )
+
+
+@given(st.floats(-5, 5), st.floats(-5, 5), st.floats(-7, 7), st.floats(-3, 3), st.floats(-3, 3))
+def test_the_reference_point_shift_is_one_rigid_motion_each_way(x, y, theta, vx, omega):
+    """``to_reference`` and ``from_reference`` (poses), ``twist_to_reference`` and
+    ``twist_from_reference`` (twists), one or in arrays, against the point ``(0, offset)`` of
+    the body worked by hand; a DiffDrive's shift is none."""
+    offset = ASYMMETRIC.reference_offset
+    body = dd.Pose(x, y, theta)
+    ahead = ASYMMETRIC.to_reference(body)
+    want = [x - offset * math.sin(theta), y + offset * math.cos(theta), theta]
+    np.testing.assert_allclose(ahead.to_array(), want, atol=1e-12)
+    np.testing.assert_allclose(
+        ASYMMETRIC.from_reference(ahead).to_array(), [x, y, theta], atol=1e-12
+    )
+    rows = np.array([[x, y, theta], [y, x, -theta]])
+    np.testing.assert_allclose(ASYMMETRIC.to_reference(rows)[0], want, atol=1e-12)
+    np.testing.assert_allclose(
+        ASYMMETRIC.from_reference(ASYMMETRIC.to_reference(rows)), rows, atol=1e-12
+    )
+    # The body's twist (vx, 0, omega): the point offset m to the left moves at vx - offset omega.
+    twist = dd.Twist(vx, 0.0, omega)
+    at_point = ASYMMETRIC.twist_to_reference(twist)
+    assert at_point.vx == pytest.approx(vx - offset * omega, abs=1e-12)
+    assert ASYMMETRIC.twist_from_reference(at_point).vx == pytest.approx(vx, abs=1e-12)
+    np.testing.assert_allclose(
+        ASYMMETRIC.twist_to_reference(np.array([[vx, 0.0, omega]])), [at_point.to_array()]
+    )
+    plain = dd.DiffDrive(0.1, 0.5)
+    assert plain.to_reference(body) == body
+    assert plain.twist_from_reference(twist) == twist
+    assert plain.from_reference(rows) is rows

@@ -340,7 +340,7 @@ def consistency(
     axes = [0, 1] if positions_only else [0, 1, 2]
     error = (truth - estimate)[:, axes]
     if not positions_only:
-        error[:, 2] = np.remainder(error[:, 2] + np.pi, 2 * np.pi) - np.pi
+        error[:, 2] = batch.wrap_angle(error[:, 2])
     block = matrices[:, axes][:, :, axes]
     block = 0.5 * (block + np.swapaxes(block, 1, 2))
     scale = np.maximum(np.abs(block).max(axis=(1, 2)), np.finfo(float).tiny)
@@ -423,7 +423,7 @@ def path_errors(
         )
     dx, dy = robots[..., 0] - reference[:, 0], robots[..., 1] - reference[:, 1]
     along = np.cos(reference[:, 2]) * dx + np.sin(reference[:, 2]) * dy
-    heading = np.remainder(robots[..., 2] - reference[:, 2] + np.pi, 2.0 * np.pi) - np.pi
+    heading = batch.wrap_angle(robots[..., 2] - reference[:, 2])
     cross = np.empty(robots.shape[:-1])
     starts = np.searchsorted(path_t, t - window)
     ends = np.searchsorted(path_t, t + window, side="right")

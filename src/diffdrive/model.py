@@ -22,19 +22,75 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from diffdrive._arrays import namespace
 from diffdrive._step import wheel_move
 from diffdrive._validate import finite, length
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
-__all__ = ["DiffDrive", "Robot", "check_robot"]
+__all__ = ["DiffDrive", "ReferencePoint", "Robot", "check_robot"]
+
+
+class ReferencePoint:
+    """The one place of the shift between a model's body origin and the point ``(0,
+    reference_offset)`` of the body (m) that its equivalent drive moves (0 for a
+    ``DiffDrive``, which moves its body origin). Poses and twists are one (``Pose``,
+    ``Twist`` or 3 numbers) or arrays ``(..., 3)`` of any array library."""
+
+    __slots__ = ()
+
+    @property
+    def reference_offset(self) -> float:
+        """0 m: the equivalent drive moves the body origin itself."""
+        return 0.0
+
+    def to_reference(self, poses: Any) -> Any:
+        """The equivalent drive's poses for the body poses ``poses``."""
+        return _moved_pose(poses, self.reference_offset)
+
+    def from_reference(self, poses: Any) -> Any:
+        """The body poses for the equivalent drive's poses ``poses``."""
+        return _moved_pose(poses, -self.reference_offset)
+
+    def twist_to_reference(self, twists: Any) -> Any:
+        """The twists of the equivalent drive's point for the body origin's ``twists``."""
+        return _moved_twist(twists, -self.reference_offset)
+
+    def twist_from_reference(self, twists: Any) -> Any:
+        """The body origin's twists for those of the equivalent drive's point: a rigid
+        shift ``offset`` m to the right, so ``vx`` gains ``offset * omega``."""
+        return _moved_twist(twists, self.reference_offset)
+
+
+def _moved_pose(poses: Any, offset: float) -> Any:
+    """``poses`` composed with ``(0, offset, 0)``: the pose of the point ``offset`` m left."""
+    if isinstance(poses, Pose | tuple | list):
+        pose = Pose.coerce(poses, "pose")
+        return pose.compose(Pose(0.0, offset, 0.0)) if offset else pose
+    if not offset:
+        return poses
+    from diffdrive.batch import compose  # batch is built on this module
+
+    return compose(poses, np.array([0.0, offset, 0.0]))
+
+
+def _moved_twist(twists: Any, offset: float) -> Any:
+    """``twists`` with ``vx`` plus ``offset * omega`` (m; the same rigid body, another point)."""
+    if isinstance(twists, Twist | tuple | list):
+        twist = Twist.coerce(twists, "twist")
+        return Twist(twist.vx + offset * twist.omega, twist.vy, twist.omega) if offset else twist
+    if not offset:
+        return twists
+    xp = namespace(twists)
+    forward = twists[..., 0] + offset * twists[..., 2]
+    return xp.stack([forward, twists[..., 1], twists[..., 2]], axis=-1)
 
 
 @dataclass(frozen=True, slots=True, init=False)
-class DiffDrive:
+class DiffDrive(ReferencePoint):
     """A two-wheeled differential-drive robot.
 
     Give either ``wheel_radius`` (both wheels) or ``left_wheel_radius`` and
@@ -93,11 +149,6 @@ class DiffDrive:
     def equivalent(self) -> DiffDrive:
         """Itself: a differential drive is its own equivalent drive."""
         return self
-
-    @property
-    def reference_offset(self) -> float:
-        """0 m: the equivalent drive moves the body origin itself."""
-        return 0.0
 
     def with_geometry(
         self,
@@ -274,10 +325,11 @@ class Robot(Protocol):
     """What every robot model answers; what the whole-path functions take.
 
     A model moves its body as a differential drive, ``equivalent``, moves the point
-    ``(0, reference_offset)`` of the body (m); a new model that gives these needs no edits
-    anywhere else. ``track_width`` is the equivalent drive's (what calibration fits);
-    ``with_geometry`` is the same model with other radii, track and equivalent axle offset;
-    ``settings`` its robot-file keys.
+    ``(0, reference_offset)`` of the body (m); a new model that gives these (and inherits
+    ``ReferencePoint``, the shift between the two points) needs no edits anywhere else.
+    ``track_width`` is the equivalent drive's (what calibration fits); ``with_geometry`` is the
+    same model with other radii, track and equivalent axle offset; ``settings`` its robot-file
+    keys.
     """
 
     TRACK_RANGE: ClassVar[tuple[float, float]]
@@ -292,6 +344,10 @@ class Robot(Protocol):
     def equivalent(self) -> DiffDrive: ...
     @property
     def reference_offset(self) -> float: ...
+    def to_reference(self, poses: Any) -> Any: ...
+    def from_reference(self, poses: Any) -> Any: ...
+    def twist_to_reference(self, twists: Any) -> Any: ...
+    def twist_from_reference(self, twists: Any) -> Any: ...
     def with_geometry(
         self,
         left_wheel_radius: float,

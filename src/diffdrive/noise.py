@@ -150,7 +150,7 @@ def _window_terms(robot, increments, truth, count, method):
     moved = _relative(poses, a, b)
     seen = _relative(truth, a, b)
     error = seen - moved
-    error[:, 2] = np.remainder(error[:, 2] + np.pi, 2 * np.pi) - np.pi
+    error[:, 2] = batch.wrap_angle(error[:, 2])
     walk = np.zeros((3 * windows, 3 * windows))
     for w in range(windows):
         odometry = Odometry(robot, method, Pose(), k_left=1.0, k_right=1.0)

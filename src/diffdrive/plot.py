@@ -180,7 +180,7 @@ def plot_error_bands(
     ``(T+1, 3, 3)``; returns the share of poses with every error inside its band. A truth
     without headings (all NaN, as GPS fixes) has its x and y errors drawn alone."""
     error = truth - estimate
-    error[:, 2] = np.degrees(np.remainder(error[:, 2] + np.pi, 2 * np.pi) - np.pi)
+    error[:, 2] = np.degrees(batch.wrap_angle(error[:, 2]))
     sigma = np.sqrt(np.maximum(np.einsum("tii->ti", covariances), 0.0))
     sigma[:, 2] = np.degrees(sigma[:, 2])
     axes_drawn = 2 if np.isnan(truth[:, 2]).all() else 3

@@ -436,9 +436,8 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
     """
     from diffdrive.backends.simulate_kernel import integrate_history
 
-    offset, robot = robot.reference_offset, robot.equivalent
-    if offset:  # the equivalent drive moves the point (0, offset) of the body
-        start = batch.compose(start, np.array([0.0, offset, 0.0]))
+    model, robot = robot, robot.equivalent
+    start = model.to_reference(start)  # the point the equivalent drive moves
     leading, samples = poses.shape[:-2], poses.shape[-2]
     robots = math.prod(leading)
     if robots == 0:  # no robot: nothing to integrate
@@ -462,5 +461,5 @@ def _integrate_compiled(robot, history: _History, start, method, poses: np.ndarr
         method,
         poses.reshape(robots, samples, 3),
     )
-    if offset:
-        poses[...] = batch.compose(poses, np.array([0.0, -offset, 0.0]))
+    if model.reference_offset:
+        poses[...] = model.from_reference(poses)

@@ -32,14 +32,14 @@ from typing import ClassVar
 import numpy as np
 
 from diffdrive._validate import finite, length, positive
-from diffdrive.model import DiffDrive, path_radius, wheel_radii
-from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
+from diffdrive.model import DiffDrive, ReferencePoint, path_radius, wheel_radii
+from diffdrive.types import Twist, TwistLike, WheelsLike, WheelVelocities
 
 __all__ = ["SkidSteer"]
 
 
 @dataclass(frozen=True, slots=True, init=False)
-class SkidSteer:
+class SkidSteer(ReferencePoint):
     """A skid-steer robot by its ICRs (see the module).
 
     Give ``wheel_radius`` (or ``left_wheel_radius`` and ``right_wheel_radius``), m; the ICRs
@@ -181,25 +181,15 @@ class SkidSteer:
     def to_twist(self, wheels: WheelsLike) -> Twist:
         """The body twist from the sides' wheel velocities (the ICR kinematics, computed as
         the equivalent drive's, so that the ideal case is a ``DiffDrive`` to the bit)."""
-        twist = self.equivalent.to_twist(WheelVelocities.coerce(wheels, "wheels"))
-        if not self.reference_offset:
-            return twist
-        return Twist(twist.vx + self.reference_offset * twist.omega, twist.vy, twist.omega)
+        return self.twist_from_reference(
+            self.equivalent.to_twist(WheelVelocities.coerce(wheels, "wheels"))
+        )
 
     def to_wheel_velocities(self, twist: TwistLike) -> WheelVelocities:
         """The sides' wheel velocities that drive ``twist``; its ``vy`` is not used."""
-        twist = Twist.coerce(twist, "twist")
-        at_reference = Twist(twist.vx - self.reference_offset * twist.omega, 0.0, twist.omega)
-        return self.equivalent.to_wheel_velocities(at_reference)
+        at_reference = self.twist_to_reference(Twist.coerce(twist, "twist"))
+        return self.equivalent.to_wheel_velocities(Twist(at_reference.vx, 0.0, at_reference.omega))
 
     def turning_radius(self, wheels: WheelsLike) -> float:
         """Signed radius of the body origin's path, m (as ``DiffDrive.turning_radius``)."""
         return path_radius(self.to_twist(wheels))
-
-    def to_reference(self, pose: object) -> Pose:
-        """The equivalent drive's pose for the body pose ``pose``."""
-        return Pose.coerce(pose, "pose").compose(Pose(0.0, self.reference_offset, 0.0))
-
-    def from_reference(self, pose: object) -> Pose:
-        """The body pose for the equivalent drive's pose ``pose``."""
-        return Pose.coerce(pose, "pose").compose(Pose(0.0, -self.reference_offset, 0.0))

@@ -40,12 +40,11 @@ def geometry_of(robot: Robot) -> tuple[float, float, float, float]:
     return (drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width, drive.axle_offset)
 
 
-def wheel_map(geometry: Any, wheels: Any, shift: float = 0.0) -> Any:
+def wheel_map(geometry: Any, wheels: Any) -> Any:
     """``_step.wheel_move`` over arrays: body twists ``(..., 3)`` from wheel velocities
     ``(..., 2)`` (or angle increments to twist increments), for a ``geometry`` array ``(..., 3)``
     or ``(..., 4)`` ``[r_left, r_right, track, axle_offset]`` that broadcasts against
-    ``wheels[..., 0]``. ``shift`` (m) moves the twist from the equivalent drive's reference
-    point to a point that far right of it (a model's ``reference_offset``)."""
+    ``wheels[..., 0]``: the twists of the drive's reference point."""
     xp = namespace(wheels)
     offset = geometry[..., 3] if geometry.shape[-1] == 4 else 0.0
     forward, sideways, turn = wheel_move(
@@ -56,8 +55,6 @@ def wheel_map(geometry: Any, wheels: Any, shift: float = 0.0) -> Any:
         wheels[..., 0],
         wheels[..., 1],
     )
-    if shift:
-        forward = forward + shift * turn
     return xp.stack([forward, xp.broadcast_to(sideways, turn.shape), turn], axis=-1)
 
 
@@ -67,15 +64,14 @@ def to_twist(robot: Robot, wheels: object) -> Any:
     xp = namespace(wheels)
     w = _wheels(xp, wheels)
     geometry = xp.asarray(geometry_of(robot), dtype=w.dtype, device=device(w))
-    return wheel_map(geometry, w, robot.reference_offset)
+    return robot.twist_from_reference(wheel_map(geometry, w))
 
 
 def to_wheel_velocities(robot: Robot, twists: object) -> Any:
     """Wheel velocities ``(..., 2)`` that drive ``twists`` ``(..., 3)``; ``vy`` is not used."""
     xp = namespace(twists)
-    v = components(xp, twists, "twists", TWIST)
-    drive, shift = check_robot(robot).equivalent, robot.reference_offset
-    forward = v[..., 0] - shift * v[..., 2] if shift else v[..., 0]  # at the reference point
+    v = check_robot(robot).twist_to_reference(components(xp, twists, "twists", TWIST))
+    drive, forward = robot.equivalent, v[..., 0]
     half_turn = 0.5 * drive.track_width * v[..., 2]
     return xp.stack(
         [

@@ -24,7 +24,8 @@ from diffdrive import batch
 from diffdrive._validate import check_samples, floats, positive, rng_of, whole
 from diffdrive.control.limiter import Limiter
 from diffdrive.control.planning import Plan
-from diffdrive.control.tracking import Tracker, first_order
+from diffdrive.control.tracking import Tracker
+from diffdrive.dynamics.lag import first_order
 from diffdrive.evaluation import PathErrors, path_errors
 from diffdrive.integrate import Method
 

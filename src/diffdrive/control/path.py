@@ -27,6 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive._validate import check_samples, finite, positive, whole
+from diffdrive.angles import wrap_angle
+from diffdrive.batch import sinc
+from diffdrive.batch import wrap_angle as wrap_angles
 
 __all__ = ["TANGENT_SCALE", "Leg", "from_segments", "from_waypoints"]
 
@@ -242,7 +245,7 @@ def _quintics(points: np.ndarray, step: float, first: int, smooth: bool) -> list
     s = total - total[starts][segment]
     steps = np.where(inside, np.abs(kappa[1:] + kappa[:-1]) * np.diff(s) / 2.0, 0.0)
     turned = np.bincount(segment[1:], steps, len(intervals))
-    net = np.abs(np.remainder(np.diff(points[:, 2]) + np.pi, 2.0 * np.pi) - np.pi)
+    net = np.abs(wrap_angles(np.diff(points[:, 2])))
     loops = turned > net + 1.5 * math.pi  # three quarters of a circle more than asked
     for index in range(len(intervals)):
         where = f"the spline from waypoint {first + index} to {first + index + 1}"
@@ -336,7 +339,7 @@ def from_waypoints(
             raise ValueError(f"waypoints {first} and {first + 1} repeat: every pair must differ")
         headings = _headings(points[:, :2])
         headings += np.pi * np.array(backward + backward[-1:])  # the robot faces backward
-        headings = np.remainder(headings + np.pi, 2.0 * np.pi) - np.pi
+        headings = wrap_angles(headings)
         points = np.column_stack([points, headings])
     # Runs of waypoints driven without halting: split at turns, stops and reversals.
     runs: list[list[Leg]] = []
@@ -350,12 +353,12 @@ def from_waypoints(
             runs.append(_drive(points[first : index + 1], backward[first], step, first, smooth))
         if not last and same_place[index]:
             start, end = points[index], points[index + 1]
-            if abs(math.remainder(end[2] - start[2], 2.0 * math.pi)) <= 1e-12:
+            # Between two waypoints' headings: the short way round.
+            angle = wrap_angle(end[2] - start[2])
+            if abs(angle) <= 1e-12:
                 raise ValueError(
                     f"waypoints {index} and {index + 1} repeat: every pair must differ"
                 )
-            # Between two waypoints' headings: the short way round.
-            angle = math.remainder(end[2] - start[2], 2.0 * math.pi)
             runs.append([_turn(start[0], start[1], start[2], angle, step)])
             first = index + 1
         else:
@@ -419,11 +422,11 @@ def from_segments(
         s = np.linspace(0.0, abs(length), count + 1)
         tangent0 = heading if direction > 0 else heading + math.pi
         tangent = tangent0 + curvature * s
-        if curvature == 0.0:
-            px, py = x + s * math.cos(tangent0), y + s * math.sin(tangent0)
-        else:
-            px = x + (np.sin(tangent) - math.sin(tangent0)) / curvature
-            py = y - (np.cos(tangent) - math.cos(tangent0)) / curvature
+        # The chord of the arc, as the core integrates one: no (sin t - sin t0) / kappa to
+        # cancel on a gentle arc, and a line is the same formula at kappa = 0.
+        half = 0.5 * curvature * s
+        chord = s * sinc(half)
+        px, py = x + chord * np.cos(tangent0 + half), y + chord * np.sin(tangent0 + half)
         zeros = np.zeros(count + 1)
         robot_heading = tangent if direction > 0 else tangent - math.pi
         leg = Leg("drive", direction, s, px, py, robot_heading, zeros + curvature, zeros)

@@ -32,6 +32,7 @@ from diffdrive import batch
 from diffdrive._optional import optional
 from diffdrive._validate import finite, positive
 from diffdrive.control.planning import Plan
+from diffdrive.dynamics.lag import first_order
 
 __all__ = [
     "LTVUnicycle",
@@ -40,7 +41,6 @@ __all__ = [
     "Ramsete",
     "Tracker",
     "errors_in_robot",
-    "first_order",
 ]
 
 
@@ -55,21 +55,8 @@ def errors_in_robot(poses: np.ndarray, reference: np.ndarray) -> np.ndarray:
     error wrapped to ``[-pi, pi)``."""
     dx, dy = reference[..., 0] - poses[..., 0], reference[..., 1] - poses[..., 1]
     c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
-    heading = np.remainder(reference[..., 2] - poses[..., 2] + np.pi, 2.0 * np.pi) - np.pi
+    heading = batch.wrap_angle(reference[..., 2] - poses[..., 2])
     return np.stack([c * dx + s * dy, -s * dx + c * dy, heading], axis=-1)
-
-
-def first_order(
-    state: np.ndarray, target: np.ndarray, dt: float, lag: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """A first-order lag of time constant ``lag`` (s; 0: none) after ``dt`` s toward a held
-    ``target``: the state at the end of the period, and its mean over the period (what the
-    robot moves with). Exact for a held target."""
-    if lag == 0.0:
-        return target, target
-    decay = math.exp(-dt / lag)
-    mean = target + (state - target) * lag / dt * (1.0 - decay)
-    return target + (state - target) * decay, mean
 
 
 def _poses(poses: object) -> np.ndarray:

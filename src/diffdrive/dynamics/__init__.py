@@ -1,5 +1,8 @@
 """Dynamics: how the drive answers a command.
 
+- ``lag``: ``first_order`` and ``decay``, the first-order lag every drive model steps through
+  (``DriveModel``, ``control.follow``, the ``Predictive`` tracker).
+
 - ``response``: ``identify_velocity_response``, a velocity-commanded drive's pure delay,
   first-order time constant, gain and acceleration limit, fitted to a log of commands and
   measured wheel velocities; ``VelocityResponse.predict`` drives the model with commands;

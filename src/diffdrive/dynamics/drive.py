@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive._validate import check_samples, finite, positive
+from diffdrive.dynamics.lag import first_order
 from diffdrive.dynamics.response import VelocityResponse, held_commands, simulate_response
 from diffdrive.dynamics.voltage import Feedforward, VoltageResponse
 from diffdrive.integrate import Method
@@ -118,7 +119,7 @@ class DriveModel:
             direction = np.where(w != 0.0, np.sign(w), np.sign(voltage))
             stuck = (w == 0.0) & (np.abs(voltage) <= ff.ks)
             target = (voltage - ff.ks * direction) / ff.kv
-            moved = target + (w - target) * math.exp(-step / tau)
+            moved = first_order(w, target, step, tau)[0]
             # Crossing zero within the step: static friction stops the wheel there.
             crossed = (w != 0.0) & (np.sign(moved) != direction)
             w = np.where(stuck | crossed, 0.0, moved)

@@ -30,6 +30,7 @@ import numpy as np
 
 from diffdrive._optional import optional
 from diffdrive._validate import increasing
+from diffdrive.dynamics.lag import decay
 
 __all__ = [
     "HeldOutResponse",
@@ -90,7 +91,7 @@ def simulate_response(
     held = held_commands(changes, commands, events)  # the command in force from each event on
     pieces = np.diff(events)
     # A time constant of 0: the wheel is at the command at once (as fast as its limit lets).
-    keep = np.exp(-pieces / time_constant) if time_constant > 0.0 else 0.0 * pieces
+    keep = decay(pieces, time_constant)
     limits = acceleration * pieces
     target = gain * held[:-1]
     start = np.asarray(initial, dtype=float)
@@ -112,8 +113,8 @@ def _respond(keep: list, target: np.ndarray, limits: list, initial, out: np.ndar
     for w in range(target.shape[1]):
         v = float(initial[w])
         column = [v]
-        for decay, goal, limit in zip(keep, target[:, w].tolist(), limits, strict=True):
-            change = (1.0 - decay) * (goal - v)
+        for remaining, goal, limit in zip(keep, target[:, w].tolist(), limits, strict=True):
+            change = (1.0 - remaining) * (goal - v)
             if change > limit:
                 change = limit
             elif change < -limit:

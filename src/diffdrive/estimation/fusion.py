@@ -157,7 +157,6 @@ class _EstimatorMethods(_Base):
         self.ahead = float(ahead)
         self._mounting = mounting_yaw_row(mounting)
         drive = robot.equivalent
-        self._offset = robot.reference_offset
         arw, rrw = self.noise.angle_random_walk, self.noise.rate_random_walk
         self.config = ekf.Config(
             (
@@ -211,7 +210,7 @@ class _EstimatorMethods(_Base):
             chi2_quantile(gate, 1),
             chi2_quantile(gate, 2),
             chi2_quantile(gate, 3),
-            self._offset,
+            robot.reference_offset,
             self.history,
             self.ahead,
             _three(mounting_yaw_row(mounting)),
@@ -239,12 +238,12 @@ class _EstimatorMethods(_Base):
     @property
     def pose(self) -> Pose:
         """The body origin's pose now."""
-        return _body_pose(self._state_now(), self._offset)
+        return _body_pose(self._state_now(), self.robot)
 
     @property
     def covariance(self) -> np.ndarray:
         """The body origin's pose covariance now, 3x3 over ``(x, y, theta)``."""
-        return _body_covariance(self.state, self.state_covariance, self._offset)
+        return body_covariances(self.state, self.state_covariance, self.robot)
 
     @property
     def bias(self) -> float:
@@ -298,7 +297,7 @@ class _EstimatorMethods(_Base):
             raise ValueError(f"t = {t!r} s lies outside the history [{start!r}, {now!r}] s")
         x, P = self._pose_at(t)
         state, covariance = np.array(x), np.array(P).reshape(ekf.N, ekf.N)
-        return _body_pose(state, self._offset), _body_covariance(state, covariance, self._offset)
+        return _body_pose(state, self.robot), body_covariances(state, covariance, self.robot)
 
     # -- absolute measurements ------------------------------------------------------------
 
@@ -355,9 +354,8 @@ def _start_state(robot: Robot, pose: object, covariance: object, bias: float, sc
         1.0, np.abs(matrix).max()
     ):
         raise ValueError("initial_covariance must be symmetric positive semi-definite")
-    offset = robot.reference_offset
-    moved = offset_jacobian(start.theta, offset)
-    start = start.compose(Pose(0.0, offset))
+    moved = offset_jacobian(start.theta, robot.reference_offset)
+    start = robot.to_reference(start)
     P = np.zeros((ekf.N, ekf.N))
     P[:3, :3] = moved @ matrix @ moved.T
     return np.array([start.x, start.y, start.theta, bias, scale]), P
@@ -367,31 +365,21 @@ def _three(row: np.ndarray) -> tuple[float, float, float]:
     return float(row[0]), float(row[1]), float(row[2])
 
 
-def body_poses(states: np.ndarray, offset: float) -> np.ndarray:
-    """The body origin's poses ``(..., 3)`` from states ``(..., 5)`` of the equivalent drive's
-    reference point, ``offset`` m to the left of it: the reference pose composed with ``(0,
-    -offset, 0)``."""
-    states = np.asarray(states, dtype=float)
-    poses = states[..., :3].copy()
-    if offset:
-        poses[..., 0] += offset * np.sin(states[..., 2])
-        poses[..., 1] -= offset * np.cos(states[..., 2])
-    return poses
+def body_poses(states: np.ndarray, robot: Robot) -> np.ndarray:
+    """The body origin's poses ``(..., 3)`` from states ``(..., 5)`` of ``robot``'s equivalent
+    drive's reference point (``Robot.from_reference``)."""
+    return np.array(robot.from_reference(np.asarray(states, dtype=float)[..., :3]), dtype=float)
 
 
-def body_covariances(states: np.ndarray, covariances: np.ndarray, offset: float) -> np.ndarray:
+def body_covariances(states: np.ndarray, covariances: np.ndarray, robot: Robot) -> np.ndarray:
     """The body origin's pose covariances ``(..., 3, 3)`` from states ``(..., 5)`` and their
-    covariances ``(..., 5, 5)`` (see ``body_poses``)."""
+    covariances ``(..., 5, 5)`` (see ``body_poses``): the shift's Jacobian applied."""
     block = np.asarray(covariances, dtype=float)[..., :3, :3]
-    if not offset:
+    if not robot.reference_offset:
         return block.copy()
-    moved = offset_jacobian(np.asarray(states)[..., 2], -offset)
+    moved = offset_jacobian(np.asarray(states)[..., 2], -robot.reference_offset)
     return moved @ block @ np.swapaxes(moved, -1, -2)
 
 
-def _body_pose(x: Sequence[float] | np.ndarray, offset: float) -> Pose:
-    return Pose(*body_poses(np.asarray(x, dtype=float), offset).tolist())
-
-
-def _body_covariance(x: np.ndarray, P: np.ndarray, offset: float) -> np.ndarray:
-    return body_covariances(x, P, offset)
+def _body_pose(x: Sequence[float] | np.ndarray, robot: Robot) -> Pose:
+    return Pose(*body_poses(np.asarray(x, dtype=float), robot).tolist())

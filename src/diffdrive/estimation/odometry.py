@@ -166,11 +166,7 @@ class _OdometryMethods(_Base):
     def pose(self) -> Pose:
         """The pose now; ``theta`` unwrapped (rad)."""
         x, y, theta, _, _ = self._state()
-        return (
-            Pose(x, y, theta).compose(Pose(0.0, -self._offset))
-            if self._offset
-            else Pose(x, y, theta)
-        )
+        return self.robot.from_reference(Pose(x, y, theta))
 
     @property
     def distance(self) -> float:
@@ -230,7 +226,7 @@ class _OdometryMethods(_Base):
             raise ValueError("covariance must be positive semi-definite")
         if self._offset:  # to the equivalent drive's reference point
             moved = offset_jacobian(pose.theta, self._offset)
-            pose, matrix = pose.compose(Pose(0.0, self._offset)), moved @ matrix @ moved.T
+            pose, matrix = self.robot.to_reference(pose), moved @ matrix @ moved.T
         self._set_pose(pose.x, pose.y, pose.theta, tuple(matrix.ravel().tolist()))
 
     def update_arrays(
@@ -270,10 +266,8 @@ class _OdometryMethods(_Base):
         if refused is not None:
             raise RefusedUpdateError(*refused)
         if self._offset:
-            from diffdrive import batch
-
             moved = offset_jacobian(poses[:, 2], -self._offset)
-            poses = batch.compose(poses, np.array([0.0, -self._offset, 0.0]))
+            poses = self.robot.from_reference(poses)
             if covariances is not None:
                 covariances = moved @ covariances @ np.swapaxes(moved, -1, -2)
         return poses, covariances

@@ -193,12 +193,11 @@ def estimate_trajectory(
         run = _run(estimator, log, False, forced)
     if smooth and episodes:  # the smoother over the last forward pass
         run = _run(estimator, log, True, forced)
-    offset = robot.reference_offset
     twists, twist_covariances = _twists(robot, estimator.config, log, run)
     return Estimate(
         times,
-        body_poses(run.states, offset),
-        body_covariances(run.states, run.covariances, offset),
+        body_poses(run.states, robot),
+        body_covariances(run.states, run.covariances, robot),
         run.states,
         run.covariances,
         run.slips,

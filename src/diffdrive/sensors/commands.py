@@ -30,7 +30,4 @@ def commands_of(robot: Robot, times: object, poses: object) -> Commands:
     motion = motion_of(robot, times, poses)
     at_reference = motion.increments / motion.durations[:, None]
     wheels = batch.to_wheel_velocities(robot.equivalent, at_reference)
-    offset = robot.reference_offset  # the twist of the body origin, from the reference's
-    twists = at_reference.copy()
-    twists[..., 0] += offset * twists[..., 2]
-    return Commands(motion.times, twists, wheels)
+    return Commands(motion.times, robot.twist_from_reference(at_reference), wheels)

@@ -70,8 +70,7 @@ def motion_of(robot: Robot, times: object, poses: object) -> Motion:
         )
     if not np.all(np.isfinite(p)):
         raise ValueError("poses must be finite")
-    offset = robot.reference_offset
-    moved = batch.compose(p, np.array([0.0, offset, 0.0])) if offset else p
+    moved = robot.to_reference(p)
     relative = batch.relative_to(moved[:, 1:], moved[:, :-1])
     increments = batch.log(relative)
     # The log wraps each turn to (-pi, pi]. Headings that all lie in [-pi, pi] are read as
