@@ -101,7 +101,7 @@ def sensors(rng, times, truth, increments, k, latencies):
 
 def run_diffdrive(times, truth, wheels, gyro, queue, k, vision=True):
     estimator = PoseEstimator(
-        ROBOT, "wheels", dd.Pose(*truth[0]), k_left=k, k_right=k, initial_time=times[0]
+        ROBOT, "wheels", dd.Pose(*truth[0]), wheel_noise=k, initial_time=times[0]
     )
     estimator.add_heading(times[0], gyro[0], GYRO_SIGMA)
     errors, distances, q = [], [], 0

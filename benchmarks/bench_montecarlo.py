@@ -27,7 +27,7 @@ from timing import median_time  # benchmarks/timing.py
 
 ROBOT = dd.DiffDrive(0.05, 0.3)
 DT = 0.01
-OPTIONS = {"k_left": 1e-4, "k_right": 1e-4, "geometry_sigma": (0.002, 0.002, 0.005), "seed": 1}
+OPTIONS = {"wheel_noise": 1e-4, "geometry_sigma": (0.002, 0.002, 0.005), "seed": 1}
 
 
 def history(steps: int) -> np.ndarray:

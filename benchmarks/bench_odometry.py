@@ -60,7 +60,7 @@ def main() -> None:
         return loop
 
     def ours_timed():
-        odometry = dd.Odometry(robot, k_left=1e-4, k_right=1e-4)
+        odometry = dd.Odometry(robot, wheel_noise=1e-4)
         update = odometry.update_positions
         for a, b, t in zip(left, right, times, strict=True):
             update(a, b, t)
@@ -69,7 +69,7 @@ def main() -> None:
     loops = {
         "empty loop": empty,
         "diffdrive update_positions": ours(),
-        "  with k_left, k_right": ours(k_left=1e-4, k_right=1e-4),
+        "  with wheel noise": ours(wheel_noise=1e-4),
         "  with k and t": ours_timed,
         "  on the pure-Python core (no C compiler)": ours(dd.estimation.PythonOdometry),
     }

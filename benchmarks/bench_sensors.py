@@ -48,7 +48,7 @@ def main() -> None:
         track_bias=0.02,
         slips=slips,
     )
-    noisy = dataclasses.replace(plain, k_left=1e-4, k_right=1e-4)
+    noisy = dataclasses.replace(plain, wheel_noise=1e-4)
     samples = args.robots * (args.steps + 1) * 2
     rng = np.random.default_rng(0)
 

@@ -50,7 +50,7 @@ def detection(poses: np.ndarray, ratio: float, robots: int) -> dict[str, tuple[i
     noise = GyroNoise(angle_random_walk=ARW)
     for n in range(robots):
         slips = episodes(rng, ratio) if ratio else ()
-        model = sensors.EncoderModel(k_left=K, k_right=K, slips=slips)
+        model = sensors.EncoderModel(wheel_noise=K, slips=slips)
         encoders = sensors.encoder_readings(ROBOT, TIMES, poses, model, seed=100 + n)
         gyro = sensors.gyro_readings(
             ROBOT, TIMES, poses, sensors.GyroModel(angle_random_walk=ARW), seed=200 + n
@@ -64,8 +64,7 @@ def detection(poses: np.ndarray, ratio: float, robots: int) -> dict[str, tuple[i
                 Gyro(TIMES, gyro.rates[0]),
                 "fused",
                 bias=0.0,
-                k_left=K,
-                k_right=K,
+                wheel_noise=K,
                 noise=noise,
                 slip_test=test,
             )

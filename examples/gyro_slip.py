@@ -51,9 +51,7 @@ def synthetic(seed: int = 0) -> dict:
     bias = 0.01 + 0.02 * gyro_times / gyro_times[-1]
     noisy = np.interp(gyro_times, truth.times, rates) + bias
     gyro = Gyro(gyro_times, noisy + rng.normal(0, 0.02, len(gyro_times)))
-    runs = {
-        h: gyro_odometry(ROBOT, t, measured, gyro, h, k_left=2e-6, k_right=2e-6) for h in HEADINGS
-    }
+    runs = {h: gyro_odometry(ROBOT, t, measured, gyro, h, wheel_noise=2e-6) for h in HEADINGS}
     return {"runs": runs, "truth": truth, "slip": slip}
 
 
@@ -70,8 +68,7 @@ def husky(bags: Path) -> dict:
             data["gyro"],
             heading,
             data["start"],
-            k_left=1e-3,
-            k_right=1e-3,
+            wheel_noise=1e-3,
         )
         estimate = interpolate(data["times"], run.poses, data["fix_times"])
         estimate[:, 2] = 0.0  # positions only

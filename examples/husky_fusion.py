@@ -80,7 +80,7 @@ def against_gps(data: dict, estimate) -> float:
 
 def heading_sources(data: dict) -> dict:
     common = dict(gyro=data["gyro"], initial_pose=data["start"], smooth=False, bias=data["bias"])
-    common.update(k_left=1e-3, k_right=1e-3)
+    common.update(wheel_noise=1e-3)
     runs = {
         "gyro": estimate_trajectory(
             HUSKY, data["times"], data["increments"], heading="gyro", **common
@@ -109,7 +109,7 @@ def every_other_fix(data: dict, k: float = 0.3, sigma: float = 0.2) -> dict:
     between = np.column_stack(
         [np.interp(stamps[left], stamps[used], fixes[used, i]) for i in (0, 1)]
     )
-    options = dict(gyro=data["gyro"], heading="fused", bias=data["bias"], k_left=k, k_right=k)
+    options = dict(gyro=data["gyro"], heading="fused", bias=data["bias"], wheel_noise=k)
     options["noise"] = GyroNoise(
         angle_random_walk=0.01, rate_random_walk=1e-4, initial_bias_sigma=1e-3
     )
@@ -164,7 +164,7 @@ def consistency_against_gps(data: dict, figure: Path, k: float = 1e-3) -> dict:
 
     estimate = estimate_trajectory(
         HUSKY, data["times"], data["increments"], heading="gyro", gyro=data["gyro"],
-        initial_pose=data["start"], smooth=False, bias=data["bias"], k_left=k, k_right=k,
+        initial_pose=data["start"], smooth=False, bias=data["bias"], wheel_noise=k,
     )  # fmt: skip
     stamps = data["fix_times"]
     at = interpolate(data["times"], estimate.poses, stamps)

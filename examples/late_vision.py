@@ -42,7 +42,7 @@ def run(seed: int, camera: bool = True) -> dict:
     """One streamed run: the truth, the estimates and covariances at every step, the camera."""
     times, truth = figure_eight()
     encoders = sensors.encoder_readings(
-        ROBOT, times, truth, sensors.EncoderModel(k_left=K, k_right=K), seed=seed
+        ROBOT, times, truth, sensors.EncoderModel(wheel_noise=K), seed=seed
     )
     wheels = encoders.readings[0]  # wheel angles, rad
     poses = sensors.absolute_readings(
@@ -54,7 +54,7 @@ def run(seed: int, camera: bool = True) -> dict:
     )
     yaw = truth[:, 2] + np.random.default_rng(seed + 2).normal(size=len(times)) * GYRO_SIGMA
     order = np.argsort(poses.arrival, kind="stable")
-    estimator = PoseEstimator(ROBOT, "wheels", dd.Pose(*truth[0]), k_left=K, k_right=K)
+    estimator = PoseEstimator(ROBOT, "wheels", dd.Pose(*truth[0]), wheel_noise=K)
     estimator.update_positions(*wheels[0], times[0])
     estimates, covariances, next_pose = [truth[0]], [np.zeros((3, 3))], 0
     for step in range(1, len(times)):

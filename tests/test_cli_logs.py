@@ -445,8 +445,8 @@ def test_update_arrays_equals_one_update_at_a_time_and_names_the_refused_row():
     rng = np.random.default_rng(4)
     counts = np.cumsum(rng.integers(-20, 60, (300, 2)), axis=0) % 4096
     times = np.cumsum(rng.uniform(0.005, 0.02, 300))
-    one = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4, k_right=1e-4)
-    many = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, k_left=1e-4, k_right=1e-4)
+    one = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, wheel_noise=1e-4)
+    many = dd.Odometry(robot, ticks_per_revolution=4096, counter_bits=12, wheel_noise=1e-4)
     expected = []
     for (left, right), t in zip(counts.tolist(), times.tolist(), strict=True):
         one.update_ticks(left, right, t)

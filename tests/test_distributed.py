@@ -42,8 +42,7 @@ def client():
 
 def test_monte_carlo_on_two_workers_equals_one_process(client):
     options = {
-        "k_left": 1e-4,
-        "k_right": 2e-4,
+        "wheel_noise": (1e-4, 2e-4),
         "geometry_sigma": (0.005, 0.005, 0.01),
         "seed": 7,
         "chunk": 500,
@@ -56,7 +55,7 @@ def test_monte_carlo_on_two_workers_equals_one_process(client):
 
 
 def test_a_task_sends_back_statistics_not_paths():
-    setup = plan(ROBOT, WHEELS, DT, 3000, k_left=1e-4, seed=1, chunk=500)
+    setup = plan(ROBOT, WHEELS, DT, 3000, wheel_noise=(1e-4, 0.0), seed=1, chunk=500)
     final, moments = distributed._task(setup, 0, 3)  # three chunks, as a worker runs them
     assert final.shape == (1500, 3)  # one pose per robot
     assert moments.mean.shape == (301, 3)
@@ -88,7 +87,9 @@ def test_map_runs_gives_one_answer_per_item_in_order(client):
 def test_the_same_experiment_twice_on_one_client(client):
     """The second call lost its scattered plan to the first one's release before."""
     first, second = (
-        distributed.monte_carlo(ROBOT, WHEELS, DT, 200, seed=3, client=client, k_left=1e-4)
+        distributed.monte_carlo(
+            ROBOT, WHEELS, DT, 200, seed=3, client=client, wheel_noise=(1e-4, 0.0)
+        )
         for _ in range(2)
     )
     np.testing.assert_array_equal(first.final, second.final)

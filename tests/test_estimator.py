@@ -59,9 +59,7 @@ def run_scenario(seed, with_vision=True, latencies=(0.25,), k=K):
     increments = noisy_increments(rng, k)
     yaw = TRUTH[:, 2] + rng.normal(size=len(T)) * GYRO_SIGMA
     queue = vision(rng, latencies) if with_vision else []
-    estimator = PoseEstimator(
-        ROBOT, "wheels", dd.Pose(*TRUTH[0]), k_left=k, k_right=k, initial_time=0.0
-    )
+    estimator = PoseEstimator(ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=k, initial_time=0.0)
     estimator.add_heading(0.0, yaw[0], GYRO_SIGMA)
     errors, distances, q = [], [], 0
     for step in range(1, len(T)):
@@ -79,7 +77,7 @@ def run_scenario(seed, with_vision=True, latencies=(0.25,), k=K):
 def test_wheel_heading_is_odometry_for_every_reading_kind_and_counter():
     ticks = np.round(np.cumsum(WHEELS * DT, axis=0) / (2 * np.pi) * 1024).astype(np.int64)
     ticks = np.concatenate([[[0, 0]], ticks]) % 4096  # 12-bit counters that roll over
-    options = dict(ticks_per_revolution=1024, counter_bits=12, k_left=K, k_right=2 * K)
+    options = dict(ticks_per_revolution=1024, counter_bits=12, wheel_noise=(K, 2 * K))
     odometry = dd.Odometry(ROBOT, initial_pose=dd.Pose(1, 2, 0.3), **options)
     estimator = PoseEstimator(ROBOT, "wheels", dd.Pose(1, 2, 0.3), **options)
     for k, (left, right) in enumerate(ticks):
@@ -91,8 +89,8 @@ def test_wheel_heading_is_odometry_for_every_reading_kind_and_counter():
 
 def test_skid_steer_runs_as_its_equivalent_drive():
     robot = dd.SkidSteer(0.11, 0.45, -0.40, icr_x=0.03)
-    odometry = dd.Odometry(robot, initial_pose=dd.Pose(0, 1, 1), k_left=K, k_right=K)
-    estimator = PoseEstimator(robot, "wheels", dd.Pose(0, 1, 1), k_left=K, k_right=K)
+    odometry = dd.Odometry(robot, initial_pose=dd.Pose(0, 1, 1), wheel_noise=K)
+    estimator = PoseEstimator(robot, "wheels", dd.Pose(0, 1, 1), wheel_noise=K)
     estimator.update_positions(0.0, 0.0, 0.0)
     odometry.update_positions(0.0, 0.0, 0.0)
     for k, (left, right) in enumerate(np.cumsum(WHEELS[:200] * DT, axis=0)):
@@ -129,10 +127,8 @@ def test_a_late_measurement_lands_at_its_stamp_as_if_it_had_come_in_time():
     rng = np.random.default_rng(1)
     increments = noisy_increments(rng)
     poses = TRUTH[::10] + rng.normal(size=(len(T[::10]), 3)) * VISION_SIGMA
-    on_time = PoseEstimator(
-        ROBOT, "wheels", dd.Pose(*TRUTH[0]), k_left=K, k_right=K, initial_time=0.0
-    )
-    late = PoseEstimator(ROBOT, "wheels", dd.Pose(*TRUTH[0]), k_left=K, k_right=K, initial_time=0.0)
+    on_time = PoseEstimator(ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
+    late = PoseEstimator(ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
     for step in range(1, 300):
         for estimator in (on_time, late):
             estimator.update_increments(*increments[step - 1], T[step])
@@ -165,7 +161,7 @@ def test_numpy_lists_and_tuples_are_the_same_measurement():
     states = {}
     for name, form in forms.items():
         estimator = PoseEstimator(
-            ROBOT, "wheels", dd.Pose(*TRUTH[0]), k_left=K, k_right=K, initial_time=0.0
+            ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0
         )
         for step in range(1, 200):
             estimator.update_increments(*increments[step - 1], T[step])
@@ -193,9 +189,7 @@ def test_the_result_does_not_depend_on_the_order_measurements_arrive_in(order):
     measured = [
         dd.evaluation.interpolate(T, TRUTH, [s])[0] + n for s, n in zip(stamps, noise, strict=True)
     ]
-    estimator = PoseEstimator(
-        ROBOT, "fused", dd.Pose(*TRUTH[0]), k_left=K, k_right=K, initial_time=0.0
-    )
+    estimator = PoseEstimator(ROBOT, "fused", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
     for step in range(1, 101):
         estimator.update_increments(
             *increments[step - 1], T[step], gyro_angle=TRUTH[step, 2] - TRUTH[step - 1, 2]
@@ -210,9 +204,7 @@ def test_the_result_does_not_depend_on_the_order_measurements_arrive_in(order):
 
 
 def _ordered_reference(increments, stamps, measured):
-    estimator = PoseEstimator(
-        ROBOT, "fused", dd.Pose(*TRUTH[0]), k_left=K, k_right=K, initial_time=0.0
-    )
+    estimator = PoseEstimator(ROBOT, "fused", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
     for step in range(1, 101):
         estimator.update_increments(
             *increments[step - 1], T[step], gyro_angle=TRUTH[step, 2] - TRUTH[step - 1, 2]
@@ -226,7 +218,7 @@ def _ordered_reference(increments, stamps, measured):
 
 
 def test_the_gate_refuses_an_outlier_and_counts_it():
-    estimator = PoseEstimator(ROBOT, "wheels", k_left=K, k_right=K, initial_time=0.0)
+    estimator = PoseEstimator(ROBOT, "wheels", wheel_noise=K, initial_time=0.0)
     for step in range(1, 50):
         estimator.update_increments(*WHEELS[step - 1] * DT, T[step])
     before = estimator.state
@@ -281,7 +273,7 @@ def test_measurement_made_checks_its_covariance_forms():
 
 
 def test_pose_at_a_stamp_inside_the_history():
-    estimator = PoseEstimator(ROBOT, "wheels", k_left=K, k_right=K, initial_time=0.0)
+    estimator = PoseEstimator(ROBOT, "wheels", wheel_noise=K, initial_time=0.0)
     seen = {}
     for step in range(1, 150):
         estimator.update_increments(*WHEELS[step - 1] * DT, T[step])
@@ -329,7 +321,7 @@ def test_smoothing_uses_what_came_after_and_ends_where_the_filter_does():
         fixes = TRUTH[::25, :2] + rng.normal(size=(len(T[::25]), 2)) * 0.1
         measurements = measurements_of("position", T[::25], fixes, 0.1)
         measurements += measurements_of("heading", T, yaw, GYRO_SIGMA)
-        options = dict(heading="wheels", initial_pose=TRUTH[0], k_left=1e-3, k_right=1e-3)
+        options = dict(heading="wheels", initial_pose=TRUTH[0], wheel_noise=1e-3)
         runs = {
             smooth: estimate_trajectory(
                 ROBOT, T, increments, measurements=measurements, smooth=smooth, **options
@@ -353,7 +345,7 @@ def test_smoothing_uses_what_came_after_and_ends_where_the_filter_does():
 
 def test_without_measurements_the_smoother_is_the_filter():
     increments = noisy_increments(np.random.default_rng(5))
-    options = dict(heading="wheels", k_left=K, k_right=K)
+    options = dict(heading="wheels", wheel_noise=K)
     forward = estimate_trajectory(ROBOT, T[:100], increments[:99], smooth=False, **options)
     smoothed = estimate_trajectory(ROBOT, T[:100], increments[:99], **options)
     np.testing.assert_allclose(smoothed.poses, forward.poses, atol=1e-12)
@@ -377,7 +369,7 @@ def test_the_turn_scale_state_learns_wheels_that_under_turn():
     def run(**options):
         return estimate_trajectory(
             robot_says, T, WHEELS * DT, gyro=gyro, initial_pose=TRUTH[0], smooth=False,
-            k_left=1e-5, k_right=1e-5, noise=noise, **options,
+            wheel_noise=1e-5, noise=noise, **options,
         )  # fmt: skip
 
     learnt, fixed = run(turn_scale_sigma=0.2), run()
@@ -417,7 +409,7 @@ readings = st.lists(
 def test_the_c_core_is_its_python_twin(steps, heading, scale):
     """Any wheel, gyro and measurement sequence, late stamps included: the C core and the
     pure-Python core give the same state, covariance, counts and pose in the past."""
-    options = dict(k_left=1e-4, k_right=2e-4, turn_scale_sigma=0.1 if scale else 0.0)
+    options = dict(wheel_noise=(1e-4, 2e-4), turn_scale_sigma=0.1 if scale else 0.0)
     options.update(initial_time=0.0, history=0.5, initial_covariance=np.eye(3) * 1e-4)
     pair = [
         kind(ROBOT, heading, **options)

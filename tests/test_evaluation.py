@@ -248,13 +248,11 @@ def test_odometrys_covariance_is_honest_over_many_robots():
     t = np.arange(201) * 0.02
     wheels = np.stack([6 + 3 * np.sin(0.9 * t[:-1]), 6 - 3 * np.cos(0.6 * t[:-1])], axis=-1)
     path = dd.simulate(robot, wheels, times=t)
-    model = sensors.EncoderModel(k_left=1e-4, k_right=1e-4)
+    model = sensors.EncoderModel(wheel_noise=1e-4)
     readings = sensors.encoder_readings(robot, t, path.poses, model, robots=10_000, seed=11)
     finals, covariances = [], []
     for angles in readings.readings:
-        odometry = dd.Odometry(
-            robot, initial_pose=dd.Pose(*path.poses[0]), k_left=1e-4, k_right=1e-4
-        )
+        odometry = dd.Odometry(robot, initial_pose=dd.Pose(*path.poses[0]), wheel_noise=1e-4)
         odometry.update_arrays("positions", *angles.T, t)
         finals.append(odometry.pose.to_array())
         covariances.append(odometry.covariance)
@@ -272,3 +270,27 @@ def test_consistency_refuses_what_it_cannot_measure():
         consistency(np.zeros((2, 3)), np.zeros((2, 3, 3)), np.zeros((2, 3)))
     with pytest.raises(ValueError, match="covariances must be finite"):
         consistency(np.zeros((2, 3)), np.full((2, 3, 3), np.nan), np.zeros((2, 3)))
+
+
+def test_a_dead_reckoned_path_is_started_where_the_fixes_place_it():
+    """The path drawn at the origin, fixes of the same path moved by a rigid motion and seen
+    by a receiver 0.3 m ahead of the body: the start is the moved start, the residual 0."""
+    from diffdrive.estimation import Measurement
+    from diffdrive.evaluation import start_in_frame
+
+    robot = dd.DiffDrive(0.05, 0.3)
+    times = np.arange(201) * 0.05
+    wheels = np.column_stack([8 + 3 * np.sin(times[:-1]), 8 - 3 * np.sin(0.7 * times[:-1])])
+    path = dd.simulate(robot, wheels, times=times).poses
+    motion = np.array([4.0, -2.0, 0.8])
+    placed = dd.batch.compose(motion, path)
+    arm = (0.3, 0.0)
+    receiver = dd.batch.compose(placed, np.array([*arm, 0.0]))
+    fixes = [
+        Measurement.make("position", t, receiver[k, :2], np.eye(2) * 1e-4, arm)
+        for k, t in list(enumerate(times))[::20]
+    ]
+    start, covariance, rms = start_in_frame(times, path, fixes)
+    np.testing.assert_allclose(start, placed[0], atol=1e-9)
+    assert rms < 1e-9
+    assert covariance[0, 0] == pytest.approx(1e-4)  # the residual's floor of 1 cm, squared

@@ -132,7 +132,7 @@ def test_the_figures_follow_their_stated_derivation():
     model = noise.NoiseModel(1e-4, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
     at = export.Reference(distance=1.0, speed=0.5, rate=50.0)
     ros = export.parameters("ros2", NOMINAL, NOMINAL, model, at, wheel_names=WHEELS)
-    odometry = dd.Odometry(NOMINAL, k_left=1e-4, k_right=1e-4)
+    odometry = dd.Odometry(NOMINAL, wheel_noise=1e-4)
     odometry.update_arrays("increments", np.full(100, 0.2), np.full(100, 0.2))  # 1 m
     covariance = odometry.covariance
     assert ros["pose_covariance_diagonal"][0] == pytest.approx(covariance[0, 0], rel=1e-9)
@@ -306,7 +306,7 @@ def test_calibrate_then_export_from_logs(tmp_path, monkeypatch, capsys):
             [6 - turn + 2 * np.sin(0.4 * t[:-1]), 6 + turn - 2 * np.sin(0.4 * t[:-1])], -1
         )
         path = dd.simulate(NOMINAL, wheels, times=t)
-        model = sensors.EncoderModel(k_left=1e-4, k_right=1e-4, radius_bias=(0.01, 0.0))
+        model = sensors.EncoderModel(wheel_noise=1e-4, radius_bias=(0.01, 0.0))
         readings = sensors.encoder_readings(NOMINAL, t, path.poses, model, seed=n)
         logs.append(str(sensors.write_table(tmp_path / f"log{n}.csv", readings)))
     (tmp_path / "nominal.toml").write_text("wheel_radius = 0.05\ntrack_width = 0.3\n")

@@ -54,7 +54,7 @@ def test_fused_beats_the_wheels_and_the_gyro_alone():
     t, measured, gyro, truth, _ = slipping_run()
     found = {
         heading: errors(
-            gyro_odometry(ROBOT, t, measured, gyro, heading, k_left=2e-6, k_right=2e-6), truth
+            gyro_odometry(ROBOT, t, measured, gyro, heading, wheel_noise=2e-6), truth
         ).max()
         for heading in ("wheels", "gyro", "fused")
     }
@@ -68,7 +68,7 @@ def test_slip_detection_rate_and_false_alarms_at_the_default_threshold():
     rates = []
     for seed in range(3):
         t, measured, gyro, _, slip = slipping_run(seed)
-        result = gyro_odometry(ROBOT, t, measured, gyro, "fused", k_left=2e-6, k_right=2e-6)
+        result = gyro_odometry(ROBOT, t, measured, gyro, "fused", wheel_noise=2e-6)
         flagged = result.slip[1:]
         rates.append((flagged[slip].mean(), flagged[~slip].mean()))
     detection, false_alarm = np.mean(rates, axis=0)
@@ -79,7 +79,7 @@ def test_slip_detection_rate_and_false_alarms_at_the_default_threshold():
 
 def test_the_fused_bias_follows_a_drifting_bias():
     t, measured, gyro, _, _ = slipping_run()
-    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", k_left=2e-6, k_right=2e-6)
+    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", wheel_noise=2e-6)
     assert result.bias[0] == pytest.approx(0.01, abs=2e-3)  # from the first second, standing
     assert result.bias[-1] > 0.018  # the true bias ends at 0.03 rad/s; a fixed one stays 0.01
 
@@ -110,7 +110,7 @@ def test_streaming_equals_the_whole_log():
 
 def test_covariance_is_symmetric_positive_and_grows_with_distance():
     t, measured, gyro, _, _ = slipping_run()
-    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", k_left=2e-6, k_right=2e-6)
+    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", wheel_noise=2e-6)
     for covariance in result.covariances[::300]:
         np.testing.assert_allclose(covariance, covariance.T, atol=1e-15)
         assert np.linalg.eigvalsh(covariance).min() > -1e-12

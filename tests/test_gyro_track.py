@@ -18,7 +18,7 @@ def weaving(k, arw, seed=0):
     wheels = np.stack([6 + 4 * np.sin(0.6 * T[:-1]), 6 - 4 * np.sin(0.6 * T[:-1] + 0.5)], -1)
     path = dd.simulate(TRUE, wheels, times=T)
     encoders = sensors.encoder_readings(
-        TRUE, T, path.poses, sensors.EncoderModel(k_left=k, k_right=k), seed=seed
+        TRUE, T, path.poses, sensors.EncoderModel(wheel_noise=k), seed=seed
     )
     model = sensors.GyroModel(angle_random_walk=arw, bias=0.01)
     rates = sensors.gyro_readings(TRUE, T, path.poses, model, seed=seed + 1).rates[0]

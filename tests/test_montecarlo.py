@@ -17,9 +17,9 @@ WHEELS = np.stack([8 + 3 * np.sin(T), 8 - 3 * np.sin(0.7 * T)], axis=-1)
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 def test_the_spread_matches_odometry_covariance(backend):
     result = monte_carlo(
-        ROBOT, WHEELS, DT, 20_000, k_left=1e-4, k_right=2e-4, seed=1, backend=backend
+        ROBOT, WHEELS, DT, 20_000, wheel_noise=(1e-4, 2e-4), seed=1, backend=backend
     )
-    odometry = dd.Odometry(ROBOT, k_left=1e-4, k_right=2e-4)
+    odometry = dd.Odometry(ROBOT, wheel_noise=(1e-4, 2e-4))
     poses, covariances = odometry.update_arrays("increments", *(WHEELS * DT).T, covariance=True)
     # 20,000 robots: a variance is known to about sqrt(2/N) = 1 %; the model is linearised.
     # Compared scaled by the deviations, so that a near-zero correlation counts absolutely.
@@ -59,13 +59,17 @@ def test_a_geometry_error_spreads_the_heading_as_its_formula_says():
 
 
 def test_the_numbers_depend_on_the_seed_and_chunk_not_on_the_threads():
-    one = monte_carlo(ROBOT, WHEELS, DT, 1000, k_left=1e-4, seed=5, chunk=300)
-    two = monte_carlo(ROBOT, WHEELS, DT, 1000, k_left=1e-4, seed=5, chunk=300, threads=2)
+    one = monte_carlo(ROBOT, WHEELS, DT, 1000, wheel_noise=(1e-4, 0.0), seed=5, chunk=300)
+    two = monte_carlo(
+        ROBOT, WHEELS, DT, 1000, wheel_noise=(1e-4, 0.0), seed=5, chunk=300, threads=2
+    )
     np.testing.assert_array_equal(one.final, two.final)
     np.testing.assert_allclose(one.covariance, two.covariance, rtol=1e-9, atol=1e-20)
-    other = monte_carlo(ROBOT, WHEELS, DT, 1000, k_left=1e-4, seed=6, chunk=300)
+    other = monte_carlo(ROBOT, WHEELS, DT, 1000, wheel_noise=(1e-4, 0.0), seed=6, chunk=300)
     assert not np.array_equal(one.final, other.final)
-    unseeded = [monte_carlo(ROBOT, WHEELS, DT, 10, k_left=1e-4, chunk=3) for _ in range(2)]
+    unseeded = [
+        monte_carlo(ROBOT, WHEELS, DT, 10, wheel_noise=(1e-4, 0.0), chunk=3) for _ in range(2)
+    ]
     assert not np.array_equal(unseeded[0].final, unseeded[1].final)
 
 
@@ -90,7 +94,7 @@ def test_merged_moments_equal_those_of_all_the_data():
     [
         ({"robots": 0}, "robots must be a whole number from 1"),
         ({"robots": 2.5}, "robots must be a whole number"),
-        ({"k_left": -1e-4}, "must be finite and >= 0"),
+        ({"wheel_noise": (-1e-4, 0.0)}, "wheel noise left must be a number >= 0"),
         ({"geometry_sigma": (0.01, 0.01)}, "geometry_sigma"),
         ({"dt": 0.0}, "dt must be > 0"),
         ({"wheel_velocities": np.ones((2, 5, 2))}, r"one history \(T, 2\)"),
@@ -111,9 +115,11 @@ def test_bad_input_is_refused_with_its_name(changes, message):
 
 def test_seeds_past_two_to_the_53_are_kept_exactly():
     """2**53 and 2**53 + 1 went through a float and gave the same robots."""
-    runs = [monte_carlo(ROBOT, WHEELS, DT, 20, k_left=1e-4, seed=2**53 + k) for k in (0, 1)]
+    runs = [
+        monte_carlo(ROBOT, WHEELS, DT, 20, wheel_noise=(1e-4, 0.0), seed=2**53 + k) for k in (0, 1)
+    ]
     assert not np.array_equal(runs[0].final, runs[1].final)
-    again = monte_carlo(ROBOT, WHEELS, DT, 20, k_left=1e-4, seed=np.uint64(2**53 + 1))
+    again = monte_carlo(ROBOT, WHEELS, DT, 20, wheel_noise=(1e-4, 0.0), seed=np.uint64(2**53 + 1))
     np.testing.assert_array_equal(again.final, runs[1].final)
     with pytest.raises(ValueError, match="seed must be a whole number from 0"):
         monte_carlo(ROBOT, WHEELS, DT, 20, seed=-1)
@@ -125,7 +131,12 @@ def test_seeds_past_two_to_the_53_are_kept_exactly():
     [
         (np.full((3, 2), 1e300), 1e10, {}, "the wheels' travel"),
         (np.full((4, 2), 1e307), 10.0, {}, "the wheels' travel"),
-        (np.tile([1e150, -1e150], (4, 1)), 1.0, {"k_left": 1e300}, "poses overflow the floats"),
+        (
+            np.tile([1e150, -1e150], (4, 1)),
+            1.0,
+            {"wheel_noise": (1e290, 0.0)},
+            "poses overflow the floats",
+        ),
     ],
 )
 def test_travel_that_overflows_is_refused_not_returned_as_nan(

@@ -32,7 +32,7 @@ def runs(
     reference with noise."""
     rng = np.random.default_rng(seed)
     made, truths = [], []
-    model = sensors.EncoderModel(geometry_sigma=geometry, k_left=k, k_right=k)
+    model = sensors.EncoderModel(geometry_sigma=geometry, wheel_noise=k)
     for _ in range(count):
         base, turn = rng.uniform(3, 8), rng.uniform(-4, 4)
         sway, rate = rng.uniform(0, 3), rng.uniform(0.2, 1.0)
@@ -169,7 +169,7 @@ def test_k_alone_is_odometrys_own():
     model = noise.NoiseModel(1e-4, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
     increments, truth = made[0]
     _, predicted = noise.covariances(ROBOT, increments, truth[0], model)
-    odometry = dd.Odometry(ROBOT, initial_pose=dd.Pose(*truth[0]), k_left=1e-4, k_right=1e-4)
+    odometry = dd.Odometry(ROBOT, initial_pose=dd.Pose(*truth[0]), wheel_noise=1e-4)
     odometry.update_arrays("increments", *increments.T)
     np.testing.assert_allclose(predicted[-1], odometry.covariance, rtol=1e-12)
 

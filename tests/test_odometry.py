@@ -307,8 +307,8 @@ def test_ticks_need_ticks_per_revolution():
         ({"counter_bits": 65}, "counter_bits must be from 2 to 64 .*got 65"),
         ({"ticks_per_revolution": 0}, "ticks_per_revolution must be > 0"),
         ({"max_wheel_speed": -1.0}, "max_wheel_speed must be > 0"),
-        ({"k_left": -0.1}, "k_left must be >= 0"),
-        ({"k_right": math.nan}, "k_right must be finite"),
+        ({"wheel_noise": (-0.1, 0.0)}, "wheel noise left must be a number >= 0"),
+        ({"wheel_noise": (0.0, math.nan)}, "wheel noise right must be finite"),
         ({"velocity_window": 0.0}, "velocity_window must be > 0"),
         ({"initial_covariance": np.eye(2)}, "covariance must be 3x3"),
         ({"initial_covariance": -np.eye(3)}, "positive semi-definite"),
@@ -357,7 +357,7 @@ def test_jacobians_match_finite_differences(params, method, pose, increments):
 
 def test_covariance_grows_with_distance_not_with_the_update_rate():
     """k scales the variance: the same straight path in 10 or 1000 updates, same covariance."""
-    coarse, fine = (dd.Odometry(ROBOT, k_left=1e-3, k_right=2e-3) for _ in range(2))
+    coarse, fine = (dd.Odometry(ROBOT, wheel_noise=(1e-3, 2e-3)) for _ in range(2))
     for _ in range(10):
         coarse.update_increments(2.0, 2.0)
     for _ in range(1000):
@@ -379,7 +379,7 @@ def test_propagated_covariance_matches_monte_carlo(method):
     k_left, k_right, steps, copies = 2e-5, 1e-5, 200, 4000
     t = np.arange(steps) * 0.05
     increments = np.stack([0.6 + 0.3 * np.sin(t), 0.6 + 0.3 * np.cos(0.7 * t)], axis=-1)
-    odometry = dd.Odometry(ROBOT, method, k_left=k_left, k_right=k_right)
+    odometry = dd.Odometry(ROBOT, method, wheel_noise=(k_left, k_right))
     for left, right in increments:
         odometry.update_increments(left, right)
     radii = np.array([ROBOT.left_wheel_radius, ROBOT.right_wheel_radius])
@@ -411,8 +411,8 @@ def test_propagated_covariance_matches_monte_carlo(method):
     ],
 )
 def test_an_update_whose_result_is_not_finite_is_refused(calls, message):
-    odometry = dd.Odometry(ROBOT, k_left=1e-4, k_right=1e-4)
-    twin = dd.Odometry(ROBOT, k_left=1e-4, k_right=1e-4)
+    odometry = dd.Odometry(ROBOT, wheel_noise=1e-4)
+    twin = dd.Odometry(ROBOT, wheel_noise=1e-4)
     *accepted, last = calls
     for name, *args in accepted:
         with contextlib.suppress(ValueError):

@@ -74,8 +74,7 @@ def test_the_twin_follows_the_c_core_update_by_update(method, bits, sequence):
     options = {
         "ticks_per_revolution": 4096,
         "counter_bits": bits,
-        "k_left": 1e-4,
-        "k_right": 2e-4,
+        "wheel_noise": (1e-4, 2e-4),
         "max_wheel_speed": 300.0,
         "velocity_window": 0.3,
     }

@@ -80,14 +80,14 @@ def test_wheel_noise_matches_the_odometry_covariance_it_is_modelled_on():
     k = (2e-4, 4e-4)
     steps = 100
     trajectory = dd.simulate(ROBOT, WHEELS[:steps], times=T[: steps + 1])
-    model = sensors.EncoderModel(k_left=k[0], k_right=k[1])
+    model = sensors.EncoderModel(wheel_noise=(k[0], k[1]))
     readings = sensors.encoder_readings(
         ROBOT, trajectory.times, trajectory.poses, model, robots=10_000, seed=7
     )
     start = trajectory.poses[0]
     finals = dead_reckon(ROBOT, np.diff(readings.readings, axis=1), start)[:, -1]
     sample = np.cov(finals.T)
-    odometry = dd.Odometry(ROBOT, initial_pose=dd.Pose(*start), k_left=k[0], k_right=k[1])
+    odometry = dd.Odometry(ROBOT, initial_pose=dd.Pose(*start), wheel_noise=(k[0], k[1]))
     odometry.update_arrays("increments", *(WHEELS[:steps] * 0.02).T)
     propagated = odometry.covariance
     assert np.trace(sample) == pytest.approx(np.trace(propagated), rel=0.05)
@@ -117,8 +117,7 @@ def slip_flags(model, k, arw, robots, seeds, slip_test="episodes"):
             Gyro(T, gyro.rates[n]),
             "fused",
             bias=0.0,
-            k_left=k,
-            k_right=k,
+            wheel_noise=k,
             noise=dd.estimation.GyroNoise(angle_random_walk=arw),
             slip_test=slip_test,
         ).slip[1:]
@@ -131,7 +130,7 @@ def test_slips_are_labelled_and_the_gyro_filter_finds_them():
     """A wheel spinning half again as far as the ground moves over three episodes: the
     detector flags the labelled intervals (README: what it finds) and few others."""
     slips = tuple(sensors.Slip(s, s + 0.4, "left", 0.5) for s in (2.0, 5.0, 8.0))
-    model = sensors.EncoderModel(k_left=1e-6, k_right=1e-6, slips=slips)
+    model = sensors.EncoderModel(wheel_noise=1e-6, slips=slips)
     labelled, flagged = slip_flags(model, 1e-6, 1e-3, 20, (3, 4))
     assert labelled[0].sum() == 60  # 3 episodes of 20 intervals
     assert flagged[labelled].mean() >= 0.99
@@ -143,7 +142,7 @@ def test_the_whole_log_finds_slips_too_weak_for_one_interval():
     while it turns slowest moves each interval's turn by about 3 standard deviations, which
     the streaming test alone passes about half the time; the episodes find the whole slip."""
     slips = (sensors.Slip(1.0, 1.4, "right", 0.5), sensors.Slip(6.4, 6.8, "left", 0.5))
-    model = sensors.EncoderModel(k_left=1e-5, k_right=1e-5, slips=slips)
+    model = sensors.EncoderModel(wheel_noise=1e-5, slips=slips)
     labelled, alone = slip_flags(model, 1e-5, 2e-3, 20, (5, 6), "interval")
     _, pooled = slip_flags(model, 1e-5, 2e-3, 20, (5, 6))
     assert alone[labelled].mean() < 0.9  # measured 0.43
@@ -155,7 +154,7 @@ def test_a_wheel_radius_error_is_the_geometry_not_a_slip():
     """A left wheel 5 % large turns the wheels' turn away from the gyro's on every interval:
     pooled over a log that is as clear as a slip, but it is the geometry's error (without
     the steady fit, 5.8 % of the intervals were flagged)."""
-    model = sensors.EncoderModel(radius_bias=(0.05, 0.0), k_left=1e-5, k_right=1e-5)
+    model = sensors.EncoderModel(radius_bias=(0.05, 0.0), wheel_noise=1e-5)
     _, flagged = slip_flags(model, 1e-5, 2e-3, 5, (7, 8))
     assert flagged.mean() < 0.005
 
@@ -183,7 +182,7 @@ def test_jitter_latency_and_drops():
 
 
 def test_seeds_repeat_and_differ():
-    model = sensors.EncoderModel(k_left=1e-4, k_right=1e-4, geometry_sigma=(0.01, 0.01, 0.02))
+    model = sensors.EncoderModel(wheel_noise=1e-4, geometry_sigma=(0.01, 0.01, 0.02))
     poses = path().poses
     one, two, other = (
         sensors.encoder_readings(ROBOT, T, poses, model, robots=4, seed=s) for s in (5, 5, 6)
@@ -245,8 +244,11 @@ def test_absolute_sensors_noise_latency_dropouts_outliers_and_gps():
 @pytest.mark.parametrize(
     ("make", "message"),
     [
-        (lambda: sensors.EncoderModel(k_left=-1e-4), "k_left must be >= 0"),
-        (lambda: sensors.EncoderModel(k_right=math.nan), "k_right must be finite"),
+        (lambda: sensors.EncoderModel(wheel_noise=(-1e-4, 0)), "wheel noise left must be a number"),
+        (
+            lambda: sensors.EncoderModel(wheel_noise=(0, math.nan)),
+            "wheel noise right must be finite",
+        ),
         (lambda: sensors.EncoderModel(ticks_per_revolution=100, counter_bits=65), "from 2 to 64"),
         (lambda: sensors.EncoderModel(counter_bits=16), "counter_bits needs ticks_per_revolution"),
         (lambda: sensors.EncoderModel(drop=1.0), "drop must be a probability"),

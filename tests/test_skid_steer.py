@@ -75,11 +75,11 @@ def test_simulate_follows_the_body_origin_of_an_asymmetric_robot(backend):
 def test_odometry_of_an_asymmetric_robot_equals_simulate_with_its_covariance_and_jacobians():
     start = dd.Pose(1.0, 2.0, 0.5)
     trajectory = dd.simulate(ASYMMETRIC, WHEELS, dt=0.01, initial_pose=start.to_array())
-    odometry = dd.Odometry(ASYMMETRIC, initial_pose=start, k_left=1e-4, k_right=1e-4)
+    odometry = dd.Odometry(ASYMMETRIC, initial_pose=start, wheel_noise=1e-4)
     for left, right in (WHEELS * 0.01).tolist():
         odometry.update_increments(left, right)
     np.testing.assert_allclose(odometry.pose.to_array(), trajectory.final_pose, atol=1e-12)
-    batch = dd.Odometry(ASYMMETRIC, initial_pose=start, k_left=1e-4, k_right=1e-4)
+    batch = dd.Odometry(ASYMMETRIC, initial_pose=start, wheel_noise=1e-4)
     poses, covariances = batch.update_arrays("increments", *(WHEELS * 0.01).T, covariance=True)
     np.testing.assert_allclose(poses, trajectory.poses[1:], atol=1e-12)
     np.testing.assert_allclose(covariances[-1], odometry.covariance, atol=1e-15)
@@ -185,7 +185,7 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
 
     start = dd.Pose(0.3, -0.2, 0.4)
     offset = ASYMMETRIC.reference_offset
-    options = {"k_left": 1e-3, "k_right": 2e-3}
+    options = {"wheel_noise": (1e-3, 2e-3)}
     gyro = GyroOdometry(ASYMMETRIC, "wheels", start, **options)
     drive = GyroOdometry(
         ASYMMETRIC.equivalent, "wheels", start.compose(dd.Pose(0, offset)), **options

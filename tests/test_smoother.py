@@ -46,7 +46,7 @@ def make_log(steps, seen):
 
 def run_core(kind, heading, scale, log, smooth):
     times, increments, turns, forced, ordered = log
-    options = dict(k_left=1e-4, k_right=2e-4, turn_scale_sigma=0.1 if scale else 0.0)
+    options = dict(wheel_noise=(1e-4, 2e-4), turn_scale_sigma=0.1 if scale else 0.0)
     estimator = kind(
         ROBOT, heading, (0.1, -0.2, 0.3), np.eye(3) * 1e-3, initial_time=0.0, history=np.inf,
         ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), **options,
@@ -96,7 +96,7 @@ def test_the_whole_log_filter_is_the_streaming_estimator(steps, seen):
     run = run_core(fusion.PoseEstimator, "fused", True, unforced, False)
     streaming = fusion.PoseEstimator(
         ROBOT, "fused", (0.1, -0.2, 0.3), np.eye(3) * 1e-3, initial_time=0.0, history=np.inf,
-        ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), k_left=1e-4, k_right=2e-4,
+        ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), wheel_noise=(1e-4, 2e-4),
         turn_scale_sigma=0.1,
     )  # fmt: skip
     given_ = 0
@@ -139,8 +139,7 @@ def test_the_pipeline_is_the_same_on_both_cores(monkeypatch):
                 increments,
                 gyro=Gyro(times, rate),
                 measurements=measurements,
-                k_left=1e-4,
-                k_right=1e-4,
+                wheel_noise=1e-4,
             )
         )
     c, python = results

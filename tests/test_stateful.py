@@ -76,8 +76,7 @@ class OdometryMachine(RuleBasedStateMachine):
             "ticks_per_revolution": 4096,
             "counter_bits": 16,
             "max_wheel_speed": 1e4,
-            "k_left": 1e-4,
-            "k_right": 1e-4,
+            "wheel_noise": 1e-4,
         }
         self.odometry, self.twin = dd.Odometry(ROBOT, **options), dd.Odometry(ROBOT, **options)
 

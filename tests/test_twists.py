@@ -14,7 +14,7 @@ ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.5)
 
 def test_one_interval_by_hand():
     """Wheels turn 1 and 2 rad in 0.5 s: arcs 0.1 and 0.2 m, k = 1e-3 m."""
-    twists, covariances = interval_twists(ROBOT, [0.0, 0.5], [[1.0, 2.0]], 1e-3, 1e-3)
+    twists, covariances = interval_twists(ROBOT, [0.0, 0.5], [[1.0, 2.0]], 1e-3)
     np.testing.assert_allclose(twists, [[0.3, 0.0, 0.4]] * 2)
     # var f = (1e-4 + 2e-4) / 4, var w = 3e-4 / 0.25, cov(f, w) = (2e-4 - 1e-4) / (2 * 0.5),
     # each over dt^2 = 0.25.
@@ -37,7 +37,7 @@ def test_the_wheels_twist_is_forward_kinematics_for_every_model(robot):
     rng = np.random.default_rng(1)
     times = np.cumsum(rng.uniform(0.01, 0.05, 40))
     increments = rng.uniform(-0.5, 1.0, (39, 2))
-    twists, covariances = interval_twists(robot, times, increments, 1e-4, 2e-4)
+    twists, covariances = interval_twists(robot, times, increments, (1e-4, 2e-4))
     expected = batch.to_twist(robot, increments) / np.diff(times)[:, None]
     np.testing.assert_allclose(twists[1:], expected, rtol=1e-12, atol=1e-15)
     np.testing.assert_array_equal(twists[0], twists[1])
@@ -48,7 +48,7 @@ def test_the_covariance_is_the_noise_it_comes_from():
     """Each wheel's travel drawn with variance k |travel|: the twists' sample covariance."""
     robot = dd.SkidSteer(0.11, 0.45, -0.40, icr_x=0.03)
     increments = np.array([[0.8, 1.3]])
-    _, covariances = interval_twists(robot, [0.0, 0.1], increments, 1e-3, 3e-3)
+    _, covariances = interval_twists(robot, [0.0, 0.1], increments, (1e-3, 3e-3))
     rng = np.random.default_rng(2)
     arcs = increments[0] * np.array([robot.left_wheel_radius, robot.right_wheel_radius])
     noise = rng.standard_normal((200_000, 2)) * np.sqrt(np.array([1e-3, 3e-3]) * np.abs(arcs))
@@ -60,28 +60,28 @@ def test_the_covariance_is_the_noise_it_comes_from():
 def test_a_known_turn_scale_adds_nothing_to_a_huge_turn():
     """A wheel spun 1e300 rad (a glitch the estimator still integrates, spinning in place): a
     turn scale of zero variance adds zero, not 0 * inf = NaN."""
-    _, covariances = interval_twists(ROBOT, [0.0, 0.1], [[1e300, -1e300]], 1e-4, 1e-4)
+    _, covariances = interval_twists(ROBOT, [0.0, 0.1], [[1e300, -1e300]], 1e-4)
     assert np.all(np.isfinite(covariances))
 
 
 def test_a_turn_from_elsewhere_and_a_turn_scale():
     times, increments = np.array([0.0, 0.2, 0.4]), np.array([[1.0, 1.2], [1.0, 1.0]])
     twists, covariances = interval_twists(
-        ROBOT, times, increments, 1e-4, 1e-4, turns=[0.05, -0.01], turn_variances=[1e-6, 2e-6]
+        ROBOT, times, increments, 1e-4, turns=[0.05, -0.01], turn_variances=[1e-6, 2e-6]
     )
     np.testing.assert_allclose(twists[1:, 2], [0.25, -0.05])
     np.testing.assert_allclose(covariances[1:, 2, 2], [1e-6 / 0.04, 2e-6 / 0.04])
     np.testing.assert_array_equal(covariances[:, 0, 2], 0.0)  # another sensor's turn
     scaled, spread = interval_twists(
-        ROBOT, times, increments, 0.0, 0.0, turn_scale=1.1, turn_scale_variances=0.01
+        ROBOT, times, increments, 0.0, turn_scale=1.1, turn_scale_variances=0.01
     )
     wheel_turn = 0.1 * 0.2 / 0.5  # rad, the first interval's
     assert scaled[1, 2] == pytest.approx(1.1 * wheel_turn / 0.2)
     assert spread[1, 2, 2] == pytest.approx(wheel_turn**2 * 0.01 / 0.04)
     with pytest.raises(ValueError, match=r"turns must be one value or one per interval \(2,\)"):
-        interval_twists(ROBOT, times, increments, 0.0, 0.0, turns=[0.1, 0.2, 0.3])
+        interval_twists(ROBOT, times, increments, 0.0, turns=[0.1, 0.2, 0.3])
     with pytest.raises(ValueError, match="increments"):
-        interval_twists(ROBOT, times, increments[:1], 0.0, 0.0)
+        interval_twists(ROBOT, times, increments[:1], 0.0)
 
 
 def test_the_estimators_twist_turns_with_the_gyro_less_its_bias():
@@ -94,6 +94,6 @@ def test_the_estimators_twist_turns_with_the_gyro_less_its_bias():
     arw = 2e-3  # GyroNoise's default
     np.testing.assert_allclose(found.twist_covariances[1:, 2, 2], arw**2 / 0.02, rtol=1e-9)
     wheels = estimate_trajectory(ROBOT, times, increments, heading="wheels", smooth=False)
-    expected, spread = interval_twists(ROBOT, times, increments, 1e-4, 1e-4)
+    expected, spread = interval_twists(ROBOT, times, increments, 1e-4)
     np.testing.assert_allclose(wheels.twists, expected, rtol=1e-12)
     np.testing.assert_allclose(wheels.twist_covariances, spread, rtol=1e-12)

@@ -15,7 +15,7 @@ that workers do not oversubscribe the cores. On a cluster, pass its client; the 
     cluster = SLURMCluster(cores=1, memory="4GB", processes=1)
     cluster.scale(jobs=64)
     with Client(cluster) as client:
-        result = monte_carlo(robot, wheels, 0.01, 10**7, k_left=1e-4, client=client)
+        result = monte_carlo(robot, wheels, 0.01, 10**7, wheel_noise=1e-4, client=client)
 """
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ def monte_carlo(
     **options: Any,
 ) -> MonteCarlo:
     """``diffdrive.montecarlo.monte_carlo`` over Dask tasks (default: one per worker thread),
-    each reducing a contiguous run of chunks; ``options`` are that function's (``k_left``,
+    each reducing a contiguous run of chunks; ``options`` are that function's (``wheel_noise``,
     ``geometry_sigma``, ``seed``, ``chunk``, ``backend``, ...). Give ``seed`` for results
     that can be repeated."""
     setup = plan(robot, wheel_velocities, dt, robots, **options)

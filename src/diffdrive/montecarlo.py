@@ -8,8 +8,9 @@ the robots. Memory is ``N x 3`` plus ``T x 12`` plus one block of ``chunk x bloc
 
 The errors are those of ``Odometry``'s covariance model, so that the two can be compared:
 
-- each step's wheel travel ``ds`` (m) gets Gaussian noise of variance ``k_left |ds_left|`` and
-  ``k_right |ds_right|`` (``k`` in m; see ``diffdrive.estimation.odometry``);
+- each step's wheel travel ``ds`` (m) gets Gaussian noise of variance ``k |ds|`` with each
+  wheel's ``k`` of ``wheel_noise`` (a ``WheelNoise``, m; ``diffdrive.wheel_noise``; none by
+  default);
 - each robot's wheel radii and track width are the nominal ones times ``1 + e``, with ``e``
   Gaussian of the relative standard deviations ``geometry_sigma`` (a calibration's
   uncertainty), fixed over the run.
@@ -42,6 +43,8 @@ from diffdrive.batch.rollout import accumulate, twists
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive
+from diffdrive.wheel_noise import NONE as NO_NOISE
+from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike, draw_geometry, draw_travel
 
 __all__ = ["Moments", "MonteCarlo", "Plan", "checked_result", "monte_carlo", "plan", "run_chunks"]
 
@@ -124,8 +127,7 @@ def plan(
     dt,
     robots,
     *,
-    k_left=0.0,
-    k_right=0.0,
+    wheel_noise=NO_NOISE,
     geometry_sigma=(0.0, 0.0, 0.0),
     initial_pose=None,
     method="exact",
@@ -145,12 +147,12 @@ def plan(
     step = finite("dt", dt)
     if step <= 0:
         raise ValueError(f"dt must be > 0, got {dt!r}")
-    k = np.array([finite("k_left", k_left), finite("k_right", k_right)])
+    k = WheelNoise.coerce(wheel_noise).k
     sigma = np.asarray(geometry_sigma, dtype=float)
-    if sigma.shape != (3,) or not np.all(np.isfinite(sigma)) or np.any(sigma < 0) or np.any(k < 0):
+    if sigma.shape != (3,) or not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
         raise ValueError(
-            "k_left, k_right and geometry_sigma (3 relative deviations: left "
-            "radius, right radius, track) must be finite and >= 0"
+            "geometry_sigma (3 relative deviations: left radius, right radius, track) must be "
+            "finite and >= 0"
         )
     start = np.zeros(3) if initial_pose is None else initial_pose
     start = components(np, start, "initial_pose", POSE).astype(np.float64)
@@ -233,7 +235,7 @@ def _chunk_of(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
         return final, Moments(count, mean, m2)
     rng = np.random.default_rng(sequence)
     nominal = np.array(geometry_of(robot))
-    drawn = nominal[:3] * (1.0 + setup.geometry_sigma * rng.standard_normal((count, 3)))
+    drawn = draw_geometry(nominal[:3], setup.geometry_sigma, count, rng)
     geometry = np.column_stack([drawn, np.full(count, nominal[3])])  # (count, 4)
     radii = geometry[:, None, :2]
     steps = len(setup.travel)
@@ -266,8 +268,7 @@ def run_chunks(setup: Plan, indices: range, threads: int = 1) -> tuple[np.ndarra
 def noisy_angles(angles, radii, k, rng: np.random.Generator) -> np.ndarray:
     """Wheel-angle increments ``angles`` (rad) with each wheel's travel drawn noisy, of
     variance ``k |radius angle|`` (``Odometry``'s model; ``k`` and ``radii`` per wheel, m)."""
-    arcs = radii * angles
-    return angles + np.sqrt(k * np.abs(arcs)) * rng.standard_normal(arcs.shape) / radii
+    return angles + draw_travel(radii * angles, k, rng) / radii
 
 
 def monte_carlo(
@@ -276,8 +277,7 @@ def monte_carlo(
     dt: float,
     robots: int,
     *,
-    k_left: float = 0.0,
-    k_right: float = 0.0,
+    wheel_noise: WheelNoiseLike = NO_NOISE,
     geometry_sigma: object = (0.0, 0.0, 0.0),
     initial_pose: object = None,
     method: Method = "exact",
@@ -294,8 +294,7 @@ def monte_carlo(
         wheel_velocities,
         dt,
         robots,
-        k_left=k_left,
-        k_right=k_right,
+        wheel_noise=wheel_noise,
         geometry_sigma=geometry_sigma,
         initial_pose=initial_pose,
         method=method,

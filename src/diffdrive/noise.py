@@ -4,7 +4,7 @@ predicts along a run.
 The model of the odometry's error has three parts:
 
 - ``k`` (m): each wheel's travel in each step has a variance ``k |travel|``, as ``Odometry``
-  propagates it (``k_left = k_right = k``);
+  propagates it (``WheelNoise.symmetric(k)``);
 - ``radius_sigma``, ``track_sigma`` (relative): the run's geometry differs from the robot's by a
   Gaussian draw of these relative standard deviations, each wheel radius and the track, as
   ``monte_carlo``'s ``geometry_sigma``: an error that stays for the whole run;
@@ -55,6 +55,7 @@ from diffdrive.model import DiffDrive
 from diffdrive.montecarlo import noisy_angles
 from diffdrive.simulation import dead_reckon
 from diffdrive.types import Pose
+from diffdrive.wheel_noise import draw_geometry
 
 __all__ = [
     "TERMS",
@@ -153,7 +154,7 @@ def _window_terms(robot, increments, truth, count, method):
     error[:, 2] = batch.wrap_angle(error[:, 2])
     walk = np.zeros((3 * windows, 3 * windows))
     for w in range(windows):
-        odometry = Odometry(robot, method, Pose(), k_left=1.0, k_right=1.0)
+        odometry = Odometry(robot, method, Pose(), wheel_noise=1.0)
         rows = increments[a[w] : b[w]]
         odometry.update_arrays("increments", rows[:, 0], rows[:, 1])
         walk[3 * w : 3 * w + 3, 3 * w : 3 * w + 3] = odometry.covariance
@@ -371,7 +372,7 @@ def covariances(
     increments = np.asarray(increments, dtype=float)
     start = np.asarray(start, dtype=float)
     poses = dead_reckon(robot, increments, start, method)
-    odometry = Odometry(robot, method, Pose(*start), k_left=model.k, k_right=model.k)
+    odometry = Odometry(robot, method, Pose(*start), wheel_noise=model.k)
     _, walk = odometry.update_arrays(
         "increments", increments[:, 0], increments[:, 1], covariance=True
     )
@@ -413,7 +414,7 @@ def draw_reference(
     rng = rng if isinstance(rng, np.random.Generator) else rng_of(rng)
     base = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
     sigmas = np.array([model.radius_sigma, model.radius_sigma, model.track_sigma])
-    geometry = base * (1.0 + sigmas * rng.standard_normal(3))
+    geometry = draw_geometry(base, sigmas, 1, rng)[0]
     wheels = noisy_angles(increments, geometry[:2], model.k, rng)
     poses = dead_reckon(robot.with_geometry(*geometry), wheels, start, method)
     floor = np.array([model.reference_sigma] * 2 + [model.reference_heading_sigma])

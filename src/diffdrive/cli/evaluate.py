@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.cli.options import (
-    COVARIANCE_COLUMNS,
     TRAJECTORY_FILES,
     Command,
     Parents,
@@ -33,7 +32,8 @@ from diffdrive.evaluation import (
     rpe,
     run_errors,
 )
-from diffdrive.io import TableError, is_bag, read_trajectory
+from diffdrive.io import TableError, read_trajectory
+from diffdrive.io.trajectories import read_covariances
 from diffdrive.simulation import dead_reckon
 
 
@@ -71,7 +71,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         _stage(args.input, "reading the trajectory")
         times, estimate = read_trajectory(args.input, args.time_unit, args.topic, args.datum)
         if args.consistency:
-            covariances = read_covariances(args, times)
+            covariances = read_covariances(args.input, len(times), args.time_unit, args.topic)
         _stage(args.truth, "reading the truth")
         truth_times, truth = read_trajectory(
             args.truth, args.time_unit, args.truth_topic, args.datum
@@ -248,32 +248,6 @@ def evaluation_metrics(args, times, estimate, truth) -> dict:
                 file=sys.stderr,
             )
     return metrics
-
-
-def read_covariances(args, times) -> np.ndarray:
-    """The estimate's pose covariances ``(T+1, 3, 3)``: a bag's Odometry topic, or a table's
-    covariance columns (``diffdrive odometry --covariance`` writes them)."""
-    if is_bag(args.input):
-        from diffdrive.io import ros
-
-        return ros.read_odometry(args.input, args.topic).covariances
-    from diffdrive.io.tables import read_table
-
-    try:
-        table = read_table(args.input, ["t", *COVARIANCE_COLUMNS], time_unit=args.time_unit)
-    except TableError as exc:
-        raise TableError(
-            f"{exc}: a covariance is needed here (--consistency, --errors), columns "
-            f"{', '.join(COVARIANCE_COLUMNS)} (diffdrive odometry --covariance writes them)"
-        ) from None
-    flat = np.zeros((len(table["t"]), 9))
-    for name, index in COVARIANCE_COLUMNS.items():
-        flat[:, index] = table[name]
-        row, column = divmod(index, 3)
-        flat[:, 3 * column + row] = table[name]
-    if len(flat) != len(times):
-        raise TableError(f"{args.input}: {len(flat)} covariances for {len(times)} poses")
-    return flat.reshape(-1, 3, 3)
 
 
 def _paired(args, times, estimate, truth_times, truth, covariances=None):

@@ -16,16 +16,14 @@ span are left out, and said so.
 
 from __future__ import annotations
 
-import math
 import sys
 
 import numpy as np
 
-from diffdrive import batch
 from diffdrive.cli.options import estimate_columns, refuse_unused, wheel_noise, write_output
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation import Measurement, estimate_trajectory
-from diffdrive.evaluation import align, interpolate
+from diffdrive.evaluation import start_in_frame
 from diffdrive.io import Run, TableError, is_bag
 from diffdrive.model import Robot
 
@@ -173,11 +171,10 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     heading = args.heading or ("fused" if gyro is not None else "wheels")
     if heading != "wheels" and gyro is None:
         raise ValueError(f"--heading {heading} needs a gyro: --gyro-topic, or a gyro_z column")
-    k_left, k_right, assumed = wheel_noise(args)
+    noise, assumed = wheel_noise(args)
     note += assumed
     options = {
-        "k_left": k_left,
-        "k_right": k_right,
+        "wheel_noise": noise,
         "turn_scale_sigma": args.turn_scale_sigma or 0.0,
         "gate": args.gate,
         "method": args.method,
@@ -189,7 +186,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     start, covariance = log.start_pose(), None
     if inside:
         dead = estimate_trajectory(robot, log.times, increments, smooth=False, **common)
-        start, covariance, fit = _start_in_frame(log.times, dead.poses, inside)
+        start, covariance, fit = start_in_frame(log.times, dead.poses, inside)
         notes.append(
             f"start pose in the measurements' frame: ({start[0]:.3f} m, {start[1]:.3f} m, "
             f"{start[2]:.4f} rad), fitted to them (RMS {fit:.3f} m)"
@@ -235,36 +232,3 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         if log.truth is not None:
             print(error_summary(result.poses, log.truth))
     return 0
-
-
-def _start_in_frame(times, poses, measurements: list[Measurement]):
-    """The start pose in the measurements' frame (the dead-reckoned path fitted onto their
-    positions, each where its sensor sits: the pose moved by its lever arm), a covariance
-    from the fit's residual, and the residual's RMS (m)."""
-    stamps = np.array([m.t for m in measurements])
-    seen = np.array([[*m.value[:2], 0.0] for m in measurements])
-    path = interpolate(times, poses, stamps)
-    arms = np.array([[*m.lever_arm, 0.0] for m in measurements])
-    sensors = batch.compose(path, arms)
-    flat = np.column_stack([sensors[:, :2], np.zeros(len(path))])
-    if len(measurements) == 1 or np.ptp(flat[:, :2], axis=0).max() < 1e-9:
-        shift = seen[0, :2] - flat[0, :2]  # one point, or no travel: a translation only
-        moved = np.array([*shift, 0.0])
-        first = measurements[0]
-        if first.kind == "pose":  # the robot's pose the sensor's pose implies
-            heading = first.value[2]
-            c, s = math.cos(heading), math.sin(heading)
-            arm_x, arm_y = first.lever_arm[0], first.lever_arm[1]
-            body = np.array([first.value[0] - c * arm_x + s * arm_y,
-                             first.value[1] - s * arm_x - c * arm_y, heading])  # fmt: skip
-            moved = batch.compose(body, batch.inverse(path[0]))
-    else:
-        fitted = align(flat, seen)
-        moved = batch.compose(fitted[0], batch.inverse(flat[0]))
-    start = batch.compose(moved, poses[0])
-    placed = batch.compose(moved, flat)
-    rms = float(np.sqrt(np.mean(np.sum((placed[:, :2] - seen[:, :2]) ** 2, axis=1))))
-    spread = max(rms, 0.01)
-    extent = max(float(np.ptp(seen[:, :2], axis=0).max()), 1.0)
-    covariance = np.diag([spread**2, spread**2, min((spread / extent) ** 2 * 4, math.pi**2)])
-    return start, covariance, rms

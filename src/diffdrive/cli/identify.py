@@ -7,9 +7,6 @@ import argparse
 import math
 from pathlib import Path
 
-import numpy as np
-
-from diffdrive import batch
 from diffdrive.cli.options import (
     Command,
     Parents,
@@ -19,6 +16,7 @@ from diffdrive.cli.options import (
 )
 from diffdrive.dynamics import identify_drive
 from diffdrive.io import TableError, write_drive
+from diffdrive.io.read import read_commands
 
 
 def run_identify(args: argparse.Namespace) -> int:
@@ -28,7 +26,9 @@ def run_identify(args: argparse.Namespace) -> int:
     robot, ticks = robot_from(args)
     log = read_log_of(args)
     times, velocities = log.wheel_velocities(ticks or log.ticks_per_revolution, args.counter_bits)
-    command_times, commands, source = _commands(args, robot, log)
+    commanded = read_commands(args.input, robot, log, args.command_topic)
+    command_times, commands = commanded if commanded is not None else (None, None)
+    source = args.command_topic or ""
     voltages = None if log.voltages is None else log.voltages[: len(times)]
     if voltages is None and commands is None:
         raise TableError(
@@ -75,22 +75,6 @@ def run_identify(args: argparse.Namespace) -> int:
             )
         print(f"identify: wrote the drive to {args.output}")
     return 0
-
-
-def _commands(args, robot, log):
-    """``(times (M,), wheel velocities (M, 2) rad/s, source)`` of the commands: a bag's Twist
-    topic through the robot's inverse kinematics, or the log's command columns; Nones
-    without."""
-    if args.command_topic is not None:
-        from diffdrive.io import ros
-
-        twists = ros.read_twists(args.input, args.command_topic)
-        v, omega = twists.twists.T
-        wheels = batch.to_wheel_velocities(robot, np.column_stack([v, 0.0 * v, omega]))
-        return twists.times, wheels, args.command_topic
-    if log.commands is None:
-        return None, None, ""
-    return log.times[:-1], log.commands[:-1], ""
 
 
 EPILOGS = {

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive import batch
 from diffdrive.cli.fusion import GATE, refuse_idle_options, run_fusion, wants_fusion
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
@@ -33,6 +32,7 @@ from diffdrive.cli.report import error_summary
 from diffdrive.estimation.odometry import odometry_of_run
 from diffdrive.estimation.twists import interval_twists
 from diffdrive.io import RIM_SPEED_LIMIT, Run, TableError
+from diffdrive.io.read import read_commands
 from diffdrive.model import Robot
 
 # Past this share of intervals flagged, slip is not the explanation: robots slip on a few
@@ -61,7 +61,7 @@ def run_odometry(args: argparse.Namespace) -> int:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
-    k_left, k_right, assumed = wheel_noise(args)
+    noise, assumed = wheel_noise(args)
     with_covariance = args.covariance or output_format(args) in ("mcap", "ros2")
     poses, covariances = odometry_of_run(
         robot,
@@ -70,11 +70,10 @@ def run_odometry(args: argparse.Namespace) -> int:
         ticks_per_revolution=ticks,
         counter_bits=args.counter_bits,
         max_wheel_speed=args.max_wheel_speed,
-        k_left=k_left,
-        k_right=k_right,
+        wheel_noise=noise,
         covariance=with_covariance,
     )
-    twists, twist_covariances = interval_twists(robot, log.times, increments, k_left, k_right)
+    twists, twist_covariances = interval_twists(robot, log.times, increments, noise)
     columns = estimate_columns(args, covariances, twists, twist_covariances, args.covariance)
     what = f"odometry of {log.source}"
     write_output(args, log.times, poses, what, columns, covariances, twists, twist_covariances)
@@ -105,9 +104,9 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     from diffdrive.estimation.gyro import gyro_odometry
 
     log, note = _within_gyro(log, gyro, note)
-    k_left, k_right, assumed = wheel_noise(args)
+    noise, assumed = wheel_noise(args)
     note += assumed
-    options = {"k_left": k_left, "k_right": k_right, "slip_test": args.slip_test or "episodes"}
+    options = {"wheel_noise": noise, "slip_test": args.slip_test or "episodes"}
     result = gyro_odometry(
         robot,
         log.times,
@@ -163,18 +162,12 @@ def _within_gyro(log: Run, gyro, note: str) -> tuple[Run, str]:
 
 
 def _commands(args, robot, log: Run):
-    """The wheel velocities commanded over each interval ``(T, 2)``: a bag's Twist topic
-    (each held until the next) through inverse kinematics, the log's command columns, or
-    None."""
-    if args.command_topic is not None:
-        from diffdrive.io import ros
+    """The wheel velocities commanded over each interval ``(T, 2)`` (``read_commands``, held;
+    0 before the first), or None."""
+    from diffdrive.dynamics.response import held_commands
 
-        commands = ros.read_twists(args.input, args.command_topic)
-        held = np.searchsorted(commands.times, log.times[:-1], side="right") - 1
-        v, omega = commands.twists[np.maximum(held, 0)].T
-        wheels = batch.to_wheel_velocities(robot, np.column_stack([v, 0.0 * v, omega]))
-        return np.where((held >= 0)[:, None], wheels, 0.0)  # before the first: standing
-    return None if log.commands is None else log.commands[:-1]
+    found = read_commands(args.input, robot, log, args.command_topic)
+    return None if found is None else held_commands(*found, log.times[:-1])
 
 
 EPILOGS = {

@@ -36,8 +36,11 @@ from diffdrive.io import (
     robot_from_settings,
     write_trajectory,
 )
+from diffdrive.io.trajectories import COVARIANCE_COLUMNS
 from diffdrive.model import Robot
 from diffdrive.simulation import simulate
+from diffdrive.wheel_noise import DEFAULT as DEFAULT_WHEEL_NOISE
+from diffdrive.wheel_noise import WheelNoise
 
 ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
 ASSUMED_ROBOT = "the built-in robot (42 mm wheels, track 0.2 m; assumed: give --robot)"
@@ -277,14 +280,6 @@ def read_log_of(args: argparse.Namespace, path: Path | None = None) -> Run:
 
 # The covariance's distinct entries, by their index in the row-major 3x3 matrix: the pose's
 # over (x, y, theta), the twist's over (vx, vy, omega).
-COVARIANCE_COLUMNS = {
-    "cov_xx": 0,
-    "cov_xy": 1,
-    "cov_xtheta": 2,
-    "cov_yy": 4,
-    "cov_ytheta": 5,
-    "cov_thetatheta": 8,
-}
 TWIST_COVARIANCE_COLUMNS = {
     "cov_vxvx": 0,
     "cov_vxvy": 1,
@@ -314,28 +309,25 @@ def estimate_columns(args, covariances, twists, twist_covariances, covariance: b
     return columns
 
 
-# The wheels' noise (Odometry's k, m) wherever a command writes a covariance and none is given:
-# one default for every path, said in the report.
-DEFAULT_WHEEL_NOISE = 1e-4
-
-
-def wheel_noise(args: argparse.Namespace) -> tuple[float, float, str]:
-    """``--k-left`` and ``--k-right`` (m), each ``DEFAULT_WHEEL_NOISE`` when not given, and a
-    report's line (with its newline) on what was assumed, or nothing. Both 0 are refused for
-    a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which a filter reads as
-    exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
+def wheel_noise(args: argparse.Namespace) -> tuple[WheelNoise, str]:
+    """``--k-left`` and ``--k-right`` (m) as a ``WheelNoise``, each wheel the library's
+    default (``diffdrive.wheel_noise.DEFAULT``) when not given, and a report's line (with its
+    newline) on what was assumed, or nothing. Both 0 are refused for a bag: its
+    ``nav_msgs/Odometry`` would carry zero covariances, which a filter reads as exact
+    (robot_localization floors them to 1e-9 and holds the robot to them)."""
     given = (args.k_left, args.k_right)
-    k_left, k_right = (DEFAULT_WHEEL_NOISE if k is None else k for k in given)
+    k_left = DEFAULT_WHEEL_NOISE.left if args.k_left is None else args.k_left
+    k_right = DEFAULT_WHEEL_NOISE.right if args.k_right is None else args.k_right
+    noise = WheelNoise(k_left, k_right)
     if k_left == 0.0 and k_right == 0.0 and output_format(args) in ("mcap", "ros2"):
         raise ValueError(
             "--k-left 0 --k-right 0: the /odom messages would carry zero covariances, which ROS "
             "filters read as exact; give the wheels' noise (k > 0, m)"
         )
     if all(k is not None for k in given):
-        return k_left, k_right, ""
+        return noise, ""
     return (
-        k_left,
-        k_right,
+        noise,
         f"\nwheel noise: k = {k_left:g} m left, {k_right:g} m right (a default where not given: "
         "--k-left, --k-right)",
     )

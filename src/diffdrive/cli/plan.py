@@ -135,7 +135,7 @@ def run_follow(args: argparse.Namespace) -> int:
         raise ValueError("--predict predicts over the delay and lag: give --delay or --lag")
     _robot, result = _plan_of(args)
     tracker = _tracker(args)
-    noise = (args.wheel_noise, args.wheel_noise)
+    noise = args.wheel_noise  # k (m), both wheels
     run = follow(
         result,
         tracker,

@@ -42,13 +42,13 @@ def run_plot(args: argparse.Namespace) -> int:
 
 def _plot_errors(args, times, poses, truth) -> int:
     """The estimate's errors against the truth with its 2-sigma bands (--errors)."""
-    from diffdrive.cli.evaluate import read_covariances
     from diffdrive.evaluation import interpolate
+    from diffdrive.io.trajectories import read_covariances
     from diffdrive.plot import plot_error_bands
 
     if args.input is None or truth is None or poses.ndim != 2:
         raise TableError("--errors needs one estimate with a covariance and its --truth")
-    covariances = read_covariances(args, times)
+    covariances = read_covariances(args.input, len(times), args.time_unit, args.topic)
     truth_times, truth_poses = truth
     inside = (times >= truth_times[0]) & (times <= truth_times[-1])
     if np.count_nonzero(inside) < 2:

@@ -21,6 +21,7 @@ from diffdrive.cli.options import (
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS
 from diffdrive.estimation.gyro import rotation_from_rpy
 from diffdrive.io import read_trajectory
+from diffdrive.wheel_noise import WheelNoise
 
 
 def run_synth(args: argparse.Namespace) -> int:
@@ -105,8 +106,7 @@ def _encoder_model(args: argparse.Namespace, ticks: float | None) -> sensors.Enc
         signed=not args.unsigned,
         radius_bias=tuple(args.radius_bias),
         track_bias=args.track_bias,
-        k_left=args.k_left,
-        k_right=args.k_right,
+        wheel_noise=WheelNoise(args.k_left, args.k_right),
         slips=slips,
         jitter=args.jitter,
         latency=args.latency,

@@ -6,7 +6,7 @@ the robots) may limit them, they take effect ``delay`` s later (a pure delay, pe
 and the wheels follow them through a first-order ``lag``. The robot moves with the wheels'
 mean velocity over the period (the lag's exact response to a held command) by the library's
 integration step; the odometry integrates the same wheel travel plus random-walk noise of
-variance ``k |travel|`` per wheel (``Odometry``'s ``k_left``, ``k_right``), so the tracker
+variance ``k |travel|`` per wheel (``wheel_noise``, as ``Odometry``'s), so the tracker
 sees what a robot would.
 
 ``delay_margin`` runs the same loop for a range of delays at once and reports the largest the
@@ -28,6 +28,8 @@ from diffdrive.control.tracking import Tracker
 from diffdrive.dynamics.lag import first_order
 from diffdrive.evaluation import PathErrors, path_errors
 from diffdrive.integrate import Method
+from diffdrive.wheel_noise import NONE as NO_NOISE
+from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike, draw_travel
 
 __all__ = ["FollowResult", "delay_margin", "follow"]
 
@@ -89,7 +91,7 @@ def follow(
     delay: object = 0.0,
     lag: float = 0.0,
     limiter: Limiter | None = None,
-    wheel_noise: tuple[float, float] = (0.0, 0.0),
+    wheel_noise: WheelNoiseLike = NO_NOISE,
     robots: int = 1,
     start: object = None,
     settle: float = 1.0,
@@ -101,8 +103,9 @@ def follow(
     ``delay``: s, one or one per robot, each a whole number of periods; ``lag``: the wheels'
     time constant (s; 0 for none); ``limiter``: a wheel ``Limiter`` (rad/s), its limits
     applied to every robot (``Limiter.batched``), from rest;
-    ``wheel_noise``: ``(k_left, k_right)`` (m); ``start``: the start poses ``(3,)`` or
-    ``(N, 3)`` (default the plan's); ``settle``: s simulated after the plan ends.
+    ``wheel_noise``: the odometry's (a ``WheelNoise``, m; none by default); ``start``: the
+    start poses ``(3,)`` or ``(N, 3)`` (default the plan's); ``settle``: s simulated after the
+    plan ends.
     """
     if not isinstance(plan, Plan):
         raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
@@ -110,9 +113,7 @@ def follow(
     robots = whole("robots", robots, 1)
     delays = _per_robot("delay", delay, robots)
     lag = float(_per_robot("lag", lag, 1)[0])
-    noise = np.asarray(wheel_noise, dtype=float)
-    if noise.shape != (2,) or not np.all(np.isfinite(noise)) or np.any(noise < 0.0):
-        raise ValueError(f"wheel_noise must be (k_left, k_right), finite and >= 0: {wheel_noise!r}")
+    noise = WheelNoise.coerce(wheel_noise)
     if not (math.isfinite(settle) and settle >= 0.0):
         raise ValueError(f"settle must be finite and >= 0, got {settle!r}")
     robot = plan.robot
@@ -157,10 +158,9 @@ def follow(
         moved = batch.to_twist(robot, mean)
         poses[:, k + 1] = batch.integrate.step(poses[:, k], moved, dt, method)
         travel = mean * dt
-        if noise.any():
-            metres = np.abs(travel) / np.abs(per_metre)
-            sigma = np.sqrt(noise * metres) * np.abs(per_metre)
-            travel = travel + rng.standard_normal((robots, 2)) * sigma
+        if noise:
+            metres = travel / np.abs(per_metre)
+            travel = travel + draw_travel(metres, noise.k, rng) * np.abs(per_metre)
         believed = batch.to_twist(robot, travel / dt)
         estimates[:, k + 1] = batch.integrate.step(estimates[:, k], believed, dt, method)
     return FollowResult(plan, times, poses, estimates, commands, applied, lags * dt)

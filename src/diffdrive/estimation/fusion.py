@@ -52,6 +52,8 @@ from diffdrive.estimation.odometry import Odometry, offset_jacobian
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import Robot, check_robot
 from diffdrive.types import Pose
+from diffdrive.wheel_noise import DEFAULT as DEFAULT_WHEEL_NOISE
+from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike
 
 __all__ = ["COMPILED", "HEADINGS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
 
@@ -99,8 +101,8 @@ class _EstimatorMethods(_Base):
     the body origin's). ``heading``: ``"wheels"``, ``"gyro"`` or ``"fused"``.
     ``initial_pose`` and ``initial_covariance`` (3x3): the start; ``initial_time`` (s) its
     time, else the first ticks or positions reading's. ``ticks_per_revolution``,
-    ``counter_bits``, ``max_wheel_speed``, ``method``: as ``Odometry``. ``k_left``, ``k_right``
-    (m): the wheel noise. ``noise``: the gyro's (``GyroNoise``); ``bias`` (rad/s) its start.
+    ``counter_bits``, ``max_wheel_speed``, ``method``, ``wheel_noise``: as ``Odometry``.
+    ``noise``: the gyro's (``GyroNoise``); ``bias`` (rad/s) its start.
     ``turn_scale`` and ``turn_scale_sigma``: the turn scale's start and prior standard
     deviation (0: not estimated). ``history`` (s, at least 2 by default): how far back a
     measurement may be stamped; ``ahead`` (s): how far ahead of the wheels. ``gate``: the
@@ -120,8 +122,7 @@ class _EstimatorMethods(_Base):
         counter_bits: int | None = None,
         max_wheel_speed: float | None = None,
         method: Method = "exact",
-        k_left: float = 1e-4,
-        k_right: float = 1e-4,
+        wheel_noise: WheelNoiseLike = DEFAULT_WHEEL_NOISE,
         noise: GyroNoise | None = None,
         bias: float = 0.0,
         turn_scale: float = 1.0,
@@ -139,9 +140,7 @@ class _EstimatorMethods(_Base):
             raise ValueError(f"heading must be one of {', '.join(HEADINGS)}, got {heading!r}")
         if noise is not None and not isinstance(noise, GyroNoise):
             raise TypeError(f"noise must be a GyroNoise, got {type(noise).__name__}")
-        for name, value in (("k_left", k_left), ("k_right", k_right)):
-            if not finite(name, value) >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {value!r}")
+        self.wheel_noise = WheelNoise.coerce(wheel_noise)
         if not finite("turn_scale_sigma", turn_scale_sigma) >= 0.0:
             raise ValueError(f"turn_scale_sigma must be >= 0, got {turn_scale_sigma!r}")
         if not 0.0 < finite("gate", gate) < 1.0:
@@ -167,7 +166,7 @@ class _EstimatorMethods(_Base):
             ),
             check_method(method),
             heading,
-            (float(k_left), float(k_right)),
+            (self.wheel_noise.left, self.wheel_noise.right),
             arw * arw,
             rrw * rrw,
             heading == "fused",

@@ -40,8 +40,8 @@ Heading = Literal["wheels", "gyro", "fused"]
 class GyroOdometry(PoseEstimator):
     """``PoseEstimator`` behind the interface gyro-aided odometry had before it: one
     ``update`` per interval of ``dt`` s with the wheel-angle increments and the angle the gyro
-    turned, its clock starting at 0 s. ``robot``, ``heading``, ``bias``, ``noise``, ``k_left``,
-    ``k_right``, the slip options and ``method`` are ``PoseEstimator``'s."""
+    turned, its clock starting at 0 s. ``robot``, ``heading``, ``bias``, ``noise``,
+    ``wheel_noise``, the slip options and ``method`` are ``PoseEstimator``'s."""
 
     def __init__(
         self,

@@ -20,7 +20,8 @@ Rules, stated once:
   ``ValueError`` that names it, and leaves the state exactly as before the call.
 - Uncertainty (Siegwart, Nourbakhsh and Scaramuzza, *Introduction to Autonomous Mobile Robots*,
   2nd ed., 2011, sec. 5.2.4, eq. 5.9): in each update, the travel of each wheel (m) has a
-  variance ``k_left |ds_left|`` and ``k_right |ds_right|``, independent. ``k`` (m) scales the
+  variance ``k |ds|`` with the wheel's ``k`` of ``wheel_noise`` (a ``WheelNoise``; by default
+  ``diffdrive.wheel_noise.DEFAULT``, 1e-4 m both), independent. ``k`` (m) scales the
   *variance*, not the standard deviation: variances of independent pieces add, so the
   covariance at the end of a path does not depend on how finely the updates slice it (with
   ``k`` on the standard deviation it would shrink as the update rate grows). The pose covariance
@@ -41,6 +42,8 @@ from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import Robot, check_robot
 from diffdrive.types import Pose, Twist, WheelVelocities
+from diffdrive.wheel_noise import DEFAULT as DEFAULT_WHEEL_NOISE
+from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike
 
 if TYPE_CHECKING:
     from diffdrive.io.run import Run
@@ -103,9 +106,10 @@ class _OdometryMethods(_Base):
     ``initial_pose`` is where it starts (default the origin). ``ticks_per_revolution`` (counts
     per wheel revolution) is needed for ``update_ticks``; ``counter_bits`` (2 to 64) is the
     width of the encoder counters, None for counters that never roll over.
-    ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``k_left`` and ``k_right`` (m) are
-    the wheel-error constants of the covariance model; ``initial_covariance`` is 3x3 (default
-    zero); ``velocity_window`` (s) is the span over which ``twist`` averages.
+    ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``wheel_noise`` is the covariance
+    model's (a ``WheelNoise``, a number ``k`` (m) for both wheels or a pair; default
+    ``diffdrive.wheel_noise.DEFAULT``); ``initial_covariance`` is 3x3 (default zero);
+    ``velocity_window`` (s) is the span over which ``twist`` averages.
     """
 
     def __init__(
@@ -117,8 +121,7 @@ class _OdometryMethods(_Base):
         counter_bits: int | None = None,
         *,
         max_wheel_speed: float | None = None,
-        k_left: float = 0.0,
-        k_right: float = 0.0,
+        wheel_noise: WheelNoiseLike = DEFAULT_WHEEL_NOISE,
         initial_covariance: object = None,
         velocity_window: float = 0.1,
     ) -> None:
@@ -136,9 +139,7 @@ class _OdometryMethods(_Base):
         speed_limit = math.inf
         if max_wheel_speed is not None:
             speed_limit = positive("max_wheel_speed", max_wheel_speed)
-        for name, value in (("k_left", k_left), ("k_right", k_right)):
-            if not finite(name, value) >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {value!r}")
+        self.wheel_noise = WheelNoise.coerce(wheel_noise)
         self.robot = robot
         self.method: Method = method
         self.ticks_per_revolution = ticks_per_revolution
@@ -156,8 +157,8 @@ class _OdometryMethods(_Base):
             rad_per_tick,
             speed_limit,
             counter_bits or 0,
-            float(k_left),
-            float(k_right),
+            self.wheel_noise.left,
+            self.wheel_noise.right,
             positive("velocity_window", velocity_window),
         )
         self.reset(Pose() if initial_pose is None else initial_pose, initial_covariance)
@@ -311,8 +312,7 @@ def odometry_of_run(
     ticks_per_revolution: float | None = None,
     counter_bits: int | None = None,
     max_wheel_speed: float | None = None,
-    k_left: float = 0.0,
-    k_right: float = 0.0,
+    wheel_noise: WheelNoiseLike = DEFAULT_WHEEL_NOISE,
     covariance: bool = False,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """``Odometry`` over a whole ``Run``, from its first ground-truth pose (else the origin):
@@ -333,8 +333,7 @@ def odometry_of_run(
         ticks if kind == "ticks" else None,
         counter_bits,
         max_wheel_speed=max_wheel_speed,
-        k_left=k_left,
-        k_right=k_right,
+        wheel_noise=wheel_noise,
     )
     times, wheels = run.times, run.wheels
     first = 1 if kind == "velocities" else 0  # a velocity is held until the next row

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from diffdrive.model import Robot
+from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike
 
 __all__ = ["TWIST_AXES", "interval_twists"]
 
@@ -33,8 +34,7 @@ def interval_twists(
     robot: Robot,
     times: object,
     increments: object,
-    k_left: float,
-    k_right: float,
+    wheel_noise: WheelNoiseLike,
     *,
     turns: object = None,
     turn_variances: object = None,
@@ -64,8 +64,9 @@ def interval_twists(
     left, right = r_l * increments[:, 0], r_r * increments[:, 1]
     forward, wheel_turn = 0.5 * (left + right), (right - left) / track
     inflation = _per_interval(noise_scale, 1.0, count, "noise_scale")
-    var_left = inflation * k_left * np.abs(left)
-    var_right = inflation * k_right * np.abs(right)
+    noise = WheelNoise.coerce(wheel_noise)
+    var_left = inflation * noise.left * np.abs(left)
+    var_right = inflation * noise.right * np.abs(right)
     var_forward = 0.25 * (var_left + var_right)
     if turns is None:
         scale = _per_interval(turn_scale, 1.0, count, "turn_scale")

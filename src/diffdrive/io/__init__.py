@@ -1,7 +1,9 @@
 """Files in and out: every format diffdrive reads or writes, and the one ``Run`` type.
 
 - ``run``: ``Run``, a robot's wheels over time with ground truth where there is one;
-  ``read``: ``read_run`` for any file that holds one (a table, an OptiOdom file, a bag);
+  ``read``: ``read_run`` for any file that holds one (a table, an OptiOdom file, a bag), and
+  ``read_commands``, the wheel velocities a robot was commanded (a bag's Twist topic, or a
+  table's command columns);
   ``sniff``: which kind of file a path is;
 - ``tables``: text tables of numbers as loggers and spreadsheets write them (the one parser
   the others share), with their time units;
@@ -21,7 +23,7 @@ from diffdrive.atomic import atomic_output, atomic_write
 from diffdrive.io.drives import read_drive, write_drive
 from diffdrive.io.logs import read_log
 from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
-from diffdrive.io.read import read_run
+from diffdrive.io.read import read_commands, read_run
 from diffdrive.io.robots import (
     ROBOT_KEYS,
     overridden,
@@ -52,6 +54,7 @@ __all__ = [
     "narrower_counter",
     "optiodom_robot",
     "overridden",
+    "read_commands",
     "read_drive",
     "read_log",
     "read_optiodom_run",

@@ -16,7 +16,7 @@ from diffdrive.io.tables import TableError
 from diffdrive.io.trajectories import read_trajectory
 from diffdrive.model import Robot
 
-__all__ = ["read_run"]
+__all__ = ["read_commands", "read_run"]
 
 
 def read_run(
@@ -78,3 +78,21 @@ def _with_reference(run: Run, path, reference_topic: str | None) -> Run:
         raise TableError(f"{path}: {reference_topic} does not span the wheels' times")
     truth = interpolate(times, poses, run.times[inside])
     return replace(run.rows(inside), truth=truth, source=f"{run.source} against {reference_topic}")
+
+
+def read_commands(
+    path: str | Path, robot: Robot, run: Run, topic: str | None = None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The wheel velocities commanded ``(times (M,) s, velocities (M, 2) rad/s)``, each held
+    from its stamp: a bag's ``geometry_msgs/Twist`` ``topic`` through ``robot``'s inverse
+    kinematics (its ``vy`` unused), else ``run``'s command columns; None without either."""
+    if topic is not None:
+        from diffdrive import batch
+        from diffdrive.io import ros
+
+        twists = ros.read_twists(path, topic)
+        v, omega = twists.twists.T
+        return twists.times, batch.to_wheel_velocities(robot, np.column_stack([v, 0 * v, omega]))
+    if run.commands is None:
+        return None
+    return run.times[:-1], run.commands[:-1]

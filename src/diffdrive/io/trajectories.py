@@ -360,3 +360,44 @@ def _write_tum(path: Path, times: np.ndarray, poses: np.ndarray) -> list[Path]:
                     for a, x, y, h in np.column_stack([t, p]).tolist()
                 )
     return [target for target, _, _ in targets]
+
+
+# A pose covariance's columns in a table (``diffdrive odometry --covariance``): each name's
+# index in the row-major 3x3, the upper triangle.
+COVARIANCE_COLUMNS = {
+    "cov_xx": 0,
+    "cov_xy": 1,
+    "cov_xtheta": 2,
+    "cov_yy": 4,
+    "cov_ytheta": 5,
+    "cov_thetatheta": 8,
+}
+
+
+def read_covariances(
+    path: str | Path, count: int, time_unit: str | None = None, topic: str | None = None
+) -> np.ndarray:
+    """The ``count`` pose covariances ``(count, 3, 3)`` of an estimate: a bag's Odometry
+    ``topic``, or a table's ``COVARIANCE_COLUMNS``. ``TableError`` names the file and what it
+    lacks (the columns, or as many rows as poses)."""
+    if is_bag(path):
+        from diffdrive.io import ros
+
+        if topic is None:
+            raise TableError(f"{path}: which topic's covariances? Give its Odometry topic")
+        return ros.read_odometry(path, topic).covariances
+    try:
+        table = read_table(path, ["t", *COVARIANCE_COLUMNS], time_unit=time_unit)
+    except TableError as exc:
+        raise TableError(
+            f"{exc}: a covariance is needed here (--consistency, --errors), columns "
+            f"{', '.join(COVARIANCE_COLUMNS)} (diffdrive odometry --covariance writes them)"
+        ) from None
+    flat = np.zeros((len(table["t"]), 9))
+    for name, index in COVARIANCE_COLUMNS.items():
+        flat[:, index] = table[name]
+        row, column = divmod(index, 3)
+        flat[:, 3 * column + row] = table[name]
+    if len(flat) != count:
+        raise TableError(f"{path}: {len(flat)} covariances for {count} poses")
+    return flat.reshape(-1, 3, 3)

@@ -6,8 +6,8 @@ nominal radii and track with ``radius_bias``, ``track_bias`` and a per-robot dra
 
 1. slip episodes (``Slip``): over an episode a wheel turns ``1 + ratio`` times as far as the
    ground under it moves; the intervals are labelled;
-2. wheel random-walk noise with ``Odometry``'s meaning of ``k``: each interval's travel of a
-   wheel (m) gets a variance of ``k |travel|`` (m^2);
+2. wheel random-walk noise, ``wheel_noise`` (a ``WheelNoise``, none by default): each
+   interval's travel of a wheel (m) gets a variance of ``k |travel|`` (m^2);
 3. the angles accumulate from 0 and are read at each sample's instant: its stamp less the
    ``latency`` plus a ``jitter`` (s, standard deviation), interpolated along the interval;
 4. quantisation to whole counts (``ticks_per_revolution``; None: angles in rad), and
@@ -31,6 +31,8 @@ from diffdrive.encoders import check_counter_bits
 from diffdrive.io.run import Run
 from diffdrive.model import Robot
 from diffdrive.sensors.motion import Motion, motion_of, robot_geometry
+from diffdrive.wheel_noise import NONE as NO_NOISE
+from diffdrive.wheel_noise import WheelNoise, draw_travel
 
 __all__ = ["EncoderModel", "EncoderReadings", "Slip", "encoder_readings"]
 
@@ -77,8 +79,7 @@ class EncoderModel:
     radius_bias: tuple[float, float] = (0.0, 0.0)
     track_bias: float = 0.0
     geometry_sigma: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    k_left: float = 0.0
-    k_right: float = 0.0
+    wheel_noise: WheelNoise = NO_NOISE
     slips: tuple[Slip, ...] = field(default=())
     jitter: float = 0.0
     latency: float = 0.0
@@ -92,7 +93,8 @@ class EncoderModel:
         check_counter_bits(self.counter_bits)
         if self.counter_bits is not None and self.ticks_per_revolution is None:
             raise ValueError("counter_bits needs ticks_per_revolution: a counter counts ticks")
-        for name in ("k_left", "k_right", "jitter", "latency"):
+        object.__setattr__(self, "wheel_noise", WheelNoise.coerce(self.wheel_noise))
+        for name in ("jitter", "latency"):
             _at_least(name, getattr(self, name))
         if not 0.0 <= finite("drop", self.drop) < 1.0:
             raise ValueError(f"drop must be a probability in [0, 1), got {self.drop!r}")
@@ -231,15 +233,11 @@ def _angles(travel, geometry, model, rng, scale) -> np.ndarray:
     by_turn = (scale * half_track / radii)[..., None]
     angles = forward * by_forward
     angles += turn * by_turn
-    if model.k_left or model.k_right:
-        # A wheel's travel of s m has a variance of k |s| m^2, an angle's (scale / r)^2 times.
+    if model.wheel_noise:
         arcs = half_track[..., None] * increments[:, None, :, 2]
         arcs += increments[:, None, :, 0]  # (n, 2, T) m
-        np.abs(arcs, out=arcs)
-        arcs *= np.array([model.k_left, model.k_right])[:, None] * by_forward**2
-        np.sqrt(arcs, out=arcs)
-        noise = rng.standard_normal(arcs.shape)
-        noise *= arcs
+        noise = draw_travel(arcs, model.wheel_noise.k[:, None], rng)
+        noise *= by_forward  # m to counts (or rad)
         np.cumsum(noise, axis=-1, out=noise)
         angles[..., 1:] += noise
     return angles

@@ -17,6 +17,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive.model import Robot
+from diffdrive.wheel_noise import draw_geometry
 
 __all__ = ["Motion", "motion_of", "robot_geometry"]
 
@@ -95,10 +96,4 @@ def robot_geometry(
     drive = robot.equivalent
     nominal = np.array([drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width])
     biased = nominal * (1.0 + np.array([*radius_bias, track_bias]))
-    sigma = np.asarray(geometry_sigma, dtype=float)
-    if not np.any(sigma):
-        return np.broadcast_to(biased, (robots, 3))
-    drawn = biased * (1.0 + sigma * rng.standard_normal((robots, 3)))
-    if np.any(drawn <= 0):
-        raise ValueError("geometry_sigma draws a radius or track <= 0: make it smaller")
-    return drawn
+    return draw_geometry(biased, np.asarray(geometry_sigma, dtype=float), robots, rng)
