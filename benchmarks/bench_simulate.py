@@ -200,7 +200,48 @@ def main() -> None:
     for label, shape in cases:
         wheels = rng.uniform(-10.0, 10.0, shape)
         bench_case(label, robot, wheels, dt, c_loop, loops, args.repeats)
+    if c_loop is not None:
+        shared_machine(robot, dt, c_loop, 10**7 // scale, args.repeats)
     startup(args.repeats)
+
+
+# Another process that keeps one core busy for as long as the parent lives.
+_SPIN = "import os, sys\nwhile os.getppid() != 1: pass\n"
+
+
+def shared_machine(robot, dt, c_loop, steps: int, repeats: int) -> None:
+    """One robot's long run against the C loop, the two timed alternately: on an idle machine,
+    then with another process spinning on one core (targets: at least 1.0x and 0.8x)."""
+    import time
+
+    wheels = np.random.default_rng(1).uniform(-10.0, 10.0, (steps, 2))
+    contenders = {
+        "diffdrive numba": lambda: dd.simulate(robot, wheels, dt=dt, backend="numba"),
+        "C -O3 loop": lambda: run_c_loop(c_loop, robot, wheels, dt),
+    }
+    print(f"1 robot x {steps:.0e} steps, alternately, median of {repeats}:")
+    for label, target in (("idle", 1.0), ("one core busy", 0.8)):
+        spinner = None if label == "idle" else subprocess.Popen([sys.executable, "-c", _SPIN])
+        try:
+            times = {name: [] for name in contenders}
+            for call in contenders.values():
+                call()  # warm
+            for _ in range(repeats):
+                for name, call in contenders.items():
+                    start = time.perf_counter()
+                    call()
+                    times[name].append(time.perf_counter() - start)
+        finally:
+            if spinner is not None:
+                spinner.kill()
+                spinner.wait()
+        ours, theirs = (float(np.median(times[name])) for name in contenders)
+        print(
+            f"  {label:14} diffdrive {ours / steps * 1e9:6.1f} ns/step, C loop "
+            f"{theirs / steps * 1e9:6.1f}: {theirs / ours:.2f}x the C loop's speed "
+            f"(target {target:.1f}x)"
+        )
+    print()
 
 
 # Run by a fresh process: seconds of its first kernel call (after importing diffdrive), and

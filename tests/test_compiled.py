@@ -196,3 +196,11 @@ def test_one_sinc_in_every_layer():
         assert se2.sinc(float(u)) == want
         assert _compiled().STEP["sinc"](float(u)) == want
         assert abs(float(batch.sinc(np.float64(u))) - want) <= math.ulp(1.0), u
+
+
+@pytest.mark.parametrize(("running", "idle"), [(1, 4), (2, 3), (4, 1), (9, 1), (None, 4)])
+def test_a_robot_is_cut_only_for_the_threads_no_other_task_holds(monkeypatch, running, idle):
+    """Linux's count of runnable tasks includes this thread; where it cannot be read, every
+    thread counts as idle."""
+    monkeypatch.setattr(simulate_kernel, "_running_tasks", lambda: running)
+    assert simulate_kernel.idle_threads(4) == idle

@@ -45,6 +45,7 @@ from diffdrive.model import DiffDrive
 __all__ = [
     "cached",
     "chunk_count",
+    "idle_threads",
     "integrate_history",
     "loaded",
     "set_threads",
@@ -119,6 +120,28 @@ def chunk_count(robots: int, steps: int, dtype: np.dtype, threads: int) -> int:
     return max(1, min(-(-threads // robots), steps // _MIN_CHUNK))
 
 
+def idle_threads(threads: int) -> int:
+    """Of ``threads``, those whose CPUs no other task is running on now (Linux's count of
+    runnable tasks; all of them where it cannot be read). A robot's steps are cut into
+    chunks only for these: the chunks' passes wait for the slowest, so a chunk on a CPU that
+    another process holds slows the whole robot (to 0.1-0.3x a plain loop, measured), where
+    one thread keeps a loop's pace."""
+    running = _running_tasks()
+    if running is None:
+        return threads
+    return max(1, min(threads, threads - (running - 1)))  # less this thread itself
+
+
+def _running_tasks() -> int | None:
+    """The tasks running or ready to run now, this thread among them (``/proc/loadavg``'s
+    fourth field), or None where there is no such file."""
+    try:
+        with open("/proc/loadavg", encoding="ascii") as file:
+            return int(file.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def integrate_history(
     robot: DiffDrive,
     history: np.ndarray,
@@ -140,7 +163,10 @@ def integrate_history(
         raise ValueError("the kernel writes C-contiguous poses only")
     robots, steps = out.shape[0], out.shape[1] - 1
     workers = threads()
-    chunks = chunk_count(robots, steps, out.dtype, workers) if chunks is None else chunks
+    if chunks is None:
+        if robots < workers:  # a few robots, each cut for the threads: only idle ones
+            workers = idle_threads(workers)
+        chunks = chunk_count(robots, steps, out.dtype, workers)
     tasks = robots * chunks
     # C-contiguous arrays only: the kernel indexes them as such.
     history, times = np.ascontiguousarray(history), np.ascontiguousarray(times)
