@@ -2,12 +2,12 @@
 covariance it predicts is on runs it never saw.
 
 For each experiment of ``../shared/data/optiodom-diffdrive``: the geometry calibrated
-(least squares) and the noise model identified (``diffdrive.noise.identify``) on the other
-experiments of the same kind of path (and, in a second table, on all the other experiments);
-then, on this experiment's runs, the odometry with the
-calibrated geometry, the covariance the model predicts (``noise.covariances``) and its
-consistency against the motion capture (``evaluation.consistency``): the share of poses inside
-the 95 % ellipse and ANEES, pooled over the experiment's runs. A term the training runs cannot
+(least squares) and the noise model identified (``diffdrive.calibration.noise.identify``) on
+the other experiments of the same kind of path (and, in a second table, on all the other
+experiments); then, on this experiment's runs, the odometry with the calibrated geometry,
+the covariance the model predicts (``noise.covariances``) and its consistency against the
+motion capture (``evaluation.consistency``): the share of poses inside the 95 % ellipse and
+ANEES, pooled over the experiment's runs. A term the training runs cannot
 identify is left out (and named); ``--seconds`` thins the runs to one pose every so often.
 
     python examples/noise_model.py [--data ../shared/data/optiodom-diffdrive]
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive import noise
+from diffdrive.calibration import noise
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "optiodom-diffdrive"

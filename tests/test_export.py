@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive import export, noise, sensors
+from diffdrive import export, sensors
+from diffdrive.calibration import noise
 from diffdrive.cli import main
 
 yaml = pytest.importorskip("yaml")

@@ -1,11 +1,12 @@
-"""diffdrive.noise: the noise model identified on synthetic runs with known terms, the
+"""diffdrive.calibration.noise: the noise model identified on synthetic runs with known terms, the
 covariance it predicts held to the errors, and the refusals."""
 
 import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive import noise, sensors
+from diffdrive import sensors
+from diffdrive.calibration import noise
 from diffdrive.evaluation import consistency
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)

@@ -349,7 +349,7 @@ def test_the_campaigns_findings_are_refused_by_name(call, error, message):
 
 def test_integers_fractions_numpy_scalars_and_lists_of_rows():
     """What the campaign found taken without a word, or refused though sensible."""
-    from diffdrive import noise
+    from diffdrive.calibration import noise
 
     increments = np.tile([0.2, 0.25], (50, 1))
     runs = [(increments, dd.simulate(ROBOT, increments / 0.02, dt=0.02).poses)] * 3

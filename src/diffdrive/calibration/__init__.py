@@ -4,7 +4,10 @@
   minimax, increments), and its refusals (``CalibrationError``);
 - ``cross_validation``: ``cross_validate``, held-out scores of a calibration;
 - ``online``: ``OnlineCalibrator``, recursive least squares while the robot drives;
-- ``gyro_track``: ``track_from_gyro``, the track width from a gyro, without a pose reference.
+- ``gyro_track``: ``track_from_gyro``, the track width from a gyro, without a pose reference;
+- ``noise``: the odometry's noise model fitted to runs against a reference (``identify``,
+  ``covariances``), and the gyro's noise from its Allan deviation (``identify_gyro``); it
+  loads on first use, as ``diffdrive.calibration.noise``.
 """
 
 from diffdrive.calibration.cross_validation import CrossValidation, Fold, cross_validate

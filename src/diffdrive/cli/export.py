@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from diffdrive.calibration.noise import TERMS, NoiseModel, identify_what_it_can, score
 from diffdrive.cli.calibrate import _calibration_run
 from diffdrive.cli.options import (
     Command,
@@ -30,7 +31,6 @@ from diffdrive.export import (
     refusals,
 )
 from diffdrive.io import TableError, is_bag, read_drive, read_robot, robot_from_settings
-from diffdrive.noise import TERMS, NoiseModel, identify_what_it_can, score
 
 # The reference's own accuracy where the runs' ground truth is a table's (motion capture, as
 # OptiOdom's): 1 mm and 0.1 degree, well above a motion-capture room's sub-millimetre.

@@ -15,10 +15,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from diffdrive.calibration.noise import NoiseModel
 from diffdrive.export.files import FILES, NODES, WPILIB_SCHEMA, render, write
 from diffdrive.export.targets import TARGETS, DriveConstants, Reference, amcl_fit, parameters
 from diffdrive.model import DiffDrive
-from diffdrive.noise import NoiseModel
 
 __all__ = [
     "FILES",

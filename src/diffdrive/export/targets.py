@@ -34,9 +34,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from diffdrive._validate import finite, positive, whole
+from diffdrive.calibration.noise import NoiseModel, covariances
 from diffdrive.export.amcl import match_alphas, reference_motions
 from diffdrive.model import DiffDrive
-from diffdrive.noise import NoiseModel, covariances
 
 __all__ = ["TARGETS", "DriveConstants", "Reference", "parameters"]
 
