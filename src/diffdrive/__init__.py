@@ -41,9 +41,9 @@ __getattr__, __dir__ = attach(
         "io",
         "learn",
         "montecarlo",
-        "noise",
         "plot",
         "sensors",
+        "wheel_noise",
     ),
 )
 

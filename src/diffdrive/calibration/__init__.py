@@ -6,10 +6,10 @@
 - ``online``: ``OnlineCalibrator``, recursive least squares while the robot drives;
 - ``gyro_track``: ``track_from_gyro``, the track width from a gyro, without a pose reference;
 - ``noise``: the odometry's noise model fitted to runs against a reference (``identify``,
-  ``covariances``), and the gyro's noise from its Allan deviation (``identify_gyro``); it
-  loads on first use, as ``diffdrive.calibration.noise``.
+  ``covariances``), and the gyro's noise from its Allan deviation (``identify_gyro``).
 """
 
+from diffdrive.calibration import noise
 from diffdrive.calibration.cross_validation import CrossValidation, Fold, cross_validate
 from diffdrive.calibration.gyro_track import GyroTrack, track_from_gyro
 from diffdrive.calibration.offline import (
@@ -49,6 +49,7 @@ __all__ = [
     "calibrate",
     "checked_runs",
     "cross_validate",
+    "noise",
     "run_names",
     "track_from_gyro",
 ]
