@@ -15,6 +15,7 @@ intervals found, and false alarms at the default threshold's 0.1 % within sampli
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import platform
 
@@ -22,7 +23,8 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive import sensors
-from diffdrive.estimation import Gyro, GyroNoise, gyro_odometry
+from diffdrive.estimation import Gyro, gyro_odometry
+from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 K, ARW = 1e-5, 2e-3
@@ -47,13 +49,17 @@ def detection(poses: np.ndarray, ratio: float, robots: int) -> dict[str, tuple[i
     """Per slip test: slipping intervals found, slipping intervals, others flagged, others."""
     rng = np.random.default_rng(17)
     counts = {"interval": [0, 0, 0, 0], "episodes": [0, 0, 0, 0]}
-    noise = GyroNoise(angle_random_walk=ARW)
+    noise = dataclasses.replace(DEFAULT_GYRO, angle_random_walk=ARW)
     for n in range(robots):
         slips = episodes(rng, ratio) if ratio else ()
         model = sensors.EncoderModel(wheel_noise=K, slips=slips)
         encoders = sensors.encoder_readings(ROBOT, TIMES, poses, model, seed=100 + n)
         gyro = sensors.gyro_readings(
-            ROBOT, TIMES, poses, sensors.GyroModel(angle_random_walk=ARW), seed=200 + n
+            ROBOT,
+            TIMES,
+            poses,
+            sensors.GyroModel(noise=GyroNoise(angle_random_walk=ARW)),
+            seed=200 + n,
         )
         labelled = encoders.slipping[0].any(axis=1)
         for test, tally in counts.items():

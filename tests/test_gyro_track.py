@@ -8,6 +8,7 @@ import diffdrive as dd
 from diffdrive import sensors
 from diffdrive.calibration import track_from_gyro
 from diffdrive.estimation import Gyro
+from diffdrive.sensor_noise import GyroNoise
 
 TRUE = dd.DiffDrive(wheel_radius=0.05, track_width=0.31)
 NOMINAL = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
@@ -20,14 +21,16 @@ def weaving(k, arw, seed=0):
     encoders = sensors.encoder_readings(
         TRUE, T, path.poses, sensors.EncoderModel(wheel_noise=k), seed=seed
     )
-    model = sensors.GyroModel(angle_random_walk=arw, bias=0.01)
+    model = sensors.GyroModel(noise=GyroNoise(angle_random_walk=arw), bias=0.01)
     rates = sensors.gyro_readings(TRUE, T, path.poses, model, seed=seed + 1).rates[0]
     return np.diff(encoders.readings[0], axis=0), np.diff(Gyro(T, rates).angles(T))
 
 
 def test_exact_wheels_and_a_noisy_gyro():
     increments, turned = weaving(k=0.0, arw=5e-3)
-    found = track_from_gyro(NOMINAL, T, increments, turned, angle_random_walk=5e-3)
+    found = track_from_gyro(
+        NOMINAL, T, increments, turned, gyro_noise=GyroNoise(angle_random_walk=5e-3)
+    )
     assert found.track == pytest.approx(0.31, rel=0.005)
     assert found.bias == pytest.approx(0.01, abs=1e-3)
     assert min(found.bracket) <= found.track <= max(found.bracket)
@@ -39,7 +42,10 @@ def test_noise_on_both_sides_needs_their_ratio():
     wheels as exact, is off by three quarters."""
     for seed in range(3):
         increments, turned = weaving(k=2e-3, arw=1e-4, seed=seed)
-        found = track_from_gyro(NOMINAL, T, increments, turned, k=2e-3, angle_random_walk=1e-4)
+        found = track_from_gyro(
+            NOMINAL, T, increments, turned, wheel_noise=2e-3,
+            gyro_noise=GyroNoise(angle_random_walk=1e-4),
+        )  # fmt: skip
         assert abs(found.track - 0.31) < 3 * found.standard_error
         assert found.standard_error < 0.03 * 0.31
         assert found.bracket[0] > 1.5 * 0.31
@@ -102,8 +108,8 @@ def test_bad_noise_settings_and_a_reversed_gyro_are_refused():
     robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
     assert track_from_gyro(robot, t, increments, turned).track == pytest.approx(0.3)
     for options, message in (
-        ({"k": float("nan")}, "k must be finite"),
-        ({"k": -1e-4}, "k must be >= 0"),
+        ({"wheel_noise": float("nan")}, "wheel noise left must be finite"),
+        ({"wheel_noise": -1e-4}, "wheel noise left must be a number >= 0"),
         ({"ticks_per_revolution": 0}, "ticks_per_revolution must be > 0"),
         ({"ticks_per_revolution": -5}, "ticks_per_revolution must be > 0"),
     ):

@@ -8,6 +8,7 @@ import diffdrive as dd
 from diffdrive import sensors
 from diffdrive.calibration import noise
 from diffdrive.evaluation import consistency
+from diffdrive.sensor_noise import GyroNoise
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 T = np.arange(501) * 0.02
@@ -180,21 +181,22 @@ def test_the_gyro_terms_come_back_from_an_hour_standing_still():
     (a few long clusters carry it), nothing invented where there is no term."""
     t = np.arange(0, 3600, 0.01)
     still = np.zeros((len(t), 3))
-    model = sensors.GyroModel(angle_random_walk=2e-3, rate_random_walk=5e-5)
+    model = sensors.GyroModel(noise=GyroNoise(angle_random_walk=2e-3, rate_random_walk=5e-5))
     rates = sensors.gyro_readings(ROBOT, t, still, model, seed=3).rates[0]
     found = noise.identify_gyro(t, rates)
-    assert found.angle_random_walk == pytest.approx(2e-3, rel=0.05)
-    assert found.rate_random_walk == pytest.approx(5e-5, rel=0.4)
-    assert found.bias_instability < 0.1 * 2e-3
+    assert found.noise.angle_random_walk == pytest.approx(2e-3, rel=0.05)
+    assert found.noise.rate_random_walk == pytest.approx(5e-5, rel=0.4)
+    assert found.noise.bias_instability < 0.1 * 2e-3
     white = sensors.gyro_readings(
-        ROBOT, t, still, sensors.GyroModel(angle_random_walk=1e-3), seed=4
+        ROBOT, t, still, sensors.GyroModel(noise=GyroNoise(angle_random_walk=1e-3)), seed=4
     )
     plain = noise.identify_gyro(t, white.rates[0])
-    assert plain.angle_random_walk == pytest.approx(1e-3, rel=0.05)
-    assert plain.rate_random_walk < 2e-6
+    assert plain.noise.angle_random_walk == pytest.approx(1e-3, rel=0.05)
+    assert plain.noise.rate_random_walk < 2e-6
     taus, deviations = found.taus, found.deviations
     assert deviations[0] == pytest.approx(2e-3 / np.sqrt(taus[0]), rel=0.05)  # N / sqrt(tau)
-    assert found.gyro_noise().angle_random_walk == found.angle_random_walk
+    # What an estimator assumes of the bias at the start: its instability, or a small floor.
+    assert found.noise.initial_bias_sigma == max(found.noise.bias_instability, 1e-6)
 
 
 def test_the_allan_deviation_refuses_what_it_cannot_use():

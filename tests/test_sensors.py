@@ -1,6 +1,7 @@
 """Synthetic sensors: ideal streams give their trajectory back, each error source has the
 statistics its model states, and the estimators meet what they were built for."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 import diffdrive as dd
 from diffdrive import sensors
 from diffdrive.estimation.gyro import Gyro, gyro_odometry
+from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
 from diffdrive.simulation import dead_reckon
 
 ROBOT = dd.DiffDrive(0.05, 0.3, axle_offset=0.02)
@@ -105,7 +107,7 @@ def slip_flags(model, k, arw, robots, seeds, slip_test="episodes"):
         ROBOT,
         T,
         trajectory.poses,
-        sensors.GyroModel(angle_random_walk=arw),
+        sensors.GyroModel(noise=GyroNoise(angle_random_walk=arw)),
         robots=robots,
         seed=seeds[1],
     )
@@ -118,7 +120,7 @@ def slip_flags(model, k, arw, robots, seeds, slip_test="episodes"):
             "fused",
             bias=0.0,
             wheel_noise=k,
-            noise=dd.estimation.GyroNoise(angle_random_walk=arw),
+            noise=dataclasses.replace(DEFAULT_GYRO, angle_random_walk=arw),
             slip_test=slip_test,
         ).slip[1:]
         for n in range(robots)
@@ -198,12 +200,22 @@ def test_gyro_noise_has_the_stated_statistics_and_reads_back_through_the_imu():
     poses = path().poses
     dt = 0.02
     white = sensors.gyro_readings(
-        ROBOT, T, poses, sensors.GyroModel(angle_random_walk=2e-3), robots=200, seed=1
+        ROBOT,
+        T,
+        poses,
+        sensors.GyroModel(noise=GyroNoise(angle_random_walk=2e-3)),
+        robots=200,
+        seed=1,
     )
     noise = white.rates - white.truth
     assert noise.std() == pytest.approx(2e-3 / math.sqrt(dt), rel=0.02)
     walk = sensors.gyro_readings(
-        ROBOT, T, poses, sensors.GyroModel(rate_random_walk=1e-3), robots=4000, seed=2
+        ROBOT,
+        T,
+        poses,
+        sensors.GyroModel(noise=GyroNoise(rate_random_walk=1e-3)),
+        robots=4000,
+        seed=2,
     )
     assert walk.bias[:, -1].var() == pytest.approx(1e-6 * T[-1], rel=0.1)
     mounting = dd.estimation.rotation_from_rpy(math.pi / 2, 0.0, 0.3)
@@ -213,7 +225,12 @@ def test_gyro_noise_has_the_stated_statistics_and_reads_back_through_the_imu():
     back = Gyro.from_imu(T, fixed.angular_velocity[0], mounting)
     np.testing.assert_allclose(back.rates, fixed.rates[0], atol=1e-12)
     markov = sensors.gyro_readings(
-        ROBOT, T, poses, sensors.GyroModel(bias_instability=1e-3), robots=4000, seed=3
+        ROBOT,
+        T,
+        poses,
+        sensors.GyroModel(noise=GyroNoise(bias_instability=1e-3)),
+        robots=4000,
+        seed=3,
     )
     assert markov.bias.std(axis=0).mean() == pytest.approx(1e-3, rel=0.05)
 
@@ -254,7 +271,10 @@ def test_absolute_sensors_noise_latency_dropouts_outliers_and_gps():
         (lambda: sensors.EncoderModel(drop=1.0), "drop must be a probability"),
         (lambda: sensors.Slip(2.0, 1.0), "must end after it starts"),
         (lambda: sensors.Slip(1.0, 2.0, ratio=-1.0), "ratio must be > -1"),
-        (lambda: sensors.GyroModel(angle_random_walk=-1.0), "angle_random_walk must be >= 0"),
+        (
+            lambda: sensors.GyroModel(noise=GyroNoise(angle_random_walk=-1.0)),
+            "angle_random_walk must be >= 0",
+        ),
         (lambda: sensors.GyroModel(mounting=np.diag([1, 1, -1])), "mounting is not a rotation"),
         (lambda: sensors.AbsoluteModel(sigma=(0.1, -0.1, 0.0)), "sigma must be 3"),
         (

@@ -43,7 +43,7 @@ __getattr__, __dir__ = attach(
         "montecarlo",
         "plot",
         "sensors",
-        "wheel_noise",
+        "sensor_noise",
     ),
 )
 

@@ -9,7 +9,7 @@ the robots. Memory is ``N x 3`` plus ``T x 12`` plus one block of ``chunk x bloc
 The errors are those of ``Odometry``'s covariance model, so that the two can be compared:
 
 - each step's wheel travel ``ds`` (m) gets Gaussian noise of variance ``k |ds|`` with each
-  wheel's ``k`` of ``wheel_noise`` (a ``WheelNoise``, m; ``diffdrive.wheel_noise``; none by
+  wheel's ``k`` of ``wheel_noise`` (a ``WheelNoise``, m; ``diffdrive.sensor_noise``; none by
   default);
 - each robot's wheel radii and track width are the nominal ones times ``1 + e``, with ``e``
   Gaussian of the relative standard deviations ``geometry_sigma`` (a calibration's
@@ -43,8 +43,8 @@ from diffdrive.batch.rollout import accumulate, twists
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive
-from diffdrive.wheel_noise import NONE as NO_NOISE
-from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike, draw_geometry, draw_travel
+from diffdrive.sensor_noise import NONE as NO_NOISE
+from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike, draw_geometry, draw_travel
 
 __all__ = ["Moments", "MonteCarlo", "Plan", "checked_result", "monte_carlo", "plan", "run_chunks"]
 

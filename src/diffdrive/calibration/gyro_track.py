@@ -21,8 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import finite, increasing, positive
+from diffdrive._validate import increasing, positive
 from diffdrive.model import DiffDrive
+from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise, WheelNoise, WheelNoiseLike
+from diffdrive.sensor_noise import NONE as NO_WHEEL_NOISE
 
 __all__ = ["GyroTrack", "track_from_gyro"]
 
@@ -60,17 +62,18 @@ def track_from_gyro(
     increments: object,
     gyro_angles: object,
     *,
-    k: float = 0.0,
+    wheel_noise: WheelNoiseLike = NO_WHEEL_NOISE,
     ticks_per_revolution: float | None = None,
-    angle_random_walk: float = 2e-3,
+    gyro_noise: GyroNoise = DEFAULT_GYRO,
 ) -> GyroTrack:
     """The effective track of ``robot`` (its wheel radii taken as right; its track is not
     used) from wheel-angle
     ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s and the angles the gyro turned
     over the same intervals ``gyro_angles`` ``(N-1,)`` rad (``Gyro.angles`` differenced): see
-    the module. ``k`` (m; default 0, wheels read exactly), ``ticks_per_revolution`` and
-    ``angle_random_walk`` (rad/s/sqrt(Hz)) are the two sides' noise: the answer depends on
-    their ratio, between the ``bracket``'s ends."""
+    the module. ``wheel_noise`` (a ``WheelNoise``; default none, wheels read exactly),
+    ``ticks_per_revolution`` and ``gyro_noise``'s angle random walk (a ``GyroNoise``; default
+    ``DEFAULT_GYRO``'s) are the two sides' noise: the answer depends on their ratio, between
+    the ``bracket``'s ends."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     angles = np.asarray(gyro_angles, dtype=float)
@@ -90,12 +93,11 @@ def track_from_gyro(
     ):
         raise ValueError("times, increments and gyro_angles must be finite")
     increasing("times", times)
-    if not finite("k", k) >= 0.0:
-        raise ValueError(f"k must be >= 0 m, got {k!r}")
+    k = WheelNoise.coerce(wheel_noise).k
     if ticks_per_revolution is not None:
         positive("ticks_per_revolution", ticks_per_revolution)
-    if not finite("angle_random_walk", angle_random_walk) >= 0.0:
-        raise ValueError(f"angle_random_walk must be >= 0, got {angle_random_walk!r}")
+    if not isinstance(gyro_noise, GyroNoise):
+        raise TypeError(f"gyro_noise must be a GyroNoise, got {type(gyro_noise).__name__}")
     dt = np.diff(times)
     r_l, r_r = robot.left_wheel_radius, robot.right_wheel_radius
     arcs = increments * np.array([r_l, r_r])
@@ -114,11 +116,11 @@ def track_from_gyro(
             "the log does not turn enough to find the track from a gyro: it needs turning "
             "(20 intervals or more, and a turn of a few degrees or more in all)"
         )
-    wheel = k * np.mean(np.abs(arcs).sum(axis=1))
+    wheel = float(np.mean(np.abs(arcs) @ k))  # each wheel's travel variance, summed
     if ticks_per_revolution is not None:  # a count's quantisation on each wheel: q^2 / 6
         q = 2 * math.pi / ticks_per_revolution
         wheel += (r_l * r_l + r_r * r_r) * q * q / 6.0
-    gyro = angle_random_walk * angle_random_walk * float(np.mean(dt))
+    gyro = gyro_noise.angle_random_walk**2 * float(np.mean(dt))
     ratio = math.inf if wheel == 0 else gyro / wheel  # var(y noise) / var(x noise), rad^2/m^2
     slope = _deming(u, y, ratio)
     if not slope > 0.0:

@@ -53,9 +53,9 @@ from diffdrive.estimation.odometry import Odometry
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive
 from diffdrive.montecarlo import noisy_angles
+from diffdrive.sensor_noise import GyroNoise, draw_geometry
 from diffdrive.simulation import dead_reckon
 from diffdrive.types import Pose
-from diffdrive.wheel_noise import draw_geometry
 
 __all__ = [
     "TERMS",
@@ -423,22 +423,14 @@ def draw_reference(
 
 @dataclass(frozen=True, eq=False)
 class GyroFit:
-    """``identify_gyro``'s result: ``angle_random_walk`` (rad/s/sqrt(Hz)),
-    ``bias_instability`` (rad/s), ``rate_random_walk`` (rad/s/sqrt(s)), and the overlapping
-    Allan deviation they were fitted to: ``taus`` (s) and ``deviations`` (rad/s)."""
+    """``identify_gyro``'s result: the gyro's ``noise`` (a ``GyroNoise``: its angle random
+    walk, bias instability and rate random walk fitted; the bias prior an estimator takes from
+    it, the instability or a small floor), and the overlapping Allan deviation it was fitted
+    to: ``taus`` (s) and ``deviations`` (rad/s)."""
 
-    angle_random_walk: float
-    bias_instability: float
-    rate_random_walk: float
+    noise: GyroNoise
     taus: np.ndarray
     deviations: np.ndarray
-
-    def gyro_noise(self):
-        """As ``estimation.GyroNoise`` (the bias prior: its instability, or a small floor)."""
-        from diffdrive.estimation import GyroNoise
-
-        prior = max(self.bias_instability, 1e-6)
-        return GyroNoise(self.angle_random_walk, self.rate_random_walk, prior)
 
 
 # Allan variance of each term (IEEE Std 952-1997, annex C): N^2 / tau for white rate noise,
@@ -489,7 +481,14 @@ def identify_gyro(times: object, rates: object) -> GyroFit:
     target = deviations**2
     weighted = design / target[:, None]
     n2, b2, k2 = nonnegative_least_squares(weighted, np.ones(len(taus)))
-    return GyroFit(float(np.sqrt(n2)), float(np.sqrt(b2)), float(np.sqrt(k2)), taus, deviations)
+    instability = float(np.sqrt(b2))
+    noise = GyroNoise(
+        angle_random_walk=float(np.sqrt(n2)),
+        rate_random_walk=float(np.sqrt(k2)),
+        initial_bias_sigma=max(instability, 1e-6),
+        bias_instability=instability,
+    )
+    return GyroFit(noise, taus, deviations)
 
 
 @dataclass(frozen=True, eq=False)

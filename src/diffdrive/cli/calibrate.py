@@ -41,6 +41,7 @@ from diffdrive.evaluation import run_errors, worst
 from diffdrive.integrate import METHODS, Method
 from diffdrive.io import TableError, robot_from_settings, write_robot
 from diffdrive.model import DiffDrive, Robot
+from diffdrive.sensor_noise import GyroNoise
 from diffdrive.simulation import dead_reckon, simulate
 
 GYRO_ARW = 2e-3  # --gyro-arw's default, rad/s/sqrt(Hz)
@@ -100,9 +101,9 @@ def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
         log.times,
         log.increments(ticks, args.counter_bits),
         np.diff(gyro.angles(log.times)),
-        k=args.k,
+        wheel_noise=args.k,
         ticks_per_revolution=ticks,
-        angle_random_walk=args.gyro_arw,
+        gyro_noise=GyroNoise(angle_random_walk=args.gyro_arw),
     )
     settings = nominal.with_geometry(
         nominal.left_wheel_radius, nominal.right_wheel_radius, found.track

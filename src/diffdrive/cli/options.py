@@ -38,9 +38,9 @@ from diffdrive.io import (
 )
 from diffdrive.io.trajectories import COVARIANCE_COLUMNS
 from diffdrive.model import Robot
+from diffdrive.sensor_noise import DEFAULT as DEFAULT_WHEEL_NOISE
+from diffdrive.sensor_noise import WheelNoise
 from diffdrive.simulation import simulate
-from diffdrive.wheel_noise import DEFAULT as DEFAULT_WHEEL_NOISE
-from diffdrive.wheel_noise import WheelNoise
 
 ROBOT_DEFAULTS = "the built-in example robot: 42 mm wheels, track 0.2 m"
 ASSUMED_ROBOT = "the built-in robot (42 mm wheels, track 0.2 m; assumed: give --robot)"
@@ -311,7 +311,7 @@ def estimate_columns(args, covariances, twists, twist_covariances, covariance: b
 
 def wheel_noise(args: argparse.Namespace) -> tuple[WheelNoise, str]:
     """``--k-left`` and ``--k-right`` (m) as a ``WheelNoise``, each wheel the library's
-    default (``diffdrive.wheel_noise.DEFAULT``) when not given, and a report's line (with its
+    default (``diffdrive.sensor_noise.DEFAULT``) when not given, and a report's line (with its
     newline) on what was assumed, or nothing. Both 0 are refused for a bag: its
     ``nav_msgs/Odometry`` would carry zero covariances, which a filter reads as exact
     (robot_localization floors them to 1e-9 and holds the robot to them)."""

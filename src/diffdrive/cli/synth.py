@@ -21,7 +21,7 @@ from diffdrive.cli.options import (
 from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS
 from diffdrive.estimation.gyro import rotation_from_rpy
 from diffdrive.io import read_trajectory
-from diffdrive.wheel_noise import WheelNoise
+from diffdrive.sensor_noise import GyroNoise, WheelNoise
 
 
 def run_synth(args: argparse.Namespace) -> int:
@@ -117,10 +117,12 @@ def _encoder_model(args: argparse.Namespace, ticks: float | None) -> sensors.Enc
 def _gyro_model(args: argparse.Namespace) -> sensors.GyroModel:
     return sensors.GyroModel(
         bias=args.gyro_bias,
-        bias_instability=args.gyro_instability,
-        angle_random_walk=args.gyro_arw,
-        rate_random_walk=args.gyro_rrw,
         scale=args.gyro_scale,
+        noise=GyroNoise(
+            angle_random_walk=args.gyro_arw,
+            rate_random_walk=args.gyro_rrw,
+            bias_instability=args.gyro_instability,
+        ),
         mounting=rotation_from_rpy(*(math.radians(a) for a in args.imu_rpy)),
     )
 

@@ -28,8 +28,8 @@ from diffdrive.control.tracking import Tracker
 from diffdrive.dynamics.lag import first_order
 from diffdrive.evaluation import PathErrors, path_errors
 from diffdrive.integrate import Method
-from diffdrive.wheel_noise import NONE as NO_NOISE
-from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike, draw_travel
+from diffdrive.sensor_noise import NONE as NO_NOISE
+from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike, draw_travel
 
 __all__ = ["FollowResult", "delay_margin", "follow"]
 

@@ -37,7 +37,6 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -51,9 +50,9 @@ from diffdrive.estimation.measurements import Measurement, chi2_quantile
 from diffdrive.estimation.odometry import Odometry, offset_jacobian
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import Robot, check_robot
+from diffdrive.sensor_noise import DEFAULT as DEFAULT_WHEEL_NOISE
+from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise, WheelNoise, WheelNoiseLike
 from diffdrive.types import Pose
-from diffdrive.wheel_noise import DEFAULT as DEFAULT_WHEEL_NOISE
-from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike
 
 __all__ = ["COMPILED", "HEADINGS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
 
@@ -75,25 +74,6 @@ else:
     _Base = object
 
 
-@dataclass(frozen=True)
-class GyroNoise:
-    """The gyro's noise: ``angle_random_walk`` (rad/s/sqrt(Hz)), ``rate_random_walk`` (the
-    bias's random walk, rad/s/sqrt(s)) and ``initial_bias_sigma`` (rad/s, the prior on the
-    bias). The defaults are those of a mid-range MEMS gyro."""
-
-    angle_random_walk: float = 2e-3
-    rate_random_walk: float = 1e-4
-    initial_bias_sigma: float = 5e-3
-
-    def __post_init__(self) -> None:
-        for name in ("angle_random_walk", "rate_random_walk", "initial_bias_sigma"):
-            value = finite(name, getattr(self, name))
-            if not value >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-            if not math.isfinite(value * value):  # the filter works with its square
-                raise ValueError(f"{name} {value!r} squares past the largest float")
-
-
 class _EstimatorMethods(_Base):
     """Wheels, gyro and absolute measurements in one extended Kalman filter (see the module).
 
@@ -102,7 +82,8 @@ class _EstimatorMethods(_Base):
     ``initial_pose`` and ``initial_covariance`` (3x3): the start; ``initial_time`` (s) its
     time, else the first ticks or positions reading's. ``ticks_per_revolution``,
     ``counter_bits``, ``max_wheel_speed``, ``method``, ``wheel_noise``: as ``Odometry``.
-    ``noise``: the gyro's (``GyroNoise``); ``bias`` (rad/s) its start.
+    ``noise``: the gyro's (a ``GyroNoise``; default ``sensor_noise.DEFAULT_GYRO``, a
+    mid-range MEMS gyro's); ``bias`` (rad/s) its start.
     ``turn_scale`` and ``turn_scale_sigma``: the turn scale's start and prior standard
     deviation (0: not estimated). ``history`` (s, at least 2 by default): how far back a
     measurement may be stamped; ``ahead`` (s): how far ahead of the wheels. ``gate``: the
@@ -151,7 +132,7 @@ class _EstimatorMethods(_Base):
         if not 0.0 < self.command_sigma * self.command_sigma < math.inf:
             raise ValueError(f"command_sigma {command_sigma!r} squares to 0 or past the floats")
         self.robot, self.heading = robot, heading
-        self.noise = GyroNoise() if noise is None else noise
+        self.noise = DEFAULT_GYRO if noise is None else noise
         self.history = math.inf if history == math.inf else positive("history", history)
         self.ahead = float(ahead)
         self._mounting = mounting_yaw_row(mounting)

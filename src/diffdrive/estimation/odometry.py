@@ -21,7 +21,7 @@ Rules, stated once:
 - Uncertainty (Siegwart, Nourbakhsh and Scaramuzza, *Introduction to Autonomous Mobile Robots*,
   2nd ed., 2011, sec. 5.2.4, eq. 5.9): in each update, the travel of each wheel (m) has a
   variance ``k |ds|`` with the wheel's ``k`` of ``wheel_noise`` (a ``WheelNoise``; by default
-  ``diffdrive.wheel_noise.DEFAULT``, 1e-4 m both), independent. ``k`` (m) scales the
+  ``diffdrive.sensor_noise.DEFAULT``, 1e-4 m both), independent. ``k`` (m) scales the
   *variance*, not the standard deviation: variances of independent pieces add, so the
   covariance at the end of a path does not depend on how finely the updates slice it (with
   ``k`` on the standard deviation it would shrink as the update rate grows). The pose covariance
@@ -41,9 +41,9 @@ from diffdrive._validate import finite, floats, positive
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import Robot, check_robot
+from diffdrive.sensor_noise import DEFAULT as DEFAULT_WHEEL_NOISE
+from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike
 from diffdrive.types import Pose, Twist, WheelVelocities
-from diffdrive.wheel_noise import DEFAULT as DEFAULT_WHEEL_NOISE
-from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike
 
 if TYPE_CHECKING:
     from diffdrive.io.run import Run
@@ -108,7 +108,7 @@ class _OdometryMethods(_Base):
     width of the encoder counters, None for counters that never roll over.
     ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``wheel_noise`` is the covariance
     model's (a ``WheelNoise``, a number ``k`` (m) for both wheels or a pair; default
-    ``diffdrive.wheel_noise.DEFAULT``); ``initial_covariance`` is 3x3 (default zero);
+    ``diffdrive.sensor_noise.DEFAULT``); ``initial_covariance`` is 3x3 (default zero);
     ``velocity_window`` (s) is the span over which ``twist`` averages.
     """
 

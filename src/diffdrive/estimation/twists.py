@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from diffdrive.model import Robot
-from diffdrive.wheel_noise import WheelNoise, WheelNoiseLike
+from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike
 
 __all__ = ["TWIST_AXES", "interval_twists"]
 

@@ -30,9 +30,9 @@ from diffdrive._validate import finite, rng_of
 from diffdrive.encoders import check_counter_bits
 from diffdrive.io.run import Run
 from diffdrive.model import Robot
+from diffdrive.sensor_noise import NONE as NO_NOISE
+from diffdrive.sensor_noise import WheelNoise, draw_travel
 from diffdrive.sensors.motion import Motion, motion_of, robot_geometry
-from diffdrive.wheel_noise import NONE as NO_NOISE
-from diffdrive.wheel_noise import WheelNoise, draw_travel
 
 __all__ = ["EncoderModel", "EncoderReadings", "Slip", "encoder_readings"]
 

@@ -7,13 +7,14 @@ read with the error terms ``diffdrive.estimation.gyro`` states (IEEE Std 952-199
     rate = (1 + scale) omega + bias + b_in(t) + b_rw(t) + white
 
 - ``bias`` (rad/s), a constant;
-- ``bias_instability`` (rad/s): a first-order Gauss-Markov bias of that standard deviation
+- ``scale`` (relative), an error of the gain;
+- ``noise``, a ``GyroNoise`` (``diffdrive.sensor_noise``, the type the estimators assume):
+  ``bias_instability`` (rad/s), a first-order Gauss-Markov bias of that standard deviation
   and ``correlation_time`` (s), started from its stationary distribution;
-- ``rate_random_walk`` (rad/s/sqrt(s)): a bias that random-walks, from 0;
-- ``angle_random_walk`` (rad/s/sqrt(Hz)): white rate noise, of standard deviation
+  ``rate_random_walk`` (rad/s/sqrt(s)), a bias that random-walks, from 0;
+  ``angle_random_walk`` (rad/s/sqrt(Hz)), white rate noise of standard deviation
   ``arw / sqrt(dt)`` over a sample of ``dt`` s, so that the angle's variance grows by
-  ``arw^2 dt``;
-- ``scale`` (relative), an error of the gain.
+  ``arw^2 dt``. Its ``initial_bias_sigma`` is an estimator's, not drawn here.
 
 The reading is the body's yaw rate; an IMU reports three rates in its own frame:
 ``angular_velocity`` is the body vector ``(0, 0, rate)`` turned into the IMU frame by
@@ -29,11 +30,14 @@ from typing import Any
 
 import numpy as np
 
-from diffdrive._validate import finite, positive, rng_of
+from diffdrive._validate import finite, rng_of
 from diffdrive.model import Robot
+from diffdrive.sensor_noise import GyroNoise
 from diffdrive.sensors.motion import motion_of
 
 __all__ = ["GyroModel", "GyroReadings", "gyro_readings"]
+
+NO_GYRO_NOISE = GyroNoise()  # an ideal gyro: a synthetic gyro draws only the noise it is given
 
 
 @dataclass(frozen=True)
@@ -41,20 +45,15 @@ class GyroModel:
     """The gyro's error terms (see the module); every default is the ideal gyro."""
 
     bias: float = 0.0
-    bias_instability: float = 0.0
-    correlation_time: float = 100.0
-    angle_random_walk: float = 0.0
-    rate_random_walk: float = 0.0
     scale: float = 0.0
+    noise: GyroNoise = NO_GYRO_NOISE
     mounting: Any = None
 
     def __post_init__(self) -> None:
         finite("bias", self.bias)
         finite("scale", self.scale)
-        positive("correlation_time", self.correlation_time)
-        for name in ("bias_instability", "angle_random_walk", "rate_random_walk"):
-            if not finite(name, getattr(self, name)) >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not isinstance(self.noise, GyroNoise):
+            raise TypeError(f"noise must be a GyroNoise, got {type(self.noise).__name__}")
         rotation = self.rotation
         orthonormal = np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-9)
         if not (orthonormal and np.linalg.det(rotation) > 0):
@@ -107,6 +106,7 @@ def gyro_readings(
     """What the gyros of ``robots`` robots read at the trajectory's ``times`` (see the
     module), the errors drawn from ``seed``."""
     model = GyroModel() if model is None else model
+    noise = model.noise
     motion = motion_of(robot, times, poses)
     count = motion.robots(robots)
     rng = rng_of(seed)
@@ -122,24 +122,24 @@ def gyro_readings(
     bias = np.full((count, samples), model.bias)
     # Each sample's noise spans the interval it starts (the last, the one before it).
     spans = np.concatenate([durations, durations[-1:]])
-    if model.bias_instability:
-        decay = np.exp(-durations / model.correlation_time)
-        drive = model.bias_instability * np.sqrt(1.0 - decay**2)
+    if noise.bias_instability:
+        decay = np.exp(-durations / noise.correlation_time)
+        drive = noise.bias_instability * np.sqrt(1.0 - decay**2)
         markov = np.empty((count, samples))
-        markov[:, 0] = model.bias_instability * rng.standard_normal(count)
+        markov[:, 0] = noise.bias_instability * rng.standard_normal(count)
         for k in range(1, samples):
             markov[:, k] = decay[k - 1] * markov[:, k - 1] + drive[k - 1] * rng.standard_normal(
                 count
             )
         bias += markov
-    if model.rate_random_walk:
+    if noise.rate_random_walk:
         steps = (
-            model.rate_random_walk * np.sqrt(durations) * rng.standard_normal((count, samples - 1))
+            noise.rate_random_walk * np.sqrt(durations) * rng.standard_normal((count, samples - 1))
         )
         bias[:, 1:] += np.cumsum(steps, axis=1)
     rates = (1.0 + model.scale) * truth + bias
-    if model.angle_random_walk:
-        rates = rates + model.angle_random_walk / np.sqrt(spans) * rng.standard_normal(rates.shape)
+    if noise.angle_random_walk:
+        rates = rates + noise.angle_random_walk / np.sqrt(spans) * rng.standard_normal(rates.shape)
     if not np.all(np.isfinite(rates)):
         raise ValueError("the gyro's rates overflow: the trajectory turns too fast for floats")
     return GyroReadings(motion.times, rates, np.broadcast_to(truth, rates.shape), bias, model)

@@ -17,7 +17,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive.model import Robot
-from diffdrive.wheel_noise import draw_geometry
+from diffdrive.sensor_noise import draw_geometry
 
 __all__ = ["Motion", "motion_of", "robot_geometry"]
 

@@ -1,4 +1,5 @@
-"""Wheel noise and geometry spread as values: one type, one default, one draw each.
+"""The sensors' noise as values: one type each for the wheels and the gyro, one default each,
+one draw each for wheel noise and a robot's geometry.
 
 ``WheelNoise(left, right)`` (m) is the random-walk model of each wheel's travel that every
 part of the library shares (Kelly's, and ``Odometry``'s covariance): a wheel that travels
@@ -11,6 +12,16 @@ estimator (``Odometry``, ``PoseEstimator``, ``GyroOdometry``, ``estimate_traject
 command line assume when given none. Simulators (``monte_carlo``, ``sensors.encoder_readings``,
 ``control.follow``) draw no noise unless given some: a noise-free run is what a simulation
 without a noise figure means.
+
+``GyroNoise`` is the gyro's: white rate noise (``angle_random_walk``), the bias's random walk
+(``rate_random_walk``) and its first-order Gauss-Markov wander (``bias_instability`` with its
+``correlation_time``), and ``initial_bias_sigma``, what an estimator assumes of the bias before
+it has seen any. The synthetic gyro (``sensors.GyroModel``) draws it, the estimators assume
+it, and ``calibration.noise.identify_gyro`` finds it from a standing stretch. Its default,
+``DEFAULT_GYRO``, is a mid-range MEMS gyro's.
+
+Either type made without arguments is no noise at all; the ``DEFAULT`` values are what an
+estimator assumes when given none.
 
 ``draw_travel`` is the one draw of wheel noise and ``draw_geometry`` the one draw of a robot's
 radii and track around their nominal values (``numba_montecarlo`` repeats both inside its
@@ -27,7 +38,16 @@ import numpy as np
 
 from diffdrive._validate import finite
 
-__all__ = ["DEFAULT", "NONE", "WheelNoise", "WheelNoiseLike", "draw_geometry", "draw_travel"]
+__all__ = [
+    "DEFAULT",
+    "DEFAULT_GYRO",
+    "NONE",
+    "GyroNoise",
+    "WheelNoise",
+    "WheelNoiseLike",
+    "draw_geometry",
+    "draw_travel",
+]
 
 
 @dataclass(frozen=True)
@@ -84,6 +104,37 @@ WheelNoiseLike = Union[WheelNoise, float, tuple[float, float]]  # noqa: UP007 (a
 
 DEFAULT = WheelNoise.symmetric(1e-4)
 NONE = WheelNoise()  # a simulator's default: no noise drawn
+
+
+@dataclass(frozen=True)
+class GyroNoise:
+    """The gyro's noise (see the module): ``angle_random_walk`` (rad/s/sqrt(Hz)),
+    ``rate_random_walk`` (rad/s/sqrt(s)), ``initial_bias_sigma`` (rad/s, an estimator's prior
+    on the bias), ``bias_instability`` (rad/s) and its ``correlation_time`` (s)."""
+
+    angle_random_walk: float = 0.0
+    rate_random_walk: float = 0.0
+    initial_bias_sigma: float = 0.0
+    bias_instability: float = 0.0
+    correlation_time: float = 100.0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "angle_random_walk",
+            "rate_random_walk",
+            "initial_bias_sigma",
+            "bias_instability",
+        ):
+            value = finite(name, getattr(self, name))
+            if not value >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+            if not math.isfinite(value * value):  # a filter works with its square
+                raise ValueError(f"{name} {value!r} squares past the largest float")
+        if not finite("correlation_time", self.correlation_time) > 0.0:
+            raise ValueError(f"correlation_time must be > 0 s, got {self.correlation_time!r}")
+
+
+DEFAULT_GYRO = GyroNoise(angle_random_walk=2e-3, rate_random_walk=1e-4, initial_bias_sigma=5e-3)
 
 
 def draw_travel(travel: np.ndarray, k: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive import wheel_noise
+from diffdrive import sensor_noise
 from diffdrive.control import follow
 from diffdrive.estimation import GyroOdometry, PoseEstimator, estimate_trajectory
 from diffdrive.estimation.odometry import odometry_of_run
 from diffdrive.montecarlo import monte_carlo
+from diffdrive.sensor_noise import DEFAULT, NONE, WheelNoise, draw_geometry, draw_travel
 from diffdrive.sensors import EncoderModel
-from diffdrive.wheel_noise import DEFAULT, NONE, WheelNoise, draw_geometry, draw_travel
 
 
 def test_a_number_is_both_wheels_and_a_pair_is_left_then_right():
@@ -94,4 +94,39 @@ def test_odometry_and_the_monte_carlo_of_the_same_noise_agree():
         "velocities", wheels[:, 0], wheels[:, 1], dt=np.full(100, 0.02), covariance=True
     )
     np.testing.assert_allclose(spread.covariance[-1], covariances[-1], rtol=0.05, atol=1e-9)
-    assert wheel_noise.DEFAULT is DEFAULT
+    assert sensor_noise.DEFAULT is DEFAULT
+
+
+def test_one_gyro_noise_for_the_estimators_the_synthetic_gyro_and_the_allan_fit():
+    """The estimators assume DEFAULT_GYRO (a mid-range MEMS gyro), the synthetic gyro draws
+    none unless given one, and identify_gyro hands back the same type."""
+    from diffdrive import sensors
+    from diffdrive.calibration.noise import identify_gyro
+    from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
+
+    assert PoseEstimator(dd.DiffDrive(0.05, 0.3)).noise is DEFAULT_GYRO
+    assert GyroNoise(2e-3, 1e-4, 5e-3) == DEFAULT_GYRO
+    assert sensors.GyroModel().noise == GyroNoise()
+    assert GyroNoise() == GyroNoise(0.0, 0.0, 0.0, 0.0, 100.0)  # made without arguments: none
+    t = np.arange(0, 600, 0.01)
+    model = sensors.GyroModel(noise=GyroNoise(angle_random_walk=3e-3))
+    rates = sensors.gyro_readings(dd.DiffDrive(0.05, 0.3), t, np.zeros((len(t), 3)), model, seed=1)
+    found = identify_gyro(t, rates.rates[0])
+    assert isinstance(found.noise, GyroNoise)
+    assert found.noise.angle_random_walk == pytest.approx(3e-3, rel=0.1)  # (accuracy: test_noise)
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"angle_random_walk": -1e-3}, "angle_random_walk must be >= 0"),
+        ({"rate_random_walk": math.nan}, "rate_random_walk must be finite"),
+        ({"initial_bias_sigma": 1e200}, "initial_bias_sigma 1e\\+200 squares past"),
+        ({"correlation_time": 0.0}, "correlation_time must be > 0 s"),
+    ],
+)
+def test_bad_gyro_noise_is_refused_by_name(fields, message):
+    from diffdrive.sensor_noise import GyroNoise
+
+    with pytest.raises(ValueError, match=message):
+        GyroNoise(**fields)
