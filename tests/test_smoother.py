@@ -180,3 +180,32 @@ def test_a_bad_interval_is_named_before_anything_runs():
     huge = np.full((5, 2), 1e307)  # 1e308 rad/s: finite, but the covariance overflows
     with pytest.raises(ValueError, match=r"interval 0 \(0 to 0.1 s\): the update would overflow"):
         estimate_trajectory(ROBOT, times, huge, heading="wheels")
+
+
+def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
+    """The C cores and their twins take the same settings object (CoreSettings for the
+    estimator, OdometrySettings for odometry), read by name; a bad one is refused naming the
+    field, and both cores built from one value start in the same state."""
+    import dataclasses
+
+    from diffdrive.backends import _odometry
+    from diffdrive.backends.odometry_python import OdometryCore as PythonOdometryCore
+    from diffdrive.estimation.estimator_python import EstimatorCore as PythonEstimatorCore
+
+    estimator = fusion.PoseEstimator(ROBOT, "fused", (1.0, 2.0, 0.3), wheel_noise=(1e-4, 2e-4))
+    odometry_settings, settings = estimator._wheels.settings, estimator.config
+    assert settings.k == (1e-4, 2e-4)
+    assert settings.gates[0] == pytest.approx(10.828, abs=1e-3)  # chi-square, 1 dof, 0.999
+    wheels, twin_wheels = (
+        _odometry.OdometryCore(odometry_settings),
+        PythonOdometryCore(odometry_settings),
+    )
+    c_core = _odometry.EstimatorCore(wheels, settings)
+    twin = PythonEstimatorCore(twin_wheels, settings)
+    np.testing.assert_array_equal(c_core._state_now(), twin._state_now())
+    with pytest.raises(ValueError, match="state must have 5 numbers"):
+        _odometry.EstimatorCore(wheels, dataclasses.replace(settings, state=(0.0, 1.0)))
+    with pytest.raises(AttributeError, match="no attribute .arw2."):
+        _odometry.EstimatorCore(wheels, odometry_settings)
+    with pytest.raises(ValueError, match="drive must have 4 numbers"):
+        _odometry.OdometryCore(dataclasses.replace(odometry_settings, drive=(0.05, 0.3)))

@@ -1300,41 +1300,41 @@ static PyObject *pose_at(Est *e, PyObject *arg) {
 
 /* -- the type -------------------------------------------------------------------------------- */
 
-static int sequence_into(PyObject *obj, double *out, Py_ssize_t n, const char *what) {
-    PyObject *seq = PySequence_Fast(obj, what);
-    if (seq == NULL) return -1;
-    if (PySequence_Fast_GET_SIZE(seq) != n) {
-        Py_DECREF(seq);
-        PyErr_Format(PyExc_ValueError, "%s must have %zd numbers", what, n);
-        return -1;
-    }
-    for (Py_ssize_t i = 0; i < n; ++i) out[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, i));
-    Py_DECREF(seq);
-    return PyErr_Occurred() ? -1 : 0;
-}
-
+/* Built from one settings object (estimation.filter.CoreSettings, which the twin takes too),
+ * read by name: the drive, method and heading codes, noises, flags, gates and the start. */
 static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
-    PyObject *wheels, *mount, *state, *covariance;
+    PyObject *wheels, *s;
     int method;
-    if (!PyArg_ParseTuple(args, "OddddiiddddppdddddddddOOO", &wheels, &e->r_l, &e->r_r,
-                          &e->track, &e->axle, &method, &e->heading, &e->k_l, &e->k_r, &e->arw2,
-                          &e->rrw2, &e->est_bias, &e->est_scale, &e->slip_thr, &e->slip_infl,
-                          &e->command_sigma, &e->gate[1], &e->gate[2], &e->gate[3], &e->offset,
-                          &e->history, &e->ahead, &mount, &state, &covariance))
-        return -1;
+    if (!PyArg_ParseTuple(args, "OO", &wheels, &s)) return -1;
     if (!odometry_check(wheels)) {
         PyErr_SetString(PyExc_TypeError, "EstimatorCore reads its wheels through an OdometryCore");
         return -1;
     }
+    double drive[4], k[2];
+    if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
+        attribute_double(s, "arw2", &e->arw2) < 0 || attribute_double(s, "rrw2", &e->rrw2) < 0 ||
+        attribute_double(s, "slip_threshold", &e->slip_thr) < 0 ||
+        attribute_double(s, "slip_inflation", &e->slip_infl) < 0 ||
+        attribute_double(s, "command_sigma", &e->command_sigma) < 0 ||
+        attribute_into(s, "gates", e->gate + 1, 3) < 0 ||
+        attribute_double(s, "offset", &e->offset) < 0 ||
+        attribute_double(s, "history", &e->history) < 0 ||
+        attribute_double(s, "ahead", &e->ahead) < 0 ||
+        attribute_into(s, "mounting", e->mount, 3) < 0 ||
+        attribute_into(s, "state", e->x, N) < 0 ||
+        attribute_into(s, "covariance", e->P, NN) < 0 ||
+        attribute_int(s, "method_code", &method) < 0 ||
+        attribute_int(s, "heading_code", &e->heading) < 0 ||
+        attribute_int(s, "estimate_bias", &e->est_bias) < 0 ||
+        attribute_int(s, "estimate_scale", &e->est_scale) < 0)
+        return -1;
+    e->r_l = drive[0], e->r_r = drive[1], e->track = drive[2], e->axle = drive[3];
+    e->k_l = k[0], e->k_r = k[1];
     /* METHODS: euler, rk2, exact (_step.METHOD_FLAGS) */
     e->k_per_r_l = e->k_l / e->r_l; /* the Python class has checked the radii are > 0 */
     e->k_per_r_r = e->k_r / e->r_r;
     e->weight = method == 0 ? 0.0 : 0.5;
     e->chord = method == 2;
-    if (sequence_into(mount, e->mount, 3, "mounting") < 0 ||
-        sequence_into(state, e->x, N, "state") < 0 ||
-        sequence_into(covariance, e->P, NN, "covariance") < 0)
-        return -1;
     Py_XSETREF(e->wheels, Py_NewRef(wheels));
     e->iv0 = e->niv = e->ms0 = e->nms = e->npend = 0;
     e->settled_ok = e->settled_bad = 0;

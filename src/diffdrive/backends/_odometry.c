@@ -660,12 +660,21 @@ static PyObject *jacobians(Core *c, PyObject *args) {
                          p[8], w[0], w[1], w[2], w[3], w[4], w[5]);
 }
 
+/* Built from one settings object (backends.settings.OdometrySettings, which the twin takes
+ * too), read by name; at the origin: Odometry's reset puts the core at its start. */
 static int core_init(Core *c, PyObject *args, PyObject *kwargs) {
-    /* At the origin: Odometry's reset puts the core at its start. */
-    if (!PyArg_ParseTuple(args, "ddddiddiddd", &c->r_left, &c->r_right, &c->track, &c->offset,
-                          &c->method, &c->rad_per_tick, &c->max_wheel_speed, &c->counter_bits,
-                          &c->k_left, &c->k_right, &c->window))
+    PyObject *s;
+    double drive[4], k[2];
+    if (!PyArg_ParseTuple(args, "O", &s)) return -1;
+    if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
+        attribute_int(s, "method_code", &c->method) < 0 ||
+        attribute_double(s, "rad_per_tick", &c->rad_per_tick) < 0 ||
+        attribute_double(s, "max_wheel_speed", &c->max_wheel_speed) < 0 ||
+        attribute_int(s, "counter_bits", &c->counter_bits) < 0 ||
+        attribute_double(s, "velocity_window", &c->window) < 0)
         return -1;
+    c->r_left = drive[0], c->r_right = drive[1], c->track = drive[2], c->offset = drive[3];
+    c->k_left = k[0], c->k_right = k[1];
     c->x = c->y = c->theta = 0.0;
     c->distance = 0.0;
     c->x_comp = c->y_comp = c->theta_comp = c->distance_comp = 0.0;

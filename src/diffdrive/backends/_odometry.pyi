@@ -4,25 +4,15 @@ which subclasses ``OdometryCore``."""
 
 from typing import Any
 
+from diffdrive.backends.settings import OdometrySettings
+from diffdrive.estimation.filter import CoreSettings
+
 Covariance = tuple[float, float, float, float, float, float, float, float, float]
 
 class OdometryCore:
     """The state and update of diffdrive.Odometry; use that class."""
 
-    def __init__(
-        self,
-        left_wheel_radius: float,
-        right_wheel_radius: float,
-        track_width: float,
-        axle_offset: float,
-        method: int,  # index into diffdrive.integrate.METHODS
-        rad_per_tick: float,  # NaN when the counts per revolution are not known
-        max_wheel_speed: float,  # rad/s; infinite for no limit
-        counter_bits: int,  # 0: counters that never roll over
-        k_left: float,
-        k_right: float,
-        velocity_window: float,
-    ) -> None: ...  # at the origin: Odometry's reset puts it at its start
+    def __init__(self, settings: OdometrySettings) -> None: ...  # at the origin
     def update_ticks(self, left: Any, right: Any, t: float | None = None) -> Any:
         """Absolute encoder counter readings."""
     def update_increments(self, left: float, right: float, t: float | None = None) -> Any:
@@ -53,10 +43,9 @@ class OdometryCore:
     ) -> tuple[Covariance, tuple[float, float, float, float, float, float]]: ...
 
 class EstimatorCore:
-    """The state, history and updates of PoseEstimator; use that class (its arguments are
-    those of ``diffdrive.estimation.estimator_python.EstimatorCore``)."""
+    """The state, history and updates of PoseEstimator; use that class."""
 
-    def __init__(self, wheels: OdometryCore, *settings: Any) -> None: ...
+    def __init__(self, wheels: OdometryCore, settings: CoreSettings) -> None: ...
     def update_ticks(
         self,
         left: Any,

@@ -14,6 +14,7 @@ import math
 from typing import Any
 
 from diffdrive._step import METHODS, method_flags, move_jacobians, wheel_move
+from diffdrive.backends.settings import OdometrySettings
 
 __all__ = ["OdometryCore"]
 
@@ -99,27 +100,14 @@ def _tick_reading(value: object, field: str, bits: int) -> int:
 class OdometryCore:
     """The state and update of diffdrive.Odometry; use that class."""
 
-    def __init__(
-        self,
-        left_wheel_radius: float,
-        right_wheel_radius: float,
-        track_width: float,
-        axle_offset: float,
-        method: int,
-        rad_per_tick: float,
-        max_wheel_speed: float,
-        counter_bits: int,
-        k_left: float,
-        k_right: float,
-        velocity_window: float,
-    ) -> None:
-        self._r_left, self._r_right = left_wheel_radius, right_wheel_radius
-        self._track, self._axle = track_width, axle_offset
-        # The method comes as its index in METHODS, as the C core takes it.
-        self._weight, self._chord = method_flags(METHODS[method])
-        self._rad_per_tick = rad_per_tick
-        self._max_wheel_speed, self._counter_bits = max_wheel_speed, counter_bits
-        self._k_left, self._k_right, self._window = k_left, k_right, velocity_window
+    def __init__(self, settings: OdometrySettings) -> None:
+        self._r_left, self._r_right, self._track, self._axle = settings.drive
+        self._weight, self._chord = method_flags(METHODS[settings.method_code])
+        self._rad_per_tick = settings.rad_per_tick
+        self._max_wheel_speed = settings.max_wheel_speed
+        self._counter_bits = settings.counter_bits
+        self._k_left, self._k_right = settings.k
+        self._window = settings.velocity_window
         self._pose = [0.0, 0.0, 0.0, 0.0]  # x, y, theta, distance: sums ...
         self._comp = [0.0, 0.0, 0.0, 0.0]  # ... and their compensations
         self._cov = [0.0] * 9

@@ -14,13 +14,11 @@ from typing import Any
 
 import numpy as np
 
-from diffdrive._step import METHODS
 from diffdrive._validate import finite
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement, _floats
 from diffdrive.types import WheelVelocities
 
-HEADING_NAMES = ("wheels", "gyro", "fused")
 KINDS = ("update_ticks", "update_positions", "update_increments", "update_velocities")
 
 
@@ -50,53 +48,19 @@ def _end(interval: Interval) -> float:
 class EstimatorCore:
     """The state, history and updates of ``PoseEstimator``; use that class."""
 
-    def __init__(
-        self,
-        wheels: Any,
-        r_left: float,
-        r_right: float,
-        track: float,
-        axle: float,
-        method: int,
-        heading: int,
-        k_left: float,
-        k_right: float,
-        arw2: float,
-        rrw2: float,
-        estimate_bias: bool,
-        estimate_scale: bool,
-        slip_threshold: float,
-        slip_inflation: float,
-        command_sigma: float,
-        gate1: float,
-        gate2: float,
-        gate3: float,
-        offset: float,
-        history: float,
-        ahead: float,
-        mounting: tuple[float, float, float],
-        state: tuple[float, ...],
-        covariance: tuple[float, ...],
-    ) -> None:
+    def __init__(self, wheels: Any, settings: ekf.CoreSettings) -> None:
         self._wheels = wheels
-        self.config = ekf.Config(
-            (r_left, r_right, track, axle),
-            METHODS[method],
-            HEADING_NAMES[heading],
-            (k_left, k_right),
-            arw2,
-            rrw2,
-            bool(estimate_bias),
-            bool(estimate_scale),
-            slip_threshold,
-            slip_inflation,
+        self.config = settings
+        self._command_sigma = settings.command_sigma
+        self._gate = dict(zip((1, 2, 3), settings.gates, strict=True))
+        self._offset, self._history, self._ahead = (
+            settings.offset,
+            settings.history,
+            settings.ahead,
         )
-        self._command_sigma = command_sigma
-        self._gate = {1: gate1, 2: gate2, 3: gate3}
-        self._offset, self._history, self._ahead = offset, history, ahead
-        self._mounting = np.array(mounting)
-        self._state = np.array(state, dtype=float)
-        self._P = np.array(covariance, dtype=float).reshape(ekf.N, ekf.N)
+        self._mounting = np.array(settings.mounting)
+        self._state = np.array(settings.state, dtype=float)
+        self._P = np.array(settings.covariance, dtype=float).reshape(ekf.N, ekf.N)
         self._intervals: list[Interval] = []
         self._pending: list[Measurement] = []
         self._rate: float | None = None

@@ -41,7 +41,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from diffdrive._step import METHODS
 from diffdrive._validate import finite, positive
 from diffdrive.estimation import estimator_python
 from diffdrive.estimation import filter as ekf
@@ -56,7 +55,7 @@ from diffdrive.types import Pose
 
 __all__ = ["COMPILED", "HEADINGS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
 
-HEADINGS: tuple[str, ...] = estimator_python.HEADING_NAMES
+HEADINGS: tuple[str, ...] = ekf.HEADINGS
 
 # The C core beside Odometry's when it was built, else its pure-Python twin (as Odometry's);
 # DIFFDRIVE_PURE_PYTHON=1 asks for the twin anyway.
@@ -136,25 +135,6 @@ class _EstimatorMethods(_Base):
         self.history = math.inf if history == math.inf else positive("history", history)
         self.ahead = float(ahead)
         self._mounting = mounting_yaw_row(mounting)
-        drive = robot.equivalent
-        arw, rrw = self.noise.angle_random_walk, self.noise.rate_random_walk
-        self.config = ekf.Config(
-            (
-                drive.left_wheel_radius,
-                drive.right_wheel_radius,
-                drive.track_width,
-                drive.axle_offset,
-            ),
-            check_method(method),
-            heading,
-            (self.wheel_noise.left, self.wheel_noise.right),
-            arw * arw,
-            rrw * rrw,
-            heading == "fused",
-            turn_scale_sigma > 0.0,
-            positive("slip_threshold", slip_threshold),
-            positive("slip_inflation", slip_inflation),
-        )
         wheels = Odometry(
             robot,
             method,
@@ -174,29 +154,34 @@ class _EstimatorMethods(_Base):
         )
         P[ekf.BIAS, ekf.BIAS] = self.noise.initial_bias_sigma**2 if heading == "fused" else 0.0
         P[ekf.SCALE, ekf.SCALE] = turn_scale_sigma * turn_scale_sigma
-        super().__init__(
-            wheels,
-            *self.config.drive,
-            METHODS.index(self.config.method),
-            HEADINGS.index(heading),
-            *self.config.k,
-            self.config.arw2,
-            self.config.rrw2,
-            self.config.estimate_bias,
-            self.config.estimate_scale,
-            self.config.slip_threshold,
-            self.config.slip_inflation,
-            self.command_sigma,
-            chi2_quantile(gate, 1),
-            chi2_quantile(gate, 2),
-            chi2_quantile(gate, 3),
-            robot.reference_offset,
-            self.history,
-            self.ahead,
-            _three(mounting_yaw_row(mounting)),
-            tuple(x.tolist()),
-            tuple(P.ravel().tolist()),
+        drive = robot.equivalent
+        arw, rrw = self.noise.angle_random_walk, self.noise.rate_random_walk
+        self.config = ekf.CoreSettings(
+            drive=(
+                drive.left_wheel_radius,
+                drive.right_wheel_radius,
+                drive.track_width,
+                drive.axle_offset,
+            ),
+            method=check_method(method),
+            heading=heading,
+            k=(self.wheel_noise.left, self.wheel_noise.right),
+            arw2=arw * arw,
+            rrw2=rrw * rrw,
+            estimate_bias=heading == "fused",
+            estimate_scale=turn_scale_sigma > 0.0,
+            slip_threshold=positive("slip_threshold", slip_threshold),
+            slip_inflation=positive("slip_inflation", slip_inflation),
+            command_sigma=self.command_sigma,
+            gates=(chi2_quantile(gate, 1), chi2_quantile(gate, 2), chi2_quantile(gate, 3)),
+            offset=robot.reference_offset,
+            history=self.history,
+            ahead=self.ahead,
+            mounting=_three(self._mounting),
+            state=tuple(x.tolist()),
+            covariance=tuple(P.ravel().tolist()),
         )
+        super().__init__(wheels, self.config)
 
     # -- what it knows --------------------------------------------------------------------
 

@@ -38,6 +38,7 @@ import numpy as np
 
 from diffdrive._step import wheel_move
 from diffdrive._validate import finite, floats, positive
+from diffdrive.backends.settings import OdometrySettings
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import Robot, check_robot
@@ -148,19 +149,21 @@ class _OdometryMethods(_Base):
         # the body origin (a skid-steer robot's ICR midpoint); poses and covariances move back.
         geometry = robot.equivalent
         self._offset = robot.reference_offset
-        super().__init__(
-            geometry.left_wheel_radius,
-            geometry.right_wheel_radius,
-            geometry.track_width,
-            geometry.axle_offset,
-            METHODS.index(method),
-            rad_per_tick,
-            speed_limit,
-            counter_bits or 0,
-            self.wheel_noise.left,
-            self.wheel_noise.right,
-            positive("velocity_window", velocity_window),
+        self.settings = OdometrySettings(
+            drive=(
+                geometry.left_wheel_radius,
+                geometry.right_wheel_radius,
+                geometry.track_width,
+                geometry.axle_offset,
+            ),
+            method_code=METHODS.index(method),
+            rad_per_tick=rad_per_tick,
+            max_wheel_speed=speed_limit,
+            counter_bits=counter_bits or 0,
+            k=(self.wheel_noise.left, self.wheel_noise.right),
+            velocity_window=positive("velocity_window", velocity_window),
         )
+        super().__init__(self.settings)
         self.reset(Pose() if initial_pose is None else initial_pose, initial_covariance)
 
     @property
