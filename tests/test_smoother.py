@@ -55,7 +55,7 @@ def run_core(kind, heading, scale, log, smooth):
         times, increments, turns if heading != "wheels" else np.full(len(turns), np.nan),
         np.zeros(len(turns), dtype=bool), whole._packed(ordered),
     )  # fmt: skip
-    return whole._run(estimator, log_of, smooth, forced)
+    return whole._run(estimator, log_of, smooth, forced, records=True)
 
 
 @pytest.mark.slow
@@ -72,10 +72,18 @@ def test_the_c_whole_log_pass_is_its_python_twin(steps, seen, heading, scale, sm
     """Any log, forced intervals and measurements of every kind (at the start, at interval
     ends, inside intervals, several at one stamp): the C pass and the Python one give the
     same state and covariance at every row, filtered and smoothed, the same slip flags and
-    scores, and the same outcomes."""
+    scores, and the same outcomes; smoothed, the same record of every step, which run back
+    through the RTS step gives the smoothed states."""
     log = make_log(steps, seen)
     c = run_core(fusion.PoseEstimator, heading, scale, log, smooth)
     python = run_core(fusion.PythonPoseEstimator, heading, scale, log, smooth)
+    if smooth:
+        assert c.records is not None
+        assert python.records is not None
+        _same_records(c.records, python.records)
+        _records_smooth_to(c.records, c.states, c.covariances)
+    else:
+        assert c.records is None
     np.testing.assert_allclose(c.states, python.states, rtol=1e-9, atol=1e-11)
     scale_of = np.maximum(np.abs(python.covariances).max(axis=(1, 2)), 1e-12)[:, None, None]
     np.testing.assert_allclose(c.covariances / scale_of, python.covariances / scale_of, atol=1e-8)
@@ -83,6 +91,34 @@ def test_the_c_whole_log_pass_is_its_python_twin(steps, seen, heading, scale, sm
     np.testing.assert_allclose(c.scores, python.scores, rtol=1e-7, atol=1e-9)
     np.testing.assert_array_equal(c.accepted, python.accepted)
     np.testing.assert_allclose(c.distances, python.distances, rtol=1e-7, atol=1e-9)
+
+
+def _same_records(c, python):
+    np.testing.assert_array_equal(c.interval, python.interval)
+    for name in ("before", "after", "gain"):
+        np.testing.assert_allclose(
+            getattr(c, name), getattr(python, name), rtol=1e-9, atol=1e-10, err_msg=name
+        )
+    for name in ("before_covariance", "after_covariance"):
+        got, want = getattr(c, name), getattr(python, name)
+        scale = np.maximum(np.abs(want).max(axis=(1, 2)), 1e-12)[:, None, None]
+        np.testing.assert_allclose(got / scale, want / scale, atol=1e-8, err_msg=name)
+
+
+def _records_smooth_to(records, states, covariances):
+    """The RTS pass written out from the records alone, from the last row back: each step's
+    smoothed start from its smoothed end; a row's state is that of its interval's first step."""
+    x, P = states[-1], covariances[-1]
+    for s in range(len(records.interval) - 1, -1, -1):
+        C = records.gain[s]
+        x = records.before[s] + C @ (x - records.after[s])
+        P = records.before_covariance[s] + C @ (P - records.after_covariance[s]) @ C.T
+        P = 0.5 * (P + P.T)
+        if s == 0 or records.interval[s - 1] != records.interval[s]:
+            row = records.interval[s] - 1
+            np.testing.assert_allclose(x, states[row], rtol=1e-9, atol=1e-10)
+            scale = max(np.abs(covariances[row]).max(), 1e-12)
+            np.testing.assert_allclose(P / scale, covariances[row] / scale, atol=1e-8)
 
 
 @settings(max_examples=30, deadline=None)
@@ -205,7 +241,22 @@ def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
     np.testing.assert_array_equal(c_core._state_now(), twin._state_now())
     with pytest.raises(ValueError, match="state must have 5 numbers"):
         _odometry.EstimatorCore(wheels, dataclasses.replace(settings, state=(0.0, 1.0)))
-    with pytest.raises(AttributeError, match="no attribute .arw2."):
+    with pytest.raises(AttributeError, match="no attribute 'arw2'"):
         _odometry.EstimatorCore(wheels, odometry_settings)
     with pytest.raises(ValueError, match="drive must have 4 numbers"):
         _odometry.OdometryCore(dataclasses.replace(odometry_settings, drive=(0.05, 0.3)))
+
+
+def test_estimate_trajectory_keeps_the_records_only_when_asked_and_smoothing():
+    times = np.arange(0.0, 2.0 + 1e-9, 0.1)
+    increments = np.full((len(times) - 1, 2), [0.5, 0.6])
+    fixes = whole.measurements_of("position", [0.55, 1.0, 1.05], np.zeros((3, 2)), 0.5)
+    options = dict(heading="wheels", measurements=fixes)
+    kept = estimate_trajectory(ROBOT, times, increments, records=True, **options)
+    assert kept.records is not None
+    # 20 intervals, the ones holding 0.55 and 1.05 cut in two (1.0 ends an interval)
+    assert len(kept.records.interval) == 22
+    assert kept.records.gain.shape == (22, 5, 5)
+    assert estimate_trajectory(ROBOT, times, increments, **options).records is None
+    with pytest.raises(ValueError, match="records are the smoother's"):
+        estimate_trajectory(ROBOT, times, increments, smooth=False, records=True, **options)

@@ -53,6 +53,8 @@ typedef struct {
 typedef struct {
     double before[N], before_cov[NN], after[N], after_cov[NN], gain[NN];
 } Step;
+/* _run_log copies Steps into a caller's rows of filter.RECORD_WIDTH float64 */
+_Static_assert(sizeof(Step) == (2 * N + 3 * NN) * sizeof(double), "a Step is 85 doubles");
 
 /* Where run_interval records the smoother's steps (NULL: it keeps none). */
 typedef struct {
@@ -1400,14 +1402,19 @@ enum { LOG_TIMES, LOG_LEFT, LOG_RIGHT, LOG_GYRO, LOG_FORCED, LOG_MT, LOG_MKIND, 
        LOG_VIEWS };
 
 /* _run_log(times, left, right, gyro, forced, m_t, m_kind, m_value, m_cov, m_lever, smooth,
- *          states, covariances, slips, scores, accepted, distances): estimate_trajectory's
- * pass over a whole log from the state now, in float64 arrays (see the Python twin's
- * docstring). Returns -1, or the interval (-2: the start) whose state would overflow. */
+ *          states, covariances, slips, scores, accepted, distances[, records]):
+ * estimate_trajectory's pass over a whole log from the state now, in float64 arrays (see the
+ * Python twin's docstring); records, unless None, takes the smoother's steps (a Step a row,
+ * in time order). Returns -1, or the interval (-2: the start) whose state would overflow. */
 static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 17) {
-        PyErr_SetString(PyExc_TypeError, "_run_log takes 17 arguments");
+    if (nargs != 17 && nargs != 18) {
+        PyErr_SetString(PyExc_TypeError, "_run_log takes 17 or 18 arguments");
         return NULL;
     }
+    PyObject *records_obj = nargs == 18 ? args[17] : Py_None;
+    Py_buffer records;
+    int keep = 0;
+    Py_ssize_t rows = 0, write = 0;
     static const char *names[LOG_VIEWS] = {
         "times", "left", "right", "gyro", "forced", "m_t", "m_kind", "m_value", "m_cov",
         "m_lever", "states", "covariances", "slips", "scores", "accepted", "distances"};
@@ -1437,6 +1444,18 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
     for (; got < LOG_VIEWS; ++got)
         if (doubles_view(objs[got], &views[got], sizes[got], got >= LOG_STATES, names[got]) < 0)
             goto done;
+    if (records_obj != Py_None) {
+        if (PyObject_GetBuffer(records_obj, &records,
+                               PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0)
+            goto done;
+        keep = 1;
+        if (records.format == NULL || strcmp(records.format, "d") != 0 ||
+            records.len % (Py_ssize_t)sizeof(Step) != 0) {
+            PyErr_SetString(PyExc_ValueError, "_run_log: records must be rows of 85 float64");
+            goto done;
+        }
+        rows = write = records.len / (Py_ssize_t)sizeof(Step);
+    }
     const double *t = views[LOG_TIMES].buf, *dl = views[LOG_LEFT].buf, *dr = views[LOG_RIGHT].buf;
     const double *g = views[LOG_GYRO].buf, *forced = views[LOG_FORCED].buf;
     const double *mt = views[LOG_MT].buf, *mkind = views[LOG_MKIND].buf;
@@ -1522,6 +1541,11 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
             memcpy(fP, covs + NN * (k - 1), sizeof fP);
             Record record = {steps, 0};
             run_interval(e, &iv, ms + lo, hi - lo, 1, 0.0, fx, fP, &record);
+            if (keep) { /* backwards, so this interval's rows go before the later ones' */
+                write -= record.count;
+                if (write >= 0)
+                    memcpy((Step *)records.buf + write, steps, record.count * sizeof(Step));
+            }
             for (Py_ssize_t s = record.count - 1; s >= 0; --s) smooth_step(&steps[s], x, P);
             memcpy(states + N * (k - 1), x, sizeof x);
             memcpy(covs + NN * (k - 1), P, sizeof P);
@@ -1529,9 +1553,14 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         }
     }
     Py_END_ALLOW_THREADS;
-    result = PyLong_FromSsize_t(failed);
+    if (keep && smooth && failed == -1 && write != 0)
+        PyErr_Format(PyExc_ValueError, "_run_log: records must have %zd rows, not %zd",
+                     rows - write, rows);
+    else
+        result = PyLong_FromSsize_t(failed);
 done:
     for (int i = 0; i < got; ++i) PyBuffer_Release(&views[i]);
+    if (keep) PyBuffer_Release(&records);
     PyMem_Free(ms);
     PyMem_Free(steps);
     return result;

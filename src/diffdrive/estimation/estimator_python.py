@@ -318,6 +318,7 @@ class EstimatorCore:
         scores: np.ndarray,
         accepted: np.ndarray,
         distances: np.ndarray,
+        records: np.ndarray | None = None,
     ) -> int:
         """``estimate_trajectory``'s pass over a whole log from the state now, leaving the
         estimator as it was. In: ``times`` ``(n,)`` s; per interval the wheels' turns ``left``
@@ -329,8 +330,10 @@ class EstimatorCore:
         filled in place): the state ``(n, 5)`` and covariance ``(n, 25)`` at the start and at
         each interval's end (smoothed with ``smooth``), each interval's slip flag and score
         ``(n,)`` (row 0: none), each measurement's outcome and squared Mahalanobis distance
-        ``(M,)``. Measurements stamped at ``times[0]`` are applied at the start. Returns -1,
-        or the interval whose state would overflow (-2: the start)."""
+        ``(M,)``; with ``smooth``, unless ``records`` is None, the smoother's record of each
+        step in time order ``(S, RECORD_WIDTH)`` (``filter.record_steps`` says how many).
+        Measurements stamped at ``times[0]`` are applied at the start. Returns -1, or the
+        interval whose state would overflow (-2: the start)."""
         made = []
         for j in range(len(m_t)):
             kind = MEASUREMENT_KINDS[int(m_kind[j])]
@@ -383,6 +386,13 @@ class EstimatorCore:
         head = len(made) - len(outcomes)
         for q, (ok, score) in enumerate(outcomes):
             accepted[head + q], distances[head + q] = ok, score
+        if smooth and records is not None:
+            steps = [step for interval in intervals for step in interval.steps]
+            if len(steps) != len(records):
+                raise ValueError(f"_run_log: records must have {len(steps)} rows")
+            for row, step in enumerate(steps):
+                parts = (step.before, step.before_cov, step.after, step.after_cov, step.gain)
+                records[row] = np.concatenate([np.ravel(part) for part in parts])
         if smooth:  # Rauch-Tung-Striebel, backwards
             for k in range(len(times) - 1, 0, -1):
                 states[k], covariances[k] = x, P.ravel()

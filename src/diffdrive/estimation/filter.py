@@ -101,6 +101,57 @@ class Step:
     gain: np.ndarray
 
 
+# A record's row as the cores write it: before (5), before_cov (25), after (5), after_cov (25),
+# gain (25), in Step's order (the C core's Step struct, 85 doubles).
+RECORD_WIDTH = 2 * N + 3 * N * N
+
+
+@dataclass(frozen=True, eq=False)
+class SmootherRecords:
+    """The smoother's record of every step of a whole log, in time order, as the
+    Rauch-Tung-Striebel pass reads it (``estimate_trajectory(..., records=True)``): each
+    interval is one step, or one per distinct measurement stamp inside it and one to its end.
+
+    ``interval`` ``(S,)``: the interval (1 to N-1, ending at ``times[interval]``) of each
+    step; ``before`` ``(S, 5)`` and ``before_covariance`` ``(S, 5, 5)``: the filtered state at
+    the step's start; ``after`` ``(S, 5)`` and ``after_covariance`` ``(S, 5, 5)``: the state
+    the step predicts at its end, before any measurement there; ``gain`` ``(S, 5, 5)``: the
+    step's smoother Jacobian ``C`` (``d before_smoothed / d after_smoothed``), so that
+    ``before_smoothed = before + C (after_smoothed - after)`` and ``P_before_smoothed =
+    before_covariance + C (P_after_smoothed - after_covariance) C^T``."""
+
+    interval: np.ndarray
+    before: np.ndarray
+    before_covariance: np.ndarray
+    after: np.ndarray
+    after_covariance: np.ndarray
+    gain: np.ndarray
+
+    @classmethod
+    def from_rows(cls, interval: np.ndarray, rows: np.ndarray) -> SmootherRecords:
+        """From the cores' rows ``(S, RECORD_WIDTH)`` (see ``RECORD_WIDTH``)."""
+        cut = np.cumsum([N, N * N, N, N * N])
+        before, before_cov, after, after_cov, gain = np.split(rows, cut, axis=1)
+        square = (-1, N, N)
+        return cls(
+            interval,
+            before,
+            before_cov.reshape(square),
+            after,
+            after_cov.reshape(square),
+            gain.reshape(square),
+        )
+
+
+def record_steps(times: np.ndarray, stamps: np.ndarray) -> np.ndarray:
+    """How many smoother steps each interval of ``times`` ``(n,)`` has with measurements at
+    ``stamps`` ``(M,)`` (sorted, inside the log): one per distinct stamp strictly inside it,
+    and one to its end. ``(n-1,)`` ints."""
+    inside = np.unique(stamps[(stamps > times[0]) & (stamps < times[-1])])
+    inside = inside[~np.isin(inside, times)]
+    return 1 + np.bincount(np.searchsorted(times, inside), minlength=len(times))[1:]
+
+
 def slip_innovation(c: Config, x, P, dl, dr, g, dt) -> tuple:
     """The wheels' turn less the gyro's over one interval (rad), its variance while neither
     wheel slips (rad^2), and how far it moves per unit of the left and the right wheel's slip

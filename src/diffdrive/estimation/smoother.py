@@ -45,7 +45,8 @@ class Estimate:
     ``twists`` ``(N, 3)`` ``[vx, vy, omega]`` and ``twist_covariances`` ``(N, 3, 3)``: the body
     twist over the interval ending at each row (row 0: the first interval's) and its
     covariance, from the wheels and the heading source with the estimated bias or turn scale
-    (``diffdrive.estimation.twists``)."""
+    (``diffdrive.estimation.twists``); with ``records``, the smoother's record of every step
+    (``filter.SmootherRecords``), else None."""
 
     times: np.ndarray
     poses: np.ndarray
@@ -61,6 +62,7 @@ class Estimate:
     heading: str
     twists: np.ndarray
     twist_covariances: np.ndarray
+    records: ekf.SmootherRecords | None = None
 
     @property
     def rejected(self) -> int:
@@ -121,6 +123,7 @@ def estimate_trajectory(
     smooth: bool = True,
     commanded: object = None,
     slip_test: str = "episodes",
+    records: bool = False,
     **options,
 ) -> Estimate:
     """A whole log: wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s,
@@ -130,7 +133,8 @@ def estimate_trajectory(
     estimate; else the filter's. ``slip_test``: ``"episodes"`` flags, besides the intervals
     the streaming test flags, the runs of intervals that one slipping wheel explains
     (``diffdrive.estimation.episodes``; the log then runs again with them flagged);
-    ``"interval"`` only the streaming test's."""
+    ``"interval"`` only the streaming test's. ``records`` keeps the smoother's record of every
+    step (``Estimate.records``: 680 bytes a step; needs ``smooth``)."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     if times.ndim != 1 or len(times) < 2:
@@ -164,6 +168,8 @@ def estimate_trajectory(
             )
     if slip_test not in SLIP_TESTS:
         raise ValueError(f"slip_test must be one of {SLIP_TESTS}, got {slip_test!r}")
+    if records and not smooth:
+        raise ValueError("records are the smoother's, made on its pass back: give smooth=True")
     options.setdefault("history", float("inf"))
     estimator = PoseEstimator(
         robot,
@@ -179,7 +185,7 @@ def estimate_trajectory(
     gyro_turns = np.full(len(increments), np.nan) if turned is None else turned
     log = _Log(times, increments, gyro_turns, missed, _packed(ordered))
     episodes = slip_test == "episodes" and turned is not None
-    run = _run(estimator, log, smooth and not episodes, None)
+    run = _run(estimator, log, smooth and not episodes, None, records and not episodes)
     forced = None
     # Again with the episodes' wheel turns left out, and once more if what they had pulled
     # into the estimate (the bias, in a fused heading) moved the episodes found.
@@ -192,7 +198,7 @@ def estimate_trajectory(
         forced = found
         run = _run(estimator, log, False, forced)
     if smooth and episodes:  # the smoother over the last forward pass
-        run = _run(estimator, log, True, forced)
+        run = _run(estimator, log, True, forced, records)
     twists, twist_covariances = _twists(robot, estimator.config, log, run)
     return Estimate(
         times,
@@ -209,6 +215,7 @@ def estimate_trajectory(
         heading,
         twists,
         twist_covariances,
+        run.records,
     )
 
 
@@ -235,15 +242,25 @@ class _Run:
     scores: np.ndarray
     accepted: np.ndarray
     distances: np.ndarray
+    records: ekf.SmootherRecords | None
 
 
-def _run(estimator: PoseEstimator, log: _Log, smooth: bool, forced: np.ndarray | None) -> _Run:
+def _run(
+    estimator: PoseEstimator,
+    log: _Log,
+    smooth: bool,
+    forced: np.ndarray | None,
+    records: bool = False,
+) -> _Run:
     """A pass forward (and with ``smooth``, back) over ``log``, the intervals ``forced``
-    ``(N-1,)`` flagged as slipping besides those the commands flag."""
+    ``(N-1,)`` flagged as slipping besides those the commands flag; with ``smooth`` and
+    ``records``, the smoother's record of every step kept."""
     n, m = len(log.times), len(log.measurements[0])
     flagged = log.commanded if forced is None else log.commanded | forced
     states, covariances = np.empty((n, ekf.N)), np.empty((n, ekf.N * ekf.N))
     slips, scores, accepted, distances = np.empty(n), np.empty(n), np.empty(m), np.empty(m)
+    steps = ekf.record_steps(log.times, log.measurements[0]) if smooth and records else None
+    rows = None if steps is None else np.empty((int(steps.sum()), ekf.RECORD_WIDTH))
     # the cores read contiguous float64 (a caller's times may be a strided view)
     failed = estimator._run_log(
         np.ascontiguousarray(log.times, dtype=float),
@@ -259,6 +276,7 @@ def _run(estimator: PoseEstimator, log: _Log, smooth: bool, forced: np.ndarray |
         scores,
         accepted,
         distances,
+        rows,
     )
     if failed == -2:
         raise ValueError(
@@ -275,6 +293,9 @@ def _run(estimator: PoseEstimator, log: _Log, smooth: bool, forced: np.ndarray |
         scores,
         accepted.astype(bool),
         distances,
+        None
+        if rows is None or steps is None
+        else ekf.SmootherRecords.from_rows(np.repeat(np.arange(1, n), steps), rows),
     )
 
 
