@@ -33,7 +33,10 @@ def test_exact_wheels_and_a_noisy_gyro():
     )
     assert found.track == pytest.approx(0.31, rel=0.005)
     assert found.bias == pytest.approx(0.01, abs=1e-3)
-    assert min(found.bracket) <= found.track <= max(found.bracket)
+    # Exact wheels put all the noise on the gyro: the fit is the bracket's end itself, which
+    # the two formulas round apart by an ulp or so.
+    rounding = 1e-12 * found.track
+    assert min(found.bracket) - rounding <= found.track <= max(found.bracket) + rounding
 
 
 def test_noise_on_both_sides_needs_their_ratio():

@@ -2,6 +2,7 @@
 statistics its model states, and the estimators meet what they were built for."""
 
 import dataclasses
+import importlib.util
 import math
 
 import numpy as np
@@ -417,3 +418,65 @@ def test_an_ideal_gyro_integrates_back_to_the_turn_on_uneven_stamps():
     turned = path.poses[:, 2] - path.poses[0, 2]
     assert abs(gyro.angles[0, -1] - turned[-1]) < 1e-12
     assert np.abs(gyro.angles[0] - turned).max() < 5e-4
+
+
+# The compiled kernel against NumPy's stages, on a batch of different trajectories: every
+# error source it takes, counters of each kind, wrapped and unwrapped headings.
+KERNEL_MODELS = {
+    "ideal, rad": sensors.EncoderModel(),
+    "12-bit signed, biases, a slip": sensors.EncoderModel(
+        ticks_per_revolution=4096, counter_bits=12, radius_bias=(0.01, -0.01), track_bias=0.02,
+        slips=(sensors.Slip(1.0, 2.0, "left", 0.5),),
+    ),
+    "10-bit unsigned, noise, geometry spread": sensors.EncoderModel(
+        ticks_per_revolution=1024, counter_bits=10, signed=False, wheel_noise=(1e-4, 3e-4),
+        geometry_sigma=(0.01, 0.01, 0.02),
+    ),
+    "64-bit unsigned, noise, rad": sensors.EncoderModel(wheel_noise=2e-4),
+    "64-bit unsigned counts": sensors.EncoderModel(
+        ticks_per_revolution=2048, counter_bits=64, signed=False
+    ),
+}  # fmt: skip
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("numba") is None, reason="numba (the fast extra) is not installed"
+)
+@pytest.mark.parametrize("model", KERNEL_MODELS.values(), ids=KERNEL_MODELS)
+@pytest.mark.parametrize("headings", ["wrapped", "unwrapped", "shared"])
+def test_the_compiled_encoders_read_what_numpys_stages_read(monkeypatch, model, headings):
+    from diffdrive.sensors import encoders
+
+    rng = np.random.default_rng(5)
+    scale = rng.uniform(0.5, 1.5, (12, 1))
+    wheels = np.stack([6 + 4 * np.sin(scale * T[:-1]), 6 - 4 * np.cos(0.5 * scale * T[:-1])], -1)
+    poses = dd.simulate(SKID, wheels, times=T).poses  # (12, 501, 3): a skid steer's offset
+    robots = None
+    if headings == "wrapped":
+        poses[..., 2] = dd.batch.wrap_angle(poses[..., 2])
+    elif headings == "unwrapped":
+        poses[..., 2] += 8.0  # beyond pi: unwrapped
+    else:  # one trajectory that every robot drives
+        poses, robots = poses[3], 12
+    fast = sensors.encoder_readings(SKID, T, poses, model, robots=robots, seed=7)
+    monkeypatch.setattr(encoders, "_compiled", lambda: False)
+    slow = sensors.encoder_readings(SKID, T, poses, model, robots=robots, seed=7)
+    assert fast.readings.dtype == slow.readings.dtype
+    if model.ticks_per_revolution is None:
+        np.testing.assert_allclose(fast.readings, slow.readings, rtol=0, atol=1e-10)
+    else:  # whole counts: the same, but for a sum a rounding away from a count's edge
+        differ = fast.readings != slow.readings
+        assert np.count_nonzero(differ) <= 2, np.argwhere(differ)
+    np.testing.assert_array_equal(fast.slipping, slow.slipping)
+    np.testing.assert_array_equal(fast.geometry, slow.geometry)
+
+
+def test_the_compiled_encoders_refuse_what_numpy_refuses():
+    poses = np.repeat(path().poses[None], 3, axis=0)
+    poses[1, 7, 0] = np.nan
+    with pytest.raises(ValueError, match="poses must be finite"):
+        sensors.encoder_readings(ROBOT, T, poses)
+    far = np.repeat(path().poses[None], 2, axis=0)
+    far[..., :2] *= 1e16  # 10^18 counts and more: past an int64
+    with pytest.raises(ValueError, match="more counts than an int64 holds"):
+        sensors.encoder_readings(ROBOT, T, far, sensors.EncoderModel(ticks_per_revolution=4096))

@@ -20,7 +20,10 @@ Everything is drawn from one seeded generator, batched over robots: ``(N, T+1, 2
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -32,7 +35,14 @@ from diffdrive.io.run import Run
 from diffdrive.model import Robot
 from diffdrive.sensor_noise import NONE as NO_NOISE
 from diffdrive.sensor_noise import WheelNoise, draw_travel
-from diffdrive.sensors.motion import Motion, motion_of, robot_geometry
+from diffdrive.sensors.motion import (
+    NOT_FINITE,
+    Motion,
+    checked_trajectory,
+    motion_of,
+    robot_count,
+    robot_geometry,
+)
 
 __all__ = ["EncoderModel", "EncoderReadings", "Slip", "encoder_readings"]
 
@@ -158,24 +168,109 @@ def encoder_readings(
     trajectory ``times`` ``(T+1,)``, ``poses`` ``(T+1, 3)`` or ``(N, T+1, 3)``, with the
     errors of ``model`` drawn from ``seed``."""
     model = EncoderModel() if model is None else model
-    motion = motion_of(robot, times, poses)
-    count = motion.robots(robots)
+    t, p = checked_trajectory(times, poses, finite=False)
+    # Through the compiled kernel where numba is, which checks the poses as it reads them.
+    fast = not (model.latency or model.jitter) and _compiled()
+    if not fast and not np.all(np.isfinite(p)):
+        raise ValueError(NOT_FINITE)
+    count = robot_count(len(p), robots)
     rng = rng_of(seed)
     geometry = robot_geometry(
         robot, count, model.radius_bias, model.track_bias, model.geometry_sigma, rng
     )
-    forward, turn, slipping = _ground_travel(motion, model)
+    factor, slipping = _slip_factors(t, model)
     ticks = model.ticks_per_revolution
     scale = 1.0 if ticks is None else ticks / (2.0 * math.pi)
-    readings = np.empty(
-        (count, len(motion.times), 2), dtype=np.float64 if ticks is None else np.int64
-    )
+    readings = np.empty((count, len(t), 2), dtype=np.float64 if ticks is None else np.int64)
+    if fast:
+        _read_compiled(robot, p, factor, geometry, model, rng, scale, readings)
+    else:
+        _read_in_numpy(robot, t, p, factor, geometry, model, rng, scale, readings)
+    if ticks is not None and model.counter_bits == 64 and not model.signed:
+        readings = readings.view(np.uint64)  # the same bits, read without a sign
+    kept = np.ones((count, len(t)), dtype=bool)
+    if model.drop:
+        kept[:, 1:] = rng.random((count, len(t) - 1)) >= model.drop
+    slipping = np.broadcast_to(slipping, (count, *slipping.shape))
+    return EncoderReadings(t, readings, kept, slipping, geometry, p, model)
+
+
+def _compiled() -> bool:
+    """Whether numba is installed (the compiled kernel's ``fast`` extra)."""
+    return importlib.util.find_spec("numba") is not None
+
+
+def _read_compiled(robot, poses, factor, geometry, model, rng, scale, readings) -> None:
+    """A batch of different trajectories through ``backends.numba_encoders``, one pass a
+    robot on every core. With wheel noise, block by block: the standard normals drawn as the
+    NumPy path draws them (so that a seed gives the same robots either way), one block at a
+    time, while other threads run the kernel on theirs: the draw is half the work, and one
+    generator fills in order."""
+    from diffdrive.backends.numba_encoders import read_encoders, read_encoders_serial, scan
+    from diffdrive.backends.simulate_kernel import threads
+
+    finite, largest = scan(poses)
+    if not finite:
+        raise ValueError(NOT_FINITE)
+    noise, turned = model.wheel_noise, bool(largest > np.pi)  # as motion.unwrapped
+    settings = (
+        robot.reference_offset, turned, factor, geometry, noise.k, scale,
+        model.ticks_per_revolution is not None,
+        0 if model.counter_bits is None else model.counter_bits, model.signed,
+    )  # fmt: skip
+
+    def run(kernel, rows: slice, normals: np.ndarray) -> None:
+        offset, turned, factor, geometry, k, scale, counts, bits, signed = settings
+        overflow = kernel(
+            poses[rows] if len(poses) > 1 else poses, offset, turned, factor, geometry[rows], k,
+            normals, bool(noise), scale,
+            counts, bits, signed, readings[rows],
+        )  # fmt: skip
+        if overflow.any():
+            raise ValueError(_TOO_MANY_COUNTS)
+
+    if not noise:
+        run(read_encoders, slice(None), _NONE)
+        return
+    # Blocks of half a million normals, each drawn in turn under a lock (the stream is the
+    # NumPy path's whatever the block or thread, as a generator fills in order) and read by
+    # the kernel on the thread that drew it, while the other threads draw or read theirs.
+    steps = poses.shape[1] - 1
+    block = max(1, (1 << 19) // (2 * steps))
+    starts, lock = iter(range(0, len(readings), block)), threading.Lock()
+
+    def work() -> None:
+        normals = np.empty((block, 2, steps))  # one buffer a thread, used again
+        while True:
+            with lock:
+                first = next(starts, None)
+                if first is None:
+                    return
+                rows = slice(first, min(len(readings), first + block))
+                drawn = normals[: rows.stop - first]
+                rng.standard_normal(out=drawn)
+            run(read_encoders_serial, rows, drawn)
+
+    with ThreadPoolExecutor(threads()) as pool:
+        for job in [pool.submit(work) for _ in range(threads())]:
+            job.result()  # raises what the thread raised
+
+
+_NONE = np.zeros((1, 2, 1))  # no noise: the kernel reads no normals
+_TOO_MANY_COUNTS = "the wheels turn more counts than an int64 holds: fewer ticks or steps"
+
+
+def _read_in_numpy(robot, times, poses, factor, geometry, model, rng, scale, readings) -> None:
+    """The readings in NumPy stages over blocks of robots (see ``_read_compiled``)."""
+    motion = motion_of(robot, times, poses)
+    forward, turn = _ground_travel(motion, factor)
+    ticks = model.ticks_per_revolution
     # A robot's wheel angle is (forward travel -+ half its track times the turn) over its
     # radius, summed: with the sums of the trajectory's shared, a few robots at a time keep
     # every temporary in the cache, whatever the batch.
     block = max(1, _BLOCK_ELEMENTS // readings[0].size)
-    for first in range(0, count, block):
-        rows = slice(first, min(count, first + block))
+    for first in range(0, len(readings), block):
+        rows = slice(first, min(len(readings), first + block))
         own = rows if len(forward) > 1 else slice(None)  # a batch's own trajectories
         travel = (forward[own], turn[own], motion.increments[own])
         angles = _angles(travel, geometry[rows], model, rng, scale)
@@ -185,41 +280,41 @@ def encoder_readings(
             readings[rows] = angles.transpose(0, 2, 1)
         else:
             _counts(angles, readings[rows].transpose(0, 2, 1), model.counter_bits, model.signed)
-    if ticks is not None and model.counter_bits == 64 and not model.signed:
-        readings = readings.view(np.uint64)  # the same bits, read without a sign
-    kept = np.ones((count, len(motion.times)), dtype=bool)
-    if model.drop:
-        kept[:, 1:] = rng.random((count, len(motion.times) - 1)) >= model.drop
-    slipping = np.broadcast_to(slipping, (count, *slipping.shape))
-    return EncoderReadings(motion.times, readings, kept, slipping, geometry, motion.poses, model)
 
 
 # Float64 elements of one block's angles: a few robots' worth, well inside a core's cache.
 _BLOCK_ELEMENTS = 1 << 16
 
 
-def _ground_travel(motion: Motion, model: EncoderModel):
-    """Each wheel's share of the trajectory, accumulated from 0: ``(B, 2, T+1)`` sums (wheels
-    before time, so that every loop runs along time) of the forward travel (m) and of the turn
-    (rad), each interval's scaled by its slip factor, and the slip labels ``(T, 2)``."""
-    steps = len(motion.times) - 1
-    factor = np.ones((2, steps))
-    middle = 0.5 * (motion.times[1:] + motion.times[:-1])
+def _slip_factors(times: np.ndarray, model: EncoderModel) -> tuple[np.ndarray, np.ndarray]:
+    """Each wheel's travel factor over each interval ``(2, T)`` (1 where it does not slip,
+    ``1 + ratio`` in a slip episode) and the slip labels ``(T, 2)``; ``ValueError`` for an
+    episode outside the run."""
+    factor = np.ones((2, len(times) - 1))
+    middle = 0.5 * (times[1:] + times[:-1])
     for slip in model.slips:
-        if slip.start < motion.times[0] or slip.stop > motion.times[-1]:
+        if slip.start < times[0] or slip.stop > times[-1]:
             raise ValueError(
                 f"slip episode {slip.start:g} to {slip.stop:g} s lies outside the run "
-                f"({motion.times[0]:g} to {motion.times[-1]:g} s)"
+                f"({times[0]:g} to {times[-1]:g} s)"
             )
         inside = (middle >= slip.start) & (middle < slip.stop)
         for side in {"left": [0], "right": [1], "both": [0, 1]}[slip.wheel]:
             factor[side, inside] *= 1.0 + slip.ratio
+    return factor, (factor != 1.0).T
+
+
+def _ground_travel(motion: Motion, factor: np.ndarray):
+    """Each wheel's share of the trajectory, accumulated from 0: ``(B, 2, T+1)`` sums (wheels
+    before time, so that every loop runs along time) of the forward travel (m) and of the turn
+    (rad), each interval's scaled by its slip ``factor`` ``(2, T)``."""
+    steps = len(motion.times) - 1
     sums = []
     for part in (motion.increments[..., 0], motion.increments[..., 2]):  # (B, T)
         summed = np.zeros((len(part), 2, steps + 1))
         np.cumsum(part[:, None, :] * factor, axis=-1, out=summed[..., 1:])
         sums.append(summed)
-    return sums[0], sums[1], (factor != 1.0).T
+    return sums[0], sums[1]
 
 
 def _angles(travel, geometry, model, rng, scale) -> np.ndarray:
@@ -267,7 +362,7 @@ def _counts(scaled: np.ndarray, counts: np.ndarray, bits: int | None, signed: bo
     by the caller)."""
     np.floor(scaled, out=scaled)
     if not (scaled.min() > -(2.0**63) and scaled.max() < 2.0**63):
-        raise ValueError("the wheels turn more counts than an int64 holds: fewer ticks or steps")
+        raise ValueError(_TOO_MANY_COUNTS)
     counts[...] = scaled
     if bits is None or bits == 64:
         return

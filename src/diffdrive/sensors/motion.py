@@ -19,7 +19,14 @@ from diffdrive import batch
 from diffdrive.model import Robot
 from diffdrive.sensor_noise import draw_geometry
 
-__all__ = ["Motion", "motion_of", "robot_geometry"]
+__all__ = [
+    "Motion",
+    "checked_trajectory",
+    "motion_of",
+    "robot_count",
+    "robot_geometry",
+    "unwrapped",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,19 +45,47 @@ class Motion:
 
     def robots(self, robots: int | None) -> int:
         """How many robots: the batch's, or ``robots`` for one trajectory (default 1)."""
-        batch_size = self.poses.shape[0]
-        if robots is None:
-            return batch_size
-        if isinstance(robots, bool) or not isinstance(robots, int | np.integer) or robots < 1:
-            raise ValueError(f"robots must be a whole number from 1, got {robots!r}")
-        if batch_size not in (1, robots):
-            raise ValueError(f"robots={robots} for a batch of {batch_size} trajectories")
-        return int(robots)
+        return robot_count(self.poses.shape[0], robots)
+
+
+def robot_count(batch_size: int, robots: int | None) -> int:
+    """How many robots ride ``batch_size`` trajectories: one each, or ``robots`` on one
+    trajectory (default 1); ``ValueError`` naming ``robots`` if neither."""
+    if robots is None:
+        return batch_size
+    if isinstance(robots, bool) or not isinstance(robots, int | np.integer) or robots < 1:
+        raise ValueError(f"robots must be a whole number from 1, got {robots!r}")
+    if batch_size not in (1, robots):
+        raise ValueError(f"robots={robots} for a batch of {batch_size} trajectories")
+    return int(robots)
 
 
 def motion_of(robot: Robot, times: object, poses: object) -> Motion:
     """``times`` and ``poses`` checked (``ValueError`` naming what is wrong), and the motion of
     the robot's equivalent-drive point between samples."""
+    t, p = checked_trajectory(times, poses)
+    moved = robot.to_reference(p)
+    relative = batch.relative_to(moved[:, 1:], moved[:, :-1])
+    increments = batch.log(relative)
+    # The log wraps each turn to (-pi, pi]. Headings that all lie in [-pi, pi] are read as
+    # wrapped, as most tools write them (a jump across +-pi is a small turn); beyond, they are
+    # unwrapped, and their own turn is kept (a fast spin may turn more than pi in a sample).
+    if unwrapped(p):
+        increments[..., 2] = np.diff(p[..., 2], axis=-1)
+    return Motion(t, p, np.asarray(increments))
+
+
+def unwrapped(poses: np.ndarray) -> bool:
+    """Whether a trajectory's headings are unwrapped (some beyond pi: see the module)."""
+    return bool(np.abs(poses[..., 2]).max() > np.pi)
+
+
+def checked_trajectory(
+    times: object, poses: object, finite: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """``times`` ``(T+1,)`` and ``poses`` ``(B, T+1, 3)`` (one trajectory: ``B`` 1) as float
+    arrays, or ``ValueError`` naming what is wrong; ``finite=False`` leaves the poses'
+    finiteness to a caller that reads them all anyway."""
     t = np.asarray(times, dtype=float)
     p = np.asarray(poses, dtype=float)
     if t.ndim != 1 or len(t) < 2:
@@ -69,17 +104,12 @@ def motion_of(robot: Robot, times: object, poses: object) -> Motion:
         raise ValueError(
             f"poses must be ({len(t)}, 3) or (N, {len(t)}, 3) for {len(t)} times, got {p.shape}"
         )
-    if not np.all(np.isfinite(p)):
-        raise ValueError("poses must be finite")
-    moved = robot.to_reference(p)
-    relative = batch.relative_to(moved[:, 1:], moved[:, :-1])
-    increments = batch.log(relative)
-    # The log wraps each turn to (-pi, pi]. Headings that all lie in [-pi, pi] are read as
-    # wrapped, as most tools write them (a jump across +-pi is a small turn); beyond, they are
-    # unwrapped, and their own turn is kept (a fast spin may turn more than pi in a sample).
-    if np.abs(p[..., 2]).max() > np.pi:
-        increments[..., 2] = np.diff(p[..., 2], axis=-1)
-    return Motion(t, p, np.asarray(increments))
+    if finite and not np.all(np.isfinite(p)):
+        raise ValueError(NOT_FINITE)
+    return t, p
+
+
+NOT_FINITE = "poses must be finite"
 
 
 def robot_geometry(
