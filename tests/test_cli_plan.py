@@ -169,3 +169,22 @@ def test_plan_takes_sysid_gains_per_metre(files, capsys) -> None:
     without_ka = [a for a in args if a not in ("--ka", "0.926")]
     assert main(["plan", *without_ka, "--max-velocity", "4", "-o", str(out)]) == 1
     assert "--ks, --kv and --ka go together (V, V s/m, V s^2/m" in capsys.readouterr().err
+
+
+def test_follow_drives_the_response_of_a_drive_file_and_says_so(files, capsys) -> None:
+    drive = files / "drive.toml"
+    drive.write_text(
+        "[response]\ndelay = 0.04\ntime_constant = 0.05\ngain = 0.95\nacceleration = 30.0\n"
+    )
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    assert main(["follow", *args, "--drive", str(drive), "-o", str(files / "f.csv")]) == 0
+    printed = capsys.readouterr().out
+    assert "delay 0.04 s, drive" in printed
+    assert "time constant 0.05 s, gain 0.95, acceleration limit 30 rad/s^2" in printed
+    (files / "volts.toml").write_text("[feedforward]\nks = 0.2\nkv = 2.0\nka = 0.3\n")
+    out = files / "g.csv"
+    assert main(["follow", *args, "--drive", str(files / "volts.toml"), "-o", str(out)]) == 1
+    assert "volts.toml: follow --drive needs its [response] section" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(["follow", *args, "--drive", str(drive), "--lag", "0.1", "-o", str(out)]) == 1
+    assert "leave --lag out" in capsys.readouterr().err

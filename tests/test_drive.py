@@ -103,3 +103,29 @@ def test_from_an_identified_response() -> None:
 def test_bad_models_and_commands_are_refused_by_name(make, message) -> None:
     with pytest.raises(ValueError, match=message):
         make()
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        DriveModel(time_constant=0.12, gain=0.9),
+        DriveModel(time_constant=0.05, max_acceleration=40.0),
+        DriveModel(feedforward=Feedforward(0.3, 0.2, 0.03)),
+    ],
+    ids=["lag and gain", "acceleration limit", "voltage-driven"],
+)
+def test_a_step_a_period_is_the_whole_history_model(model) -> None:
+    """DriveModel.step, period by period with the commands held (what follow does), ends each
+    period where wheel_velocities puts the wheels at that time; a voltage-driven model's step
+    takes velocities and applies their steady voltage (kS sgn v + kV v)."""
+    dt = 0.02
+    times = np.arange(0, 101) * dt
+    commands = np.column_stack([8 * np.sin(times[:-1] * 2), -5 + 0 * times[:-1]])
+    ff = model.feedforward
+    applied = commands if ff is None else ff.voltage(commands)
+    want = model.wheel_velocities(times, times[:-1], applied)
+    wheels, ends = np.zeros(2), [np.zeros(2)]
+    for command in commands:
+        wheels, _ = model.step(wheels, command, dt)
+        ends.append(wheels)
+    np.testing.assert_allclose(np.array(ends), want, rtol=1e-12, atol=1e-12)

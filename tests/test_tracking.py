@@ -187,3 +187,27 @@ def test_a_delay_between_periods_is_refused_not_rounded() -> None:
 def test_a_batch_that_would_fill_the_memory_is_refused() -> None:
     with pytest.raises(ValueError, match="fewer robots, or a larger dt"):
         follow(short(), Ramsete(), robots=10**6)
+
+
+def test_follow_drives_a_drive_model() -> None:
+    """A lag given as lag= or as a DriveModel is the same loop; an identified response's
+    delay comes with it, its acceleration limit holds in the wheels' motion, and a
+    voltage-driven wheel behind its feedforward keeps the path too."""
+    from diffdrive.dynamics import DriveModel, Feedforward
+
+    lagged = follow(short(), Ramsete(), lag=0.1)
+    same = follow(short(), Ramsete(), drive=DriveModel(time_constant=0.1))
+    np.testing.assert_array_equal(lagged.poses, same.poses)
+    response = DriveModel(delay=0.04, time_constant=0.05, gain=0.95, max_acceleration=30.0)
+    result = follow(short(), Ramsete(), drive=response)
+    np.testing.assert_allclose(result.delays, [0.04])
+    # the mean over a period moves by at most the limit's worth between periods
+    assert np.abs(np.diff(result.wheel_velocities[0], axis=0)).max() <= 30.0 * 0.02 * (1 + 1e-9)
+    assert np.abs(result.errors().cross_track).max() < 0.05
+    voltage = DriveModel(feedforward=Feedforward(0.2, 0.25, 0.02))
+    assert np.abs(follow(short(), Ramsete(), drive=voltage).errors().cross_track).max() < 0.05
+    with pytest.raises(ValueError, match="as drive= or as lag=, not both"):
+        follow(short(), Ramsete(), lag=0.1, drive=response)
+    with pytest.raises(TypeError, match="drive must be a DriveModel"):
+        follow(short(), Ramsete(), drive=0.1)
+    assert delay_margin(short(), Ramsete(), drive=response, max_delay=0.1) >= 0.0

@@ -29,8 +29,8 @@ from diffdrive.control import (
     plan,
 )
 from diffdrive.control._timing import compiles_first
-from diffdrive.dynamics import Feedforward
-from diffdrive.io import read_table
+from diffdrive.dynamics import DriveModel, Feedforward
+from diffdrive.io import TableError, read_drive, read_table
 from diffdrive.io.tables import read_header
 
 LIMIT_FLAGS = {
@@ -128,11 +128,45 @@ def _tracker(args: argparse.Namespace):
     return made
 
 
+def _drive_of(args: argparse.Namespace) -> DriveModel | None:
+    """``--drive``'s response as a ``DriveModel``, or None; ``TableError`` naming the file
+    when it has no ``[response]``."""
+    if args.drive is None:
+        return None
+    if args.lag:
+        raise ValueError("--drive gives the wheels' response: leave --lag out")
+    sections = read_drive(args.drive)
+    if "response" not in sections:
+        raise TableError(
+            f"{args.drive}: follow --drive needs its [response] section (a velocity-commanded "
+            "drive's delay, time constant, gain and acceleration; diffdrive identify writes "
+            "it from commands)"
+        )
+    response = sections["response"]
+    return DriveModel(
+        delay=response.get("delay", 0.0),
+        time_constant=response.get("time_constant", 0.0),
+        gain=response.get("gain", 1.0),
+        max_acceleration=response.get("acceleration", np.inf),
+    )
+
+
+def _response(args: argparse.Namespace, drive: DriveModel | None) -> str:
+    """The report's words for the wheels' response the run simulated."""
+    if drive is None:
+        return f"lag {args.lag} s"
+    return (
+        f"drive {args.drive}: time constant {drive.time_constant:g} s, gain {drive.gain:g}, "
+        f"acceleration limit {drive.max_acceleration:g} rad/s^2"
+    )
+
+
 def run_follow(args: argparse.Namespace) -> int:
     if args.seed is not None and not args.wheel_noise:
         raise ValueError("--seed draws the wheel noise: give --wheel-noise too, or leave it out")
     if args.predict and not (args.delay or args.lag):
         raise ValueError("--predict predicts over the delay and lag: give --delay or --lag")
+    drive = _drive_of(args)
     _robot, result = _plan_of(args)
     tracker = _tracker(args)
     noise = args.wheel_noise  # k (m), both wheels
@@ -142,13 +176,14 @@ def run_follow(args: argparse.Namespace) -> int:
         dt=args.dt,
         delay=args.delay,
         lag=args.lag,
+        drive=drive,
         wheel_noise=noise,
         robots=args.robots,
         seed=args.seed,
     )
     errors = run.errors()
     known = args.delay if args.predict else 0.0
-    margin = delay_margin(result, tracker, dt=args.dt, lag=args.lag, known=known)
+    margin = delay_margin(result, tracker, dt=args.dt, lag=args.lag, known=known, drive=drive)
     columns = {
         "cross_track": errors.cross_track[0],
         "along_track": errors.along_track[0],
@@ -162,8 +197,8 @@ def run_follow(args: argparse.Namespace) -> int:
     if not args.quiet:
         name = f"{args.tracker}{' (predictive)' if args.predict else ''}"
         print(
-            f"follow: {name}, delay {args.delay} s, lag {args.lag} s, wheel noise "
-            f"{args.wheel_noise} m, {args.robots} robot(s)"
+            f"follow: {name}, delay {float(run.delays[0]):g} s, {_response(args, drive)}, "
+            f"wheel noise {args.wheel_noise} m, {args.robots} robot(s)"
         )
         for label, part in (("robot 0 (written)", slice(0, 1)), ("all robots", slice(None))):
             summary = {
@@ -261,6 +296,13 @@ def add_to(command: Command, parents: Parents) -> None:
     followed.add_argument("--tracker", choices=TRACKERS, default="ramsete")
     followed.add_argument("--delay", type=float, default=0.0, help="actuation delay, s (0)")
     followed.add_argument("--lag", type=float, default=0.0, help="wheels' time constant, s (0)")
+    followed.add_argument(
+        "--drive",
+        type=Path,
+        metavar="FILE",
+        help="the wheels' identified response instead of --lag: a drive file's [response] "
+        "(diffdrive identify writes it): delay, time constant, gain, acceleration limit",
+    )
     followed.add_argument("--predict", action="store_true", help="predict over the delay and lag")
     followed.add_argument("--robots", type=int, default=1, help="robots in the batch (1)")
     followed.add_argument("--wheel-noise", type=float, default=0.0, metavar="M", help="k, m (0)")

@@ -3,11 +3,12 @@
 Every period ``dt`` each robot's tracker turns the pose its wheel odometry believes into a
 twist, the twist becomes wheel commands (inverse kinematics), a ``Limiter`` (batched over
 the robots) may limit them, they take effect ``delay`` s later (a pure delay, per robot),
-and the wheels follow them through a first-order ``lag``. The robot moves with the wheels'
-mean velocity over the period (the lag's exact response to a held command) by the library's
-integration step; the odometry integrates the same wheel travel plus random-walk noise of
-variance ``k |travel|`` per wheel (``wheel_noise``, as ``Odometry``'s), so the tracker
-sees what a robot would.
+and the wheels answer them as the ``drive`` does (a ``dynamics.DriveModel``: an identified
+response's lag, gain and acceleration limit, or a voltage-driven wheel; by default a
+first-order ``lag``), stepped period by period (``DriveModel.step``). The robot moves with the
+wheels' mean velocity over the period by the library's integration step; the odometry
+integrates the same wheel travel plus random-walk noise of variance ``k |travel|`` per wheel
+(``wheel_noise``, as ``Odometry``'s), so the tracker sees what a robot would.
 
 ``delay_margin`` runs the same loop for a range of delays at once and reports the largest the
 tracker stays on the path with: the margin *by simulation* along this plan.
@@ -25,7 +26,7 @@ from diffdrive._validate import check_samples, floats, positive, rng_of, whole
 from diffdrive.control.limiter import Limiter
 from diffdrive.control.planning import Plan
 from diffdrive.control.tracking import Tracker
-from diffdrive.dynamics.lag import first_order
+from diffdrive.dynamics.drive import DriveModel
 from diffdrive.evaluation import PathErrors, path_errors
 from diffdrive.integrate import Method
 from diffdrive.sensor_noise import NONE as NO_NOISE
@@ -90,6 +91,7 @@ def follow(
     dt: float = 0.02,
     delay: object = 0.0,
     lag: float = 0.0,
+    drive: DriveModel | None = None,
     limiter: Limiter | None = None,
     wheel_noise: WheelNoiseLike = NO_NOISE,
     robots: int = 1,
@@ -101,8 +103,9 @@ def follow(
     """Simulate ``robots`` robots following ``plan`` with ``tracker`` (see the module).
 
     ``delay``: s, one or one per robot, each a whole number of periods; ``lag``: the wheels'
-    time constant (s; 0 for none); ``limiter``: a wheel ``Limiter`` (rad/s), its limits
-    applied to every robot (``Limiter.batched``), from rest;
+    time constant (s; 0 for none); ``drive``: the wheels' response instead (its delay, unless
+    ``delay`` is given, a whole number of periods; not with ``lag``); ``limiter``: a wheel
+    ``Limiter`` (rad/s), its limits applied to every robot (``Limiter.batched``), from rest;
     ``wheel_noise``: the odometry's (a ``WheelNoise``, m; none by default); ``start``: the
     start poses ``(3,)`` or ``(N, 3)`` (default the plan's); ``settle``: s simulated after the
     plan ends.
@@ -111,8 +114,16 @@ def follow(
         raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
     dt = positive("dt", dt)
     robots = whole("robots", robots, 1)
-    delays = _per_robot("delay", delay, robots)
     lag = float(_per_robot("lag", lag, 1)[0])
+    if drive is not None:
+        if not isinstance(drive, DriveModel):
+            raise TypeError(f"drive must be a DriveModel, got {type(drive).__name__}")
+        if lag:
+            raise ValueError("give the wheels' response as drive= or as lag=, not both")
+        if not np.any(floats("delay", delay)):
+            delay = drive.delay
+    model = DriveModel(time_constant=lag) if drive is None else drive
+    delays = _per_robot("delay", delay, robots)
     noise = WheelNoise.coerce(wheel_noise)
     if not (math.isfinite(settle) and settle >= 0.0):
         raise ValueError(f"settle must be finite and >= 0, got {settle!r}")
@@ -153,7 +164,7 @@ def follow(
         commands[:, k] = sent
         source = k - lags
         target = np.where((source >= 0)[:, None], commands[rows, np.maximum(source, 0)], 0.0)
-        wheels, mean = first_order(wheels, target, dt, lag)
+        wheels, mean = model.step(wheels, target, dt)
         applied[:, k] = mean
         moved = batch.to_twist(robot, mean)
         poses[:, k + 1] = batch.integrate.step(poses[:, k], moved, dt, method)
@@ -175,14 +186,17 @@ def delay_margin(
     known: float = 0.0,
     max_delay: float = 0.5,
     bound: float = 0.25,
+    drive: DriveModel | None = None,
 ) -> float:
     """The largest pure actuation delay (s, a multiple of ``dt`` up to ``max_delay``) beyond
     the ``known`` one (what a ``Predictive`` tracker assumes) with which ``tracker`` keeps every
     robot within ``bound`` m of the path and within 90 degrees of its heading, along this
     ``plan`` with this ``lag``: by simulation, every delay at once; a delay counts only if
-    every smaller one passes too. -1 if the tracker fails even at the known delay."""
+    every smaller one passes too. -1 if the tracker fails even at the known delay. ``drive``:
+    the wheels' response instead of ``lag`` (its own delay left out: the delays tried are
+    these)."""
     delays = known + dt * np.arange(round(max_delay / dt) + 1)
-    result = follow(plan, tracker, dt=dt, delay=delays, lag=lag, robots=len(delays))
+    result = follow(plan, tracker, dt=dt, delay=delays, lag=lag, drive=drive, robots=len(delays))
     errors = result.errors()
     with np.errstate(invalid="ignore"):
         fine = np.all(np.abs(errors.cross_track) <= bound, axis=1) & np.all(

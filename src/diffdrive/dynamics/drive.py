@@ -71,6 +71,40 @@ class DriveModel:
             return cls(delay=response.delay, feedforward=response.feedforward)
         return cls(response.delay, response.time_constant, response.gain, response.acceleration)
 
+    def step(
+        self, wheels: np.ndarray, commands: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One period of ``dt`` s with ``commands`` held (rad/s; a voltage-driven model's
+        commands are still wheel velocities, its feedforward's steady voltage for them is
+        applied): the wheels' velocities at the end (any shape, rad/s) and their mean over
+        the period, from ``wheels`` at its start. The delay is the caller's (whole periods);
+        a closed loop (``control.follow``) steps through this. The mean is the lag's exact
+        one for a held target; where the acceleration limit or static friction cuts the
+        period short, the mean of its ends."""
+        wheels, commands = np.asarray(wheels, dtype=float), np.asarray(commands, dtype=float)
+        ff = self.feedforward
+        if ff is None:
+            end, mean = first_order(wheels, self.gain * commands, dt, self.time_constant)
+            limit = self.max_acceleration * dt
+            if limit == np.inf:
+                return end, mean
+            moved = np.clip(end - wheels, -limit, limit)
+            cut = moved != end - wheels
+            end = wheels + moved
+            return end, np.where(cut, 0.5 * (wheels + end), mean)
+        return self._voltage_step(wheels, ff.voltage(commands), dt, ff)
+
+    def _voltage_step(self, w: np.ndarray, voltage: np.ndarray, dt: float, ff: Feedforward):
+        """``step`` of the voltage-driven model, ``voltage`` held (see the module)."""
+        direction = np.where(w != 0.0, np.sign(w), np.sign(voltage))
+        stuck = (w == 0.0) & (np.abs(voltage) <= ff.ks)
+        target = (voltage - ff.ks * direction) / ff.kv
+        moved, mean = first_order(w, target, dt, ff.ka / ff.kv)
+        # Crossing zero within the step: static friction stops the wheel there.
+        crossed = (w != 0.0) & (np.sign(moved) != direction)
+        end = np.where(stuck | crossed, 0.0, moved)
+        return end, np.where(stuck | crossed, 0.5 * (w + end), mean)
+
     def wheel_velocities(
         self, times: object, command_times: object, commands: object, initial: object = None
     ) -> np.ndarray:
@@ -111,18 +145,11 @@ class DriveModel:
     def _voltage_driven(self, t, stamps, volts, first) -> np.ndarray:
         ff = self.feedforward
         assert ff is not None
-        tau = ff.ka / ff.kv
         out = np.empty((len(t), volts.shape[1]))
         out[0] = w = first.copy()
         applied = held_commands(stamps + self.delay, volts, t[:-1])
         for k, (step, voltage) in enumerate(zip(np.diff(t), applied, strict=True)):
-            direction = np.where(w != 0.0, np.sign(w), np.sign(voltage))
-            stuck = (w == 0.0) & (np.abs(voltage) <= ff.ks)
-            target = (voltage - ff.ks * direction) / ff.kv
-            moved = first_order(w, target, step, tau)[0]
-            # Crossing zero within the step: static friction stops the wheel there.
-            crossed = (w != 0.0) & (np.sign(moved) != direction)
-            w = np.where(stuck | crossed, 0.0, moved)
+            w = self._voltage_step(w, voltage, step, ff)[0]
             out[k + 1] = w
         return out
 
