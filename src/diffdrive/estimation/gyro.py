@@ -17,10 +17,10 @@ from typing import Literal
 
 import numpy as np
 
-from diffdrive._validate import increasing, positive
+from diffdrive._validate import positive
 from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
 from diffdrive.estimation.imu import Gyro, rotation_from_rpy
-from diffdrive.estimation.smoother import estimate_trajectory
+from diffdrive.estimation.smoother import checked_log, estimate_trajectory
 from diffdrive.model import Robot
 from diffdrive.types import Pose
 
@@ -111,22 +111,10 @@ def gyro_odometry(
     ``"fused"``, which estimates it). ``commanded`` ``(N-1, 2)`` rad/s, if given, are the
     wheel velocities commanded over each interval. ``options`` go to ``GyroOdometry``, but
     ``slip_test`` (``"episodes"``, the default, or ``"interval"``) to ``estimate_trajectory``."""
-    times = np.asarray(times, dtype=float)
-    increments = np.asarray(increments, dtype=float)
-    if times.ndim != 1:
-        raise ValueError(f"times must be (N,) s, got shape {times.shape}")
-    increasing("times", times)
-    if increments.shape != (len(times) - 1, 2) or len(times) < 2:
-        raise ValueError(
-            f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"
-        )
     if not isinstance(gyro, Gyro):
         raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
-    turned = np.diff(gyro.angles(times))
-    if commanded is not None:
-        commanded = np.asarray(commanded, dtype=float)
-        if commanded.shape != increments.shape:
-            raise ValueError(f"commanded must be {increments.shape}, got {commanded.shape}")
+    times, increments, turned, commanded = checked_log(times, increments, gyro, commanded)
+    assert turned is not None  # a gyro was given
     if bias is None:
         bias = stationary_bias(times, increments, turned)
         if bias is None:

@@ -38,16 +38,14 @@ import numpy as np
 
 from diffdrive._step import wheel_move
 from diffdrive._validate import finite, floats, positive
-from diffdrive.backends.settings import OdometrySettings
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import Robot, check_robot
-from diffdrive.sensor_noise import DEFAULT as DEFAULT_WHEEL_NOISE
-from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike
 from diffdrive.types import Pose, Twist, WheelVelocities
 
 if TYPE_CHECKING:
     from diffdrive.io.run import Run
+    from diffdrive.sensor_noise import WheelNoiseLike
 
 __all__ = [
     "COMPILED",
@@ -108,8 +106,8 @@ class _OdometryMethods(_Base):
     per wheel revolution) is needed for ``update_ticks``; ``counter_bits`` (2 to 64) is the
     width of the encoder counters, None for counters that never roll over.
     ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``wheel_noise`` is the covariance
-    model's (a ``WheelNoise``, a number ``k`` (m) for both wheels or a pair; default
-    ``diffdrive.sensor_noise.DEFAULT``); ``initial_covariance`` is 3x3 (default zero);
+    model's (a ``WheelNoise``, a number ``k`` (m) for both wheels or a pair; None, the
+    default: ``diffdrive.sensor_noise.DEFAULT``); ``initial_covariance`` is 3x3 (default zero);
     ``velocity_window`` (s) is the span over which ``twist`` averages.
     """
 
@@ -122,7 +120,7 @@ class _OdometryMethods(_Base):
         counter_bits: int | None = None,
         *,
         max_wheel_speed: float | None = None,
-        wheel_noise: WheelNoiseLike = DEFAULT_WHEEL_NOISE,
+        wheel_noise: WheelNoiseLike | None = None,
         initial_covariance: object = None,
         velocity_window: float = 0.1,
     ) -> None:
@@ -140,7 +138,11 @@ class _OdometryMethods(_Base):
         speed_limit = math.inf
         if max_wheel_speed is not None:
             speed_limit = positive("max_wheel_speed", max_wheel_speed)
-        self.wheel_noise = WheelNoise.coerce(wheel_noise)
+        # Here, not at import: ``import diffdrive`` loads the core only (bench_import).
+        from diffdrive.backends.settings import OdometrySettings
+        from diffdrive.sensor_noise import DEFAULT, WheelNoise
+
+        self.wheel_noise = DEFAULT if wheel_noise is None else WheelNoise.coerce(wheel_noise)
         self.robot = robot
         self.method: Method = method
         self.ticks_per_revolution = ticks_per_revolution
@@ -315,7 +317,7 @@ def odometry_of_run(
     ticks_per_revolution: float | None = None,
     counter_bits: int | None = None,
     max_wheel_speed: float | None = None,
-    wheel_noise: WheelNoiseLike = DEFAULT_WHEEL_NOISE,
+    wheel_noise: WheelNoiseLike | None = None,
     covariance: bool = False,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """``Odometry`` over a whole ``Run``, from its first ground-truth pose (else the origin):

@@ -110,6 +110,30 @@ def measurements_of(
     return made
 
 
+def checked_log(
+    times: object, increments: object, gyro: Gyro | None, commanded: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """A whole log's ``times`` ``(N,)``, ``increments`` ``(N-1, 2)``, the ``gyro``'s turn over
+    each interval ``(N-1,)`` (None without one) and ``commanded`` ``(N-1, 2)`` (or None), as
+    float arrays; ``ValueError`` or ``TypeError`` naming what is wrong."""
+    times = np.asarray(times, dtype=float)
+    increments = np.asarray(increments, dtype=float)
+    if times.ndim != 1 or len(times) < 2:
+        raise ValueError(f"times must be (N,) s with N >= 2, got shape {times.shape}")
+    increasing("times", times)
+    if increments.shape != (len(times) - 1, 2):
+        raise ValueError(
+            f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"
+        )
+    if gyro is not None and not isinstance(gyro, Gyro):
+        raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
+    turned = None if gyro is None else np.diff(gyro.angles(times))
+    wanted = None if commanded is None else np.asarray(commanded, dtype=float)
+    if wanted is not None and wanted.shape != increments.shape:
+        raise ValueError(f"commanded must be {increments.shape}, got {wanted.shape}")
+    return times, increments, turned, wanted
+
+
 def estimate_trajectory(
     robot: Robot,
     times: object,
@@ -135,23 +159,9 @@ def estimate_trajectory(
     (``diffdrive.estimation.episodes``; the log then runs again with them flagged);
     ``"interval"`` only the streaming test's. ``records`` keeps the smoother's record of every
     step (``Estimate.records``: 680 bytes a step; needs ``smooth``)."""
-    times = np.asarray(times, dtype=float)
-    increments = np.asarray(increments, dtype=float)
-    if times.ndim != 1 or len(times) < 2:
-        raise ValueError(f"times must be (N,) s with N >= 2, got shape {times.shape}")
-    increasing("times", times)
-    if increments.shape != (len(times) - 1, 2):
-        raise ValueError(
-            f"increments must be (N-1, 2) for {len(times)} times, got {increments.shape}"
-        )
     if heading != "wheels" and gyro is None:
         raise ValueError(f"heading {heading!r} needs a gyro")
-    if gyro is not None and not isinstance(gyro, Gyro):
-        raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
-    turned = None if gyro is None else np.diff(gyro.angles(times))
-    wanted = None if commanded is None else np.asarray(commanded, dtype=float)
-    if wanted is not None and wanted.shape != increments.shape:
-        raise ValueError(f"commanded must be {increments.shape}, got {wanted.shape}")
+    times, increments, turned, wanted = checked_log(times, increments, gyro, commanded)
     given = list(measurements)
     for m in given:
         if not isinstance(m, Measurement):
