@@ -114,7 +114,7 @@ def start_twin_run() -> subprocess.Popen:
     if "run" not in _TWIN:
         tests = Path(__file__).resolve().parent
         environment = os.environ | {"DIFFDRIVE_PURE_PYTHON": "1"}
-        names = ("odometry", "stateful", "estimator", "edges")
+        names = ("odometry", "stateful", "fusion", "edges")
         modules = [str(tests / f"test_{name}.py") for name in names]
         _TWIN["run"] = subprocess.Popen(
             [
@@ -139,7 +139,7 @@ def start_twin_run() -> subprocess.Popen:
 
 @pytest.mark.slow
 def test_the_odometry_tests_pass_on_the_twin():
-    """test_odometry, test_stateful, test_estimator and test_edges with DIFFDRIVE_PURE_PYTHON=1
+    """test_odometry, test_stateful, test_fusion and test_edges with DIFFDRIVE_PURE_PYTHON=1
     (Odometry's and PoseEstimator's twins), but for the two runs of 10^6 updates (a minute in
     Python; the C core runs them) and the fuzzing of the command line's file reading (about
     files, not the core; it failed here once, in a run whose report was cut off, and never
