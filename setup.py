@@ -5,7 +5,7 @@ they share.
 Everything else about the package is in pyproject.toml; setuptools' own table for extension
 modules there is still experimental, so the one extension is declared here. It is optional:
 where no C compiler is found the build goes on without it, and ``diffdrive.Odometry`` runs on
-its pure-Python twins (``backends/odometry_python.py``, ``estimation/estimator_python.py``;
+its pure-Python twins (``estimation/odometry_python.py``, ``estimation/estimator_python.py``;
 ``COMPILED`` in ``diffdrive.estimation.odometry`` and ``.fusion`` says which).
 """
 

@@ -225,8 +225,8 @@ def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
     import dataclasses
 
     from diffdrive.backends import _odometry
-    from diffdrive.backends.odometry_python import OdometryCore as PythonOdometryCore
     from diffdrive.estimation.estimator_python import EstimatorCore as PythonEstimatorCore
+    from diffdrive.estimation.odometry_python import OdometryCore as PythonOdometryCore
 
     estimator = fusion.PoseEstimator(ROBOT, "fused", (1.0, 2.0, 0.3), wheel_noise=(1e-4, 2e-4))
     odometry_settings, settings = estimator._wheels.settings, estimator.config

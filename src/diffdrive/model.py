@@ -26,7 +26,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from diffdrive._arrays import namespace
+from diffdrive._arrays import components, namespace
 from diffdrive._step import wheel_move
 from diffdrive._validate import finite, length
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
@@ -72,9 +72,10 @@ def _moved_pose(poses: Any, offset: float) -> Any:
         return pose.compose(Pose(0.0, offset, 0.0)) if offset else pose
     if not offset:
         return poses
-    from diffdrive.batch import compose  # batch is built on this module
-
-    return compose(poses, np.array([0.0, offset, 0.0]))
+    xp = namespace(poses)
+    p = components(xp, poses, "poses", "x, y, theta")
+    c, s = xp.cos(p[..., 2]), xp.sin(p[..., 2])  # the pose moved (0, offset) in its own frame
+    return xp.stack([p[..., 0] - s * offset, p[..., 1] + c * offset, p[..., 2]], axis=-1)
 
 
 def _moved_twist(twists: Any, offset: float) -> Any:

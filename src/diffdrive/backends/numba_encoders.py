@@ -81,7 +81,7 @@ def _reference(poses, b, k, offset):
     if offset == 0.0:
         return x, y, heading
     c, s = math.cos(heading), math.sin(heading)
-    return (x + c * 0.0) - s * offset, (y + s * 0.0) + c * offset, heading + 0.0
+    return x - s * offset, y + c * offset, heading  # as ReferencePoint.to_reference
 
 
 @numba.njit(cache=True, parallel=True)

@@ -48,7 +48,7 @@ import numpy as np
 from diffdrive import batch
 from diffdrive._stats import nonnegative_least_squares
 from diffdrive._validate import finite, rng_of, whole
-from diffdrive.calibration.offline import checked_runs, run_names
+from diffdrive.calibration.offline import calibrate, checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive
@@ -507,8 +507,6 @@ def cross_validate(nominal: DiffDrive, groups: dict, *, calibrate_with=None) -> 
     by a noise model that never saw it: the geometry calibrated (``calibrate_with(nominal,
     runs)``, default least squares) and the model identified on the other groups, then the
     consistency of the covariance it predicts on the group's runs. ``{name: HeldOut}``."""
-    from diffdrive.calibration import calibrate
-
     if len(groups) < 2:
         raise ValueError(f"cross_validate needs 2 groups of runs or more, got {len(groups)}")
     fit = calibrate_with or (lambda robot, runs: calibrate(robot, runs, "least_squares").robot)

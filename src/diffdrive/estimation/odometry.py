@@ -67,7 +67,7 @@ try:
 
     COMPILED: bool = True
 except ImportError:
-    from diffdrive.backends.odometry_python import OdometryCore as _Core  # type: ignore[assignment]
+    from diffdrive.estimation.odometry_python import OdometryCore as _Core  # type: ignore[assignment]
 
     COMPILED = False
 
@@ -93,7 +93,7 @@ UPDATE_OF_RUN: dict[str, UpdateKind] = {
 
 
 if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
-    from diffdrive.backends.odometry_python import OdometryCore as _Base
+    from diffdrive.estimation.odometry_python import OdometryCore as _Base
 else:
     _Base = object
 
@@ -365,7 +365,7 @@ def __getattr__(name: str) -> type:
     """``PythonOdometry``, made when first reached: the twin's module loads only then."""
     if name != "PythonOdometry":
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    from diffdrive.backends.odometry_python import OdometryCore as PythonCore
+    from diffdrive.estimation.odometry_python import OdometryCore as PythonCore
 
     class PythonOdometry(_OdometryMethods, PythonCore):
         """``Odometry`` on the pure-Python core, whether or not the C core was built: the
