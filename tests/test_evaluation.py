@@ -294,3 +294,11 @@ def test_a_dead_reckoned_path_is_started_where_the_fixes_place_it():
     np.testing.assert_allclose(start, placed[0], atol=1e-9)
     assert rms < 1e-9
     assert covariance[0, 0] == pytest.approx(1e-4)  # the residual's floor of 1 cm, squared
+
+
+def test_covariances_are_interpolated_entry_by_entry():
+    from diffdrive.evaluation import interpolate_covariances
+
+    first, second = np.diag([1.0, 2.0, 3.0]), np.full((3, 3), 0.5) + np.eye(3)
+    got = interpolate_covariances([0.0, 2.0], [first, second], [0.0, 0.5, 2.0])
+    np.testing.assert_allclose(got, [first, 0.75 * first + 0.25 * second, second])

@@ -59,6 +59,7 @@ __all__ = [
     "ate",
     "consistency",
     "interpolate",
+    "interpolate_covariances",
     "path_errors",
     "rpe",
     "run_errors",
@@ -292,6 +293,16 @@ def interpolate(times: object, poses: object, at: object) -> np.ndarray:
         return poses[step] + fraction[:, None] * (poses[step + 1] - poses[step])
     motion = batch.log(batch.relative_to(poses[step + 1], poses[step]))
     return batch.compose(poses[step], batch.exp(motion, fraction))
+
+
+def interpolate_covariances(times: object, covariances: object, at: object) -> np.ndarray:
+    """Pose covariances ``(M, 3, 3)`` at the times ``at`` ``(M,)`` s (within ``times``),
+    entry by entry on the straight line between the two around each (what ``interpolate``'s
+    poses are given when a covariance goes with them)."""
+    times, at = np.asarray(times, dtype=float), np.asarray(at, dtype=float)
+    flat = np.asarray(covariances, dtype=float).reshape(len(times), 9)
+    columns = [np.interp(at, times, flat[:, k]) for k in range(9)]
+    return np.stack(columns, axis=-1).reshape(-1, 3, 3)
 
 
 @dataclass(frozen=True, eq=False)

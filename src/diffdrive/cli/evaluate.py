@@ -28,6 +28,7 @@ from diffdrive.evaluation import (
     ate,
     consistency,
     interpolate,
+    interpolate_covariances,
     path_errors,
     rpe,
     run_errors,
@@ -261,9 +262,7 @@ def _paired(args, times, estimate, truth_times, truth, covariances=None):
             raise TableError(f"{args.truth}: no ground-truth time lies within {args.input}'s")
         at = truth_times[inside]
         if covariances is not None:
-            flat = covariances.reshape(-1, 9)
-            columns = [np.interp(at, shifted, flat[:, k]) for k in range(9)]
-            covariances = np.stack(columns, axis=-1).reshape(-1, 3, 3)
+            covariances = interpolate_covariances(shifted, covariances, at)
         return at, interpolate(shifted, estimate, at), truth[inside], covariances
     i, j = associate(times, truth_times, args.t_max_diff, args.t_offset)
     if len(i) < 2:
