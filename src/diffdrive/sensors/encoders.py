@@ -201,11 +201,11 @@ def _compiled() -> bool:
 
 
 def _read_compiled(robot, poses, factor, geometry, model, rng, scale, readings) -> None:
-    """A batch of different trajectories through ``backends.numba_encoders``, one pass a
-    robot on every core. With wheel noise, block by block: the standard normals drawn as the
-    NumPy path draws them (so that a seed gives the same robots either way), one block at a
-    time, while other threads run the kernel on theirs: the draw is half the work, and one
-    generator fills in order."""
+    """The readings through ``backends.numba_encoders``, one pass a robot on every core (a
+    trajectory each, or one they share). With wheel noise, block by block: the standard
+    normals drawn as the NumPy path draws them (so that a seed gives the same robots either
+    way), one block at a time, while other threads run the kernel on theirs: the draw is half
+    the work, and one generator fills in order."""
     from diffdrive.backends.numba_encoders import read_encoders, read_encoders_serial, scan
     from diffdrive.backends.simulate_kernel import threads
 
@@ -213,18 +213,14 @@ def _read_compiled(robot, poses, factor, geometry, model, rng, scale, readings) 
     if not finite:
         raise ValueError(NOT_FINITE)
     noise, turned = model.wheel_noise, bool(largest > np.pi)  # as motion.unwrapped
-    settings = (
-        robot.reference_offset, turned, factor, geometry, noise.k, scale,
-        model.ticks_per_revolution is not None,
-        0 if model.counter_bits is None else model.counter_bits, model.signed,
-    )  # fmt: skip
+    counts = model.ticks_per_revolution is not None
+    bits = 0 if model.counter_bits is None else model.counter_bits
 
     def run(kernel, rows: slice, normals: np.ndarray) -> None:
-        offset, turned, factor, geometry, k, scale, counts, bits, signed = settings
+        own = poses[rows] if len(poses) > 1 else poses  # one shared trajectory serves all
         overflow = kernel(
-            poses[rows] if len(poses) > 1 else poses, offset, turned, factor, geometry[rows], k,
-            normals, bool(noise), scale,
-            counts, bits, signed, readings[rows],
+            own, robot.reference_offset, turned, factor, geometry[rows], noise.k, normals,
+            bool(noise), scale, counts, bits, model.signed, readings[rows],
         )  # fmt: skip
         if overflow.any():
             raise ValueError(_TOO_MANY_COUNTS)
