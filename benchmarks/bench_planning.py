@@ -172,6 +172,30 @@ def compare(paths: int, seed: int = 1) -> None:
     )
 
 
+def samples(paths: int = 100, seed: int = 1, step: float = 0.005) -> None:
+    """``Plan.sample`` every ``step`` s on random paths, judged as states (the accelerations
+    its consecutive samples imply, the voltage with them): how many samples break a limit by
+    more than 0.1 % (target 0)."""
+    rng = np.random.default_rng(seed)
+    over = total = made = 0
+    worst_ratio = 0.0
+    while made < paths:
+        try:
+            ours = plan(random_waypoints(rng), ROBOT, LIMITS)
+        except ValueError:
+            continue
+        made += 1
+        t = np.arange(ours.times[0], ours.times[-1], step)
+        ratios = limit_ratios(t, ours.sample(t)["twist"], ROBOT, LIMITS)
+        over += int((worst(ratios) > 1.001).sum())
+        total += len(t)
+        worst_ratio = max(worst_ratio, float(worst(ratios).max()))
+    print(
+        f"Plan.sample every {step * 1e3:g} ms on {paths} paths: {over} of {total} samples over "
+        f"a limit by more than 0.1 % (target 0); the worst at {100 * worst_ratio:.2f} %"
+    )
+
+
 class _Peer:
     """A wpimath controller behind ``follow``'s tracker interface (one robot)."""
 
@@ -316,6 +340,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}")
     compare(args.paths)
+    samples()
     jerk()
     tracking()
     speed(args.repeats)

@@ -132,6 +132,23 @@ def test_a_plan_never_exceeds_a_limit(waypoints: list[tuple[float, float, float]
     assert np.all(np.diff(result.times) >= 0)
 
 
+@settings(max_examples=25, deadline=None)
+@given(RANDOM_WAYPOINTS)
+def test_every_sample_between_states_keeps_the_limits(waypoints) -> None:
+    """Plan.sample every 5 ms, judged as its own states (the accelerations its consecutive
+    samples imply, the voltage with them): within every limit to 0.1 %, as the states are.
+    (The speed times the interpolated curvature went 2.4x over the voltage limit.)"""
+    result = _plan_or_none(waypoints, LIMITS)
+    if result is None:
+        return
+    t = np.arange(result.times[0], result.times[-1], 0.005)
+    sampled = result.sample(t)
+    for name, ratio in limit_ratios(t, sampled["twist"], ROBOT, LIMITS).items():
+        assert ratio.max() <= 1.001, name
+    slope = np.diff(sampled["wheel_velocities"], axis=0) / 0.005
+    assert np.abs(slope).max() <= 30.0 * 1.001
+
+
 def test_sample_matches_the_states_and_the_trajectory_holds_them() -> None:
     result = plan([(0, 0, 0), (3, 2, 1.0)], ROBOT, LIMITS)
     middle = len(result.times) // 2

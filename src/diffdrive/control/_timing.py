@@ -186,7 +186,9 @@ def _outside(i, a, u, lin, ang, dang, wc, wd, lim, ff):
 def _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
     """Whether the changes from state ``k`` to ``k + 1``, over the time between them, break a
     limit: the accelerations a controller stepping from state to state asks for (the same
-    measure as ``planning.limit_ratios``)."""
+    measure as ``planning.limit_ratios``), and the voltage all the way along, the wheel's
+    velocity going in a straight line from one state's to the next (as ``Plan.sample`` gives
+    it) with that acceleration: at both ends, and where it passes zero."""
     dt = 2.0 * ds[k] / (u[k] + u[k + 1])
     bad = abs(u[k + 1] * lin[k + 1] - u[k] * lin[k]) / dt > lim[AMAX] * (1.0 + 1e-9)
     bad = bad or abs(u[k + 1] * ang[k + 1] - u[k] * ang[k]) / dt > lim[ALPHA] * (1.0 + 1e-9)
@@ -195,9 +197,14 @@ def _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
         rate = (u[k + 1] * wc[k + 1, j] - w) / dt
         bad = bad or abs(rate) > lim[WHEEL_A] * (1.0 + 1e-9)
         if lim[VOLTAGE] < INF:
-            sign = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
-            volts = ff[j, 0] * sign + ff[j, 1] * w + ff[j, 2] * rate
-            bad = bad or abs(volts) > lim[VOLTAGE] * (1.0 + 1e-9)
+            ks, kv, ka = ff[j, 0], ff[j, 1], ff[j, 2]
+            end = u[k + 1] * wc[k + 1, j]
+            for v in (w, end):
+                sign = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+                volts = ks * sign + kv * v + ka * rate
+                bad = bad or abs(volts) > lim[VOLTAGE] * (1.0 + 1e-9)
+            if w * end < 0.0:  # through zero: kS either way
+                bad = bad or ks + abs(ka * rate) > lim[VOLTAGE] * (1.0 + 1e-9)
     return bad
 
 

@@ -190,12 +190,18 @@ class Plan:
         """The plan at times ``t`` (s; any shape, clamped to the plan): ``pose`` (..., 3),
         ``twist`` (..., 2) ``(v, omega)``, ``twist_rate`` (..., 2), ``kappa`` (robot curvature
         ``omega / v``, rad/m; NaN in a turn in place), ``wheel_velocities`` and
-        ``wheel_accelerations`` (..., 2) in rad/s and rad/s^2."""
+        ``wheel_accelerations`` (..., 2) in rad/s and rad/s^2.
+
+        The pose lies on the path, at the share of the distance between two states that the
+        speed's constant acceleration has covered. The twist goes in a straight line in time
+        from one state's to the next, its rate that line's slope: so every wheel's velocity,
+        acceleration and voltage between two states is what a controller stepping from one
+        to the other sees, within the limits the states keep (the path's speed times its
+        curvature, interpolated each, could leave them in between)."""
         t = np.asarray(np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1]))
         i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
         tau = t - self.times[i]
         a, u0 = self.accelerations[i], self.speed[i]
-        u = np.maximum(u0 + a * tau, 0.0)
         gap = self.times[i + 1] - self.times[i]
         with np.errstate(invalid="ignore", divide="ignore"):
             travelled = u0 * tau + 0.5 * a * tau * tau
@@ -206,9 +212,11 @@ class Plan:
             start = values[i]
             return start + (values[i + 1] - start) * (f if values.ndim == 1 else f[..., None])
 
-        lin, ang, dang = along(self.lin), along(self.ang), along(self.dang)
-        twist = np.stack([lin * u, ang * u], axis=-1)
-        rate = np.stack([lin * a, ang * a + dang * u * u], axis=-1)
+        lin, ang = along(self.lin), along(self.ang)
+        twists = self.twists
+        slope = (twists[i + 1] - twists[i]) / gap[..., None]
+        twist = twists[i] + slope * (t - self.times[i])[..., None]
+        rate = slope
         wheels = _wheel_map(self.robot)
         with np.errstate(invalid="ignore", divide="ignore"):
             kappa = np.where(lin != 0.0, ang / np.where(lin != 0.0, lin, 1.0), np.nan)
