@@ -10,7 +10,9 @@
 - ``tracking``: ``Ramsete``, ``LTVUnicycle``, ``PurePursuit``, and ``Predictive`` for a known
   delay and lag;
 - ``follow``: ``follow``, closed-loop simulation of a batch of robots; ``delay_margin``;
-- ``rollouts``: many candidate command sequences through a delay and acceleration limits.
+- ``rollouts``: many candidate command sequences through a delay and acceleration limits;
+- ``mppi``: ``MPPI``, a tracker that samples them (model predictive path integral control),
+  with its ``MPPICosts``.
 """
 
 from typing import TYPE_CHECKING
@@ -26,15 +28,18 @@ _NAMES = {
     **dict.fromkeys(["from_segments", "from_waypoints"], "path"),
     **dict.fromkeys(["PathLimits", "Plan", "limit_ratios", "plan"], "planning"),
     "rollouts": "rollouts",
+    **dict.fromkeys(["MPPI", "MPPICosts"], "mppi"),
     **dict.fromkeys(["LTVUnicycle", "Predictive", "PurePursuit", "Ramsete", "Tracker"], "tracking"),
 }
 __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
     "KEEP",
+    "MPPI",
     "FollowResult",
     "LTVUnicycle",
     "Limiter",
     "Limits",
+    "MPPICosts",
     "OpenLoopOdometry",
     "PathLimits",
     "Plan",
@@ -57,6 +62,7 @@ if TYPE_CHECKING:  # what the names are, for type checkers
     from diffdrive.control.commands import KEEP, desaturate
     from diffdrive.control.follow import FollowResult, delay_margin, follow
     from diffdrive.control.limiter import Limiter, Limits
+    from diffdrive.control.mppi import MPPI, MPPICosts
     from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
     from diffdrive.control.path import from_segments, from_waypoints
     from diffdrive.control.planning import PathLimits, Plan, limit_ratios, plan
