@@ -188,3 +188,18 @@ def test_follow_drives_the_response_of_a_drive_file_and_says_so(files, capsys) -
     assert not out.exists()
     assert main(["follow", *args, "--drive", str(drive), "--lag", "0.1", "-o", str(out)]) == 1
     assert "leave --lag out" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_follow_takes_the_mppi_tracker_and_its_known_delay(files, capsys) -> None:
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    out = files / "mppi.csv"
+    extra = ["--tracker", "mppi", "--delay", "0.1", "--dt", "0.05", "--seed", "1"]
+    assert main(["follow", *args, *extra, "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "follow: mppi, delay 0.1 s" in printed
+    assert "delay margin beyond the known delay" in printed
+    table = read_table(out, ["t", "x", "y", "theta", "cross_track"])
+    assert np.abs(table["cross_track"]).max() < 0.1
+    assert main(["follow", *args, "--tracker", "mppi", "--predict", "--delay", "0.1"]) == 1
+    assert "--predict: mppi rolls its samples out through --delay itself" in capsys.readouterr().err

@@ -18,6 +18,7 @@ from diffdrive.cli.options import (
 )
 from diffdrive.cli.options import write_output as write_poses
 from diffdrive.control import (
+    MPPI,
     LTVUnicycle,
     PathLimits,
     Predictive,
@@ -44,7 +45,7 @@ LIMIT_FLAGS = {
     "max_voltage": "V",
     "max_jerk": "m/s^3",
 }
-TRACKERS = ("ramsete", "ltv", "pure-pursuit")
+TRACKERS = ("ramsete", "ltv", "pure-pursuit", "mppi")
 
 
 def _plan_of(args: argparse.Namespace):
@@ -121,6 +122,10 @@ def run_plan(args: argparse.Namespace) -> int:
 
 
 def _tracker(args: argparse.Namespace):
+    if args.tracker == "mppi":  # it rolls its samples out through the delay itself
+        if args.predict:
+            raise ValueError("--predict: mppi rolls its samples out through --delay itself")
+        return MPPI(dt=args.dt, delay=args.delay, seed=args.seed)
     tracker = {"ramsete": Ramsete, "ltv": LTVUnicycle, "pure-pursuit": PurePursuit}[args.tracker]
     made = tracker(dt=args.dt) if args.tracker == "ltv" else tracker()
     if args.predict:
@@ -162,7 +167,7 @@ def _response(args: argparse.Namespace, drive: DriveModel | None) -> str:
 
 
 def run_follow(args: argparse.Namespace) -> int:
-    if args.seed is not None and not args.wheel_noise:
+    if args.seed is not None and not args.wheel_noise and args.tracker != "mppi":
         raise ValueError("--seed draws the wheel noise: give --wheel-noise too, or leave it out")
     if args.predict and not (args.delay or args.lag):
         raise ValueError("--predict predicts over the delay and lag: give --delay or --lag")
@@ -182,7 +187,7 @@ def run_follow(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     errors = run.errors()
-    known = args.delay if args.predict else 0.0
+    known = args.delay if args.predict or args.tracker == "mppi" else 0.0
     margin = delay_margin(result, tracker, dt=args.dt, lag=args.lag, known=known, drive=drive)
     columns = {
         "cross_track": errors.cross_track[0],
@@ -215,7 +220,7 @@ def run_follow(args: argparse.Namespace) -> int:
             )
             if args.robots == 1:
                 break
-        beyond = " beyond the known delay" if args.predict else ""
+        beyond = " beyond the known delay" if known else ""
         print(
             f"  delay margin{beyond}: {margin:.2f} s (by simulation along this plan, with this lag)"
         )
@@ -306,4 +311,4 @@ def add_to(command: Command, parents: Parents) -> None:
     followed.add_argument("--predict", action="store_true", help="predict over the delay and lag")
     followed.add_argument("--robots", type=int, default=1, help="robots in the batch (1)")
     followed.add_argument("--wheel-noise", type=float, default=0.0, metavar="M", help="k, m (0)")
-    followed.add_argument("--seed", type=int, help="for the wheel noise")
+    followed.add_argument("--seed", type=int, help="for the wheel noise and mppi's sampling")
