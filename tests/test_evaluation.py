@@ -276,7 +276,7 @@ def test_a_dead_reckoned_path_is_started_where_the_fixes_place_it():
     """The path drawn at the origin, fixes of the same path moved by a rigid motion and seen
     by a receiver 0.3 m ahead of the body: the start is the moved start, the residual 0."""
     from diffdrive.estimation import Measurement
-    from diffdrive.evaluation import start_in_frame
+    from diffdrive.estimation.measurements import start_in_frame
 
     robot = dd.DiffDrive(0.05, 0.3)
     times = np.arange(201) * 0.05

@@ -125,7 +125,7 @@ def test_one_gyro_noise_for_the_estimators_the_synthetic_gyro_and_the_allan_fit(
         ({"angle_random_walk": -1e-3}, "angle_random_walk must be >= 0"),
         ({"rate_random_walk": math.nan}, "rate_random_walk must be finite"),
         ({"initial_bias_sigma": 1e200}, "initial_bias_sigma 1e\\+200 squares past"),
-        ({"correlation_time": 0.0}, "correlation_time must be > 0 s"),
+        ({"correlation_time": 0.0}, "correlation_time must be > 0"),
     ],
 )
 def test_bad_gyro_noise_is_refused_by_name(fields, message):

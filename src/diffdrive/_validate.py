@@ -46,6 +46,14 @@ def positive(name: str, value: object) -> float:
     return number
 
 
+def nonnegative(name: str, value: object) -> float:
+    """``value`` as a float; ``ValueError`` naming ``name`` unless it is finite and >= 0."""
+    number = finite(name, value)
+    if number < 0.0:
+        raise ValueError(f"{name} must be >= 0, got {number}")
+    return number
+
+
 def length(name: str, value: object) -> float:
     """A robot's length (a radius, a track): ``positive``, and not so small that what divides
     by it overflows (5e-324 m gives a turn of inf)."""

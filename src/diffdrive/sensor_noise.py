@@ -36,7 +36,7 @@ from typing import Union
 
 import numpy as np
 
-from diffdrive._validate import finite
+from diffdrive._validate import finite, nonnegative, positive
 
 __all__ = [
     "DEFAULT",
@@ -125,13 +125,10 @@ class GyroNoise:
             "initial_bias_sigma",
             "bias_instability",
         ):
-            value = finite(name, getattr(self, name))
-            if not value >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+            value = nonnegative(name, getattr(self, name))
             if not math.isfinite(value * value):  # a filter works with its square
                 raise ValueError(f"{name} {value!r} squares past the largest float")
-        if not finite("correlation_time", self.correlation_time) > 0.0:
-            raise ValueError(f"correlation_time must be > 0 s, got {self.correlation_time!r}")
+        positive("correlation_time", self.correlation_time)
 
 
 DEFAULT_GYRO = GyroNoise(angle_random_walk=2e-3, rate_random_walk=1e-4, initial_bias_sigma=5e-3)

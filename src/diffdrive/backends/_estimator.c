@@ -1302,7 +1302,7 @@ static PyObject *pose_at(Est *e, PyObject *arg) {
 
 /* -- the type -------------------------------------------------------------------------------- */
 
-/* Built from one settings object (estimation.filter.CoreSettings, which the twin takes too),
+/* Built from one settings object (backends.settings.CoreSettings, which the twin takes too),
  * read by name: the drive, method and heading codes, noises, flags, gates and the start. */
 static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
     PyObject *wheels, *s;

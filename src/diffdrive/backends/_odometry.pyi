@@ -4,8 +4,7 @@ which subclasses ``OdometryCore``."""
 
 from typing import Any
 
-from diffdrive.backends.settings import OdometrySettings
-from diffdrive.estimation.filter import CoreSettings
+from diffdrive.backends.settings import CoreSettings, OdometrySettings
 
 Covariance = tuple[float, float, float, float, float, float, float, float, float]
 

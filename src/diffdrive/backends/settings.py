@@ -1,15 +1,23 @@
-"""What an odometry core is built from: one value, read by name by the C core and its twin."""
+"""What the cores are built from: one value each, read by name by the C cores and their
+pure-Python twins. ``OdometrySettings`` for ``Odometry``'s; ``CoreSettings`` for the pose
+estimator's, the filter's ``Config`` (what one interval needs) and the rest of its state."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["OdometrySettings"]
+from diffdrive._step import METHODS
+
+__all__ = ["BIAS", "HEADINGS", "SCALE", "Config", "CoreSettings", "N", "OdometrySettings"]
+
+HEADINGS = ("wheels", "gyro", "fused")  # the heading sources, in the C core's order
+N = 5  # the estimator's state: x, y, theta, bias, turn_scale
+BIAS, SCALE = 3, 4
 
 
 @dataclass(frozen=True)
 class OdometrySettings:
-    """Everything an odometry core is built from, the C core and this twin alike: the
+    """Everything an odometry core is built from, the C core and its twin alike: the
     equivalent drive ``(r_left, r_right, track, axle_offset)`` (m), the method's index in
     ``METHODS``, ``rad_per_tick`` (0 when the counts per revolution are not known),
     ``max_wheel_speed`` (rad/s; inf for no limit), ``counter_bits`` (0: counters that never
@@ -22,3 +30,54 @@ class OdometrySettings:
     counter_bits: int
     k: tuple[float, float]
     velocity_window: float
+
+
+@dataclass(frozen=True)
+class Config:
+    """What one interval needs besides its data: the equivalent drive ``(r_l, r_r, track,
+    axle_offset)``, the method's flags, the heading source, the wheel and gyro noise, whether
+    the bias and turn scale are estimated, and the slip test's threshold and inflation."""
+
+    drive: tuple[float, float, float, float]
+    method: str
+    heading: str
+    k: tuple[float, float]
+    arw2: float
+    rrw2: float
+    estimate_bias: bool
+    estimate_scale: bool
+    slip_threshold: float
+    slip_inflation: float
+
+    @property
+    def active(self) -> list[int]:
+        return [0, 1, 2] + [BIAS] * self.estimate_bias + [SCALE] * self.estimate_scale
+
+
+@dataclass(frozen=True)
+class CoreSettings(Config):
+    """Everything an estimator core is built from, the C core and its Python twin alike: the
+    filter's ``Config``, then the slip test's ``command_sigma`` (rad/s), the chi-square gates
+    for 1, 2 and 3 dimensions, the reference point's ``offset`` (m, left of the body origin),
+    ``history`` and ``ahead`` (s: how late and how early a measurement may be), the gyro's
+    ``mounting`` row (its axis in the body frame), and the start: ``state`` ``(5,)`` and its
+    ``covariance`` ``(25,)``, row-major."""
+
+    command_sigma: float
+    gates: tuple[float, float, float]
+    offset: float
+    history: float
+    ahead: float
+    mounting: tuple[float, float, float]
+    state: tuple[float, ...]
+    covariance: tuple[float, ...]
+
+    @property
+    def method_code(self) -> int:
+        """The method's index in ``_step.METHODS`` (euler, rk2, exact), as the C core takes it."""
+        return METHODS.index(self.method)
+
+    @property
+    def heading_code(self) -> int:
+        """The heading source's index in ``HEADINGS``."""
+        return HEADINGS.index(self.heading)

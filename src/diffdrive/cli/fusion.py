@@ -23,7 +23,7 @@ import numpy as np
 from diffdrive.cli.options import estimate_columns, refuse_unused, wheel_noise, write_output
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation import Measurement, estimate_trajectory
-from diffdrive.evaluation import start_in_frame
+from diffdrive.estimation.measurements import start_in_frame
 from diffdrive.io import Run, TableError, is_bag
 from diffdrive.model import Robot
 

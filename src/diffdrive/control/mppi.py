@@ -27,7 +27,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._validate import check_samples, positive, rng_of, whole
+from diffdrive._validate import check_samples, nonnegative, positive, rng_of, whole
 from diffdrive.control.planning import Plan
 from diffdrive.control.rollouts import rollouts
 
@@ -46,9 +46,7 @@ class MPPICosts:
 
     def __post_init__(self) -> None:
         for term in fields(self):
-            value = getattr(self, term.name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"cost weight {term.name} must be finite and >= 0, got {value!r}")
+            nonnegative(f"cost weight {term.name}", getattr(self, term.name))
 
 
 def weighted_update(

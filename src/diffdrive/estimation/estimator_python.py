@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from diffdrive._validate import finite
+from diffdrive.backends.settings import CoreSettings
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement, _floats
 from diffdrive.types import WheelVelocities
@@ -48,7 +49,7 @@ def _end(interval: Interval) -> float:
 class EstimatorCore:
     """The state, history and updates of ``PoseEstimator``; use that class."""
 
-    def __init__(self, wheels: Any, settings: ekf.CoreSettings) -> None:
+    def __init__(self, wheels: Any, settings: CoreSettings) -> None:
         self._wheels = wheels
         self.config = settings
         self._command_sigma = settings.command_sigma

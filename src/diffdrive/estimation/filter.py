@@ -24,68 +24,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._step import METHODS, method_flags, move_jacobians, wheel_move
+from diffdrive._step import method_flags, move_jacobians, wheel_move
 from diffdrive.angles import wrap_angle
+from diffdrive.backends.settings import BIAS, SCALE, Config, N
 from diffdrive.estimation.measurements import Measurement
 
-N = 5  # x, y, theta, bias, turn_scale
-BIAS, SCALE = 3, 4
 # chi-square, one degree of freedom: P(score > 10.83) = 0.001.
 SLIP_THRESHOLD = 10.83
 # chi-square, two degrees of freedom (both wheels): P(score > 13.82) = 0.001.
 COMMAND_THRESHOLD = 13.82
-HEADINGS = ("wheels", "gyro", "fused")
-
-
-@dataclass(frozen=True)
-class Config:
-    """What one interval needs besides its data: the equivalent drive ``(r_l, r_r, track,
-    axle_offset)``, the method's flags, the heading source, the wheel and gyro noise, whether
-    the bias and turn scale are estimated, and the slip test's threshold and inflation."""
-
-    drive: tuple[float, float, float, float]
-    method: str
-    heading: str
-    k: tuple[float, float]
-    arw2: float
-    rrw2: float
-    estimate_bias: bool
-    estimate_scale: bool
-    slip_threshold: float
-    slip_inflation: float
-
-    @property
-    def active(self) -> list[int]:
-        return [0, 1, 2] + [BIAS] * self.estimate_bias + [SCALE] * self.estimate_scale
-
-
-@dataclass(frozen=True)
-class CoreSettings(Config):
-    """Everything an estimator core is built from, the C core and its Python twin alike: the
-    filter's ``Config``, then the slip test's ``command_sigma`` (rad/s), the chi-square gates
-    for 1, 2 and 3 dimensions, the reference point's ``offset`` (m, left of the body origin),
-    ``history`` and ``ahead`` (s: how late and how early a measurement may be), the gyro's
-    ``mounting`` row (its axis in the body frame), and the start: ``state`` ``(5,)`` and its
-    ``covariance`` ``(25,)``, row-major."""
-
-    command_sigma: float
-    gates: tuple[float, float, float]
-    offset: float
-    history: float
-    ahead: float
-    mounting: tuple[float, float, float]
-    state: tuple[float, ...]
-    covariance: tuple[float, ...]
-
-    @property
-    def method_code(self) -> int:
-        """The method's index in ``_step.METHODS`` (euler, rk2, exact), as the C core takes it."""
-        return METHODS.index(self.method)
-
-    @property
-    def heading_code(self) -> int:
-        """The heading source's index in ``HEADINGS``."""
-        return HEADINGS.index(self.heading)
 
 
 @dataclass(frozen=True, eq=False)

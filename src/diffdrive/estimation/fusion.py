@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from diffdrive._validate import finite, positive
+from diffdrive.backends.settings import HEADINGS, CoreSettings
 from diffdrive.estimation import estimator_python
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.imu import mounting_yaw_row
@@ -55,7 +56,6 @@ from diffdrive.types import Pose
 
 __all__ = ["COMPILED", "HEADINGS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
 
-HEADINGS: tuple[str, ...] = ekf.HEADINGS
 
 # The C core beside Odometry's when it was built, else its pure-Python twin (as Odometry's);
 # DIFFDRIVE_PURE_PYTHON=1 asks for the twin anyway.
@@ -156,7 +156,7 @@ class _EstimatorMethods(_Base):
         P[ekf.SCALE, ekf.SCALE] = turn_scale_sigma * turn_scale_sigma
         drive = robot.equivalent
         arw, rrw = self.noise.angle_random_walk, self.noise.rate_random_walk
-        self.config = ekf.CoreSettings(
+        self.config = CoreSettings(
             drive=(
                 drive.left_wheel_radius,
                 drive.right_wheel_radius,

@@ -7,19 +7,26 @@ A covariance is given as a ``k x k`` matrix (symmetric positive definite), or as
 standard deviations (m, m, rad), or one standard deviation for every axis of a position.
 The lever arm ``(x, y)`` (m, body frame) is where the sensor sits on the robot: a position
 sensor measures that point, a pose sensor that point and the body's heading.
+
+``start_in_frame`` places a dead-reckoned path in the measurements' frame: the start an
+estimator takes when the log gives none there.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
+from diffdrive import batch
 from diffdrive._stats import chi2_quantile
 from diffdrive._validate import finite, floats
+from diffdrive.evaluation import align, interpolate
 
-__all__ = ["MEASUREMENT_KINDS", "Measurement", "chi2_quantile"]
+__all__ = ["MEASUREMENT_KINDS", "Measurement", "chi2_quantile", "start_in_frame"]
 
 MeasurementKind = Literal["pose", "position", "heading"]
 MEASUREMENT_KINDS: tuple[MeasurementKind, ...] = ("pose", "position", "heading")
@@ -115,3 +122,42 @@ class Measurement:
         """A total order: by stamp, then kind and values, so that measurements at one stamp
         are applied the same way whatever order they came in."""
         return (self.t, self.kind, tuple(self.value.tolist()), tuple(self.covariance.ravel()))
+
+
+def start_in_frame(
+    times: object, poses: object, measurements: Sequence[Measurement]
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Where a dead-reckoned path ``poses`` ``(T+1, 3)`` at ``times`` ``(T+1,)`` s starts in
+    the frame of absolute ``measurements`` (``estimation.Measurement``: GPS fixes, poses): its
+    start pose ``(3,)`` with the path fitted onto their positions (each where its sensor sits:
+    the pose moved by its lever arm; one fix, or no travel, a translation only, or a pose's
+    own heading), a covariance ``(3, 3)`` from the fit's residual, and that residual's RMS
+    (m). What an estimator starts from when the log gives no start in that frame."""
+    times, poses = np.asarray(times, dtype=float), np.asarray(poses, dtype=float)
+    stamps = np.array([m.t for m in measurements])
+    seen = np.array([[*m.value[:2], 0.0] for m in measurements])
+    path = interpolate(times, poses, stamps)
+    arms = np.array([[*m.lever_arm, 0.0] for m in measurements])
+    sensors = batch.compose(path, arms)
+    flat = np.column_stack([sensors[:, :2], np.zeros(len(path))])
+    if len(measurements) == 1 or np.ptp(flat[:, :2], axis=0).max() < 1e-9:
+        shift = seen[0, :2] - flat[0, :2]  # one point, or no travel: a translation only
+        moved = np.array([*shift, 0.0])
+        first = measurements[0]
+        if first.kind == "pose":  # the robot's pose the sensor's pose implies
+            heading = first.value[2]
+            c, s = math.cos(heading), math.sin(heading)
+            arm_x, arm_y = first.lever_arm[0], first.lever_arm[1]
+            body = np.array([first.value[0] - c * arm_x + s * arm_y,
+                             first.value[1] - s * arm_x - c * arm_y, heading])  # fmt: skip
+            moved = batch.compose(body, batch.inverse(path[0]))
+    else:
+        fitted = align(flat, seen)
+        moved = batch.compose(fitted[0], batch.inverse(flat[0]))
+    start = batch.compose(moved, poses[0])
+    placed = batch.compose(moved, flat)
+    rms = float(np.sqrt(np.mean(np.sum((placed[:, :2] - seen[:, :2]) ** 2, axis=1))))
+    spread = max(rms, 0.01)
+    extent = max(float(np.ptp(seen[:, :2], axis=0).max()), 1.0)
+    covariance = np.diag([spread**2, spread**2, min((spread / extent) ** 2 * 4, math.pi**2)])
+    return start, covariance, rms
