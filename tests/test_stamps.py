@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from diffdrive.io.stamps import sample_times
@@ -54,6 +54,9 @@ def test_the_turtlebot3_joint_states_are_restored_to_the_simulators_ticks():
     st.integers(0, 5),  # messages dropped
     st.integers(0, 2**32 - 1),
 )
+# A phase exactly on a tick and no stamp early: every stamp fits its own tick only in a band
+# of periods narrower than the search's grid, and outside the least-squares period's errors.
+@example(5.004421133413485, 0.0, 0.0, 0, 0)
 def test_any_period_phase_and_early_share_is_restored(period, phase, early, drops, seed):
     """Every sample time within a tick of the truth, all but a few exactly, and never fewer
     stamps on their ticks than the truth has (where the stamps cannot tell, the most)."""

@@ -101,6 +101,13 @@ def _ticks(counts: np.ndarray, seen: np.ndarray) -> tuple[np.ndarray, float]:
     bounds is scored, and the middle of the widest run of the best kept."""
     slope, spread = np.polyfit(counts, seen, 1, cov=True)
     period, error = slope[0], float(np.sqrt(spread[0, 0]))
+    # Stamps all on their ticks fit every period within a tick over the span of the log: the
+    # least-squares one, pulled by the ticks' rounding, can lie outside 5 of its errors.
+    reach = 5.0 * error + 2.0 / counts[-1]
+    every = _all_on_their_ticks(counts, seen, period - reach, period + reach)
+    if every is not None:  # the most the stamps can say: none early
+        trial, offset = every
+        return np.ceil(counts * trial + offset - 1e-9), float(trial)
     # Steps of 0.002 / k ticks move the last message's ideal time by a 500th of a tick: the
     # offsets that hold every stamp can be as narrow as that.
     tries = min(max(11, int(np.ceil(10.0 * error * counts[-1] / 0.002)) | 1), 2001)
@@ -122,3 +129,32 @@ def _ticks(counts: np.ndarray, seen: np.ndarray) -> tuple[np.ndarray, float]:
             best = (score.max(), width, trial, 0.5 * (ends[widest[0]] + ends[widest[-1] + 1]))
     _, _, trial, offset = best  # type: ignore[misc]
     return np.ceil(counts * trial + offset - 1e-9), float(trial)
+
+
+def _all_on_their_ticks(
+    counts: np.ndarray, seen: np.ndarray, low: float, high: float
+) -> tuple[float, float] | None:
+    """A period in ``[low, high]`` and an offset that put every stamp on its own tick, if
+    there are any: ``(period, offset)`` at the middle of the widest offsets, else None.
+
+    Every stamp on its tick ``s`` bounds the offset to ``(s - 1 - k period, s - k period]``;
+    how wide their common part is, ``min(s - k p) - max(s - 1 - k p)``, is concave in the
+    period ``p``, so a search by thirds finds its largest. ``_ticks``' grid can step over
+    that band, which is as narrow as the stamps' slack allows (a phase exactly on a tick
+    leaves almost none)."""
+
+    def width(trial: float) -> float:
+        upper = seen - counts * trial
+        return float(upper.min() - (upper.max() - 1.0))
+
+    for _ in range(200):
+        left, right = low + (high - low) / 3.0, high - (high - low) / 3.0
+        if width(left) < width(right):
+            low = left
+        else:
+            high = right
+    trial = 0.5 * (low + high)
+    if width(trial) <= 1e-6:  # leaves room for the ceiling's 1e-9 below each tick
+        return None
+    upper = seen - counts * trial
+    return trial, 0.5 * (upper.min() + upper.max() - 1.0)
