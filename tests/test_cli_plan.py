@@ -202,4 +202,71 @@ def test_follow_takes_the_mppi_tracker_and_its_known_delay(files, capsys) -> Non
     table = read_table(out, ["t", "x", "y", "theta", "cross_track"])
     assert np.abs(table["cross_track"]).max() < 0.1
     assert main(["follow", *args, "--tracker", "mppi", "--predict", "--delay", "0.1"]) == 1
-    assert "--predict: mppi rolls its samples out through --delay itself" in capsys.readouterr().err
+    assert "--predict: mppi rolls its samples out through --delay and the lag" in (
+        capsys.readouterr().err
+    )
+
+
+def _map(folder) -> str:
+    """A ROS map (map.yaml and its image) 8 m x 4 m with a 0.6 m block on the path."""
+    from PIL import Image
+
+    pixels = np.full((80, 160), 254, dtype=np.uint8)  # 5 cm cells, free
+    pixels[:, :2] = pixels[:, -2:] = pixels[:2] = pixels[-2:] = 0  # walls
+    pixels[32:44, 54:66] = 0  # rows from the top: y 1.8-2.4 m; x 2.7-3.3 m
+    Image.fromarray(pixels).save(folder / "room.pgm")
+    (folder / "room.yaml").write_text(
+        "image: room.pgm\nresolution: 0.05\norigin: [-1.0, -2.0, 0.0]\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    return str(folder / "room.yaml")
+
+
+@pytest.mark.slow
+def test_follow_steers_mppi_around_a_ros_map_and_writes_nav2_parameters(files, capsys) -> None:
+    """A straight plan through a block on the map: the robot goes around it, the report's
+    closest approach is the written poses', and the Nav2 file reads back as YAML."""
+    import yaml
+
+    from diffdrive.control import read_map
+
+    (files / "line.csv").write_text("x,y,theta\n0,0,0\n5,0,0\n")
+    args = [str(files / "line.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    out, nav2 = files / "around.csv", files / "mppi.yaml"
+    extra = ["--tracker", "mppi", "--delay", "0.1", "--lag", "0.1", "--dt", "0.05", "--seed", "2"]
+    where = ["--map", _map(files), "--footprint", "0.35", "--nav2-mppi", str(nav2)]
+    assert main(["follow", *args, *extra, *where, "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    table = read_table(out, ["t", "x", "y", "theta"])
+    gaps = read_map(files / "room.yaml").clearance_at(np.column_stack([table["x"], table["y"]]))
+    assert gaps.min() > 0.35
+    assert f"closest {1e3 * (gaps.min() - 0.35):.0f} mm beyond the footprint" in printed
+    assert "touching at 0 of" in printed
+    parameters = yaml.safe_load(nav2.read_text())["controller_server"]["ros__parameters"]
+    follow_path = parameters["FollowPath"]
+    assert follow_path["plugin"] == "nav2_mppi_controller::MPPIController"
+    assert follow_path["batch_size"] == 1024
+    assert follow_path["time_steps"] == 32  # the horizon and the two steps in flight
+    assert follow_path["vx_max"] == pytest.approx(1.0)  # the plan's max_velocity
+    assert follow_path["wz_max"] == pytest.approx(2 * 0.1 * 12 / 0.6)
+    assert follow_path["ObstaclesCritic"]["inflation_radius"] == pytest.approx(0.65)
+    assert "ObstaclesCritic" in follow_path["critics"]
+    assert "not carried over: temperature and cost weights" in nav2.read_text()
+
+
+def test_follow_refuses_a_map_without_its_footprint_or_tracker(files, capsys) -> None:
+    args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
+    room = _map(files)
+    out = files / "x.csv"
+    assert main(["follow", *args, "--tracker", "mppi", "--map", room, "-o", str(out)]) == 1
+    assert "--map needs --footprint" in capsys.readouterr().err
+    argv = ["follow", *args, "--map", room, "--footprint", "0.3", "-o", str(out)]
+    assert main(argv) == 1
+    assert "--map: only --tracker mppi steers around obstacles" in capsys.readouterr().err
+    assert main(["follow", *args, "--nav2-mppi", str(files / "n.yaml"), "-o", str(out)]) == 1
+    assert "--nav2-mppi writes an mppi tracker's settings" in capsys.readouterr().err
+    (files / "bad.yaml").write_text("image: room.pgm\nresolution: 0.05\n")
+    argv = ["follow", *args, "--tracker", "mppi", "--map", str(files / "bad.yaml")]
+    assert main([*argv, "--footprint", "0.3", "-o", str(out)]) == 1
+    assert "bad.yaml: the map's origin is missing" in capsys.readouterr().err
+    assert not out.exists()

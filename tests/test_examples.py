@@ -219,3 +219,23 @@ def test_no_example_draws_over_the_tracked_figures_by_default():
         text = script.read_text()
         assert 'default=Path("docs' not in text, script.name
         assert '"docs" / "figures"' not in text, script.name
+
+
+@pytest.mark.slow
+def test_mppi_obstacles_goes_around_and_draws(tmp_path, capsys):
+    """The README's figure and its numbers: no touch, the closest approach and the time to
+    the goal as printed."""
+    script = load("mppi_obstacles")
+    output = tmp_path / "mppi.png"
+    script.main(["--output", str(output)])
+    printed = capsys.readouterr().out
+    assert "touched no" in printed
+    course, _, _, result, recording = script.run(7)
+    poses = result.poses[0]
+    closest = course.clearance(poses[:, :2]).min() - script.FOOTPRINT
+    assert closest > 0.0
+    assert f"closest {1e3 * closest:.0f} mm beyond the footprint" in printed
+    assert len(recording.samples) == len(script.MOMENTS)
+    assert recording.samples[0][1].shape == (48, 30, 2)
+    readme = (ROOT / "README.md").read_text()
+    assert printed.split("goal reached in ")[1].split(" x the")[0].split(", ")[1] in readme

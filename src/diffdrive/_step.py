@@ -73,24 +73,30 @@ def method_flags(method: object) -> tuple[float, bool]:
     return METHOD_FLAGS[check_method(method)]
 
 
+def sinc_cos_small(u: float) -> tuple[float, float]:
+    """``(sin(u) / u, cos u)`` by their Taylor forms, for ``|u|`` below ``TAYLOR_LIMIT``
+    (branch-free, so a compiled loop over many ``u`` can be made vector instructions)."""
+    u2 = u * u
+    # Multiplying by reciprocals (not dividing) keeps it to a few multiplies when compiled.
+    sinus = 1.0 - u2 * (1 / 6) * (
+        1.0 - u2 * (1 / 20) * (1.0 - u2 * (1 / 42) * (1.0 - u2 * (1 / 72)))
+    )
+    cosine = 1.0 - u2 * 0.5 * (1.0 - u2 * (1 / 12) * (1.0 - u2 * (1 / 30) * (1.0 - u2 * (1 / 56))))
+    return sinus, cosine
+
+
 def sinc(u: float) -> float:
     """``sin(u) / u``, 1 at 0: the Taylor form below ``TAYLOR_LIMIT``, libm above."""
     if abs(u) >= TAYLOR_LIMIT:
         return math.sin(u) / u
-    u2 = u * u
-    # Multiplying by reciprocals (not dividing) keeps it to a few multiplies when compiled.
-    return 1.0 - u2 * (1 / 6) * (
-        1.0 - u2 * (1 / 20) * (1.0 - u2 * (1 / 42) * (1.0 - u2 * (1 / 72)))
-    )
+    return sinc_cos_small(u)[0]
 
 
 def sinc_cos(u: float) -> tuple[float, float]:
     """``(sin(u) / u, cos u)``, both by the rule of ``sinc``."""
     if abs(u) >= TAYLOR_LIMIT:
         return math.sin(u) / u, math.cos(u)
-    u2 = u * u
-    cosine = 1.0 - u2 * 0.5 * (1.0 - u2 * (1 / 12) * (1.0 - u2 * (1 / 30) * (1.0 - u2 * (1 / 56))))
-    return sinc(u), cosine
+    return sinc_cos_small(u)
 
 
 def sinc_derivative(u: float) -> float:

@@ -70,7 +70,7 @@ def _compile_step() -> dict[str, Any]:
     """``diffdrive._step``'s functions compiled as written: each one's copy sees the compiled
     versions of those it calls (the callees come first), so nothing is written twice."""
     compiled: dict[str, Any] = {}
-    for name in ("sinc", "sinc_cos", "wheel_move", "body_move"):
+    for name in ("sinc_cos_small", "sinc", "sinc_cos", "wheel_move", "body_move"):
         function = getattr(_step, name)
         scope = {**vars(_step), **compiled}
         copy = types.FunctionType(function.__code__, scope, name, function.__defaults__)

@@ -1,14 +1,25 @@
 """What the cores are built from: one value each, read by name by the C cores and their
 pure-Python twins. ``OdometrySettings`` for ``Odometry``'s; ``CoreSettings`` for the pose
-estimator's, the filter's ``Config`` (what one interval needs) and the rest of its state."""
+estimator's, the filter's ``Config`` (what one interval needs) and the rest of its state;
+``MPPISettings`` for the MPPI cycle's, compiled and in array libraries alike."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from diffdrive._step import METHODS
 
-__all__ = ["BIAS", "HEADINGS", "SCALE", "Config", "CoreSettings", "N", "OdometrySettings"]
+__all__ = [
+    "BIAS",
+    "HEADINGS",
+    "SCALE",
+    "Config",
+    "CoreSettings",
+    "MPPISettings",
+    "N",
+    "OdometrySettings",
+]
 
 HEADINGS = ("wheels", "gyro", "fused")  # the heading sources, in the C core's order
 N = 5  # the estimator's state: x, y, theta, bias, turn_scale
@@ -81,3 +92,60 @@ class CoreSettings(Config):
     def heading_code(self) -> int:
         """The heading source's index in ``HEADINGS``."""
         return HEADINGS.index(self.heading)
+
+
+class MPPISettings(NamedTuple):
+    """The MPPI cycle's numbers (``control.mppi`` fills them; see there for the maths)."""
+
+    dt: float
+    # (v, omega) to wheel commands (rad/s), row-major 2x2; the wheels' mean velocities to the
+    # body twist (forward, sideways, turn), row-major 3x2.
+    a00: float
+    a01: float
+    a10: float
+    a11: float
+    b00: float
+    b01: float
+    b10: float
+    b11: float
+    b20: float
+    b21: float
+    # The drive: its gain, the lag's decay over a period and its mean's factor, and the
+    # largest change of a wheel's velocity in a period (rad/s; inf: none).
+    gain: float
+    decay: float
+    lag_mean: float
+    wheel_step: float
+    # The cost weights and the limits they watch (inf: none).
+    cross_track: float
+    along_track: float
+    heading: float
+    effort: float
+    rate: float
+    wheel_limit: float
+    max_wheel_velocity: float
+    acceleration_limit: float
+    max_wheel_acceleration: float
+    voltage_limit: float
+    max_voltage: float
+    ks_left: float
+    kv_left: float
+    ka_left: float
+    ks_right: float
+    kv_right: float
+    ka_right: float
+    collision: float
+    clearance: float
+    footprint: float
+    inflation: float
+    # The clearance grid's node (0, 0) (m) and spacing (m); has_map 0: no obstacles.
+    origin_x: float
+    origin_y: float
+    resolution: float
+    has_map: float
+    goal: float
+    progress: float
+    goal_x: float
+    goal_y: float
+    sigma_v: float
+    sigma_omega: float

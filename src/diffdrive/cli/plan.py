@@ -20,6 +20,7 @@ from diffdrive.cli.options import write_output as write_poses
 from diffdrive.control import (
     MPPI,
     LTVUnicycle,
+    Obstacles,
     PathLimits,
     Predictive,
     PurePursuit,
@@ -28,6 +29,7 @@ from diffdrive.control import (
     follow,
     limit_ratios,
     plan,
+    read_map,
 )
 from diffdrive.control._timing import compiles_first
 from diffdrive.dynamics import DriveModel, Feedforward
@@ -121,11 +123,17 @@ def run_plan(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tracker(args: argparse.Namespace):
+def _tracker(args: argparse.Namespace, drive: DriveModel | None, obstacles: Obstacles | None):
     if args.tracker == "mppi":  # it rolls its samples out through the delay itself
         if args.predict:
-            raise ValueError("--predict: mppi rolls its samples out through --delay itself")
-        return MPPI(dt=args.dt, delay=args.delay, seed=args.seed)
+            raise ValueError("--predict: mppi rolls its samples out through --delay and the lag")
+        known = drive or DriveModel(time_constant=args.lag)
+        return MPPI(
+            dt=args.dt, drive=known, delay=args.delay or known.delay, obstacles=obstacles,
+            footprint=args.footprint or 0.0, seed=args.seed,
+        )  # fmt: skip
+    if obstacles is not None:
+        raise ValueError("--map: only --tracker mppi steers around obstacles")
     tracker = {"ramsete": Ramsete, "ltv": LTVUnicycle, "pure-pursuit": PurePursuit}[args.tracker]
     made = tracker(dt=args.dt) if args.tracker == "ltv" else tracker()
     if args.predict:
@@ -156,6 +164,17 @@ def _drive_of(args: argparse.Namespace) -> DriveModel | None:
     )
 
 
+def _map_of(args: argparse.Namespace) -> Obstacles | None:
+    """``--map``'s obstacles, or None; it needs ``--footprint``."""
+    if args.map is None:
+        if args.footprint is not None:
+            raise ValueError("--footprint is the robot's radius among obstacles: give --map")
+        return None
+    if args.footprint is None:
+        raise ValueError("--map needs --footprint, the robot's radius (m) for the obstacles")
+    return read_map(args.map)
+
+
 def _response(args: argparse.Namespace, drive: DriveModel | None) -> str:
     """The report's words for the wheels' response the run simulated."""
     if drive is None:
@@ -171,9 +190,12 @@ def run_follow(args: argparse.Namespace) -> int:
         raise ValueError("--seed draws the wheel noise: give --wheel-noise too, or leave it out")
     if args.predict and not (args.delay or args.lag):
         raise ValueError("--predict predicts over the delay and lag: give --delay or --lag")
+    if args.nav2_mppi and args.tracker != "mppi":
+        raise ValueError("--nav2-mppi writes an mppi tracker's settings: give --tracker mppi")
     drive = _drive_of(args)
-    _robot, result = _plan_of(args)
-    tracker = _tracker(args)
+    obstacles = _map_of(args)
+    robot, result = _plan_of(args)
+    tracker = _tracker(args, drive, obstacles)
     noise = args.wheel_noise  # k (m), both wheels
     run = follow(
         result,
@@ -195,6 +217,10 @@ def run_follow(args: argparse.Namespace) -> int:
         "heading_error": errors.heading[0],
     }
     write_poses(args, run.times, run.poses[0], "follow", columns)
+    if args.nav2_mppi:
+        from diffdrive.export.nav2_mppi import write_nav2_mppi
+
+        write_nav2_mppi(args.nav2_mppi, tracker, robot, result.limits)
     if args.plot:
         from diffdrive.plot import plot_plan
 
@@ -220,6 +246,15 @@ def run_follow(args: argparse.Namespace) -> int:
             )
             if args.robots == 1:
                 break
+        if obstacles is not None:
+            gaps = obstacles.clearance_at(run.poses[..., :2]) - args.footprint
+            touching = int(np.count_nonzero(gaps < 0.0))
+            print(
+                f"  obstacles ({args.map}): closest {1e3 * float(gaps.min()):.0f} mm beyond the "
+                f"footprint; touching at {touching} of {gaps.size} poses"
+            )
+        if args.nav2_mppi:
+            print(f"  Nav2 MPPI parameters: {args.nav2_mppi}")
         beyond = " beyond the known delay" if known else ""
         print(
             f"  delay margin{beyond}: {margin:.2f} s (by simulation along this plan, with this lag)"
@@ -312,3 +347,18 @@ def add_to(command: Command, parents: Parents) -> None:
     followed.add_argument("--robots", type=int, default=1, help="robots in the batch (1)")
     followed.add_argument("--wheel-noise", type=float, default=0.0, metavar="M", help="k, m (0)")
     followed.add_argument("--seed", type=int, help="for the wheel noise and mppi's sampling")
+    followed.add_argument(
+        "--map",
+        type=Path,
+        metavar="MAP_YAML",
+        help="obstacles for --tracker mppi: a ROS map's map.yaml (map_server, Nav2's map_saver)",
+    )
+    followed.add_argument(
+        "--footprint", type=float, metavar="M", help="the robot's radius among --map's obstacles"
+    )
+    followed.add_argument(
+        "--nav2-mppi",
+        type=Path,
+        metavar="FILE",
+        help="also write --tracker mppi's settings as Nav2 MPPI controller parameters (YAML)",
+    )

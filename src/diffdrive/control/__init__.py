@@ -12,7 +12,10 @@
 - ``follow``: ``follow``, closed-loop simulation of a batch of robots; ``delay_margin``;
 - ``rollouts``: many candidate command sequences through a delay and acceleration limits;
 - ``mppi``: ``MPPI``, a tracker that samples them (model predictive path integral control),
-  with its ``MPPICosts``.
+  with its ``MPPICosts``; ``mppi_arrays`` runs its cycle in an array library;
+- ``obstacles``: ``Obstacles``, a clearance field from circles, an occupancy grid or a ROS map
+  (``read_map``); ``guide``: a plan made to clear them; ``courses``: ``cluttered_corridor``, a
+  random course to test a controller on.
 """
 
 from typing import TYPE_CHECKING
@@ -29,17 +32,22 @@ _NAMES = {
     **dict.fromkeys(["PathLimits", "Plan", "limit_ratios", "plan"], "planning"),
     "rollouts": "rollouts",
     **dict.fromkeys(["MPPI", "MPPICosts"], "mppi"),
+    **dict.fromkeys(["Obstacles", "read_map"], "obstacles"),
+    "guide": "guide",
+    **dict.fromkeys(["Course", "cluttered_corridor"], "courses"),
     **dict.fromkeys(["LTVUnicycle", "Predictive", "PurePursuit", "Ramsete", "Tracker"], "tracking"),
 }
 __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
     "KEEP",
     "MPPI",
+    "Course",
     "FollowResult",
     "LTVUnicycle",
     "Limiter",
     "Limits",
     "MPPICosts",
+    "Obstacles",
     "OpenLoopOdometry",
     "PathLimits",
     "Plan",
@@ -47,22 +55,28 @@ __all__ = [
     "PurePursuit",
     "Ramsete",
     "Tracker",
+    "cluttered_corridor",
     "delay_margin",
     "desaturate",
     "drive_commands",
     "follow",
     "from_segments",
     "from_waypoints",
+    "guide",
     "limit_ratios",
     "plan",
+    "read_map",
     "rollouts",
 ]
 
 if TYPE_CHECKING:  # what the names are, for type checkers
     from diffdrive.control.commands import KEEP, desaturate
+    from diffdrive.control.courses import Course, cluttered_corridor
     from diffdrive.control.follow import FollowResult, delay_margin, follow
+    from diffdrive.control.guide import guide
     from diffdrive.control.limiter import Limiter, Limits
     from diffdrive.control.mppi import MPPI, MPPICosts
+    from diffdrive.control.obstacles import Obstacles, read_map
     from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
     from diffdrive.control.path import from_segments, from_waypoints
     from diffdrive.control.planning import PathLimits, Plan, limit_ratios, plan

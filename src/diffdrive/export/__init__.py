@@ -2,7 +2,8 @@
 ros2_controllers' ``diff_drive_controller`` (``"ros2"``), robot_localization's process noise
 (``"robot_localization"``), Nav2 AMCL's alphas (``"amcl"``) and WPILib's drivetrain constants
 (``"wpilib"``, JSON). ``targets`` derives the figures (how each is derived is there and in the
-file), ``amcl`` holds Nav2's sampler, ``files`` writes them.
+file), ``amcl`` holds Nav2's sampler, ``files`` writes them. ``nav2_mppi`` writes an ``MPPI``
+controller's settings as Nav2's MPPI controller reads them.
 
 Before a file is written from runs, ``refusals`` says what the model's own runs show against
 it: a model whose predicted covariance holds fewer than 80 % of its runs' poses inside the 95 %

@@ -9,7 +9,7 @@ from pathlib import Path
 from diffdrive.atomic import atomic_write
 from diffdrive.export.targets import Reference
 
-__all__ = ["FILES", "NODES", "WPILIB_SCHEMA", "render"]
+__all__ = ["FILES", "NODES", "WPILIB_SCHEMA", "render", "write", "yaml_value"]
 
 # The node each ROS file configures, as ``ros2 param load NODE FILE`` and a launch file take it.
 NODES = {
@@ -48,13 +48,15 @@ _SETTINGS = {
 }
 
 
-def _value(value: object) -> str:
+def yaml_value(value: object) -> str:
     """A value as YAML 1.1 and 1.2 both read it (``1.0e-09``: PyYAML reads ``1e-09`` as
     text), integers as integers (a ROS ``int`` parameter refuses a float)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, str):
         return f'"{value}"'
     if isinstance(value, list):
-        return "[" + ", ".join(_value(v) for v in value) + "]"
+        return "[" + ", ".join(yaml_value(v) for v in value) + "]"
     if isinstance(value, int) and not isinstance(value, bool):
         return str(value)
     text = repr(float(value))  # type: ignore[arg-type]
@@ -79,7 +81,7 @@ def render(target: str, figures: dict[str, object], at: Reference, notes: list[s
     lines = [f"# {note}" for note in notes]
     lines += [f"# {target}: see diffdrive.export for how each figure is derived", f"# {settings}"]
     lines += [f"{NODES[target]}:", "  ros__parameters:"]
-    lines += [f"    {name}: {_value(value)}" for name, value in figures.items()]
+    lines += [f"    {name}: {yaml_value(value)}" for name, value in figures.items()]
     return "\n".join(lines) + "\n"
 
 

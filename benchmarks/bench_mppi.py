@@ -1,0 +1,174 @@
+"""MPPI: one cycle's time, tracking through a known delay and lag, and cluttered corridors,
+side by side with diffdrive's other trackers in one run.
+
+Cycle: ``MPPI.command`` for one robot (sampling, rollouts through the drive's delay and lag,
+every cost including a clearance grid, the update, the smoothing and the bookkeeping), the
+median of repeated calls, at 2,048 x 100 and 16,384 x 100, by the compiled cycle and by each
+array library installed (NumPy, PyTorch, JAX; on the CPU here). Nav2's MPPI takes 11.8 ms for
+2,000 x 56 on a desktop i9 (navigation2#4352); the targets are half of what it takes for the
+same sizes: 3.4 ms and 31 ms.
+
+Tracking: plans followed with commands 0.1 s late through a 0.1 s first-order lag, both known
+to the controller (``MPPI(drive=...)``; ``Predictive`` for the others), no noise, from the
+plan's start, every 0.05 s. The scenarios: WPILib's LTVUnicycleControllerTest trajectory (as
+in ``bench_planning.py``; 8.8 m/s, no wheel limit), and ``--paths`` random paths of 2-4
+waypoints in an 8 m square planned at 1 m/s, 1 m/s^2 and 10 rad/s a wheel on a robot of 0.1 m
+wheels and 0.6 m track whose wheels reach 12 rad/s (MPPI's limit). Printed per tracker: mean
+and maximum cross-track error, and the largest wheel velocity against the limit.
+
+Obstacles: ``--runs`` seeded corridors (``control.cluttered_corridor``: 12 m x 3 m, 8 circles
+of radius 0.15-0.4 m, a way through for a robot of radius 0.45 m), a straight plan from one end
+to the other at 1 m/s (wheels 12 rad/s), the robot of radius 0.35 m, the same delay and lag.
+Counted: runs that touch (judged on the exact circles and walls), runs that do not reach the
+goal within 0.1 m, and the time to the goal against the straight plan's. Side by side, on the
+first ``--compare`` seeds: MPPI on the plan as given (no guide), and Predictive(Ramsete) on
+the guide's plan (no obstacle costs).
+
+    python benchmarks/bench_mppi.py [--runs 1000] [--paths 20] [--repeats 15]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import platform
+import time
+
+import numpy as np
+
+import diffdrive as dd
+from bench_planning import random_waypoints  # benchmarks/bench_planning.py
+from diffdrive.control import (
+    MPPI,
+    LTVUnicycle,
+    PathLimits,
+    Predictive,
+    PurePursuit,
+    Ramsete,
+    cluttered_corridor,
+    follow,
+    guide,
+    plan,
+)
+from diffdrive.dynamics import DriveModel
+
+ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
+DT, DELAY, LAG, WHEELS = 0.05, 0.1, 0.1, 12.0
+DRIVE = DriveModel(delay=DELAY, time_constant=LAG)
+FOOTPRINT = 0.35
+
+
+def cycle_times(repeats: int) -> None:
+    course = cluttered_corridor(np.random.default_rng(3), footprint=FOOTPRINT)
+    path = plan([course.start, course.goal], ROBOT, PathLimits(1.0, 1.0, max_wheel_velocity=12))
+    libraries = ["numba", "numpy"] + [n for n in ("torch", "jax") if importlib.util.find_spec(n)]
+    print("one MPPI cycle (one robot, clearance grid on; median):")
+    for samples in (2048, 16384):
+        for backend in libraries:
+            if backend in ("torch", "jax") and samples > 2048:
+                continue
+            tracker = MPPI(samples=samples, horizon=100, drive=DRIVE, obstacles=course.obstacles,
+                           footprint=FOOTPRINT, backend=backend, seed=0)  # fmt: skip
+            pose = np.array([[0.0, 0.0, 0.0]])
+            tracker.command(path, 0.0, pose)  # compiles, makes the guide
+            count = repeats if backend == "numba" else 3
+            times = []
+            for k in range(count):
+                start = time.perf_counter()
+                tracker.command(path, DT * (k + 1), pose)
+                times.append(time.perf_counter() - start)
+            print(f"  {samples:,} x 100, {backend}: {1e3 * np.median(times):.2f} ms")
+
+
+def trackers(wheels: float | None) -> dict[str, object]:
+    """Each tracker's maker; ``wheels``: MPPI's wheel limit (rad/s; None: the plan's)."""
+    return {
+        "MPPI (delay and lag known)": lambda: MPPI(drive=DRIVE, max_wheel_velocity=wheels, seed=1),
+        "Ramsete": Ramsete,
+        "LTVUnicycle": lambda: LTVUnicycle(dt=DT),
+        "PurePursuit": PurePursuit,
+        "Predictive(Ramsete)": lambda: Predictive(Ramsete(), DELAY, DT, LAG),
+        "Predictive(LTVUnicycle)": lambda: Predictive(LTVUnicycle(dt=DT), DELAY, DT, LAG),
+    }
+
+
+def tracking(paths: int) -> None:
+    wpilib = plan([(2.75, 22.521, 0.0), (24.73, 19.68, 5.846)], ROBOT,
+                  PathLimits(max_velocity=8.8, max_acceleration=0.1))  # fmt: skip
+    rng = np.random.default_rng(1)
+    limits = PathLimits(max_velocity=1.0, max_acceleration=1.0, max_wheel_velocity=10.0)
+    randoms = [plan(random_waypoints(rng), ROBOT, limits) for _ in range(paths)]
+    print(f"tracking with {DELAY} s delay and {LAG} s lag (cross-track mean / max, mm):")
+    for name in trackers(None):
+        row = []
+        for label, plans in (("WPILib's 30 s", [wpilib]), (f"{paths} random paths", randoms)):
+            make = trackers(None if label.startswith("WPILib") else WHEELS)[name]
+            cross, wheels = [], 0.0
+            for reference in plans:
+                result = follow(reference, make(), dt=DT, drive=DRIVE)
+                cross.append(np.abs(result.errors().cross_track).ravel())
+                wheels = max(wheels, float(np.abs(result.wheel_velocities).max()))
+            every = np.concatenate(cross)
+            limit = "" if label.startswith("WPILib") else f", wheels {wheels:.2f} of {WHEELS:g}"
+            row.append(f"{label} {1e3 * every.mean():.1f} / {1e3 * every.max():.1f}{limit}")
+        print(f"  {name}: " + "; ".join(row))
+
+
+def corridor_run(seed: int, kind: str) -> dict[str, object]:
+    course = cluttered_corridor(np.random.default_rng(seed), footprint=FOOTPRINT)
+    limits = PathLimits(max_velocity=1.0, max_acceleration=1.0, max_wheel_velocity=WHEELS)
+    straight = plan([course.start, course.goal], ROBOT, limits)
+    if kind == "Predictive(Ramsete) on the guide":
+        tracker = Predictive(Ramsete(), DELAY, DT, LAG)
+        reference = guide(straight, course.obstacles, FOOTPRINT)
+    else:
+        tracker = MPPI(drive=DRIVE, obstacles=course.obstacles, footprint=FOOTPRINT, seed=seed,
+                       around=kind == "MPPI")  # fmt: skip
+        reference = straight
+    result = follow(reference, tracker, dt=DT, drive=DRIVE, settle=0.5 * straight.duration)
+    poses = result.poses[0]
+    reached = np.flatnonzero(np.hypot(*(poses[:, :2] - course.goal[:2]).T) < 0.1)
+    ratio = (
+        (result.times[reached[0]] - result.times[0]) / straight.duration if len(reached) else None
+    )
+    return {"touch": bool(course.touches(poses, FOOTPRINT).any()), "ratio": ratio,
+            "closest": float(np.hypot(*(poses[:, :2] - course.goal[:2]).T).min())}  # fmt: skip
+
+
+def obstacles(runs: int, compare: int) -> None:
+    print(f"cluttered corridors, {DELAY} s delay and {LAG} s lag:")
+    for kind, count in (("MPPI", runs), ("MPPI, no guide", compare),
+                        ("Predictive(Ramsete) on the guide", compare)):  # fmt: skip
+        start = time.perf_counter()
+        outcomes = [corridor_run(seed, kind) for seed in range(count)]
+        touched = [s for s, o in enumerate(outcomes) if o["touch"]]
+        missed = [s for s, o in enumerate(outcomes) if o["ratio"] is None]
+        ratios = np.array([o["ratio"] for o in outcomes if o["ratio"] is not None])
+        slow = [s for s, o in enumerate(outcomes) if o["ratio"] is not None and o["ratio"] > 1.3]
+        spread = (f"time to goal / straight plan: median {np.median(ratios):.3f}, 99th "
+                  f"percentile {np.percentile(ratios, 99):.3f}, max {ratios.max():.3f}"
+                  if len(ratios) else "no run reached the goal")  # fmt: skip
+        print(
+            f"  {kind}, {count} runs ({time.perf_counter() - start:.0f} s): touched "
+            f"{len(touched)}, goal missed {len(missed)}, over 1.3x {len(slow)}; {spread}"
+        )
+        for label, seeds in (("touched", touched), ("missed", missed), ("over 1.3x", slow)):
+            if seeds:
+                print(f"    {label}: seeds {seeds[:12]}{' ...' if len(seeds) > 12 else ''}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=1000)
+    parser.add_argument("--compare", type=int, default=100)
+    parser.add_argument("--paths", type=int, default=20)
+    parser.add_argument("--repeats", type=int, default=15)
+    args = parser.parse_args()
+    print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}")
+    cycle_times(args.repeats)
+    tracking(args.paths)
+    obstacles(args.runs, args.compare)
+
+
+if __name__ == "__main__":
+    main()
