@@ -1,6 +1,6 @@
 """MPPI's cycle in an array library (NumPy, JAX, PyTorch, ... through the array API): the same
 rollout and costs as the compiled cycle (``backends.numba_mppi``), every candidate at once and
-the steps in turn, on the library's device.
+the steps in turn, on the library's device (PyTorch: CUDA where there is one).
 
 The drive, the step and every cost term are those ``control.mppi`` states; the half-turn's
 cos and sin come from the library (the compiled cycle's Taylor forms agree to an ulp). The
@@ -27,6 +27,7 @@ class ArrayCycle:
 
     def __init__(self, library: str, seed: int | None) -> None:
         self.library = library
+        self.device: Any = None  # the library's default: NumPy's CPU, JAX's first device
         if library == "numpy":
             self.xp: ModuleType = np
             self._rng: Any = np.random.default_rng(seed)
@@ -34,7 +35,9 @@ class ArrayCycle:
             import torch
 
             self.xp = array_api_compat.array_namespace(torch.zeros(1))
-            self._rng = torch.Generator()
+            # On the GPU where there is one, its generator there too.
+            self.device = "cuda" if torch.cuda.is_available() else "cpu"
+            self._rng = torch.Generator(device=self.device)
             if seed is None:
                 self._rng.seed()
             else:
@@ -57,13 +60,15 @@ class ArrayCycle:
         elif self.library == "torch":
             import torch
 
-            normal = torch.randn(shape, generator=self._rng, dtype=torch.float64)
+            normal = torch.randn(
+                shape, generator=self._rng, dtype=torch.float64, device=self.device
+            )
         else:
             import jax
 
             self._rng, key = jax.random.split(self._rng)
             normal = jax.random.normal(key, shape, dtype=self.dtype)
-        scale = self.xp.asarray(sigma[None, :, None], dtype=self.dtype)
+        scale = self.xp.asarray(sigma[None, :, None], dtype=self.dtype, device=self.device)
         return self.xp.astype(normal, self.dtype) * scale
 
     def costs(
@@ -86,7 +91,7 @@ class ArrayCycle:
         count = noise.shape[2]
 
         def constant(value: object) -> Any:
-            return xp.asarray(value, dtype=dtype)
+            return xp.asarray(value, dtype=dtype, device=self.device)
 
         x, y = constant(start[0]), constant(start[1])
         c, s = xp.cos(constant(start[2])), xp.sin(constant(start[2]))
@@ -95,7 +100,7 @@ class ArrayCycle:
         for command in flight:
             wl, wr, pv, vy, pw = _drive(xp, q, wl, wr, constant(command[0]), constant(command[1]))
             x, y, c, s = _move(xp, q, x, y, c, s, pv, vy, pw)
-        total = xp.zeros(count, dtype=dtype)
+        total = xp.zeros(count, dtype=dtype, device=self.device)
         x, y, c, s, wl, wr = (xp.broadcast_to(a, (count,)) for a in (x, y, c, s, wl, wr))
         means, ref = constant(mean), constant(reference)
         table = None if grid is None else self._device_grid(grid)
@@ -126,7 +131,8 @@ class ArrayCycle:
     def _device_grid(self, grid: np.ndarray) -> Any:
         """The clearance grid in the library, on its device: copied once, kept."""
         if self._grid is None or self._grid[0] is not grid:
-            self._grid = (grid, self.xp.asarray(np.array(grid), dtype=self.dtype))
+            table = self.xp.asarray(np.array(grid), dtype=self.dtype, device=self.device)
+            self._grid = (grid, table)
         return self._grid[1]
 
     def update(self, costs: Any, noise: Any, temperature: float) -> tuple[np.ndarray, Any]:
