@@ -73,13 +73,11 @@ def main(argv: list[str] | None = None) -> None:
     else:
         print("goal not reached")
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: the user's backend is left alone
     from matplotlib.patches import Circle
 
-    figure, axes = plt.subplots(figsize=(12, 3.8), layout="constrained")
+    figure = Figure(figsize=(12, 3.8), layout="constrained")
+    axes = figure.add_subplot()
     for centre, radius in zip(course.centres, course.radii, strict=True):
         axes.add_patch(Circle(centre, radius, color="0.35"))
     for y in (-course.width / 2, course.width / 2):
