@@ -397,9 +397,17 @@ def _time_run(curve: dict[str, np.ndarray], robot: Robot, limits: PathLimits, wh
             widen *= 1.1
         else:
             return smooth, speed, np.append(a_new, a_new[-1]), times
+    # Where the last round still broke a limit (or, past the limits, the jerk's worst state).
+    worst = (
+        int(np.flatnonzero(np.isfinite(top))[0])
+        if outside
+        else int(np.argmax(_jerks(times, a_new)))
+    )
+    x, y, kappa = smooth["x"][worst], smooth["y"][worst], abs(smooth["kappa"][worst])
+    bend = f"; the path's radius there is {1.0 / kappa:.3g} m" if kappa > 0.0 else ""
     raise ValueError(
         f"the path cannot be driven within the limits: the jerk limit was not met after "
-        f"{_JERK_ROUNDS} rounds ({where})"
+        f"{_JERK_ROUNDS} rounds ({where}, at ({x:.3f}, {y:.3f}){bend})"
     )
 
 
