@@ -17,8 +17,10 @@ without a noise figure means.
 (``rate_random_walk``) and its first-order Gauss-Markov wander (``bias_instability`` with its
 ``correlation_time``), and ``initial_bias_sigma``, what an estimator assumes of the bias before
 it has seen any. The synthetic gyro (``sensors.GyroModel``) draws it, the estimators assume
-it, and ``calibration.noise.identify_gyro`` finds it from a standing stretch. Its default,
-``DEFAULT_GYRO``, is a mid-range MEMS gyro's.
+it, ``estimation.standing.identify_gyro`` finds it from a standing stretch, and the whole-log
+estimator (``estimate_trajectory``) takes it from the log's standing stretches when none is
+given (``identify_standing``). Its default, ``DEFAULT_GYRO``, is a mid-range MEMS gyro's: what
+the streaming estimator assumes, and the whole-log one where the wheels never stand still.
 
 Either type made without arguments is no noise at all; the ``DEFAULT`` values are what an
 estimator assumes when given none.

@@ -6,7 +6,8 @@
 - ``online``: ``OnlineCalibrator``, recursive least squares while the robot drives;
 - ``gyro_track``: ``track_from_gyro``, the track width from a gyro, without a pose reference;
 - ``noise``: the odometry's noise model fitted to runs against a reference (``identify``,
-  ``covariances``), and the gyro's noise from its Allan deviation (``identify_gyro``).
+  ``covariances``), and the gyro's noise from its Allan deviation (``identify_gyro``, from
+  ``estimation.standing``).
 """
 
 from diffdrive.calibration import noise

@@ -46,14 +46,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._stats import nonnegative_least_squares
 from diffdrive._validate import finite, rng_of, whole
 from diffdrive.calibration.offline import calibrate, checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
+from diffdrive.estimation.standing import GyroFit, allan_deviation, identify_gyro
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive
 from diffdrive.montecarlo import noisy_angles
-from diffdrive.sensor_noise import GyroNoise, draw_geometry
+from diffdrive.sensor_noise import draw_geometry
 from diffdrive.simulation import dead_reckon
 from diffdrive.types import Pose
 
@@ -419,76 +419,6 @@ def draw_reference(
     poses = dead_reckon(robot.with_geometry(*geometry), wheels, start, method)
     floor = np.array([model.reference_sigma] * 2 + [model.reference_heading_sigma])
     return poses + floor * rng.standard_normal(poses.shape)
-
-
-@dataclass(frozen=True, eq=False)
-class GyroFit:
-    """``identify_gyro``'s result: the gyro's ``noise`` (a ``GyroNoise``: its angle random
-    walk, bias instability and rate random walk fitted; the bias prior an estimator takes from
-    it, the instability or a small floor), and the overlapping Allan deviation it was fitted
-    to: ``taus`` (s) and ``deviations`` (rad/s)."""
-
-    noise: GyroNoise
-    taus: np.ndarray
-    deviations: np.ndarray
-
-
-# Allan variance of each term (IEEE Std 952-1997, annex C): N^2 / tau for white rate noise,
-# (2 ln 2 / pi) B^2 on the flat of a bias instability, K^2 tau / 3 for a rate random walk.
-_FLAT = 2.0 * np.log(2.0) / np.pi
-
-
-def allan_deviation(times: object, rates: object) -> tuple[np.ndarray, np.ndarray]:
-    """The overlapping Allan deviation (rad/s) of gyro ``rates`` sampled evenly at ``times``
-    (s), at cluster times ``tau`` (s) of 1, 2, 4, ... samples up to a quarter of the record:
-    ``(taus, deviations)``. ``ValueError`` if the samples are not evenly spaced (to 1 %) or
-    too few (100 or more)."""
-    times = np.asarray(times, dtype=float)
-    rates = np.asarray(rates, dtype=float)
-    if times.ndim != 1 or rates.shape != times.shape:
-        raise ValueError(f"times and rates must be (M,), got {times.shape} and {rates.shape}")
-    if len(times) < 100:
-        raise ValueError(
-            f"the stationary stretch is too short for the Allan deviation: {len(times)} "
-            "samples, 100 or more needed"
-        )
-    if not (np.all(np.isfinite(times)) and np.all(np.isfinite(rates))):
-        raise ValueError("times and rates must be finite")
-    steps = np.diff(times)
-    dt = float(np.median(steps))
-    if not dt > 0 or np.abs(steps - dt).max() > 0.01 * dt:
-        raise ValueError(
-            "the Allan deviation needs evenly spaced samples (to 1 %); resample the stretch"
-        )
-    # Each sample the mean rate over its period, as the Allan variance's clusters average.
-    angle = np.concatenate([[0.0], np.cumsum(rates * dt)])
-    clusters = 2 ** np.arange(int(np.log2(len(angle) / 4)) + 1)
-    taus, deviations = [], []
-    for m in clusters:
-        second = angle[2 * m :] - 2.0 * angle[m:-m] + angle[: -2 * m]
-        tau = m * dt
-        taus.append(tau)
-        deviations.append(np.sqrt(np.mean(second**2) / (2.0 * tau**2)))
-    return np.array(taus), np.array(deviations)
-
-
-def identify_gyro(times: object, rates: object) -> GyroFit:
-    """A gyro's angle random walk, bias instability and rate random walk from a stretch in
-    which it stands still: the three terms' Allan variances fitted to the measured one by
-    non-negative least squares, relative to it (each cluster time weighs alike)."""
-    taus, deviations = allan_deviation(times, rates)
-    design = np.column_stack([1.0 / taus, np.full(len(taus), _FLAT), taus / 3.0])
-    target = deviations**2
-    weighted = design / target[:, None]
-    n2, b2, k2 = nonnegative_least_squares(weighted, np.ones(len(taus)))
-    instability = float(np.sqrt(b2))
-    noise = GyroNoise(
-        angle_random_walk=float(np.sqrt(n2)),
-        rate_random_walk=float(np.sqrt(k2)),
-        initial_bias_sigma=max(instability, 1e-6),
-        bias_instability=instability,
-    )
-    return GyroFit(noise, taus, deviations)
 
 
 @dataclass(frozen=True, eq=False)

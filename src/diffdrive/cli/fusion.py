@@ -221,7 +221,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         )
     if not args.quiet:
         print(note)
-        for line in notes:
+        for line in (*result.settings, *notes):
             print(line)
         print(
             f"measurements: {len(inside) - result.rejected} taken, {result.rejected} refused by "

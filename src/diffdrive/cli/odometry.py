@@ -138,6 +138,8 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
         )
     if not args.quiet:
         print(note)
+        for line in result.settings:
+            print(line)
         flagged = f"{int(result.slip.sum())} of {len(result.slip) - 1} intervals flagged"
         print(
             f"slip: {flagged}; gyro bias {result.bias[0]:.5f} rad/s at the start, "

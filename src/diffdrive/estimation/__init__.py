@@ -8,7 +8,10 @@
   back, with the slip ``episodes`` a whole log shows;
 - ``imu``: ``Gyro`` streams and an IMU's mounting;
 - ``gyro``: ``gyro_odometry`` (the estimator over a log with a gyro, for slip
-  studies) and ``GyroOdometry`` (the estimator behind a per-interval ``update``).
+  studies) and ``GyroOdometry`` (the estimator behind a per-interval ``update``);
+- ``standing``: the gyro's noise and bias from where the wheels stand still
+  (``identify_standing``, what ``estimate_trajectory`` takes when given none; ``identify_gyro``
+  and ``allan_deviation`` for one standing stretch).
 
 Every estimator runs the robot model's equivalent drive through ``diffdrive._step`` and keeps
 the pose ``(x, y, theta)`` first in its state and covariance.
@@ -37,6 +40,7 @@ _NAMES = {
         "odometry",
     ),
     **dict.fromkeys(["Estimate", "estimate_trajectory", "measurements_of"], "smoother"),
+    **dict.fromkeys(["StandingFit", "identify_standing"], "standing"),
 }
 __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
@@ -53,9 +57,11 @@ __all__ = [
     "PoseEstimator",
     "PythonOdometry",
     "RefusedUpdateError",
+    "StandingFit",
     "chi2_quantile",
     "estimate_trajectory",
     "gyro_odometry",
+    "identify_standing",
     "measurements_of",
     "odometry_of_run",
     "offset_jacobian",
@@ -77,3 +83,4 @@ if TYPE_CHECKING:  # what the names are, for type checkers
         offset_jacobian,
     )
     from diffdrive.estimation.smoother import Estimate, estimate_trajectory, measurements_of
+    from diffdrive.estimation.standing import StandingFit, identify_standing

@@ -21,6 +21,7 @@ from diffdrive._validate import positive
 from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
 from diffdrive.estimation.imu import Gyro, rotation_from_rpy
 from diffdrive.estimation.smoother import checked_log, estimate_trajectory
+from diffdrive.estimation.standing import identify_standing
 from diffdrive.model import Robot
 from diffdrive.types import Pose
 
@@ -80,7 +81,8 @@ class GyroTrajectory:
     """``gyro_odometry``'s result: ``times`` ``(N,)``, ``poses`` ``(N, 3)``, ``covariances``
     ``(N, 3, 3)``, ``bias`` ``(N,)`` rad/s, and per row the ``slip`` flag and ``slip_score`` of
     the interval that ends there (False and 0 on the first row); ``twists`` ``(N, 3)`` and
-    ``twist_covariances`` ``(N, 3, 3)`` as ``Estimate``'s."""
+    ``twist_covariances`` ``(N, 3, 3)`` and ``settings`` (the gyro's noise and bias, and where
+    from) as ``Estimate``'s."""
 
     times: np.ndarray
     poses: np.ndarray
@@ -91,6 +93,7 @@ class GyroTrajectory:
     heading: str
     twists: np.ndarray
     twist_covariances: np.ndarray
+    settings: tuple[str, ...] = ()
 
 
 def gyro_odometry(
@@ -106,24 +109,23 @@ def gyro_odometry(
     **options,
 ) -> GyroTrajectory:
     """A whole log: wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s,
-    and the ``gyro``, integrated over each interval. ``bias`` (rad/s) defaults to the gyro's
-    mean rate while the wheels stand still (refused for ``"gyro"`` when they never do; 0 for
-    ``"fused"``, which estimates it). ``commanded`` ``(N-1, 2)`` rad/s, if given, are the
-    wheel velocities commanded over each interval. ``options`` go to ``GyroOdometry``, but
+    and the ``gyro``, integrated over each interval. ``bias`` (rad/s) and the gyro's ``noise``
+    default to what the log's standing stretches give (``estimate_trajectory``; refused for
+    ``"gyro"`` when the wheels never stand still; 0 for ``"fused"``, which estimates it).
+    ``commanded`` ``(N-1, 2)`` rad/s, if given, are the wheel velocities commanded over each
+    interval. ``options`` go to ``GyroOdometry``, but
     ``slip_test`` (``"episodes"``, the default, or ``"interval"``) to ``estimate_trajectory``."""
     if not isinstance(gyro, Gyro):
         raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
     times, increments, turned, commanded = checked_log(times, increments, gyro, commanded)
     assert turned is not None  # a gyro was given
-    if bias is None:
-        bias = stationary_bias(times, increments, turned)
-        if bias is None:
-            if heading == "gyro":
-                raise ValueError(
-                    "heading 'gyro' needs the gyro bias: give it (bias=, --gyro-bias), or a "
-                    "log in which the wheels stand still for a while"
-                )
-            bias = 0.0
+    if bias is not None:
+        options["bias"] = bias
+    elif heading == "gyro" and identify_standing(times, increments, turned) is None:
+        raise ValueError(
+            "heading 'gyro' needs the gyro bias: give it (bias=, --gyro-bias), or a log in "
+            "which the wheels stand still for a while"
+        )
     estimate = estimate_trajectory(
         robot,
         times,
@@ -133,7 +135,6 @@ def gyro_odometry(
         initial_pose=initial_pose,
         smooth=False,
         commanded=commanded,
-        bias=bias,
         **options,
     )
     return GyroTrajectory(
@@ -146,6 +147,7 @@ def gyro_odometry(
         heading,
         estimate.twists,
         estimate.twist_covariances,
+        estimate.settings,
     )
 
 

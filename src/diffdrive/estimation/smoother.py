@@ -24,8 +24,10 @@ from diffdrive.estimation.episodes import steady_episodes
 from diffdrive.estimation.fusion import PoseEstimator, body_covariances, body_poses
 from diffdrive.estimation.imu import Gyro
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement
+from diffdrive.estimation.standing import identify_standing
 from diffdrive.estimation.twists import interval_twists
 from diffdrive.model import Robot
+from diffdrive.sensor_noise import DEFAULT_GYRO
 
 SLIP_TESTS = ("episodes", "interval")
 # measurements as the cores take them: stamps, kinds, values, covariances, lever arms
@@ -46,7 +48,8 @@ class Estimate:
     twist over the interval ending at each row (row 0: the first interval's) and its
     covariance, from the wheels and the heading source with the estimated bias or turn scale
     (``diffdrive.estimation.twists``); with ``records``, the smoother's record of every step
-    (``filter.SmootherRecords``), else None."""
+    (``filter.SmootherRecords``), else None; ``settings``: what the gyro's noise and bias
+    were, and where from (given, or identified from the log's standing stretches)."""
 
     times: np.ndarray
     poses: np.ndarray
@@ -63,6 +66,7 @@ class Estimate:
     twists: np.ndarray
     twist_covariances: np.ndarray
     records: ekf.SmootherRecords | None = None
+    settings: tuple[str, ...] = ()
 
     @property
     def rejected(self) -> int:
@@ -181,6 +185,7 @@ def estimate_trajectory(
     if records and not smooth:
         raise ValueError("records are the smoother's, made on its pass back: give smooth=True")
     options.setdefault("history", float("inf"))
+    settings = _gyro_settings(times, increments, turned, gyro, heading, options)
     estimator = PoseEstimator(
         robot,
         heading,
@@ -226,7 +231,37 @@ def estimate_trajectory(
         twists,
         twist_covariances,
         run.records,
+        settings,
     )
+
+
+def _gyro_settings(times, increments, turned, gyro, heading: str, options: dict) -> tuple:
+    """Fill the gyro's ``noise`` and ``bias`` into ``options`` from the log's standing
+    stretches where they were not given (``standing.identify_standing``); the lines that say
+    what was used and where from."""
+    if gyro is None:  # with the wheels' heading the gyro still tests for slip
+        return ()
+    given = [name for name in ("noise", "bias") if name in options]
+    if len(given) == 2:
+        return ("gyro noise and bias: as given",)
+    fit = identify_standing(times, increments, turned, samples=(gyro.times, gyro.rates))
+    if fit is None:
+        used = options.get("noise", DEFAULT_GYRO)
+        return (
+            "no standing stretch of 0.5 s in the log (the wheels never stand still): the gyro "
+            f"noise {'as given' if 'noise' in given else 'is the default'} ({used}), the bias "
+            f"{'as given' if 'bias' in given else 'starts at 0 rad/s'}",
+        )
+    report = list(fit.report)
+    if "noise" in given:
+        report = [report[0], "gyro noise: as given"]
+    else:
+        options["noise"] = fit.noise
+    if "bias" in given:
+        report[0] = "gyro bias: as given"
+    else:
+        options["bias"] = fit.bias
+    return tuple(report)
 
 
 @dataclass(frozen=True)
