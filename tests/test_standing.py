@@ -113,3 +113,25 @@ def test_the_command_line_prints_what_it_used(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "angle random walk" in printed
     assert "bias prior" in printed
+
+
+def test_a_streaming_estimator_starts_from_a_warm_up():
+    """The first 20 s (the robot standing) identify the gyro; the streaming estimator then
+    fed the whole log is the whole-log filter given the same settings."""
+    from diffdrive.estimation import PoseEstimator, warm_up
+
+    times, increments, gyro = _log(20.0, 5)
+    head = times <= 20.0
+    fit = warm_up(times[head], increments[: np.count_nonzero(head) - 1], gyro)
+    assert fit.noise.angle_random_walk == pytest.approx(ARW, rel=0.05)
+    assert fit.options == {"noise": fit.noise, "bias": fit.bias}
+    whole = estimate_trajectory(
+        ROBOT, times, increments, gyro=gyro, smooth=False, slip_test="interval", **fit.options
+    )
+    streaming = PoseEstimator(
+        ROBOT, "fused", initial_time=float(times[0]), history=np.inf, ahead=0.0, **fit.options
+    )
+    turned = np.diff(gyro.angles(times))
+    for k in range(1, len(times)):
+        streaming.update_increments(*increments[k - 1], times[k], gyro_angle=turned[k - 1])
+    np.testing.assert_allclose(streaming.state, whole.states[-1], rtol=1e-9, atol=1e-11)

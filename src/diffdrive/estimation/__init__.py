@@ -10,8 +10,8 @@
 - ``gyro``: ``gyro_odometry`` (the estimator over a log with a gyro, for slip
   studies) and ``GyroOdometry`` (the estimator behind a per-interval ``update``);
 - ``standing``: the gyro's noise and bias from where the wheels stand still
-  (``identify_standing``, what ``estimate_trajectory`` takes when given none; ``identify_gyro``
-  and ``allan_deviation`` for one standing stretch).
+  (``identify_standing``, what ``estimate_trajectory`` takes when given none; ``warm_up`` for a
+  streaming ``PoseEstimator``; ``identify_gyro`` and ``allan_deviation`` for one stretch).
 
 Every estimator runs the robot model's equivalent drive through ``diffdrive._step`` and keeps
 the pose ``(x, y, theta)`` first in its state and covariance.
@@ -40,7 +40,7 @@ _NAMES = {
         "odometry",
     ),
     **dict.fromkeys(["Estimate", "estimate_trajectory", "measurements_of"], "smoother"),
-    **dict.fromkeys(["StandingFit", "identify_standing"], "standing"),
+    **dict.fromkeys(["StandingFit", "identify_standing", "warm_up"], "standing"),
 }
 __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
@@ -66,6 +66,7 @@ __all__ = [
     "odometry_of_run",
     "offset_jacobian",
     "rotation_from_rpy",
+    "warm_up",
 ]
 
 if TYPE_CHECKING:  # what the names are, for type checkers
@@ -83,4 +84,4 @@ if TYPE_CHECKING:  # what the names are, for type checkers
         offset_jacobian,
     )
     from diffdrive.estimation.smoother import Estimate, estimate_trajectory, measurements_of
-    from diffdrive.estimation.standing import StandingFit, identify_standing
+    from diffdrive.estimation.standing import StandingFit, identify_standing, warm_up

@@ -22,6 +22,8 @@ reads its bias plus its noise, so:
 
 ``identify_standing`` says what it used and where from (``StandingFit.report``), and None when
 the wheels never stand still for ``least`` s: the caller then says which default it used.
+``estimate_trajectory`` calls it on the whole log; a streaming ``PoseEstimator`` starts from
+a stated warm-up (``warm_up``, then ``PoseEstimator(robot, **fit.options)``).
 """
 
 from __future__ import annotations
@@ -34,7 +36,14 @@ import numpy as np
 from diffdrive._stats import nonnegative_least_squares
 from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
 
-__all__ = ["GyroFit", "StandingFit", "allan_deviation", "identify_gyro", "identify_standing"]
+__all__ = [
+    "GyroFit",
+    "StandingFit",
+    "allan_deviation",
+    "identify_gyro",
+    "identify_standing",
+    "warm_up",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,6 +131,12 @@ class StandingFit:
     longest: float
     report: tuple[str, ...]
 
+    @property
+    def options(self) -> dict[str, object]:
+        """``noise`` and ``bias`` as ``PoseEstimator`` and ``estimate_trajectory`` take them:
+        ``PoseEstimator(robot, **fit.options)`` streams on from a warm-up."""
+        return {"noise": self.noise, "bias": self.bias}
+
 
 def identify_standing(
     times: object,
@@ -202,6 +217,15 @@ def identify_standing(
         bias_instability=instability,
     )
     return StandingFit(noise, bias, duration, longest, tuple(report))
+
+
+def warm_up(times: object, increments: object, gyro) -> StandingFit | None:
+    """``identify_standing`` of a warm-up: wheel-angle ``increments`` ``(N-1, 2)`` rad between
+    ``times`` ``(N,)`` s, standing for part of it, and the ``Gyro`` (an ``imu.Gyro``) over
+    them; a streaming estimator then starts from ``fit.options``."""
+    t = np.asarray(times, dtype=float)
+    turned = np.diff(gyro.angles(t))
+    return identify_standing(t, increments, turned, samples=(gyro.times, gyro.rates))
 
 
 def _longest_run(mask: np.ndarray) -> tuple[int, int]:
