@@ -1,9 +1,9 @@
 """The compiled MPPI cycle (numba): sampling, rollouts through the drive and every cost in one
 pass per candidate, candidates spread over the cores (``prange``).
 
-``control.mppi`` owns the maths and states it; this is its loop. The parameters come in one
-float64 array whose slots are named below (``control.mppi`` fills it). Three choices make it
-fast:
+``control.mppi`` owns the maths and states it; this is its loop. The parameters come as one
+``backends.settings.MPPISettings`` named tuple (``control.mppi`` fills it). Three choices make
+it fast:
 
 - each candidate draws its own normals from a counter-based stream (splitmix64 seeded by the
   cycle's seed and the candidate's index) by the ziggurat method of Marsaglia and Tsang

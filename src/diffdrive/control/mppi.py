@@ -14,8 +14,9 @@ voltage-driven model is rolled out as its lag ``kA/kV`` with static friction lef
 Every candidate's cost is the sum over its steps of named terms, each with its weight in
 ``MPPICosts`` (>= 0):
 
-- ``position`` per m^2: the distance to the plan's pose at the step's time; ``heading``:
-  ``2 (1 - cos e)`` of the heading error ``e`` (``e^2`` for small errors);
+- ``cross_track`` and ``along_track`` per m^2: the distance to the plan's pose at the step's
+  time, across and along its heading; ``heading``: ``2 (1 - cos e)`` of the heading error
+  ``e`` (``e^2`` for small errors);
 - ``effort``: ``v^2 + omega^2`` of the twist moved with; ``rate``: the square of its change;
 - ``wheel_limit``, ``acceleration_limit`` and ``voltage_limit``: the square of each wheel's
   velocity (rad/s), acceleration (rad/s^2) and feedforward voltage (V, ``kS sgn w + kV w + kA
@@ -23,7 +24,8 @@ Every candidate's cost is the sum over its steps of named terms, each with its w
 - with ``obstacles`` (``control.Obstacles``) and a circular ``footprint`` of that radius (m):
   ``collision`` each step the footprint touches an obstacle, ``clearance`` times the square of
   how far the footprint is inside the ``inflation`` band (m) around them;
-- ``goal`` per m^2: the distance from the plan's last pose at the horizon's end.
+- ``goal`` per m^2: the distance from the plan's last pose at the horizon's end;
+  ``progress`` per m: how far the horizon's end falls behind the plan's pose there.
 
 Among obstacles the controller follows ``control.guide``'s plan: the given plan with every
 stretch that comes too close to an obstacle replaced by the cheapest way around, made once. A
@@ -176,7 +178,7 @@ class MPPI:
             raise ValueError("backend numba: numba is not installed (pip install diffdrive[fast])")
         self.backend = backend
         self._seed = seed
-        self._settings: tuple[Plan, object] | None = None
+        self._settings: tuple[Plan, MPPISettings] | None = None
         self._guide: tuple[Plan, Plan] | None = None
         self.reset()
 
@@ -229,8 +231,9 @@ class MPPI:
     def sampled(self, plan: Plan, pose: object, count: int = 64, robot: int = 0) -> np.ndarray:
         """Where ``count`` candidates drawn around ``robot``'s mean sequence would take it from
         ``pose`` ``(3,)``: positions ``(count, T, 2)`` after the commands in flight, for a
-        picture (as Nav2's ``visualize``). Drawn by NumPy apart from the controller's own
-        sampling, which it leaves as it was; after at least one ``command``."""
+        picture (as Nav2's ``visualize``). Drawn by NumPy, seeded by the robot's index (the
+        same candidates each call), apart from the controller's own sampling, which it leaves
+        as it was; after at least one ``command``."""
         if not len(self._mean):
             raise ValueError("sampled shows the candidates of a running controller: call "
                              "command first")  # fmt: skip
@@ -295,10 +298,8 @@ class MPPI:
             self._guide = (plan, made)
         return self._guide[1]
 
-    def _settings_for(self, plan: Plan):
-        """The cycle's numbers (``numba_mppi.Settings``) for this plan's robot and limits."""
-        if not isinstance(plan, Plan):
-            raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
+    def _settings_for(self, plan: Plan) -> MPPISettings:
+        """The cycle's numbers for this plan's robot and limits (``_guided`` checked it)."""
         if self._settings is not None and self._settings[0] is plan:
             return self._settings[1]
         q = settings(self, plan)
