@@ -1,13 +1,15 @@
-"""The real Husky of ``husky_robot_localization_test1.bag`` through ``estimate_trajectory``.
+"""The real Husky of ``husky_robot_localization_test1.bag`` through ``estimate_trajectory``,
+with no noise figure set by hand: every setting comes from the log.
 
-- With no noise figure given: the settings ``estimate_trajectory`` identifies from the log's
-  standing stretch, and each heading's error as a filter and smoothed against GPS.
-- Heading sources against GPS (positions, SE(2)-aligned ATE): the gyro alone, the wheels and
-  the gyro fused, and fused with the wheels' turn scale as a state (this skid-steer robot's
-  wheels turn less than it does), the bias from the gyro's mean while the wheels stand still.
-- GPS: every other fix fused (the smoother, the start pose fitted to the fixes used) against
-  the fixes left out, beside interpolating the fixes used in time, and the wheels' and gyro's
-  dead reckoning plus the used fixes' residuals interpolated (the bound of fusing here).
+- The gyro's noise and bias, identified from the log's standing stretches, and each heading's
+  error as a filter and smoothed against GPS (positions, SE(2)-aligned ATE).
+- GPS across gaps: the fixes' white noise, their offset's wander, the wheels' distance scale
+  and the start, identified from the receiver's stream (``estimation.fixes``); then one fix in
+  every 0.8, 2, 5, 10, 20 and 50 s fused (the smoother, the offset a state) against the fixes
+  left out, beside interpolating the fixes used in time and the dead reckoning plus the used
+  fixes' residuals interpolated. The same identified from the thinned fixes alone.
+- The distance scale: the fit's, and the filter's distance-scale state; gyro-heading dead
+  reckoning with the wheels so scaled.
 - How honest the gyro estimate's covariance is against the fixes (ANEES and the shares inside
   the 50 % and 95 % ellipses, positions only), and the figure of its errors with their
   2-sigma bands.
@@ -31,18 +33,20 @@ import diffdrive as dd
 from diffdrive import batch
 from diffdrive.estimation import (
     Gyro,
-    GyroNoise,
     estimate_trajectory,
+    identify_fixes,
     measurements_of,
     rotation_from_rpy,
 )
-from diffdrive.estimation.gyro import stationary_bias
+from diffdrive.estimation import filter as ekf
 from diffdrive.evaluation import align, ate, interpolate
 from diffdrive.io import ros
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
 # A Husky's nominal geometry: 0.165 m wheels, 0.555 m between the wheel centres.
 HUSKY = dd.DiffDrive(wheel_radius=0.165, track_width=0.555)
+# One fix used every this many seconds (the receiver gives one every 0.4 s).
+GAPS = (0.8, 2.0, 5.0, 10.0, 20.0, 50.0)
 
 
 def read(bags: Path) -> dict:
@@ -58,13 +62,11 @@ def read(bags: Path) -> dict:
     arcs = motion[:, :1] + 0.5 * HUSKY.track_width * motion[:, 2:] * np.array([-1.0, 1.0])
     increments = arcs / np.array([HUSKY.left_wheel_radius, HUSKY.right_wheel_radius])
     fixes = (gps.times >= times[0]) & (gps.times <= times[-1])
-    bias = stationary_bias(times, increments, np.diff(gyro.angles(times)))
     return {
         "times": times,
         "start": poses[0],
         "increments": increments,
         "gyro": gyro,
-        "bias": bias,
         "fix_times": gps.times[fixes],
         "fixes": gps.positions[fixes],
         "sigma": float(np.sqrt(np.median(gps.variance[fixes]))),
@@ -78,28 +80,6 @@ def against_gps(data: dict, estimate) -> float:
     at[:, 2] = 0.0
     truth = np.column_stack([data["fixes"], np.zeros(len(data["fixes"]))])
     return ate(at, truth, aligned=True)
-
-
-def heading_sources(data: dict) -> dict:
-    common = dict(gyro=data["gyro"], initial_pose=data["start"], smooth=False, bias=data["bias"])
-    common.update(wheel_noise=1e-3)
-    runs = {
-        "gyro": estimate_trajectory(
-            HUSKY, data["times"], data["increments"], heading="gyro", **common
-        ),
-        "fused": estimate_trajectory(
-            HUSKY, data["times"], data["increments"], heading="fused", **common
-        ),
-        "fused, turn scale": estimate_trajectory(
-            HUSKY,
-            data["times"],
-            data["increments"],
-            heading="fused",
-            turn_scale_sigma=0.1,
-            **common,
-        ),
-    }
-    return {name: (against_gps(data, run), run.states[-1, 4]) for name, run in runs.items()}
 
 
 def no_setting_given(data: dict) -> dict:
@@ -118,71 +98,114 @@ def no_setting_given(data: dict) -> dict:
     return {"errors": errors, "settings": settings}
 
 
-def every_other_fix(data: dict, k: float = 0.3, sigma: float = 0.2) -> dict:
-    """Mean distance (m) to the fixes left out: interpolating the fixes used, and the smoothed
-    estimate with them (wheels' ``k`` m, fixes taken with ``sigma`` m)."""
+def dead_reckoning(data: dict):
+    """The fused heading's filter with no fix and no setting given."""
+    return estimate_trajectory(
+        HUSKY, data["times"], data["increments"], gyro=data["gyro"], smooth=False
+    )
+
+
+def fix_gaps(data: dict) -> dict:
+    """One fix used every ``GAPS`` s, the rest left out: the mean distance (m) to the fixes
+    left out of the smoother's fix (its position plus the offset), with the fixes' settings
+    identified from the receiver's whole stream and from the used fixes alone, of
+    interpolating the fixes used in time, and of the dead reckoning fitted onto the used fixes
+    plus their residuals interpolated (the bound of fusing with the wheels trusted between
+    fixes)."""
+    stamps, fixes, times = data["fix_times"], data["fixes"], data["times"]
+    dead = dead_reckoning(data)
+    fit = identify_fixes(times, dead.poses, stamps, fixes, reported=data["sigma"])
+    rows = {}
+    for gap in GAPS:
+        used = np.arange(len(stamps)) % round(gap / 0.4) == 0
+        used[-1] = True
+        left = ~used
+        whole = _smoothed(data, left, measurements=fit.measurements(stamps[used], fixes[used]),
+                          **fit.options)  # fmt: skip
+        row = {"smoothed": whole[0], "refused": whole[1], "used": int(used.sum())}
+        if used.sum() >= 10:  # enough to identify from the used fixes alone
+            alone = measurements_of("position", stamps[used], fixes[used], data["sigma"])
+            row["alone"] = _smoothed(data, left, measurements=alone, fixes="identified")[0]
+            row["alone_white"] = identify_fixes(times, dead.poses, stamps[used], fixes[used]).white
+        between = np.column_stack(
+            [np.interp(stamps[left], stamps[used], fixes[used, i]) for i in (0, 1)]
+        )
+        row["interpolated"] = _away(between, fixes[left])
+        row["residuals"] = _away(_dead_plus_residuals(dead, data, used), fixes[left])
+        rows[gap] = row
+    return {"fit": fit, "rows": rows}
+
+
+def _away(points: np.ndarray, fixes: np.ndarray) -> float:
+    """The mean distance from ``points`` to ``fixes``, m."""
+    return float(np.mean(np.hypot(*(points - fixes).T)))
+
+
+def _smoothed(data: dict, left: np.ndarray, **options) -> tuple[float, int]:
+    """The smoother's mean distance (m) to the fixes ``left`` out, where it puts them (its
+    position plus the offset), and how many fixes the gate refused."""
+    stamps, times = data["fix_times"][left], data["times"]
+    run = estimate_trajectory(HUSKY, times, data["increments"], gyro=data["gyro"], **options)
+    at = np.column_stack([np.interp(stamps, times, run.states[:, k]) for k in range(ekf.N)])
+    placed = at[:, :2] + at[:, ekf.OFFSET : ekf.OFFSET + 2]
+    return _away(placed, data["fixes"][left]), run.rejected
+
+
+def _dead_plus_residuals(dead, data: dict, used: np.ndarray) -> np.ndarray:
+    """The dead reckoning moved onto the used fixes by the rigid motion that best fits them,
+    plus their residuals interpolated in time, at the fixes left out ``(L, 2)``."""
     stamps, fixes = data["fix_times"], data["fixes"]
-    used = np.arange(len(stamps)) % 2 == 0
-    left = ~used
-    between = np.column_stack(
-        [np.interp(stamps[left], stamps[used], fixes[used, i]) for i in (0, 1)]
-    )
-    options = dict(gyro=data["gyro"], heading="fused", bias=data["bias"], wheel_noise=k)
-    options["noise"] = GyroNoise(
-        angle_random_walk=0.01, rate_random_walk=1e-4, initial_bias_sigma=1e-3
-    )
-    dead = estimate_trajectory(
-        HUSKY,
-        data["times"],
-        data["increments"],
-        smooth=False,
-        initial_pose=data["start"],
-        **options,
-    )
-    path = interpolate(data["times"], dead.poses, stamps[used])
+    path = interpolate(data["times"], dead.poses, stamps)
     flat = np.column_stack([path[:, :2], np.zeros(len(path))])
-    fitted = align(flat, np.column_stack([fixes[used], np.zeros(len(path))]))
-    moved = batch.compose(fitted[0], batch.inverse(flat[0]))
-    start = batch.compose(moved, data["start"])
-    measurements = measurements_of("position", stamps[used], fixes[used], sigma)
-    smoothed = estimate_trajectory(
-        HUSKY,
-        data["times"],
-        data["increments"],
-        measurements=measurements,
-        initial_pose=start,
-        initial_covariance=np.diag([1.0, 1.0, 0.05]),
-        gate=1 - 1e-9,
-        **options,
-    )
-    at = interpolate(data["times"], smoothed.poses, stamps[left])
-    # The most a fused estimate could take from the wheels here: between fixes, their motion;
-    # the fixes' own error, interpolated (a GPS error state with no white noise of its own).
-    carried = interpolate(data["times"], dead.poses, stamps)[:, :2]
+    fitted = align(flat[used], np.column_stack([fixes[used], np.zeros(int(used.sum()))]))
+    moved = batch.compose(fitted[0], batch.inverse(flat[used][0]))
+    carried = batch.compose(np.broadcast_to(moved, flat.shape), flat)[:, :2]
+    left = ~used
     residual = np.column_stack(
         [np.interp(stamps[left], stamps[used], (fixes - carried)[used, i]) for i in (0, 1)]
     )
+    return carried[left] + residual
+
+
+def distance_scale(data: dict, fit) -> dict:
+    """The wheels' distance scale, the fit's and the filter's state's (started where the
+    identification leaves it, the fit's standard error its prior), and the gyro-heading dead
+    reckoning's ATE (m) with the wheels so scaled."""
+    run = estimate_trajectory(
+        HUSKY, data["times"], data["increments"], gyro=data["gyro"],
+        measurements=fit.measurements(data["fix_times"], data["fixes"]),
+        distance_scale_sigma=fit.scale_error, **fit.options,
+    )  # fmt: skip
+    state = float(run.states[-1, ekf.DISTANCE])
+    sigma = math.sqrt(run.state_covariances[-1, ekf.DISTANCE, ekf.DISTANCE])
+
+    def scaled_ate(scale: float) -> float:
+        wheels = dd.DiffDrive(wheel_radius=HUSKY.wheel_radius * scale, track_width=0.555)
+        gyro_run = estimate_trajectory(
+            wheels, data["times"], data["increments"], gyro=data["gyro"], heading="gyro",
+            initial_pose=data["start"], smooth=False,
+        )  # fmt: skip
+        return against_gps(data, gyro_run)
+
     return {
-        "interpolated": float(np.mean(np.hypot(*(between - fixes[left]).T))),
-        "residuals": float(np.mean(np.hypot(*(carried[left] + residual - fixes[left]).T))),
-        "smoothed": float(np.mean(np.hypot(*(at[:, :2] - fixes[left]).T))),
-        "refused": smoothed.rejected,
-        "used": int(used.sum()),
+        "fit": (fit.fitted_scale, fit.scale_error, scaled_ate(fit.fitted_scale)),
+        "state": (state, sigma, scaled_ate(state)),
+        "nominal": scaled_ate(1.0),
     }
 
 
-def consistency_against_gps(data: dict, figure: Path, k: float = 1e-3) -> dict:
-    """How honest the gyro estimate's covariance is against the fixes: wheels ``k`` m and the
-    gyro (its heading), the estimate moved onto the fixes by the rigid motion that best fits
-    them, its covariance turned with it and each fix's reported variance added (the
-    reference's own noise, as ``noise.covariances`` adds it). ``figure``: the x and y errors
-    with their 2-sigma bands."""
+def consistency_against_gps(data: dict, figure: Path) -> dict:
+    """How honest the gyro estimate's covariance is against the fixes, with no setting given
+    (the gyro's identified, the library's default wheel noise): the estimate moved onto the
+    fixes by the rigid motion that best fits them, its covariance turned with it and each
+    fix's reported variance added (the reference's own noise, as ``noise.covariances`` adds
+    it). ``figure``: the x and y errors with their 2-sigma bands."""
     from diffdrive.evaluation import consistency
     from diffdrive.plot import plot_error_bands
 
     estimate = estimate_trajectory(
         HUSKY, data["times"], data["increments"], heading="gyro", gyro=data["gyro"],
-        initial_pose=data["start"], smooth=False, bias=data["bias"], wheel_noise=k,
+        initial_pose=data["start"], smooth=False,
     )  # fmt: skip
     stamps = data["fix_times"]
     at = interpolate(data["times"], estimate.poses, stamps)
@@ -208,12 +231,6 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--figure", type=Path, default=Path("out/figures/noise_husky.png"))
     args = parser.parse_args(argv)
     data = read(args.bags)
-    found = heading_sources(data)
-    print(
-        "Husky against GPS, SE(2)-aligned ATE: "
-        + ", ".join(f"{name} {error:.2f} m" for name, (error, _) in found.items())
-        + f"; turn scale learnt {found['fused, turn scale'][1]:.3f}"
-    )
     plain = no_setting_given(data)
     for line in plain["settings"]:
         print(f"  {line}")
@@ -226,12 +243,30 @@ def main(argv: list[str] | None = None) -> None:
         f"{e['fused', True]:.3f} m smoothed "
         f"({100 * (e['fused', True] / min(e['gyro', True], e['wheels', True]) - 1):+.1f} %)"
     )
-    gps = every_other_fix(data)
+    gaps = fix_gaps(data)
+    print(f"GPS, identified from the receiver's {gaps['fit'].fixes} fixes:")
+    for line in gaps["fit"].report:
+        print(f"  {line}")
     print(
-        f"every other fix ({gps['used']} used, reported sigma {data['sigma']:.2f} m): mean "
-        f"distance to the fixes left out {gps['interpolated']:.3f} m interpolating the used "
-        f"ones, {gps['smoothed']:.2f} m smoothed ({gps['refused']} refused by the gate), "
-        f"{gps['residuals']:.3f} m dead reckoning plus the used fixes' residuals interpolated"
+        "one fix used every g s: mean distance (m) to the fixes left out, smoothed | "
+        "interpolating the used fixes | dead reckoning plus their residuals | smoothed, "
+        "identified from the used fixes alone"
+    )
+    for gap, row in gaps["rows"].items():
+        alone = f"{row['alone']:.3f} (white {row['alone_white']:.2f} m)" if "alone" in row else "-"
+        print(
+            f"  {gap:g} s ({row['used']} used, {row['refused']} refused): "
+            f"{row['smoothed']:.3f} | {row['interpolated']:.3f} "
+            f"({row['smoothed'] / row['interpolated']:.3f}x) | {row['residuals']:.3f} "
+            f"({row['smoothed'] / row['residuals']:.3f}x) | {alone}"
+        )
+    scale = distance_scale(data, gaps["fit"])
+    (fitted, error, fitted_ate), (state, sigma, state_ate) = scale["fit"], scale["state"]
+    print(
+        f"distance scale: fitted {fitted:.4f} +- {error:.4f} (gyro dead reckoning so scaled "
+        f"{fitted_ate:.3f} m, unscaled {scale['nominal']:.3f} m); the filter's state, from "
+        f"{gaps['fit'].distance_scale:.4f} +- {error:.4f}, ends at {state:.4f} +- {sigma:.4f} "
+        f"({state_ate:.3f} m)"
     )
 
     honest = consistency_against_gps(data, args.figure)

@@ -259,6 +259,25 @@ def test_absolute_sensors_noise_latency_dropouts_outliers_and_gps():
     assert north == pytest.approx(poses[-1, 1], abs=0.5)
 
 
+def test_a_wandering_receiver_adds_a_random_walk_and_draws_the_rest_the_same():
+    """``wander``: each axis's offset starts at zero and steps with variance ``wander^2 dt``;
+    the white noise, outliers and dropouts drawn are those of the same receiver without it."""
+    poses = path().poses
+    plain = sensors.AbsoluteModel(sigma=(0.05, 0.05, 0.0), period=0.1, dropout=0.1, outlier=0.05)
+    wandering = dataclasses.replace(plain, wander=0.3)
+    base = sensors.absolute_readings(ROBOT, T, poses, plain, robots=300, seed=2)
+    moved = sensors.absolute_readings(ROBOT, T, poses, wandering, robots=300, seed=2)
+    assert not base.offsets.any()
+    np.testing.assert_array_equal(moved.offsets[:, 0], 0.0)
+    steps = np.diff(moved.offsets, axis=1)
+    assert steps.std() == pytest.approx(0.3 * math.sqrt(0.1), rel=0.02)
+    np.testing.assert_allclose(moved.poses[..., :2], base.poses[..., :2] + moved.offsets)
+    np.testing.assert_array_equal(moved.kept, base.kept)
+    np.testing.assert_array_equal(moved.outliers, base.outliers)
+    with pytest.raises(ValueError, match="wander must be >= 0"):
+        sensors.AbsoluteModel(wander=-0.1)
+
+
 @pytest.mark.parametrize(
     ("make", "message"),
     [

@@ -10,7 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from diffdrive.estimation import Gyro, GyroNoise, Measurement, estimate_trajectory, fusion
+from diffdrive.estimation import (
+    Gyro,
+    GyroNoise,
+    Measurement,
+    estimate_trajectory,
+    fusion,
+    measurements_of,
+)
 from diffdrive.estimation import smoother as whole
 
 ROBOT = dd.SkidSteer(0.1, 0.45, -0.35, icr_x=0.03)  # an axle offset and a reference offset
@@ -44,9 +51,19 @@ def make_log(steps, seen):
     return times, increments, turns, forced, sorted(made, key=lambda m: m.order)
 
 
-def run_core(kind, heading, scale, log, smooth):
+# the states beyond the pose, bias and turn scale: the distance scale, the fixes' offset
+EXTRA_STATES = (
+    {},
+    {"distance_scale": 0.97, "distance_scale_sigma": 0.05},
+    {"fix_offset_rate": 0.2},
+    {"fix_offset_rate": 0.1, "fix_offset_sigma": 0.3, "distance_scale_sigma": 0.05},
+)
+
+
+def run_core(kind, heading, scale, log, smooth, extra=None):
     times, increments, turns, forced, ordered = log
     options = dict(wheel_noise=(1e-4, 2e-4), turn_scale_sigma=0.1 if scale else 0.0)
+    options.update(extra or {})
     estimator = kind(
         ROBOT, heading, (0.1, -0.2, 0.3), np.eye(3) * 1e-3, initial_time=0.0, history=np.inf,
         ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), **options,
@@ -67,16 +84,23 @@ def run_core(kind, heading, scale, log, smooth):
     st.sampled_from(["wheels", "gyro", "fused"]),
     st.booleans(),
     st.booleans(),
+    st.sampled_from(EXTRA_STATES),
+    st.sampled_from(["refuse", "inflate"]),
 )
-def test_the_c_whole_log_pass_is_its_python_twin(steps, seen, heading, scale, smooth):
+def test_the_c_whole_log_pass_is_its_python_twin(
+    steps, seen, heading, scale, smooth, extra, outliers
+):
     """Any log, forced intervals and measurements of every kind (at the start, at interval
-    ends, inside intervals, several at one stamp): the C pass and the Python one give the
-    same state and covariance at every row, filtered and smoothed, the same slip flags and
-    scores, and the same outcomes; smoothed, the same record of every step, which run back
-    through the RTS step gives the smoothed states."""
+    ends, inside intervals, several at one stamp), with or without the distance scale and
+    the fixes' offset as states, outliers refused or inflated past a narrow gate: the C pass
+    and the Python one give the same state and covariance at every row, filtered and
+    smoothed, the same slip flags and scores, and the same outcomes and likelihood terms;
+    smoothed, the same record of every step, which run back through the RTS step gives the
+    smoothed states."""
     log = make_log(steps, seen)
-    c = run_core(fusion.PoseEstimator, heading, scale, log, smooth)
-    python = run_core(fusion.PythonPoseEstimator, heading, scale, log, smooth)
+    extra = dict(extra, outliers=outliers, gate=0.9)
+    c = run_core(fusion.PoseEstimator, heading, scale, log, smooth, extra)
+    python = run_core(fusion.PythonPoseEstimator, heading, scale, log, smooth, extra)
     if smooth:
         assert c.records is not None
         assert python.records is not None
@@ -91,6 +115,7 @@ def test_the_c_whole_log_pass_is_its_python_twin(steps, seen, heading, scale, sm
     np.testing.assert_allclose(c.scores, python.scores, rtol=1e-7, atol=1e-9)
     np.testing.assert_array_equal(c.accepted, python.accepted)
     np.testing.assert_allclose(c.distances, python.distances, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(c.log_dets, python.log_dets, rtol=1e-7, atol=1e-9)
 
 
 def _same_records(c, python):
@@ -164,7 +189,7 @@ def test_the_pipeline_is_the_same_on_both_cores(monkeypatch):
     increments[300:340, 0] *= 1.3  # the left wheel spins a third again as far as it rolls
     rate = np.gradient(np.unwrap(truth[:, 2]), times) + 0.01 + rng.normal(size=len(times)) * 0.01
     fixes = truth[::50, :2] + rng.normal(size=(len(times[::50]), 2)) * 0.2
-    measurements = whole.measurements_of("position", times[::50], fixes, 0.2)
+    measurements = measurements_of("position", times[::50], fixes, 0.2)
     results = []
     for core in (fusion.PoseEstimator, fusion.PythonPoseEstimator):
         monkeypatch.setattr(whole, "PoseEstimator", core)
@@ -239,7 +264,7 @@ def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
     c_core = _odometry.EstimatorCore(wheels, settings)
     twin = PythonEstimatorCore(twin_wheels, settings)
     np.testing.assert_array_equal(c_core._state_now(), twin._state_now())
-    with pytest.raises(ValueError, match="state must have 5 numbers"):
+    with pytest.raises(ValueError, match="state must have 8 numbers"):
         _odometry.EstimatorCore(wheels, dataclasses.replace(settings, state=(0.0, 1.0)))
     with pytest.raises(AttributeError, match="no attribute 'arw2'"):
         _odometry.EstimatorCore(wheels, odometry_settings)
@@ -250,13 +275,13 @@ def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
 def test_estimate_trajectory_keeps_the_records_only_when_asked_and_smoothing():
     times = np.arange(0.0, 2.0 + 1e-9, 0.1)
     increments = np.full((len(times) - 1, 2), [0.5, 0.6])
-    fixes = whole.measurements_of("position", [0.55, 1.0, 1.05], np.zeros((3, 2)), 0.5)
+    fixes = measurements_of("position", [0.55, 1.0, 1.05], np.zeros((3, 2)), 0.5)
     options = dict(heading="wheels", measurements=fixes)
     kept = estimate_trajectory(ROBOT, times, increments, records=True, **options)
     assert kept.records is not None
     # 20 intervals, the ones holding 0.55 and 1.05 cut in two (1.0 ends an interval)
     assert len(kept.records.interval) == 22
-    assert kept.records.gain.shape == (22, 5, 5)
+    assert kept.records.gain.shape == (22, 8, 8)
     assert estimate_trajectory(ROBOT, times, increments, **options).records is None
     with pytest.raises(ValueError, match="records are the smoother's"):
         estimate_trajectory(ROBOT, times, increments, smooth=False, records=True, **options)

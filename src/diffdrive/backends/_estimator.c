@@ -22,9 +22,9 @@
 
 #include "_odometry.h"
 
-#define N 5
-#define NN 25
-enum { BIAS = 3, SCALE = 4 };
+#define N 8
+#define NN 64
+enum { BIAS = 3, SCALE = 4, DISTANCE = 5, OFFSET = 6 };
 enum { WHEELS = 0, GYRO = 1, FUSED = 2 };
 enum { POSE = 0, POSITION = 1, HEADING = 2 };
 static const char *KIND_NAMES[3] = {"pose", "position", "heading"};
@@ -38,9 +38,11 @@ typedef struct {
     int kind, size;
     double value[3], cov[9], lever[2];
     int ok;
-    double score;
+    double score, log_det; /* the squared Mahalanobis distance; log det of its covariance */
 } Meas;
 
+/* One wheel interval: its data and slip test, and in the history the state at its start: x in
+ * full, P packed (the carried states' block, row by row, n x n: see pack). */
 typedef struct {
     double t0, t1, dl, dr, g;
     int forced, slip;
@@ -48,13 +50,20 @@ typedef struct {
     double x[N], P[NN];
 } Interval;
 
+/* An interval's data, its state left unset (filled where it is kept in the history). */
+static void interval_of(Interval *iv, double t0, double t1, double dl, double dr, double g,
+                        int forced) {
+    iv->t0 = t0, iv->t1 = t1, iv->dl = dl, iv->dr = dr, iv->g = g;
+    iv->forced = forced, iv->slip = 0, iv->score = 0.0;
+}
+
 /* The smoother's record of one step (filter.Step): the state before it given the data to its
  * end, the state after it (before any absolute measurement), and the gain C. */
 typedef struct {
     double before[N], before_cov[NN], after[N], after_cov[NN], gain[NN];
 } Step;
 /* _run_log copies Steps into a caller's rows of filter.RECORD_WIDTH float64 */
-_Static_assert(sizeof(Step) == (2 * N + 3 * NN) * sizeof(double), "a Step is 85 doubles");
+_Static_assert(sizeof(Step) == (2 * N + 3 * NN) * sizeof(double), "a Step is 208 doubles");
 
 /* Where run_interval records the smoother's steps (NULL: it keeps none). */
 typedef struct {
@@ -67,8 +76,8 @@ typedef struct {
     PyObject *wheels;
     /* configuration */
     double r_l, r_r, track, axle, weight;
-    int chord, heading, est_bias, est_scale;
-    double k_l, k_r, arw2, rrw2, slip_thr, slip_infl, command_sigma;
+    int chord, heading, est_bias, est_scale, est_distance, est_offset, inflate;
+    double k_l, k_r, arw2, rrw2, offset_rate2, slip_thr, slip_infl, command_sigma;
     double k_per_r_l, k_per_r_r; /* k / r of each wheel: its angle noise's variance per rad */
     double gate[4], offset, history, ahead, mount[3];
     /* state */
@@ -112,23 +121,26 @@ static double slip_score(const Est *e, const double *x, const double *P, double 
 
 /* One step's move and its linearisation, as filter.advance builds them: the wheels' turn,
  * the turn, the move (dx, dy), the noises' variances (left, right wheel angle; gyro), and the
- * nonzero blocks of F - I (A: rows 0 to 2, columns 2 to 4) and of G (rows 0 to 2). */
+ * nonzero blocks of F - I (A: rows 0 to 2, columns 2 to 5: the heading, the bias, the turn
+ * and the distance scale) and of G (rows 0 to 2). */
 typedef struct {
-    double wheel_turn, turn, dx, dy, noise[3], A[3][3], G[3][3];
+    double wheel_turn, turn, dx, dy, noise[3], A[3][4], G[3][3];
 } Move;
 
 static ALWAYS_INLINE void
 move_terms(const Est *e, const double *x, double dl, double dr, double g, double dt, int slip,
            Move *m) {
     double left = e->r_l * dl, right = e->r_r * dr;
-    double forward = 0.5 * (left + right), scale = x[SCALE];
+    double travelled = 0.5 * (left + right), scale = x[SCALE], distance = x[DISTANCE];
+    double forward = distance * travelled;
     double inflation = slip ? e->slip_infl : 1.0;
     m->wheel_turn = (right - left) / e->track;
     /* k |r dl| / r^2 = (k / r) |dl|: the radii are positive (checked in __init__) */
     m->noise[0] = inflation * e->k_per_r_l * fabs(dl);
     m->noise[1] = inflation * e->k_per_r_r * fabs(dr);
     m->noise[2] = e->heading != WHEELS ? e->arw2 * dt : 0.0;
-    double bnf[3] = {0.5 * e->r_l, 0.5 * e->r_r, 0.0}, bnt[3], bst[N] = {0};
+    double bnf[3] = {0.5 * distance * e->r_l, 0.5 * distance * e->r_r, 0.0}, bnt[3],
+           bst[N] = {0};
     if (e->heading == WHEELS) {
         m->turn = scale * m->wheel_turn;
         bnt[0] = -scale * e->r_l / e->track;
@@ -144,9 +156,10 @@ move_terms(const Est *e, const double *x, double dl, double dr, double g, double
     double bf[2], bt[2];
     dd_move_jacobians(forward, e->axle, m->turn, e->weight, e->chord, x[2], &m->dx, &m->dy, bf,
                       bt);
-    const double columns[3][3] = {{-m->dy, bt[0] * bst[BIAS], bt[0] * bst[SCALE]},
-                                  {m->dx, bt[1] * bst[BIAS], bt[1] * bst[SCALE]},
-                                  {0.0, bst[BIAS], bst[SCALE]}};
+    const double columns[3][4] = {
+        {-m->dy, bt[0] * bst[BIAS], bt[0] * bst[SCALE], bf[0] * travelled},
+        {m->dx, bt[1] * bst[BIAS], bt[1] * bst[SCALE], bf[1] * travelled},
+        {0.0, bst[BIAS], bst[SCALE], 0.0}};
     memcpy(m->A, columns, sizeof columns);
     for (int i = 0; i < 3; ++i) {
         m->G[0][i] = bf[0] * bnf[i] + bt[0] * bnt[i];
@@ -155,8 +168,9 @@ move_terms(const Est *e, const double *x, double dl, double dr, double g, double
     }
 }
 
-/* filter.advance without the smoother's record, in place on x and P, for n estimated states
- * (3: the pose; 4: and the bias; 5: and the scale). The states that are not estimated have
+/* filter.advance without the smoother's record, in place on x and P, for the first n states
+ * (3: the pose; 4: and the bias; 5: and the turn scale; 6: and the distance scale; 8: and the
+ * fixes' offset). The states that are not estimated have
  * zero rows and columns in P and keep them, untouched. Always inlined into advance with n a
  * constant, so every loop has fixed bounds the compiler unrolls. */
 static ALWAYS_INLINE void
@@ -166,10 +180,10 @@ advance_n(const Est *e, double *x, double *P, double dl, double dr, double g, do
     move_terms(e, x, dl, dr, g, dt, slip, &mv);
     const double wheel_turn = mv.wheel_turn, turn = mv.turn, dx = mv.dx, dy = mv.dy;
     const double *noise = mv.noise, scale = x[SCALE];
-    /* A = F - I is zero but for columns 2 to 4 of rows 0 to 2, and G is zero below row 2:
+    /* A = F - I is zero but for columns 2 to 5 of rows 0 to 2, and G is zero below row 2:
      * FP = P + A P and moved = FP F^T + G Q G^T over those entries only (a column of A past n
      * meets a zero row of P: it adds an exact zero). */
-    double (*A)[3] = mv.A, (*G)[3] = mv.G, GQ[3][3];
+    double (*A)[4] = mv.A, (*G)[3] = mv.G, GQ[3][3];
     for (int i = 0; i < 3; ++i)
         for (int k = 0; k < 3; ++k) GQ[i][k] = G[i][k] * noise[k];
     double after[N];
@@ -178,22 +192,32 @@ advance_n(const Est *e, double *x, double *P, double dl, double dr, double g, do
     after[1] += dy;
     after[2] += turn;
     double FP[NN], moved[NN];
-    memcpy(FP, P, sizeof FP);
+    /* the block the steps below read: the first n states, and the heading's to the distance
+     * scale's columns and rows, which A and h4 multiply (zero when not carried); element by
+     * element, n being a constant here */
+    enum { READ = DISTANCE + 1 };
+    for (int i = 0; i < (n > READ ? n : READ); ++i)
+        for (int j = 0; j < (n > READ ? n : READ); ++j) FP[i * N + j] = P[i * N + j];
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < n; ++j)
             FP[i * N + j] += A[i][0] * P[2 * N + j] + A[i][1] * P[3 * N + j] +
-                             A[i][2] * P[4 * N + j];
+                             A[i][2] * P[4 * N + j] + A[i][3] * P[5 * N + j];
     /* moved is symmetric: its upper triangle, mirrored */
     for (int i = 0; i < n; ++i)
         for (int j = i; j < n; ++j) {
             double sum = FP[i * N + j];
             if (j < 3) {
-                sum += FP[i * N + 2] * A[j][0] + FP[i * N + 3] * A[j][1] + FP[i * N + 4] * A[j][2];
+                sum += FP[i * N + 2] * A[j][0] + FP[i * N + 3] * A[j][1] +
+                       FP[i * N + 4] * A[j][2] + FP[i * N + 5] * A[j][3];
                 if (i < 3) sum += GQ[i][0] * G[j][0] + GQ[i][1] * G[j][1] + GQ[i][2] * G[j][2];
             }
             moved[i * N + j] = moved[j * N + i] = sum;
         }
     if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
+    if (n > OFFSET && e->est_offset) {
+        moved[OFFSET * N + OFFSET] += e->offset_rate2 * dt;
+        moved[(OFFSET + 1) * N + OFFSET + 1] += e->offset_rate2 * dt;
+    }
     if (!(e->heading == FUSED && !slip)) {
         memcpy(x, after, sizeof after);
         for (int i = 0; i < n; ++i)
@@ -209,7 +233,7 @@ advance_n(const Est *e, double *x, double *P, double dl, double dr, double g, do
     double spread[N] = {0}, before[N] = {0}, s = 0.0;
     for (int i = 0; i < n; ++i) {
         double sum = moved[i * N + 2] * h2 - FP[i * N + 2] * h2;
-        if (n == 5) sum += moved[i * N + 4] * h4; /* moved is only filled up to n */
+        if (n >= 5) sum += moved[i * N + 4] * h4; /* moved is only filled up to n */
         if (i < 3) sum += GQ[i][0] * hn[0] + GQ[i][1] * hn[1];
         spread[i] = sum;
         before[i] = FP[2 * N + i] * h2 + FP[4 * N + i] * h4 - P[i * N + 2] * h2;
@@ -229,14 +253,21 @@ advance_n(const Est *e, double *x, double *P, double dl, double dr, double g, do
             P[i * N + j] = P[j * N + i] = moved[i * N + j] - gains[i] * spread[j];
 }
 
+/* How many leading states advance and advance_record carry: the ones past it are neither
+ * estimated nor touched (zero rows and columns in P). */
+static int carried(const Est *e) {
+    return e->est_offset ? 8 : e->est_distance ? 6 : e->est_scale ? 5 : e->est_bias ? 4 : 3;
+}
+
 static void advance(const Est *e, double *x, double *P, double dl, double dr, double g, double dt,
                     int slip) {
-    if (e->est_scale)
-        advance_n(e, x, P, dl, dr, g, dt, slip, 5);
-    else if (e->est_bias)
-        advance_n(e, x, P, dl, dr, g, dt, slip, 4);
-    else
-        advance_n(e, x, P, dl, dr, g, dt, slip, 3);
+    switch (carried(e)) { /* each with its own constant n */
+    case 8: advance_n(e, x, P, dl, dr, g, dt, slip, 8); break;
+    case 6: advance_n(e, x, P, dl, dr, g, dt, slip, 6); break;
+    case 5: advance_n(e, x, P, dl, dr, g, dt, slip, 5); break;
+    case 4: advance_n(e, x, P, dl, dr, g, dt, slip, 4); break;
+    default: advance_n(e, x, P, dl, dr, g, dt, slip, 3);
+    }
 }
 
 /* The eigenvalues w and eigenvectors V (columns, row-major) of a symmetric m x m matrix A
@@ -326,6 +357,11 @@ static void solve_right(const Est *e, const double *cross, const double *cov, do
     active[m++] = 2;
     if (e->est_bias && e->heading == FUSED) active[m++] = BIAS;
     if (e->est_scale) active[m++] = SCALE;
+    if (e->est_distance) active[m++] = DISTANCE;
+    if (e->est_offset) {
+        active[m++] = OFFSET;
+        active[m++] = OFFSET + 1;
+    }
     double block[NN], sigma[N], w[N], V[NN], inverse[NN];
     for (int i = 0; i < m; ++i) {
         double d = cov[active[i] * N + active[i]];
@@ -361,65 +397,70 @@ static void solve_right(const Est *e, const double *cross, const double *cov, do
 
 /* filter.advance's smoother record of one step from x, P (the joint of the state after, the
  * state before and the noises, the wheels' turn measured in it with a fused heading): the
- * same maths as advance_n, written out in full. */
+ * same maths as advance_n, written out in full over the first n = carried(e) states (the
+ * record's other entries: zero, and the state's own values before and after). */
 static void advance_record(const Est *e, const double *x, const double *P, double dl, double dr,
                            double g, double dt, int slip, Step *out) {
-    enum { J = 2 * N + 3 };
+    enum { JMAX = 2 * N + 3 };
+    const int n = carried(e), J = 2 * n + 3;
     Move mv;
     move_terms(e, x, dl, dr, g, dt, slip, &mv);
     const double wheel_turn = mv.wheel_turn, turn = mv.turn, dx = mv.dx, dy = mv.dy;
     const double *noise = mv.noise, scale = x[SCALE];
     double F[NN] = {0}, G[N * 3] = {0}; /* in full: I + A, and G with its zero rows */
-    for (int i = 0; i < N; ++i) F[i * N + i] = 1.0;
-    for (int i = 0; i < 3; ++i)
-        for (int c = 0; c < 3; ++c) {
-            F[i * N + 2 + c] += mv.A[i][c];
-            G[i * 3 + c] = mv.G[i][c];
-        }
+    for (int i = 0; i < n; ++i) F[i * N + i] = 1.0;
+    for (int i = 0; i < 3; ++i) {
+        for (int c = 0; c < 4 && 2 + c < n; ++c) F[i * N + 2 + c] += mv.A[i][c];
+        for (int c = 0; c < 3; ++c) G[i * 3 + c] = mv.G[i][c];
+    }
     double FP[NN], moved[NN], GQ[N * 3];
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
             double sum = 0.0;
-            for (int q = 0; q < N; ++q) sum += F[i * N + q] * P[q * N + j];
+            for (int q = 0; q < n; ++q) sum += F[i * N + q] * P[q * N + j];
             FP[i * N + j] = sum;
         }
-    for (int i = 0; i < N; ++i)
+    for (int i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) GQ[i * 3 + k] = G[i * 3 + k] * noise[k];
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
             double sum = 0.0;
-            for (int q = 0; q < N; ++q) sum += FP[i * N + q] * F[j * N + q];
+            for (int q = 0; q < n; ++q) sum += FP[i * N + q] * F[j * N + q];
             for (int k = 0; k < 3; ++k) sum += GQ[i * 3 + k] * G[j * 3 + k];
             moved[i * N + j] = sum;
         }
     if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
-    double joint[J * J];
-    double mean[J] = {0};
-    memset(joint, 0, sizeof joint);
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
+    if (e->est_offset) {
+        moved[OFFSET * N + OFFSET] += e->offset_rate2 * dt;
+        moved[(OFFSET + 1) * N + OFFSET + 1] += e->offset_rate2 * dt;
+    }
+    double joint[JMAX * JMAX];
+    double mean[JMAX] = {0};
+    memset(joint, 0, sizeof(double) * J * J);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
             joint[i * J + j] = moved[i * N + j];
-            joint[i * J + N + j] = FP[i * N + j];
-            joint[(N + j) * J + i] = FP[i * N + j];
-            joint[(N + i) * J + N + j] = P[i * N + j];
+            joint[i * J + n + j] = FP[i * N + j];
+            joint[(n + j) * J + i] = FP[i * N + j];
+            joint[(n + i) * J + n + j] = P[i * N + j];
         }
-    for (int i = 0; i < N; ++i)
-        for (int k = 0; k < 3; ++k) joint[i * J + 2 * N + k] = joint[(2 * N + k) * J + i] = GQ[i * 3 + k];
-    for (int k = 0; k < 3; ++k) joint[(2 * N + k) * J + 2 * N + k] = noise[k];
-    for (int i = 0; i < N; ++i) {
+    for (int i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k) joint[i * J + 2 * n + k] = joint[(2 * n + k) * J + i] = GQ[i * 3 + k];
+    for (int k = 0; k < 3; ++k) joint[(2 * n + k) * J + 2 * n + k] = noise[k];
+    for (int i = 0; i < n; ++i) {
         mean[i] = x[i];
-        mean[N + i] = x[i];
+        mean[n + i] = x[i];
     }
     mean[0] += dx;
     mean[1] += dy;
     mean[2] += turn;
     if (e->heading == FUSED && !slip) {
-        double H[J] = {0}, spread[J], s = 0.0;
+        double H[JMAX] = {0}, spread[JMAX], s = 0.0;
         H[2] = 1.0 / scale;
-        H[N + 2] = -1.0 / scale;
-        H[SCALE] = -turn / (scale * scale);
-        H[2 * N] = e->r_l / e->track;
-        H[2 * N + 1] = -e->r_r / e->track;
+        H[n + 2] = -1.0 / scale;
+        if (n > SCALE) H[SCALE] = -turn / (scale * scale);
+        H[2 * n] = e->r_l / e->track;
+        H[2 * n + 1] = -e->r_r / e->track;
         for (int i = 0; i < J; ++i) {
             double sum = 0.0;
             for (int q = 0; q < J; ++q) sum += joint[i * J + q] * H[q];
@@ -433,14 +474,18 @@ static void advance_record(const Est *e, const double *x, const double *P, doubl
             for (int j = 0; j < J; ++j) joint[i * J + j] -= spread[i] / s * spread[j];
     }
     double cross[NN];
-    for (int i = 0; i < N; ++i) {
-        out->before[i] = mean[N + i];
+    memset(out, 0, sizeof *out);
+    memset(cross, 0, sizeof cross);
+    for (int i = 0; i < N; ++i) /* the states not carried: where they are, before and after */
+        out->before[i] = out->after[i] = x[i];
+    for (int i = 0; i < n; ++i) {
+        out->before[i] = mean[n + i];
         out->after[i] = mean[i];
-        for (int j = 0; j < N; ++j) {
+        for (int j = 0; j < n; ++j) {
             out->before_cov[i * N + j] =
-                0.5 * (joint[(N + i) * J + N + j] + joint[(N + j) * J + N + i]);
+                0.5 * (joint[(n + i) * J + n + j] + joint[(n + j) * J + n + i]);
             out->after_cov[i * N + j] = 0.5 * (joint[i * J + j] + joint[j * J + i]);
-            cross[i * N + j] = 0.5 * (joint[(N + i) * J + j] + joint[j * J + N + i]);
+            cross[i * N + j] = 0.5 * (joint[(n + i) * J + j] + joint[j * J + n + i]);
         }
     }
     solve_right(e, cross, out->after_cov, out->gain);
@@ -475,10 +520,12 @@ static void cholesky_solve(const double *L, int k, double *b) {
     }
 }
 
-/* filter.absolute_update: x, P (in and out, unchanged if the gate refuses); ok and score. */
+/* filter.absolute_update: x, P (in and out, unchanged if the gate refuses); ok, score and the
+ * log determinant of the innovation's covariance (NULL: not wanted). */
 static void absolute_update(const Est *e, double *x, double *P, const Meas *m, int *ok,
-                            double *score) {
-    int k = m->size;
+                            double *score, double *log_det) {
+    /* the states past carried(e) have zero rows and columns in P: left out */
+    const int k = m->size, n = carried(e);
     double H[3 * N] = {0}, innovation[3];
     if (m->kind == HEADING) {
         H[2] = 1.0;
@@ -490,6 +537,11 @@ static void absolute_update(const Est *e, double *x, double *P, const Meas *m, i
         H[1 * N + 2] = c * ax - s * ay;
         innovation[0] = m->value[0] - (x[0] + c * ax - s * ay);
         innovation[1] = m->value[1] - (x[1] + s * ax + c * ay);
+        if (e->est_offset && m->kind == POSITION) { /* the fix carries the offset */
+            H[0 * N + OFFSET] = H[1 * N + OFFSET + 1] = 1.0;
+            innovation[0] -= x[OFFSET];
+            innovation[1] -= x[OFFSET + 1];
+        }
         if (k == 3) {
             H[2 * N + 2] = 1.0;
             innovation[2] = wrap(m->value[2] - x[2]);
@@ -497,21 +549,26 @@ static void absolute_update(const Est *e, double *x, double *P, const Meas *m, i
     }
     double HP[3 * N], S[9] = {0}, L[9];
     for (int i = 0; i < k; ++i)
-        for (int j = 0; j < N; ++j) {
+        for (int j = 0; j < n; ++j) {
             double sum = 0.0;
-            for (int q = 0; q < N; ++q) sum += H[i * N + q] * P[q * N + j];
+            for (int q = 0; q < n; ++q) sum += H[i * N + q] * P[q * N + j];
             HP[i * N + j] = sum;
         }
     for (int i = 0; i < k; ++i)
         for (int j = 0; j < k; ++j) {
             double sum = 0.0;
-            for (int q = 0; q < N; ++q) sum += HP[i * N + q] * H[j * N + q];
+            for (int q = 0; q < n; ++q) sum += HP[i * N + q] * H[j * N + q];
             S[i * k + j] = sum + m->cov[i * k + j];
         }
     *ok = 0;
     if (cholesky(S, k, L) < 0) {
         *score = INFINITY;
+        if (log_det != NULL) *log_det = NAN;
         return;
+    }
+    if (log_det != NULL) {
+        *log_det = 0.0;
+        for (int i = 0; i < k; ++i) *log_det += 2.0 * log(L[i * k + i]);
     }
     double white[3];
     for (int i = 0; i < k; ++i) {
@@ -522,45 +579,52 @@ static void absolute_update(const Est *e, double *x, double *P, const Meas *m, i
     double d2 = 0.0;
     for (int i = 0; i < k; ++i) d2 += white[i] * white[i];
     *score = d2;
-    if (d2 > e->gate[k]) return;
-    /* gain = (S^-1 H P)^T, N x k */
+    /* past the gate: refused, or (inflate) taken with its covariance R grown to R + (a - 1) S,
+     * which makes S a S with a = d2 / gate: its score then lies on the gate */
+    double grow = 1.0, R[9];
+    if (d2 > e->gate[k]) {
+        if (!e->inflate) return;
+        grow = d2 / e->gate[k];
+    }
+    for (int i = 0; i < k * k; ++i) R[i] = m->cov[i] + (grow - 1.0) * S[i];
+    /* gain = (S^-1 H P)^T / a, N x k */
     double gain[N * 3];
-    for (int j = 0; j < N; ++j) {
+    for (int j = 0; j < n; ++j) {
         double column[3];
         for (int i = 0; i < k; ++i) column[i] = HP[i * N + j];
         cholesky_solve(L, k, column);
-        for (int i = 0; i < k; ++i) gain[j * 3 + i] = column[i];
+        for (int i = 0; i < k; ++i) gain[j * 3 + i] = column[i] / grow;
     }
     double keep[NN], KP[NN], out[NN];
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
             double sum = i == j ? 1.0 : 0.0;
             for (int q = 0; q < k; ++q) sum -= gain[i * 3 + q] * H[q * N + j];
             keep[i * N + j] = sum;
         }
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
             double sum = 0.0;
-            for (int q = 0; q < N; ++q) sum += keep[i * N + q] * P[q * N + j];
+            for (int q = 0; q < n; ++q) sum += keep[i * N + q] * P[q * N + j];
             KP[i * N + j] = sum;
         }
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
             double sum = 0.0;
-            for (int q = 0; q < N; ++q) sum += KP[i * N + q] * keep[j * N + q];
+            for (int q = 0; q < n; ++q) sum += KP[i * N + q] * keep[j * N + q];
             double noisy = 0.0;
             for (int a = 0; a < k; ++a)
                 for (int b = 0; b < k; ++b)
-                    noisy += gain[i * 3 + a] * m->cov[a * k + b] * gain[j * 3 + b];
+                    noisy += gain[i * 3 + a] * R[a * k + b] * gain[j * 3 + b];
             out[i * N + j] = sum + noisy;
         }
-    for (int i = 0; i < N; ++i) {
+    for (int i = 0; i < n; ++i) {
         double sum = 0.0;
         for (int q = 0; q < k; ++q) sum += gain[i * 3 + q] * innovation[q];
         x[i] += sum;
     }
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) P[i * N + j] = 0.5 * (out[i * N + j] + out[j * N + i]);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) P[i * N + j] = 0.5 * (out[i * N + j] + out[j * N + i]);
     *ok = 1;
 }
 
@@ -640,11 +704,12 @@ static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int
         t = cut;
         while (j < nm && m[j].t <= cut) {
             int ok;
-            double score;
-            absolute_update(e, x, P, &m[j], &ok, &score);
+            double score, log_det;
+            absolute_update(e, x, P, &m[j], &ok, &score, &log_det);
             if (record) {
                 m[j].ok = ok;
                 m[j].score = score;
+                m[j].log_det = log_det;
             }
             ++j;
         }
@@ -652,15 +717,29 @@ static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int
     }
 }
 
+/* P's block of the carried states, n x n row by row, into packed: what the history keeps. */
+static void pack(const Est *e, double *packed, const double *P) {
+    const int n = carried(e);
+    for (int i = 0; i < n; ++i) /* element by element: memcpy's setup would cost more here */
+        for (int j = 0; j < n; ++j) packed[i * n + j] = P[i * N + j];
+}
+
+/* P in full from its packed block, zero elsewhere (the states not carried). */
+static void unpack(const Est *e, double *P, const double *packed) {
+    const int n = carried(e);
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) P[i * N + j] = i < n && j < n ? packed[i * n + j] : 0.0;
+}
+
 /* Replay history intervals from absolute index k on: x, P now. */
 static void replay(Est *e, Py_ssize_t k, double *x, double *P) {
     memcpy(x, e->iv[k].x, sizeof e->iv[k].x);
-    memcpy(P, e->iv[k].P, sizeof e->iv[k].P);
+    unpack(e, P, e->iv[k].P);
     Py_ssize_t lo, hi;
     slice_of(e, k, &lo, &hi);
     for (Py_ssize_t i = k; i < e->iv0 + e->niv; ++i) {
         memcpy(e->iv[i].x, x, sizeof e->iv[i].x);
-        memcpy(e->iv[i].P, P, sizeof e->iv[i].P);
+        pack(e, e->iv[i].P, P);
         if (i > k) { /* the slices follow one another */
             lo = hi;
             while (hi < e->ms0 + e->nms && e->ms[hi].t <= e->iv[i].t1) ++hi;
@@ -672,10 +751,12 @@ static void replay(Est *e, Py_ssize_t k, double *x, double *P) {
 static int grow(void **array, Py_ssize_t *first, Py_ssize_t count, Py_ssize_t *capacity,
                 size_t size) {
     if (*first + count < *capacity) return 0;
-    if (*first > 0) { /* move to the front: the space the trimmed ones left */
+    /* Move to the front, into the space the trimmed ones left, while they fill at most half:
+     * then a move of count items comes at most once every count appends. */
+    if (*first > 0 && 2 * count <= *capacity) {
         memmove(*array, (char *)*array + *first * size, count * size);
         *first = 0;
-        if (count < *capacity) return 0;
+        return 0;
     }
     Py_ssize_t larger = *capacity ? 2 * *capacity : 64;
     void *bigger = PyMem_Realloc(*array, larger * size);
@@ -683,7 +764,10 @@ static int grow(void **array, Py_ssize_t *first, Py_ssize_t count, Py_ssize_t *c
         PyErr_NoMemory();
         return -1;
     }
+    if (*first > 0) /* to the front of the larger array */
+        memmove(bigger, (char *)bigger + *first * size, count * size);
     *array = bigger;
+    *first = 0;
     *capacity = larger;
     return 0;
 }
@@ -949,9 +1033,6 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
         double sigma2 = e->command_sigma * e->command_sigma;
         command_score = (miss[0] * miss[0] + miss[1] * miss[1]) / sigma2;
     }
-    Interval iv = {previous, now, dl, dr, g, command_score > SLIP_COMMAND_THRESHOLD, 0, 0.0};
-    memcpy(iv.x, e->x, sizeof e->x);
-    memcpy(iv.P, e->P, sizeof e->P);
     /* The measurements that waited for the wheels and are due now, in order. */
     Py_ssize_t due = 0;
     for (Py_ssize_t i = 0; i < e->npend; ++i)
@@ -973,10 +1054,15 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
             }
             tail[at] = e->pend[i];
         }
+    /* The interval in its place in the history, kept only if its update succeeds. */
+    Interval *iv = &e->iv[e->iv0 + e->niv];
+    interval_of(iv, previous, now, dl, dr, g, command_score > SLIP_COMMAND_THRESHOLD);
+    memcpy(iv->x, e->x, sizeof e->x);
+    pack(e, iv->P, e->P);
     double x[N], P[NN];
-    memcpy(x, iv.x, sizeof x);
-    memcpy(P, iv.P, sizeof P);
-    run_interval(e, &iv, tail, due, 1, 0.0, x, P, NULL);
+    memcpy(x, e->x, sizeof x);
+    memcpy(P, e->P, sizeof P);
+    run_interval(e, iv, tail, due, 1, 0.0, x, P, NULL);
     if (!finite_state(x, P)) {
         int restored = odometry_restore(e->wheels, saved);
         Py_DECREF(saved);
@@ -995,11 +1081,11 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
         e->rate = rate;
         e->have_rate = 1;
     }
-    e->iv[e->iv0 + e->niv++] = iv;
+    e->niv++;
     memcpy(e->x, x, sizeof x);
     memcpy(e->P, P, sizeof P);
-    e->slip = iv.slip;
-    e->slip_score = iv.score;
+    e->slip = iv->slip;
+    e->slip_score = iv->score;
     e->command_score = command_score;
     trim(e);
     Py_RETURN_NONE;
@@ -1055,7 +1141,7 @@ static PyObject *add_measurement(Est *e, Meas *m) {
             double score;
             memcpy(x, e->x, sizeof x);
             memcpy(P, e->P, sizeof P);
-            absolute_update(e, x, P, m, &ok, &score);
+            absolute_update(e, x, P, m, &ok, &score, NULL);
             if (!finite_state(x, P)) {
                 PyErr_Format(PyExc_ValueError,
                              "%s measurement at t = %R s: it would overflow the state; refused",
@@ -1294,7 +1380,7 @@ static PyObject *pose_at(Est *e, PyObject *arg) {
         slice_of(e, lo, &a, &b);
         Interval copy = e->iv[lo];
         memcpy(x, copy.x, sizeof x);
-        memcpy(P, copy.P, sizeof P);
+        unpack(e, P, copy.P);
         run_interval(e, &copy, e->ms + a, b - a, 0, t, x, P, NULL);
     }
     return Py_BuildValue("(NN)", tuple_of(x, N), tuple_of(P, NN));
@@ -1315,6 +1401,7 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
     double drive[4], k[2];
     if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
         attribute_double(s, "arw2", &e->arw2) < 0 || attribute_double(s, "rrw2", &e->rrw2) < 0 ||
+        attribute_double(s, "offset_rate2", &e->offset_rate2) < 0 ||
         attribute_double(s, "slip_threshold", &e->slip_thr) < 0 ||
         attribute_double(s, "slip_inflation", &e->slip_infl) < 0 ||
         attribute_double(s, "command_sigma", &e->command_sigma) < 0 ||
@@ -1328,7 +1415,10 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
         attribute_int(s, "method_code", &method) < 0 ||
         attribute_int(s, "heading_code", &e->heading) < 0 ||
         attribute_int(s, "estimate_bias", &e->est_bias) < 0 ||
-        attribute_int(s, "estimate_scale", &e->est_scale) < 0)
+        attribute_int(s, "estimate_scale", &e->est_scale) < 0 ||
+        attribute_int(s, "estimate_distance", &e->est_distance) < 0 ||
+        attribute_int(s, "estimate_offset", &e->est_offset) < 0 ||
+        attribute_int(s, "inflate", &e->inflate) < 0)
         return -1;
     e->r_l = drive[0], e->r_r = drive[1], e->track = drive[2], e->axle = drive[3];
     e->k_l = k[0], e->k_r = k[1];
@@ -1399,25 +1489,26 @@ static void smooth_step(const Step *s, double *x, double *P) {
 
 enum { LOG_TIMES, LOG_LEFT, LOG_RIGHT, LOG_GYRO, LOG_FORCED, LOG_MT, LOG_MKIND, LOG_MVALUE,
        LOG_MCOV, LOG_MLEVER, LOG_STATES, LOG_COVS, LOG_SLIPS, LOG_SCORES, LOG_OK, LOG_MSCORE,
-       LOG_VIEWS };
+       LOG_MLOGDET, LOG_VIEWS };
 
 /* _run_log(times, left, right, gyro, forced, m_t, m_kind, m_value, m_cov, m_lever, smooth,
- *          states, covariances, slips, scores, accepted, distances[, records]):
+ *          states, covariances, slips, scores, accepted, distances, log_dets[, records]):
  * estimate_trajectory's pass over a whole log from the state now, in float64 arrays (see the
  * Python twin's docstring); records, unless None, takes the smoother's steps (a Step a row,
  * in time order). Returns -1, or the interval (-2: the start) whose state would overflow. */
 static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 17 && nargs != 18) {
-        PyErr_SetString(PyExc_TypeError, "_run_log takes 17 or 18 arguments");
+    if (nargs != 18 && nargs != 19) {
+        PyErr_SetString(PyExc_TypeError, "_run_log takes 18 or 19 arguments");
         return NULL;
     }
-    PyObject *records_obj = nargs == 18 ? args[17] : Py_None;
+    PyObject *records_obj = nargs == 19 ? args[18] : Py_None;
     Py_buffer records;
     int keep = 0;
     Py_ssize_t rows = 0, write = 0;
     static const char *names[LOG_VIEWS] = {
         "times", "left", "right", "gyro", "forced", "m_t", "m_kind", "m_value", "m_cov",
-        "m_lever", "states", "covariances", "slips", "scores", "accepted", "distances"};
+        "m_lever", "states", "covariances", "slips", "scores", "accepted", "distances",
+        "log_dets"};
     PyObject *objs[LOG_VIEWS];
     for (int i = 0; i < LOG_VIEWS; ++i) objs[i] = args[i < 10 ? i : i + 1];
     int smooth = PyObject_IsTrue(args[10]);
@@ -1435,7 +1526,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         return NULL;
     }
     const Py_ssize_t sizes[LOG_VIEWS] = {n, n - 1, n - 1, n - 1, n - 1, nm, nm, 3 * nm, 9 * nm,
-                                         2 * nm, N * n, NN * n, n, n, nm, nm};
+                                         2 * nm, N * n, NN * n, n, n, nm, nm, nm};
     Py_buffer views[LOG_VIEWS];
     int got = 0;
     PyObject *result = NULL;
@@ -1451,7 +1542,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         keep = 1;
         if (records.format == NULL || strcmp(records.format, "d") != 0 ||
             records.len % (Py_ssize_t)sizeof(Step) != 0) {
-            PyErr_SetString(PyExc_ValueError, "_run_log: records must be rows of 85 float64");
+            PyErr_SetString(PyExc_ValueError, "_run_log: records must be rows of 208 float64");
             goto done;
         }
         rows = write = records.len / (Py_ssize_t)sizeof(Step);
@@ -1464,6 +1555,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
     double *states = views[LOG_STATES].buf, *covs = views[LOG_COVS].buf;
     double *slips = views[LOG_SLIPS].buf, *scores = views[LOG_SCORES].buf;
     double *accepted = views[LOG_OK].buf, *distances = views[LOG_MSCORE].buf;
+    double *log_dets = views[LOG_MLOGDET].buf;
     ms = PyMem_Calloc(nm ? nm : 1, sizeof(Meas));
     if (ms == NULL) {
         PyErr_NoMemory();
@@ -1505,13 +1597,14 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
     Py_ssize_t j = 0, failed = -1;
     Py_BEGIN_ALLOW_THREADS;
     for (; j < nm && ms[j].t == t[0]; ++j) /* at the start itself */
-        absolute_update(e, x, P, &ms[j], &ms[j].ok, &ms[j].score);
+        absolute_update(e, x, P, &ms[j], &ms[j].ok, &ms[j].score, &ms[j].log_det);
     if (!finite_state(x, P)) failed = -2;
     memcpy(states, x, sizeof x);
     memcpy(covs, P, sizeof P);
     slips[0] = scores[0] = 0.0;
     for (Py_ssize_t k = 1; k < n && failed == -1; ++k) {
-        Interval iv = {t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0};
+        Interval iv;
+        interval_of(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0);
         Py_ssize_t lo = j;
         while (j < nm && ms[j].t <= t[k]) ++j;
         run_interval(e, &iv, ms + lo, j - lo, 1, 0.0, x, P, NULL);
@@ -1524,6 +1617,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
     for (Py_ssize_t q = 0; q < nm && failed == -1; ++q) {
         accepted[q] = ms[q].ok;
         distances[q] = ms[q].score;
+        log_dets[q] = ms[q].log_det;
     }
     if (smooth && failed == -1) {
         /* Backwards: each interval run again from its filtered start, its steps recorded,
@@ -1535,7 +1629,8 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         for (Py_ssize_t k = n - 1; k >= 1; --k) {
             Py_ssize_t lo = hi;
             while (lo > 0 && ms[lo - 1].t > t[k - 1]) --lo;
-            Interval iv = {t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0};
+            Interval iv;
+            interval_of(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0);
             double fx[N], fP[NN];
             memcpy(fx, states + N * (k - 1), sizeof fx);
             memcpy(fP, covs + NN * (k - 1), sizeof fP);

@@ -12,7 +12,9 @@ from diffdrive._step import METHODS
 
 __all__ = [
     "BIAS",
+    "DISTANCE",
     "HEADINGS",
+    "OFFSET",
     "SCALE",
     "Config",
     "CoreSettings",
@@ -22,8 +24,9 @@ __all__ = [
 ]
 
 HEADINGS = ("wheels", "gyro", "fused")  # the heading sources, in the C core's order
-N = 5  # the estimator's state: x, y, theta, bias, turn_scale
-BIAS, SCALE = 3, 4
+# the estimator's state: x, y, theta, bias, turn_scale, distance_scale, the fixes' offset x, y
+N = 8
+BIAS, SCALE, DISTANCE, OFFSET = 3, 4, 5, 6
 
 
 @dataclass(frozen=True)
@@ -47,7 +50,8 @@ class OdometrySettings:
 class Config:
     """What one interval needs besides its data: the equivalent drive ``(r_l, r_r, track,
     axle_offset)``, the method's flags, the heading source, the wheel and gyro noise, whether
-    the bias and turn scale are estimated, and the slip test's threshold and inflation."""
+    the bias, turn scale, distance scale and the position fixes' offset are estimated, the
+    offset's random walk (m^2/s), and the slip test's threshold and inflation."""
 
     drive: tuple[float, float, float, float]
     method: str
@@ -57,12 +61,22 @@ class Config:
     rrw2: float
     estimate_bias: bool
     estimate_scale: bool
+    estimate_distance: bool
+    estimate_offset: bool
+    offset_rate2: float
     slip_threshold: float
     slip_inflation: float
 
     @property
     def active(self) -> list[int]:
-        return [0, 1, 2] + [BIAS] * self.estimate_bias + [SCALE] * self.estimate_scale
+        """The estimated states' indices, in order."""
+        return (
+            [0, 1, 2]
+            + [BIAS] * self.estimate_bias
+            + [SCALE] * self.estimate_scale
+            + [DISTANCE] * self.estimate_distance
+            + [OFFSET, OFFSET + 1] * self.estimate_offset
+        )
 
 
 @dataclass(frozen=True)
@@ -70,12 +84,14 @@ class CoreSettings(Config):
     """Everything an estimator core is built from, the C core and its Python twin alike: the
     filter's ``Config``, then the slip test's ``command_sigma`` (rad/s), the chi-square gates
     for 1, 2 and 3 dimensions, the reference point's ``offset`` (m, left of the body origin),
-    ``history`` and ``ahead`` (s: how late and how early a measurement may be), the gyro's
-    ``mounting`` row (its axis in the body frame), and the start: ``state`` ``(5,)`` and its
-    ``covariance`` ``(25,)``, row-major."""
+    whether a measurement past the gate is ``inflate``d rather than refused, ``history`` and
+    ``ahead`` (s: how late and how early a measurement may be), the gyro's
+    ``mounting`` row (its axis in the body frame), and the start: ``state`` ``(8,)`` and its
+    ``covariance`` ``(64,)``, row-major."""
 
     command_sigma: float
     gates: tuple[float, float, float]
+    inflate: bool
     offset: float
     history: float
     ahead: float

@@ -20,9 +20,11 @@ import sys
 
 import numpy as np
 
+from diffdrive.backends.settings import OFFSET
 from diffdrive.cli.options import estimate_columns, refuse_unused, wheel_noise, write_output
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation import Measurement, estimate_trajectory
+from diffdrive.estimation.fixes import IDENTIFIED_GATE, LEAST_FIXES
 from diffdrive.estimation.measurements import start_in_frame
 from diffdrive.io import Run, TableError, is_bag
 from diffdrive.model import Robot
@@ -48,6 +50,7 @@ def refuse_idle_options(args) -> None:
             "--gps-sigma": args.gps_sigma is not None,
             "--lever-arm": args.lever_arm is not None,
             "--gate": args.gate != GATE,
+            "--fixes": args.fixes is not None,
         },
         "used only with absolute measurements (--pose-topic, --gps-topic or --measurements)",
     )
@@ -173,18 +176,27 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         raise ValueError(f"--heading {heading} needs a gyro: --gyro-topic, or a gyro_z column")
     noise, assumed = wheel_noise(args)
     note += assumed
+    # A receiver's fixes (--gps-topic) report its whole error: identified by default, given
+    # enough of them; a covariance the user wrote (a table's sigmas) is taken as given.
+    positions = sum(m.kind == "position" for m in inside)
+    default = "identified" if args.gps_topic and positions >= LEAST_FIXES else "given"
+    fixes = args.fixes or default
     options = {
         "wheel_noise": noise,
         "turn_scale_sigma": args.turn_scale_sigma or 0.0,
-        "gate": args.gate,
         "method": args.method,
         "slip_test": args.slip_test or "episodes",
     }
+    if fixes == "given" or args.gate != GATE:  # identified fixes come with their own gate
+        options["gate"] = args.gate
     if args.gyro_bias is not None:
         options["bias"] = args.gyro_bias
     common = dict(gyro=gyro, heading=heading, commanded=commanded, **options)
-    start, covariance = log.start_pose(), None
-    if inside:
+    start: np.ndarray | None = log.start_pose()
+    covariance = None
+    if fixes == "identified":  # the fixes' fit places the start
+        start = None
+    elif inside:
         dead = estimate_trajectory(robot, log.times, increments, smooth=False, **common)
         start, covariance, fit = start_in_frame(log.times, dead.poses, inside)
         notes.append(
@@ -199,6 +211,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         initial_pose=start,
         initial_covariance=covariance,
         smooth=args.smooth,
+        fixes=fixes,
         **common,
     )
     twists, twist_covariances = result.twists, result.twist_covariances
@@ -207,6 +220,9 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         columns.update(slip=result.slip.astype(float), gyro_bias=result.states[:, 3])
     if options["turn_scale_sigma"]:
         columns["turn_scale"] = result.states[:, 4]
+    if fixes == "identified":  # where the fixes are: the body's track plus their offset
+        columns["fix_offset_x"] = result.states[:, OFFSET]
+        columns["fix_offset_y"] = result.states[:, OFFSET + 1]
     which = "smoothed" if args.smooth else "filtered"
     what = f"{which} estimate of {log.source} ({heading} heading)"
     write_output(
@@ -223,12 +239,20 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         print(note)
         for line in (*result.settings, *notes):
             print(line)
+        gate = options.get("gate", IDENTIFIED_GATE)
         print(
             f"measurements: {len(inside) - result.rejected} taken, {result.rejected} refused by "
-            f"the gate ({args.gate:g})"
+            f"the gate ({gate:.10g}), fixes {fixes}"
         )
         if options["turn_scale_sigma"]:
             print(f"turn scale at the end: {result.states[-1, 4]:.4f}")
+        if fixes == "identified":
+            x, y = result.states[-1, OFFSET : OFFSET + 2]
+            print(
+                f"the fixes' offset at the end: ({x:.3f}, {y:.3f}) m (columns fix_offset_x, "
+                "fix_offset_y): the poses follow the wheels between fixes, the fixes' wander "
+                "is in the offset"
+            )
         if log.truth is not None:
             print(error_summary(result.poses, log.truth))
     return 0

@@ -277,11 +277,19 @@ def add_to(command: Command, parents: Parents) -> None:
         help="where the pose or GPS sensor sits in the body frame, m (default 0 0)",
     )
     fused.add_argument(
+        "--fixes",
+        choices=("identified", "given"),
+        help="what position fixes are worth: identified from the fixes themselves (white noise, "
+        "the offset's wander, the wheels' distance scale, the start; the default for 10 or more "
+        "--gps-topic fixes) or given (their covariance, white; the default for a table's)",
+    )
+    fused.add_argument(
         "--gate",
         type=float,
         default=GATE,
         metavar="P",
-        help=f"chi-square gate: refuse a measurement outside this probability (default {GATE})",
+        help=f"chi-square gate: refuse a measurement outside this probability (default {GATE}; "
+        "with identified fixes 1 - 1e-9, a fix past it inflated, not refused)",
     )
     fused.add_argument(
         "--turn-scale-sigma",

@@ -11,7 +11,10 @@
   studies) and ``GyroOdometry`` (the estimator behind a per-interval ``update``);
 - ``standing``: the gyro's noise and bias from where the wheels stand still
   (``identify_standing``, what ``estimate_trajectory`` takes when given none; ``warm_up`` for a
-  streaming ``PoseEstimator``; ``identify_gyro`` and ``allan_deviation`` for one stretch).
+  streaming ``PoseEstimator``; ``identify_gyro`` and ``allan_deviation`` for one stretch);
+- ``fixes``: what position fixes are worth, from the fixes themselves (``identify_fixes``: their
+  white noise, their offset's wander, the wheels' distance scale and the start in their frame;
+  what ``estimate_trajectory(..., fixes="identified")`` takes).
 
 Every estimator runs the robot model's equivalent drive through ``diffdrive._step`` and keeps
 the pose ``(x, y, theta)`` first in its state and covariance.
@@ -26,7 +29,7 @@ _NAMES = {
     **dict.fromkeys(["HEADINGS", "GyroNoise", "PoseEstimator"], "fusion"),
     **dict.fromkeys(["GyroOdometry", "GyroTrajectory", "gyro_odometry"], "gyro"),
     **dict.fromkeys(["Gyro", "rotation_from_rpy"], "imu"),
-    **dict.fromkeys(["Measurement", "chi2_quantile"], "measurements"),
+    **dict.fromkeys(["Measurement", "chi2_quantile", "measurements_of"], "measurements"),
     **dict.fromkeys(
         [
             "COMPILED",
@@ -39,8 +42,9 @@ _NAMES = {
         ],
         "odometry",
     ),
-    **dict.fromkeys(["Estimate", "estimate_trajectory", "measurements_of"], "smoother"),
+    **dict.fromkeys(["Estimate", "estimate_trajectory"], "smoother"),
     **dict.fromkeys(["StandingFit", "identify_standing", "warm_up"], "standing"),
+    **dict.fromkeys(["FixFit", "identify_fixes"], "fixes"),
 }
 __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
@@ -48,6 +52,7 @@ __all__ = [
     "HEADINGS",
     "UPDATE_KINDS",
     "Estimate",
+    "FixFit",
     "Gyro",
     "GyroNoise",
     "GyroOdometry",
@@ -61,6 +66,7 @@ __all__ = [
     "chi2_quantile",
     "estimate_trajectory",
     "gyro_odometry",
+    "identify_fixes",
     "identify_standing",
     "measurements_of",
     "odometry_of_run",
@@ -70,10 +76,11 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # what the names are, for type checkers
+    from diffdrive.estimation.fixes import FixFit, identify_fixes
     from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
     from diffdrive.estimation.gyro import GyroOdometry, GyroTrajectory, gyro_odometry
     from diffdrive.estimation.imu import Gyro, rotation_from_rpy
-    from diffdrive.estimation.measurements import Measurement, chi2_quantile
+    from diffdrive.estimation.measurements import Measurement, chi2_quantile, measurements_of
     from diffdrive.estimation.odometry import (
         COMPILED,
         UPDATE_KINDS,
@@ -83,5 +90,5 @@ if TYPE_CHECKING:  # what the names are, for type checkers
         odometry_of_run,
         offset_jacobian,
     )
-    from diffdrive.estimation.smoother import Estimate, estimate_trajectory, measurements_of
+    from diffdrive.estimation.smoother import Estimate, estimate_trajectory
     from diffdrive.estimation.standing import StandingFit, identify_standing, warm_up

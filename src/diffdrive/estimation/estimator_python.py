@@ -36,7 +36,7 @@ class Interval:
     forced: bool
     start: tuple[np.ndarray, np.ndarray]
     measurements: list[Measurement] = field(default_factory=list)
-    outcomes: list[tuple[bool, float]] = field(default_factory=list)
+    outcomes: list[tuple[bool, float, float]] = field(default_factory=list)
     slip: bool = False
     slip_score: float = 0.0
     steps: list[ekf.Step] = field(default_factory=list)
@@ -54,6 +54,13 @@ class EstimatorCore:
         self.config = settings
         self._command_sigma = settings.command_sigma
         self._gate = dict(zip((1, 2, 3), settings.gates, strict=True))
+        # what an absolute update needs besides the state and the measurement
+        self._measured = (
+            settings.offset,
+            self._gate,
+            settings.estimate_offset,
+            settings.inflate,
+        )
         self._offset, self._history, self._ahead = (
             settings.offset,
             settings.history,
@@ -79,8 +86,8 @@ class EstimatorCore:
         return tuple(self._P.ravel().tolist())
 
     def _counts(self) -> tuple[int, int]:
-        ok = sum(o for i in self._intervals for o, _ in i.outcomes)
-        bad = sum(not o for i in self._intervals for o, _ in i.outcomes)
+        ok = sum(o for i in self._intervals for o, _, _ in i.outcomes)
+        bad = sum(not o for i in self._intervals for o, _, _ in i.outcomes)
         return self._settled[0] + ok, self._settled[1] + bad
 
     def _history_start(self) -> float:
@@ -264,9 +271,7 @@ class EstimatorCore:
         if not self._intervals or m.t < start:
             if m.t == now and not self._intervals:  # at the start itself
                 with np.errstate(all="ignore"):
-                    x, P, ok, _ = ekf.absolute_update(
-                        self._state, self._P, m, self._offset, self._gate
-                    )
+                    x, P, ok, _, _ = ekf.absolute_update(self._state, self._P, m, *self._measured)
                 if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
                     raise ValueError(f"{where}: it would overflow the state; refused")
                 self._state, self._P = x, P
@@ -319,6 +324,7 @@ class EstimatorCore:
         scores: np.ndarray,
         accepted: np.ndarray,
         distances: np.ndarray,
+        log_dets: np.ndarray,
         records: np.ndarray | None = None,
     ) -> int:
         """``estimate_trajectory``'s pass over a whole log from the state now, leaving the
@@ -328,11 +334,12 @@ class EstimatorCore:
         ``Measurement.order``: ``m_t`` ``(M,)`` s inside the log, ``m_kind`` ``(M,)`` (an
         index into ``MEASUREMENT_KINDS``), ``m_value`` ``(M, 3)``, ``m_cov`` ``(M, 9)`` (the
         ``k x k`` covariance row by row, first) and ``m_lever`` ``(M, 2)`` m. Out (float64,
-        filled in place): the state ``(n, 5)`` and covariance ``(n, 25)`` at the start and at
+        filled in place): the state ``(n, 8)`` and covariance ``(n, 64)`` at the start and at
         each interval's end (smoothed with ``smooth``), each interval's slip flag and score
-        ``(n,)`` (row 0: none), each measurement's outcome and squared Mahalanobis distance
-        ``(M,)``; with ``smooth``, unless ``records`` is None, the smoother's record of each
-        step in time order ``(S, RECORD_WIDTH)`` (``filter.record_steps`` says how many).
+        ``(n,)`` (row 0: none), each measurement's outcome, squared Mahalanobis distance and
+        the log determinant of its innovation's covariance ``(M,)``; with ``smooth``, unless
+        ``records`` is None, the smoother's record of each step in time order
+        ``(S, RECORD_WIDTH)`` (``filter.record_steps`` says how many).
         Measurements stamped at ``times[0]`` are applied at the start. Returns -1, or the
         interval whose state would overflow (-2: the start)."""
         made = []
@@ -346,8 +353,8 @@ class EstimatorCore:
         j = 0
         with np.errstate(all="ignore"):
             while j < len(made) and made[j].t == times[0]:  # at the start itself
-                x, P, accepted[j], distances[j] = ekf.absolute_update(
-                    x, P, made[j], self._offset, self._gate
+                x, P, accepted[j], distances[j], log_dets[j] = ekf.absolute_update(
+                    x, P, made[j], *self._measured
                 )
                 j += 1
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
@@ -385,8 +392,8 @@ class EstimatorCore:
             self._smoother = saved
         outcomes = [o for i in intervals for o in i.outcomes]
         head = len(made) - len(outcomes)
-        for q, (ok, score) in enumerate(outcomes):
-            accepted[head + q], distances[head + q] = ok, score
+        for q, (ok, score, log_det) in enumerate(outcomes):
+            accepted[head + q], distances[head + q], log_dets[head + q] = ok, score, log_det
         if smooth and records is not None:
             steps = [step for interval in intervals for step in interval.steps]
             if len(steps) != len(records):
@@ -422,7 +429,7 @@ class EstimatorCore:
                 interval.slip_score = float(score)
         end = interval.t1 if stop is None else stop
         cuts = sorted({m.t for m in interval.measurements if m.t <= end} | {end})
-        outcomes: list[tuple[bool, float]] = []
+        outcomes: list[tuple[bool, float, float]] = []
         done, t = 0.0, interval.t0
         queue = list(interval.measurements)
         sink: list[ekf.Step] | None = [] if self._smoother and stop is None else None
@@ -439,8 +446,8 @@ class EstimatorCore:
             done, t = share, cut
             while queue and queue[0].t <= cut:
                 m = queue.pop(0)
-                x, P, ok, score = ekf.absolute_update(x, P, m, self._offset, self._gate)
-                outcomes.append((ok, score))
+                x, P, ok, score, log_det = ekf.absolute_update(x, P, m, *self._measured)
+                outcomes.append((ok, score, log_det))
         if stop is None:
             interval.outcomes = outcomes
             interval.steps = sink or []
@@ -459,5 +466,5 @@ class EstimatorCore:
         newest = self._intervals[-1].t1
         while len(self._intervals) > 1 and self._intervals[1].t0 < newest - self._history:
             gone = self._intervals.pop(0)
-            for ok, _ in gone.outcomes:
+            for ok, _, _ in gone.outcomes:
                 self._settled[0 if ok else 1] += 1

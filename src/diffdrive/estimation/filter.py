@@ -1,10 +1,14 @@
 """The extended Kalman filter under ``PoseEstimator``: one wheel interval, one absolute
 measurement, on the step and Jacobians of ``diffdrive._step`` (the ones ``Odometry`` uses).
 
-State ``(x, y, theta, bias, turn_scale)``: the pose of the robot model's equivalent drive's
-reference point, the gyro bias (rad/s) and the turn scale, the true turn per radian of the
-wheels' turn (an effective track: ``track / turn_scale``; 1 for wheels that turn as far as the
-robot). A state that is not estimated has zero variance and stays where it starts.
+State ``(x, y, theta, bias, turn_scale, distance_scale, offset_x, offset_y)``: the pose of
+the robot model's equivalent drive's reference point, the gyro bias (rad/s), the turn scale,
+the true turn per radian of the wheels' turn (an effective track: ``track / turn_scale``; 1 for
+wheels that turn as far as the robot), the distance scale, the true forward travel per metre
+of the wheels' (a common scale of both radii; 1 for true radii), and the offset (m, world
+frame) of the position fixes from the point they are fixed to: a random walk (a receiver's
+wander), added to every ``"position"`` measurement's prediction when estimated. A state that
+is not estimated has zero variance and stays where it starts.
 
 One interval: the wheels move ``dl``, ``dr`` rad (true = measured + noise ``n_l``, ``n_r``,
 variances ``k |r dl| / r^2`` as ``Odometry``) and the gyro turns ``g`` rad (noise ``n_g``,
@@ -26,7 +30,7 @@ import numpy as np
 
 from diffdrive._step import method_flags, move_jacobians, wheel_move
 from diffdrive.angles import wrap_angle
-from diffdrive.backends.settings import BIAS, SCALE, Config, N
+from diffdrive.backends.settings import BIAS, DISTANCE, OFFSET, SCALE, Config, N
 from diffdrive.estimation.measurements import Measurement
 
 # chi-square, one degree of freedom: P(score > 10.83) = 0.001.
@@ -37,9 +41,9 @@ COMMAND_THRESHOLD = 13.82
 
 @dataclass(frozen=True, eq=False)
 class Step:
-    """The smoother's record of one interval: ``before`` ``(5,)`` and ``before_cov`` the state
+    """The smoother's record of one interval: ``before`` ``(8,)`` and ``before_cov`` the state
     at its start given the data up to its end, ``after`` and ``after_cov`` at its end (no
-    absolute measurement yet), and ``gain`` ``C`` ``(5, 5)``."""
+    absolute measurement yet), and ``gain`` ``C`` ``(8, 8)``."""
 
     before: np.ndarray
     before_cov: np.ndarray
@@ -48,8 +52,8 @@ class Step:
     gain: np.ndarray
 
 
-# A record's row as the cores write it: before (5), before_cov (25), after (5), after_cov (25),
-# gain (25), in Step's order (the C core's Step struct, 85 doubles).
+# A record's row as the cores write it: before (8), before_cov (64), after (8), after_cov (64),
+# gain (64), in Step's order (the C core's Step struct, 208 doubles).
 RECORD_WIDTH = 2 * N + 3 * N * N
 
 
@@ -60,9 +64,9 @@ class SmootherRecords:
     interval is one step, or one per distinct measurement stamp inside it and one to its end.
 
     ``interval`` ``(S,)``: the interval (1 to N-1, ending at ``times[interval]``) of each
-    step; ``before`` ``(S, 5)`` and ``before_covariance`` ``(S, 5, 5)``: the filtered state at
-    the step's start; ``after`` ``(S, 5)`` and ``after_covariance`` ``(S, 5, 5)``: the state
-    the step predicts at its end, before any measurement there; ``gain`` ``(S, 5, 5)``: the
+    step; ``before`` ``(S, 8)`` and ``before_covariance`` ``(S, 8, 8)``: the filtered state at
+    the step's start; ``after`` ``(S, 8)`` and ``after_covariance`` ``(S, 8, 8)``: the state
+    the step predicts at its end, before any measurement there; ``gain`` ``(S, 8, 8)``: the
     step's smoother Jacobian ``C`` (``d before_smoothed / d after_smoothed``), so that
     ``before_smoothed = before + C (after_smoothed - after)`` and ``P_before_smoothed =
     before_covariance + C (P_after_smoothed - after_covariance) C^T``."""
@@ -103,8 +107,8 @@ def slip_innovation(c: Config, x, P, dl, dr, g, dt) -> tuple:
     """The wheels' turn less the gyro's over one interval (rad), its variance while neither
     wheel slips (rad^2), and how far it moves per unit of the left and the right wheel's slip
     fraction (``ratio / (1 + ratio)``: the share of the measured turn the ground did not make).
-    One interval (floats; ``x`` ``(5,)``, ``P`` ``(5, 5)``) or many (arrays ``(n,)``; ``x``
-    ``(n, 5)``, ``P`` ``(n, 5, 5)``)."""
+    One interval (floats; ``x`` ``(8,)``, ``P`` ``(8, 8)``) or many (arrays ``(n,)``; ``x``
+    ``(n, 8)``, ``P`` ``(n, 8, 8)``)."""
     r_l, r_r, track, offset = c.drive
     wheel_turn = wheel_move(r_l, r_r, track, offset, dl, dr)[2]
     scale = x[..., SCALE]
@@ -141,8 +145,9 @@ def advance(
     """The state and covariance after one interval (``g`` is NaN without a gyro), and, if
     ``smoother``, the smoother's ``Step``."""
     r_l, r_r, track, offset = c.drive
-    forward, _, wheel_turn = wheel_move(r_l, r_r, track, offset, dl, dr)
-    scale = x[SCALE]
+    travelled, _, wheel_turn = wheel_move(r_l, r_r, track, offset, dl, dr)
+    scale, distance = x[SCALE], x[DISTANCE]
+    forward = distance * travelled
     inflation = c.slip_inflation if slip else 1.0
     noise = np.array(
         [
@@ -151,8 +156,9 @@ def advance(
             c.arw2 * dt if c.heading != "wheels" else 0.0,
         ]
     )
-    by_noise_forward = np.array([0.5 * r_l, 0.5 * r_r, 0.0])
-    by_state_turn = np.zeros(N)
+    by_noise_forward = np.array([0.5 * distance * r_l, 0.5 * distance * r_r, 0.0])
+    by_state_forward, by_state_turn = np.zeros(N), np.zeros(N)
+    by_state_forward[DISTANCE] = travelled
     if c.heading == "wheels":
         turn = scale * wheel_turn
         by_noise_turn = np.array([-scale * r_l / track, scale * r_r / track, 0.0])
@@ -166,8 +172,8 @@ def advance(
     )
     F = np.eye(N)
     F[0, 2], F[1, 2] = -dy, dx
-    F[0] += by_turn[0] * by_state_turn
-    F[1] += by_turn[1] * by_state_turn
+    F[0] += by_forward[0] * by_state_forward + by_turn[0] * by_state_turn
+    F[1] += by_forward[1] * by_state_forward + by_turn[1] * by_state_turn
     F[2] += by_state_turn
     G = np.zeros((N, 3))
     G[0] = by_forward[0] * by_noise_forward + by_turn[0] * by_noise_turn
@@ -179,10 +185,13 @@ def advance(
     moved = FP @ F.T + GQ @ G.T
     if c.estimate_bias and c.heading == "fused":
         moved[BIAS, BIAS] += c.rrw2 * dt
+    if c.estimate_offset:
+        moved[OFFSET, OFFSET] += c.offset_rate2 * dt
+        moved[OFFSET + 1, OFFSET + 1] += c.offset_rate2 * dt
     measured = c.heading == "fused" and not slip
     if not (measured or smoother):  # nothing needs the joint below
         return after, 0.5 * (moved + moved.T), None
-    # The joint of (state after, state before, noises), 13 x 13.
+    # The joint of (state after, state before, noises), 19 x 19.
     joint = np.zeros((2 * N + 3, 2 * N + 3))
     joint[:N, :N] = moved
     joint[:N, N : 2 * N] = FP
@@ -232,11 +241,21 @@ def _solve_right(cross: np.ndarray, covariance: np.ndarray, active: list[int]) -
 
 
 def absolute_update(
-    x: np.ndarray, P: np.ndarray, m: Measurement, offset: float, gate: dict[int, float]
-) -> tuple[np.ndarray, np.ndarray, bool, float]:
+    x: np.ndarray,
+    P: np.ndarray,
+    m: Measurement,
+    offset: float,
+    gate: dict[int, float],
+    fix_offset: bool = False,
+    inflate: bool = False,
+) -> tuple[np.ndarray, np.ndarray, bool, float, float]:
     """The state and covariance after measurement ``m`` (unchanged if the gate refuses it),
-    whether it was taken, and its squared Mahalanobis distance. ``offset`` (m) is how far left
-    of the body origin the state's reference point lies."""
+    whether it was taken, its squared Mahalanobis distance and the log determinant of its
+    innovation's covariance (the two terms of its likelihood). ``offset`` (m) is how far left
+    of the body origin the state's reference point lies; ``fix_offset``: a ``"position"``
+    measurement carries the offset state (see the module); ``inflate``: a measurement past
+    the gate is taken with its covariance grown until its score lies on the gate (``R + (a -
+    1) S``, ``a`` = score / gate: a Huber-like weight), not refused."""
     size = len(m.value)
     H = np.zeros((size, N))
     innovation = np.empty(size)
@@ -250,6 +269,9 @@ def absolute_update(
         H[0, 2], H[1, 2] = -s * arm_x - c * arm_y, c * arm_x - s * arm_y
         innovation[0] = m.value[0] - (x[0] + c * arm_x - s * arm_y)
         innovation[1] = m.value[1] - (x[1] + s * arm_x + c * arm_y)
+        if fix_offset and m.kind == "position":
+            H[0, OFFSET], H[1, OFFSET + 1] = 1.0, 1.0
+            innovation -= x[OFFSET : OFFSET + 2]
     if size == 3:
         H[2, 2] = 1.0
         innovation[2] = wrap_angle(m.value[2] - x[2])
@@ -257,16 +279,21 @@ def absolute_update(
         S = H @ P @ H.T + m.covariance
         finite = bool(np.all(np.isfinite(S)) and np.all(np.isfinite(innovation)))
     if not finite:  # a lever arm of 1e300 m: gated out, as the C core's Cholesky refuses it
-        return x, P, False, math.inf
+        return x, P, False, math.inf, math.nan
     try:
         factor = np.linalg.cholesky(S)
     except np.linalg.LinAlgError:
-        return x, P, False, math.inf
+        return x, P, False, math.inf, math.nan
     whitened = np.linalg.solve(factor, innovation)
     score = float(whitened @ whitened)
+    log_det = float(2.0 * np.sum(np.log(np.diag(factor))))
+    grow = 1.0
     if score > gate[size]:
-        return x, P, False, score
-    gain = np.linalg.solve(S, H @ P).T  # P H^T S^-1, S symmetric
+        if not inflate:
+            return x, P, False, score, log_det
+        grow = score / gate[size]
+    gain = np.linalg.solve(S, H @ P).T / grow  # P H^T (a S)^-1, S symmetric
     keep = np.eye(N) - gain @ H
-    covariance = keep @ P @ keep.T + gain @ m.covariance @ gain.T  # Joseph form
-    return x + gain @ innovation, 0.5 * (covariance + covariance.T), True, score
+    noise = m.covariance + (grow - 1.0) * S
+    covariance = keep @ P @ keep.T + gain @ noise @ gain.T  # Joseph form
+    return x + gain @ innovation, 0.5 * (covariance + covariance.T), True, score, log_det

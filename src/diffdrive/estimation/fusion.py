@@ -54,7 +54,9 @@ from diffdrive.sensor_noise import DEFAULT as DEFAULT_WHEEL_NOISE
 from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise, WheelNoise, WheelNoiseLike
 from diffdrive.types import Pose
 
-__all__ = ["COMPILED", "HEADINGS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
+__all__ = ["COMPILED", "HEADINGS", "OUTLIERS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
+
+OUTLIERS = ("refuse", "inflate")  # what the gate does with a measurement past it
 
 
 # The C core beside Odometry's when it was built, else its pure-Python twin (as Odometry's);
@@ -84,9 +86,17 @@ class _EstimatorMethods(_Base):
     ``noise``: the gyro's (a ``GyroNoise``; default ``sensor_noise.DEFAULT_GYRO``, a
     mid-range MEMS gyro's); ``bias`` (rad/s) its start.
     ``turn_scale`` and ``turn_scale_sigma``: the turn scale's start and prior standard
-    deviation (0: not estimated). ``history`` (s, at least 2 by default): how far back a
+    deviation (0: not estimated); ``distance_scale`` and ``distance_scale_sigma`` likewise for
+    the distance scale (the true travel per metre of the wheels'; observable only with
+    absolute positions). ``fix_offset_rate`` (m/sqrt(s)): the random walk of the offset the
+    ``"position"`` fixes carry (a receiver's wander; 0: none, the fixes' error is white),
+    ``fix_offset_sigma`` (m) its start's standard deviation (0: the offset starts at zero,
+    the first fixes placing the robot). ``history`` (s, at least 2 by default): how far back a
     measurement may be stamped; ``ahead`` (s): how far ahead of the wheels. ``gate``: the
-    probability inside the chi-square gate. ``slip_threshold``, ``slip_inflation``,
+    probability inside the chi-square gate; ``outliers``: what becomes of a measurement past
+    it, ``"refuse"`` (left out, counted in ``rejected``) or ``"inflate"`` (taken with its
+    covariance grown until it lies on the gate: a heavy-tailed sensor's jumps followed, not
+    lost). ``slip_threshold``, ``slip_inflation``,
     ``command_sigma`` (rad/s): the slip tests'.
     """
 
@@ -107,10 +117,15 @@ class _EstimatorMethods(_Base):
         bias: float = 0.0,
         turn_scale: float = 1.0,
         turn_scale_sigma: float = 0.0,
+        distance_scale: float = 1.0,
+        distance_scale_sigma: float = 0.0,
+        fix_offset_rate: float = 0.0,
+        fix_offset_sigma: float = 0.0,
         mounting: object = None,
         history: float = 2.0,
         ahead: float = 0.1,
         gate: float = 0.999,
+        outliers: str = "refuse",
         slip_threshold: float = ekf.SLIP_THRESHOLD,
         slip_inflation: float = 100.0,
         command_sigma: float = 1.0,
@@ -121,10 +136,18 @@ class _EstimatorMethods(_Base):
         if noise is not None and not isinstance(noise, GyroNoise):
             raise TypeError(f"noise must be a GyroNoise, got {type(noise).__name__}")
         self.wheel_noise = WheelNoise.coerce(wheel_noise)
-        if not finite("turn_scale_sigma", turn_scale_sigma) >= 0.0:
-            raise ValueError(f"turn_scale_sigma must be >= 0, got {turn_scale_sigma!r}")
+        for name, value in (
+            ("turn_scale_sigma", turn_scale_sigma),
+            ("distance_scale_sigma", distance_scale_sigma),
+            ("fix_offset_rate", fix_offset_rate),
+            ("fix_offset_sigma", fix_offset_sigma),
+        ):
+            if not finite(name, value) >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {value!r}")
         if not 0.0 < finite("gate", gate) < 1.0:
             raise ValueError(f"gate must be a probability in (0, 1), got {gate!r}")
+        if outliers not in OUTLIERS:
+            raise ValueError(f"outliers must be one of {', '.join(OUTLIERS)}, got {outliers!r}")
         if not finite("ahead", ahead) >= 0.0:
             raise ValueError(f"ahead must be >= 0 s, got {ahead!r}")
         self.command_sigma = positive("command_sigma", command_sigma)
@@ -151,9 +174,13 @@ class _EstimatorMethods(_Base):
             initial_covariance,
             finite("bias", bias),
             positive("turn_scale", turn_scale),
+            positive("distance_scale", distance_scale),
         )
         P[ekf.BIAS, ekf.BIAS] = self.noise.initial_bias_sigma**2 if heading == "fused" else 0.0
         P[ekf.SCALE, ekf.SCALE] = turn_scale_sigma * turn_scale_sigma
+        P[ekf.DISTANCE, ekf.DISTANCE] = distance_scale_sigma * distance_scale_sigma
+        P[ekf.OFFSET, ekf.OFFSET] = P[ekf.OFFSET + 1, ekf.OFFSET + 1] = fix_offset_sigma**2
+        with_offset = bool(fix_offset_rate > 0.0 or fix_offset_sigma > 0.0)
         drive = robot.equivalent
         arw, rrw = self.noise.angle_random_walk, self.noise.rate_random_walk
         self.config = CoreSettings(
@@ -169,11 +196,15 @@ class _EstimatorMethods(_Base):
             arw2=arw * arw,
             rrw2=rrw * rrw,
             estimate_bias=heading == "fused",
-            estimate_scale=turn_scale_sigma > 0.0,
+            estimate_scale=bool(turn_scale_sigma > 0.0),
+            estimate_distance=bool(distance_scale_sigma > 0.0),
+            estimate_offset=with_offset,
+            offset_rate2=float(fix_offset_rate) ** 2,
             slip_threshold=positive("slip_threshold", slip_threshold),
             slip_inflation=positive("slip_inflation", slip_inflation),
             command_sigma=self.command_sigma,
             gates=(chi2_quantile(gate, 1), chi2_quantile(gate, 2), chi2_quantile(gate, 3)),
+            inflate=outliers == "inflate",
             offset=robot.reference_offset,
             history=self.history,
             ahead=self.ahead,
@@ -192,12 +223,13 @@ class _EstimatorMethods(_Base):
 
     @property
     def state(self) -> np.ndarray:
-        """``(x, y, theta, bias, turn_scale)`` of the equivalent drive's reference point."""
+        """``(x, y, theta, bias, turn_scale, distance_scale, offset_x, offset_y)`` of the
+        equivalent drive's reference point (``diffdrive.estimation.filter``)."""
         return np.array(self._state_now())
 
     @property
     def state_covariance(self) -> np.ndarray:
-        """The state's covariance, 5x5."""
+        """The state's covariance, 8x8."""
         return np.array(self._covariance_now()).reshape(ekf.N, ekf.N)
 
     @property
@@ -219,6 +251,16 @@ class _EstimatorMethods(_Base):
     def turn_scale(self) -> float:
         """The turn scale estimate: the robot's turn per radian of the wheels' turn."""
         return self._state_now()[ekf.SCALE]
+
+    @property
+    def distance_scale(self) -> float:
+        """The distance scale estimate: the robot's travel per metre of the wheels'."""
+        return self._state_now()[ekf.DISTANCE]
+
+    @property
+    def fix_offset(self) -> np.ndarray:
+        """The position fixes' offset estimate ``(2,)``, m (world frame)."""
+        return np.array(self._state_now()[ekf.OFFSET : ekf.OFFSET + 2])
 
     @property
     def accepted(self) -> int:
@@ -310,7 +352,9 @@ class PythonPoseEstimator(_EstimatorMethods, estimator_python.EstimatorCore):
     same results, slower: the reference the tests hold the C core to."""
 
 
-def _start_state(robot: Robot, pose: object, covariance: object, bias: float, scale: float):
+def _start_state(
+    robot: Robot, pose: object, covariance: object, bias: float, scale: float, distance: float
+):
     start = Pose() if pose is None else Pose.coerce(pose, "initial_pose")
     matrix = np.zeros((3, 3)) if covariance is None else np.asarray(covariance, dtype=float)
     if matrix.shape != (3, 3) or not np.all(np.isfinite(matrix)):
@@ -323,7 +367,7 @@ def _start_state(robot: Robot, pose: object, covariance: object, bias: float, sc
     start = robot.to_reference(start)
     P = np.zeros((ekf.N, ekf.N))
     P[:3, :3] = moved @ matrix @ moved.T
-    return np.array([start.x, start.y, start.theta, bias, scale]), P
+    return np.array([start.x, start.y, start.theta, bias, scale, distance, 0.0, 0.0]), P
 
 
 def _three(row: np.ndarray) -> tuple[float, float, float]:
@@ -331,14 +375,14 @@ def _three(row: np.ndarray) -> tuple[float, float, float]:
 
 
 def body_poses(states: np.ndarray, robot: Robot) -> np.ndarray:
-    """The body origin's poses ``(..., 3)`` from states ``(..., 5)`` of ``robot``'s equivalent
+    """The body origin's poses ``(..., 3)`` from states ``(..., 8)`` of ``robot``'s equivalent
     drive's reference point (``Robot.from_reference``)."""
     return np.array(robot.from_reference(np.asarray(states, dtype=float)[..., :3]), dtype=float)
 
 
 def body_covariances(states: np.ndarray, covariances: np.ndarray, robot: Robot) -> np.ndarray:
-    """The body origin's pose covariances ``(..., 3, 3)`` from states ``(..., 5)`` and their
-    covariances ``(..., 5, 5)`` (see ``body_poses``): the shift's Jacobian applied."""
+    """The body origin's pose covariances ``(..., 3, 3)`` from states ``(..., 8)`` and their
+    covariances ``(..., 8, 8)`` (see ``body_poses``): the shift's Jacobian applied."""
     block = np.asarray(covariances, dtype=float)[..., :3, :3]
     if not robot.reference_offset:
         return block.copy()

@@ -26,7 +26,7 @@ from diffdrive._stats import chi2_quantile
 from diffdrive._validate import finite, floats
 from diffdrive.evaluation import align, interpolate
 
-__all__ = ["MEASUREMENT_KINDS", "Measurement", "chi2_quantile", "start_in_frame"]
+__all__ = ["MEASUREMENT_KINDS", "Measurement", "chi2_quantile", "measurements_of", "start_in_frame"]
 
 MeasurementKind = Literal["pose", "position", "heading"]
 MEASUREMENT_KINDS: tuple[MeasurementKind, ...] = ("pose", "position", "heading")
@@ -161,3 +161,43 @@ def start_in_frame(
     extent = max(float(np.ptp(seen[:, :2], axis=0).max()), 1.0)
     covariance = np.diag([spread**2, spread**2, min((spread / extent) ** 2 * 4, math.pi**2)])
     return start, covariance, rms
+
+
+def measurements_of(
+    kind: str,
+    times: object,
+    values: object,
+    covariance: object,
+    lever_arm: object = None,
+    kept: object = None,
+) -> list[Measurement]:
+    """``Measurement``s from arrays: ``times`` ``(M,)`` s, ``values`` ``(M, 3)`` poses or
+    ``(M, 2)`` positions, one ``covariance`` for all (as ``Measurement.make`` takes it) or one
+    per row ``(M, k, k)``; ``kept`` ``(M,)`` bool leaves rows out (a sensor's dropouts). A bad
+    row raises ``ValueError`` naming it."""
+    stamps = np.asarray(times, dtype=float)
+    rows = np.asarray(values, dtype=float)
+    if stamps.ndim != 1 or len(rows) != len(stamps):
+        raise ValueError(f"times {stamps.shape} and values {rows.shape} must have M rows each")
+    size = {"pose": 3, "position": 2, "heading": 1}.get(kind, 3)
+    if rows.ndim == 1:
+        rows = rows[:, None]
+    rows = rows[:, :size] if kind != "heading" else rows[:, -1:]
+    matrices = np.asarray(covariance, dtype=float)
+    each = matrices.ndim == 3
+    if each and len(matrices) != len(stamps):
+        raise ValueError(
+            f"covariance must be one, or one per row ({len(stamps)}), got {len(matrices)}"
+        )
+    chosen = np.ones(len(stamps), dtype=bool) if kept is None else np.asarray(kept, dtype=bool)
+    made = []
+    for k in np.flatnonzero(chosen):
+        try:
+            made.append(
+                Measurement.make(
+                    kind, stamps[k], rows[k], matrices[k] if each else matrices, lever_arm
+                )
+            )
+        except ValueError as exc:
+            raise ValueError(f"row {k}: {exc}") from None
+    return made

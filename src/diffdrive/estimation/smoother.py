@@ -13,6 +13,7 @@ With a gyro, the whole log also finds slip episodes the per-interval test misses
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -21,6 +22,7 @@ import numpy as np
 from diffdrive._validate import increasing
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.episodes import steady_episodes
+from diffdrive.estimation.fixes import IDENTIFIED_GATE, identify_fixes
 from diffdrive.estimation.fusion import PoseEstimator, body_covariances, body_poses
 from diffdrive.estimation.imu import Gyro
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement
@@ -30,10 +32,11 @@ from diffdrive.model import Robot
 from diffdrive.sensor_noise import DEFAULT_GYRO
 
 SLIP_TESTS = ("episodes", "interval")
+FIXES = ("given", "identified")
 # measurements as the cores take them: stamps, kinds, values, covariances, lever arms
 _Packed = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
-__all__ = ["Estimate", "estimate_trajectory", "measurements_of"]
+__all__ = ["Estimate", "estimate_trajectory"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,51 +70,24 @@ class Estimate:
     twist_covariances: np.ndarray
     records: ekf.SmootherRecords | None = None
     settings: tuple[str, ...] = ()
+    log_dets: np.ndarray | None = None
 
     @property
     def rejected(self) -> int:
         """How many measurements the gate refused."""
         return int(np.count_nonzero(~self.accepted))
 
-
-def measurements_of(
-    kind: str,
-    times: object,
-    values: object,
-    covariance: object,
-    lever_arm: object = None,
-    kept: object = None,
-) -> list[Measurement]:
-    """``Measurement``s from arrays: ``times`` ``(M,)`` s, ``values`` ``(M, 3)`` poses or
-    ``(M, 2)`` positions, one ``covariance`` for all (as ``Measurement.make`` takes it) or one
-    per row ``(M, k, k)``; ``kept`` ``(M,)`` bool leaves rows out (a sensor's dropouts). A bad
-    row raises ``ValueError`` naming it."""
-    stamps = np.asarray(times, dtype=float)
-    rows = np.asarray(values, dtype=float)
-    if stamps.ndim != 1 or len(rows) != len(stamps):
-        raise ValueError(f"times {stamps.shape} and values {rows.shape} must have M rows each")
-    size = {"pose": 3, "position": 2, "heading": 1}.get(kind, 3)
-    if rows.ndim == 1:
-        rows = rows[:, None]
-    rows = rows[:, :size] if kind != "heading" else rows[:, -1:]
-    matrices = np.asarray(covariance, dtype=float)
-    each = matrices.ndim == 3
-    if each and len(matrices) != len(stamps):
-        raise ValueError(
-            f"covariance must be one, or one per row ({len(stamps)}), got {len(matrices)}"
-        )
-    chosen = np.ones(len(stamps), dtype=bool) if kept is None else np.asarray(kept, dtype=bool)
-    made = []
-    for k in np.flatnonzero(chosen):
-        try:
-            made.append(
-                Measurement.make(
-                    kind, stamps[k], rows[k], matrices[k] if each else matrices, lever_arm
-                )
-            )
-        except ValueError as exc:
-            raise ValueError(f"row {k}: {exc}") from None
-    return made
+    @property
+    def log_likelihood(self) -> float:
+        """The Gaussian log likelihood of the measurements' innovations in the forward pass,
+        each against the covariance the filter predicted for it (the ones the gate refused
+        count too, with the innovation they had): how well the noise settings explain the
+        measurements, for comparing settings on one log."""
+        if self.log_dets is None or not len(self.measurements):
+            return 0.0
+        sizes = np.array([len(m.value) for m in self.measurements])
+        terms = self.scores + self.log_dets + sizes * np.log(2.0 * np.pi)
+        return float(-0.5 * np.sum(terms[np.isfinite(terms)]))
 
 
 def checked_log(
@@ -152,6 +128,7 @@ def estimate_trajectory(
     commanded: object = None,
     slip_test: str = "episodes",
     records: bool = False,
+    fixes: str = "given",
     **options,
 ) -> Estimate:
     """A whole log: wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s,
@@ -162,7 +139,18 @@ def estimate_trajectory(
     the streaming test flags, the runs of intervals that one slipping wheel explains
     (``diffdrive.estimation.episodes``; the log then runs again with them flagged);
     ``"interval"`` only the streaming test's. ``records`` keeps the smoother's record of every
-    step (``Estimate.records``: 680 bytes a step; needs ``smooth``)."""
+    step (``Estimate.records``: 1,664 bytes a step; needs ``smooth``).
+
+    ``fixes``: what the ``"position"`` measurements (a GPS receiver's) are worth.
+    ``"identified"``: from the fixes themselves (``diffdrive.estimation.fixes``): their white
+    noise replaces their covariance, the offset state wanders at the identified rate, the
+    wheels' distance scale and the start (in the fixes' frame) are the dead reckoning's fit
+    onto them, each unless given (``fix_offset_rate``, ``distance_scale``, ``initial_pose``,
+    ``initial_covariance``); the gate, unless given, is ``1 - 1e-9`` with ``outliers``
+    ``"inflate"`` (a receiver's jumps are heavier-tailed than a Gaussian); it needs
+    ``fixes.LEAST_FIXES`` fixes or more. ``"given"``: the fixes as given (white noise of their
+    covariance; an offset state only with ``fix_offset_rate``). ``Estimate.settings`` says
+    what was used."""
     if heading != "wheels" and gyro is None:
         raise ValueError(f"heading {heading!r} needs a gyro")
     times, increments, turned, wanted = checked_log(times, increments, gyro, commanded)
@@ -184,20 +172,22 @@ def estimate_trajectory(
         raise ValueError(f"slip_test must be one of {SLIP_TESTS}, got {slip_test!r}")
     if records and not smooth:
         raise ValueError("records are the smoother's, made on its pass back: give smooth=True")
+    if fixes not in FIXES:
+        raise ValueError(f"fixes must be one of {', '.join(FIXES)}, got {fixes!r}")
     options.setdefault("history", float("inf"))
     settings = _gyro_settings(times, increments, turned, gyro, heading, options)
-    estimator = PoseEstimator(
-        robot,
-        heading,
-        initial_pose,
-        initial_covariance,
-        initial_time=float(times[0]),
-        ahead=0.0,
-        **options,
-    )
     _check_log(times, increments, turned, options.get("max_wheel_speed"))
-    missed = _commands_missed(estimator, times, increments, wanted)
+    start: dict = {"initial_pose": initial_pose, "initial_covariance": initial_covariance}
     gyro_turns = np.full(len(increments), np.nan) if turned is None else turned
+    if fixes == "identified":
+        ordered, identified = _identified_fixes(
+            robot, heading, (times, increments, gyro_turns), ordered, start, options
+        )
+        settings += identified
+    estimator = PoseEstimator(
+        robot, heading, **start, initial_time=float(times[0]), ahead=0.0, **options
+    )
+    missed = _commands_missed(estimator, times, increments, wanted)
     log = _Log(times, increments, gyro_turns, missed, _packed(ordered))
     episodes = slip_test == "episodes" and turned is not None
     run = _run(estimator, log, smooth and not episodes, None, records and not episodes)
@@ -232,7 +222,49 @@ def estimate_trajectory(
         twist_covariances,
         run.records,
         settings,
+        run.log_dets,
     )
+
+
+def _identified_fixes(
+    robot: Robot, heading: str, wheels: tuple, ordered: list, start: dict, options: dict
+) -> tuple[list[Measurement], tuple[str, ...]]:
+    """The measurements with the fixes' identified white noise, and ``start`` and
+    ``options`` filled from ``fixes.identify_fixes`` where not given; the lines that say
+    what was used. ``wheels``: the log's times, increments and gyro turns."""
+    times, increments, turned = wheels
+    positions = [m for m in ordered if m.kind == "position"]
+    # The dead reckoning the fixes are fitted onto: the same estimator without them.
+    free = {k: v for k, v in options.items() if k not in ("gate", "outliers")}
+    reckoner = PoseEstimator(robot, heading, initial_time=float(times[0]), ahead=0.0, **free)
+    empty = _packed([])
+    still = np.zeros(len(increments), dtype=bool)
+    dead = _run(reckoner, _Log(times, increments, turned, still, empty), False, None)
+    reported = float(np.sqrt(np.median([np.trace(m.covariance) / 2.0 for m in positions])))
+    fit = identify_fixes(
+        times,
+        body_poses(dead.states, robot),
+        [m.t for m in positions],
+        [m.value for m in positions],
+        reported,
+    )
+    lines = list(fit.report)
+    for name, value in fit.options.items():
+        place = start if name.startswith("initial") else options
+        if place.get(name) is None:
+            place[name] = value
+        else:
+            lines.append(f"{name}: as given")
+    if options["gate"] == IDENTIFIED_GATE and options["outliers"] == "inflate":
+        lines.append(
+            f"gate 1 - {1 - IDENTIFIED_GATE:.0e}, past it inflated, not refused: a receiver's "
+            "jumps are heavier-tailed than a Gaussian"
+        )
+    white = np.eye(2) * fit.white**2
+    made = [
+        dataclasses.replace(m, covariance=white) if m.kind == "position" else m for m in ordered
+    ]
+    return made, tuple(lines)
 
 
 def _gyro_settings(times, increments, turned, gyro, heading: str, options: dict) -> tuple:
@@ -287,6 +319,7 @@ class _Run:
     scores: np.ndarray
     accepted: np.ndarray
     distances: np.ndarray
+    log_dets: np.ndarray
     records: ekf.SmootherRecords | None
 
 
@@ -303,7 +336,8 @@ def _run(
     n, m = len(log.times), len(log.measurements[0])
     flagged = log.commanded if forced is None else log.commanded | forced
     states, covariances = np.empty((n, ekf.N)), np.empty((n, ekf.N * ekf.N))
-    slips, scores, accepted, distances = np.empty(n), np.empty(n), np.empty(m), np.empty(m)
+    slips, scores, accepted = np.empty(n), np.empty(n), np.empty(m)
+    distances, log_dets = np.empty(m), np.empty(m)
     steps = ekf.record_steps(log.times, log.measurements[0]) if smooth and records else None
     rows = None if steps is None else np.empty((int(steps.sum()), ekf.RECORD_WIDTH))
     # the cores read contiguous float64 (a caller's times may be a strided view)
@@ -321,6 +355,7 @@ def _run(
         scores,
         accepted,
         distances,
+        log_dets,
         rows,
     )
     if failed == -2:
@@ -338,6 +373,7 @@ def _run(
         scores,
         accepted.astype(bool),
         distances,
+        log_dets,
         None
         if rows is None or steps is None
         else ekf.SmootherRecords.from_rows(np.repeat(np.arange(1, n), steps), rows),

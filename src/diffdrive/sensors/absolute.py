@@ -6,6 +6,9 @@ linearly), with Gaussian noise of ``sigma`` ``(x, y, theta)`` (m, m, rad); it ar
 ``latency`` s later (``arrival``: what a fusion filter sees late and out of order), is lost with
 probability ``dropout``, and is an ``outlier`` with probability ``outlier``: moved by a
 uniform direction and ``outlier_distance`` m (and a uniform heading). Outliers are labelled.
+A receiver that ``wander``s (m/sqrt(s)) adds an offset to the positions, a random walk from
+zero at the first measurement in each axis (``offsets``): multipath and the satellites moving,
+what ``estimate_trajectory(..., fixes="identified")`` takes as the fixes' offset.
 
 A position sensor (``position_only``) has no heading; ``geodetic`` turns its positions into
 latitude and longitude (deg) and height (m) about an origin, through the local east-north-up
@@ -38,6 +41,7 @@ class AbsoluteModel:
     outlier: float = 0.0
     outlier_distance: float = 1.0
     position_only: bool = False
+    wander: float = 0.0
 
     def __post_init__(self) -> None:
         if len(self.sigma) != 3 or not all(finite("sigma", s) >= 0.0 for s in self.sigma):
@@ -52,6 +56,8 @@ class AbsoluteModel:
                     f"{name} must be a probability in [0, 1), got {getattr(self, name)!r}"
                 )
         positive("outlier_distance", self.outlier_distance)
+        if not finite("wander", self.wander) >= 0.0:
+            raise ValueError(f"wander must be >= 0 m/sqrt(s), got {self.wander!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +65,8 @@ class AbsoluteReadings:
     """``poses`` ``(N, M, 3)`` measured at ``times`` ``(M,)`` (``theta`` NaN for a position
     sensor), arriving at ``arrival`` ``(M,)``; ``kept`` ``(N, M)`` those not lost;
     ``outliers`` ``(N, M)`` the labels; ``truth`` ``(B, M, 3)`` the true poses then; ``model``
-    its terms."""
+    its terms; ``offsets`` ``(N, M, 2)`` the wandering receiver's offsets (m; zero without
+    ``wander``)."""
 
     times: np.ndarray
     arrival: np.ndarray
@@ -68,6 +75,7 @@ class AbsoluteReadings:
     outliers: np.ndarray
     truth: np.ndarray
     model: AbsoluteModel
+    offsets: np.ndarray
 
     def geodetic(self, origin: tuple[float, float, float]) -> np.ndarray:
         """Latitude, longitude (deg) and height (m) of the positions ``(N, M, 3)``, about the
@@ -118,4 +126,9 @@ def absolute_readings(
     kept = np.ones((count, len(at)), dtype=bool)
     if model.dropout:
         kept = rng.random((count, len(at))) >= model.dropout
-    return AbsoluteReadings(at, at + model.latency, measured, kept, outliers, truth, model)
+    offsets = np.zeros((count, len(at), 2))
+    if model.wander:  # drawn last: the other terms' draws are the same with or without it
+        spans = np.sqrt(np.diff(at, prepend=at[0]))[None, :, None]
+        offsets = np.cumsum(model.wander * spans * rng.standard_normal(offsets.shape), axis=1)
+        measured[..., :2] += offsets
+    return AbsoluteReadings(at, at + model.latency, measured, kept, outliers, truth, model, offsets)
