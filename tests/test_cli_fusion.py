@@ -307,6 +307,39 @@ def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, cap
 
 
 @pytest.mark.slow
+def test_gps_fixes_without_a_covariance_are_identified_or_refused_by_name(
+    tmp_path, monkeypatch, capsys
+):
+    """Fixes that come without a covariance (a NavSatFix with none): identified from
+    themselves, and the command says so; too few to identify, or given, it names what to give
+    and writes nothing."""
+    pytest.importorskip("rosbags")
+    monkeypatch.chdir(tmp_path)
+    joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
+    assert (
+        main(["synth", "--gps", "48.1", "11.6", "520", "--seed", "4", "-o", "run.mcap", "-q"]) == 0
+    )
+    base = ["odometry", "run.mcap", *joints, "--gps-topic", "/fix", "--datum", "48.1", "11.6"]
+    assert main([*base, "520", "-o", "est.csv"]) == 0
+    printed = capsys.readouterr().out
+    assert (
+        "1001 of the 1001 fixes from /fix have no covariance: their noise is identified" in printed
+    )
+    assert "fixes identified" in printed
+    assert main([*base, "520", "--fixes", "given", "-o", "given.csv"]) == 1
+    assert "has no positive definite covariance: give --gps-sigma M" in capsys.readouterr().err
+    synth = ["synth", "--gps", "48.1", "11.6", "520", "--pose-period", "4", "--seed", "4"]
+    assert main([*synth, "-o", "few.mcap", "-q"]) == 0
+    few = ["odometry", "few.mcap", *joints, "--gps-topic", "/fix", "-o", "few.csv"]
+    assert main(few) == 1
+    assert "6 fixes are too few to identify their noise from (at least 10): give --gps-sigma" in (
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "few.csv").exists()
+    assert not (tmp_path / "given.csv").exists()
+
+
+@pytest.mark.slow
 def test_gps_in_the_datums_frame_and_the_consistency_of_frames_apart(tmp_path, monkeypatch, capsys):
     """The GPS estimate in east-north at --datum lies in the truth's frame (at the first fix it
     is that fix's error off); --consistency in frames apart is named, and --align scores it."""

@@ -79,7 +79,17 @@ def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:
             notes.append(f"{len(topic.times)} poses from {args.pose_topic}")
         if args.gps_topic:
             fixes = ros.read_navsatfix(args.input, args.gps_topic, args.datum)
-            rows = zip(fixes.times, fixes.positions, fixes.variance, strict=True)
+            known = np.isfinite(fixes.variance) & (fixes.variance > 0.0)
+            if args.fixes != "given" and args.gps_sigma is None and not known.all():
+                # Their noise is identified from them: the covariance is never read.
+                notes.append(
+                    f"{int(np.sum(~known))} of the {len(known)} fixes from {args.gps_topic} have "
+                    "no covariance: their noise is identified from the fixes themselves"
+                )
+                variance = np.where(known, fixes.variance, 1.0)
+            else:
+                variance = fixes.variance
+            rows = zip(fixes.times, fixes.positions, variance, strict=True)
             made += [
                 _made("position", t, p, np.eye(2) * v, args, args.gps_topic) for t, p, v in rows
             ]
@@ -181,6 +191,12 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     positions = sum(m.kind == "position" for m in inside)
     default = "identified" if args.gps_topic and positions >= LEAST_FIXES else "given"
     fixes = args.fixes or default
+    unknown = next((note for note in notes if "have no covariance" in note), None)
+    if fixes == "given" and unknown is not None:  # too few to identify from
+        raise TableError(
+            f"{unknown.split(':')[0]}, and {positions} fixes are too few to identify their noise "
+            f"from (at least {LEAST_FIXES}): give --gps-sigma M"
+        )
     options = {
         "wheel_noise": noise,
         "turn_scale_sigma": args.turn_scale_sigma or 0.0,

@@ -240,13 +240,12 @@ def _identified_fixes(
     empty = _packed([])
     still = np.zeros(len(increments), dtype=bool)
     dead = _run(reckoner, _Log(times, increments, turned, still, empty), False, None)
-    reported = float(np.sqrt(np.median([np.trace(m.covariance) / 2.0 for m in positions])))
+    # The fixes' own covariance is not quoted: it may be a placeholder (fixes without one).
     fit = identify_fixes(
         times,
         body_poses(dead.states, robot),
         [m.t for m in positions],
         [m.value for m in positions],
-        reported,
     )
     lines = list(fit.report)
     for name, value in fit.options.items():
