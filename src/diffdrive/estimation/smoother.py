@@ -42,17 +42,20 @@ __all__ = ["Estimate", "estimate_trajectory"]
 @dataclass(frozen=True, eq=False)
 class Estimate:
     """``estimate_trajectory``'s result at the wheel stamps ``times`` ``(N,)``: the body's
-    ``poses`` ``(N, 3)`` and ``covariances`` ``(N, 3, 3)``, the filter's ``states`` ``(N, 5)``
-    (``x, y, theta, bias, turn_scale`` of the reference point) and ``state_covariances``
-    ``(N, 5, 5)``; per row the ``slip`` flag and ``slip_score`` of the interval ending there;
-    the ``measurements`` in stamp order with ``accepted`` ``(M,)`` and ``scores`` ``(M,)`` (the
-    squared Mahalanobis distance in the forward pass); ``smoothed`` says which pass it is;
+    ``poses`` ``(N, 3)`` and ``covariances`` ``(N, 3, 3)``, the filter's ``states`` ``(N, 8)``
+    (``x, y, theta, bias, turn_scale, distance_scale, offset_x, offset_y`` of the reference
+    point: ``diffdrive.estimation.filter``) and ``state_covariances`` ``(N, 8, 8)``; per row the
+    ``slip`` flag and ``slip_score`` of the interval ending there; the ``measurements`` in stamp
+    order with ``accepted`` ``(M,)``, ``scores`` ``(M,)`` (the squared Mahalanobis distance in
+    the forward pass) and ``log_dets`` ``(M,)`` (the log determinant of each innovation's
+    covariance; see ``log_likelihood``); ``smoothed`` says which pass it is;
     ``twists`` ``(N, 3)`` ``[vx, vy, omega]`` and ``twist_covariances`` ``(N, 3, 3)``: the body
     twist over the interval ending at each row (row 0: the first interval's) and its
     covariance, from the wheels and the heading source with the estimated bias or turn scale
     (``diffdrive.estimation.twists``); with ``records``, the smoother's record of every step
     (``filter.SmootherRecords``), else None; ``settings``: what the gyro's noise and bias
-    were, and where from (given, or identified from the log's standing stretches)."""
+    were, and the fixes' with ``fixes="identified"``, and where from (given, or identified
+    from the log's standing stretches and from the fixes themselves)."""
 
     times: np.ndarray
     poses: np.ndarray
