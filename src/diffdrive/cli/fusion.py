@@ -63,10 +63,12 @@ def refuse_idle_datum(args) -> None:
     )
 
 
-def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:
-    """The measurements the options name, and a line about each source."""
+def measurements_of_args(args) -> tuple[list[Measurement], list[str], int]:
+    """The measurements the options name, a line about each source, and how many GPS fixes
+    came without a covariance (taken for their noise to be identified from them)."""
     made: list[Measurement] = []
     notes: list[str] = []
+    uncovered = 0
     if args.pose_topic or args.gps_topic:
         if args.input is None or not is_bag(args.input):
             raise TableError("--pose-topic and --gps-topic need a bag as the log")
@@ -82,8 +84,9 @@ def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:
             known = np.isfinite(fixes.variance) & (fixes.variance > 0.0)
             if args.fixes != "given" and args.gps_sigma is None and not known.all():
                 # Their noise is identified from them: the covariance is never read.
+                uncovered = int(np.sum(~known))
                 notes.append(
-                    f"{int(np.sum(~known))} of the {len(known)} fixes from {args.gps_topic} have "
+                    f"{uncovered} of the {len(known)} fixes from {args.gps_topic} have "
                     "no covariance: their noise is identified from the fixes themselves"
                 )
                 variance = np.where(known, fixes.variance, 1.0)
@@ -107,7 +110,7 @@ def measurements_of_args(args) -> tuple[list[Measurement], list[str]]:
     if args.measurements:
         made += _table_measurements(args)
         notes.append(f"measurements from {args.measurements}")
-    return made, notes
+    return made, notes, uncovered
 
 
 def _made(kind, t, value, covariance, args, where) -> Measurement:
@@ -168,7 +171,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     """The estimator over the log with the measurements, filtered or smoothed; the poses,
     covariance and the filter's own columns written. ``commanded``: the wheel velocities
     commanded over each interval ``(T-1, 2)`` rad/s, for the slip flags, or None."""
-    measurements, notes = measurements_of_args(args)
+    measurements, notes, uncovered = measurements_of_args(args)
     inside = [m for m in measurements if log.times[0] <= m.t <= log.times[-1]]
     if measurements and not inside:
         # Not one inside: the two clocks differ (Unix time against a log from 0, units), and
@@ -191,11 +194,11 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     positions = sum(m.kind == "position" for m in inside)
     default = "identified" if args.gps_topic and positions >= LEAST_FIXES else "given"
     fixes = args.fixes or default
-    unknown = next((note for note in notes if "have no covariance" in note), None)
-    if fixes == "given" and unknown is not None:  # too few to identify from
+    if fixes == "given" and uncovered:  # too few to identify their noise from
         raise TableError(
-            f"{unknown.split(':')[0]}, and {positions} fixes are too few to identify their noise "
-            f"from (at least {LEAST_FIXES}): give --gps-sigma M"
+            f"{uncovered} of the fixes from {args.gps_topic} have no covariance, and {positions} "
+            f"fixes are too few to identify their noise from (at least {LEAST_FIXES}): give "
+            "--gps-sigma M"
         )
     options = {
         "wheel_noise": noise,
