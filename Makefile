@@ -29,7 +29,8 @@ test: $(VENV)/.test               ## linter, type check, then the whole test sui
 	$(BIN)/ruff check
 	$(BIN)/ruff format --check
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -n auto --maxprocesses 4
+	# One BLAS thread a worker: the workers already fill the cores, and more threads fight.
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -n auto --maxprocesses 4
 
 bench: $(VENV)/.test              ## benchmarks/, with numba and the peer libraries
 	$(BIN)/python -m pip install --quiet -e '.[bench]'

@@ -1,21 +1,24 @@
-"""The OptiOdom recordings: a noise model identified on other experiments, and how honest the
-covariance it predicts is on runs it never saw.
+"""The OptiOdom recordings: a noise model identified on other experiments (or other
+sessions), and how honest the covariance it predicts is on runs it never saw.
 
-For each experiment of ``../shared/data/optiodom-diffdrive``: the geometry calibrated
-(least squares) and the noise model identified (``diffdrive.calibration.noise.identify``) on
-the other experiments of the same kind of path (and, in a second table, on all the other
-experiments); then, on this experiment's runs, the odometry with the calibrated geometry,
-the covariance the model predicts (``noise.covariances``) and its consistency against the
-motion capture (``evaluation.consistency``): the share of poses inside the 95 % ellipse and
-ANEES, pooled over the experiment's runs. A term the training runs cannot
-identify is left out (and named); ``--seconds`` thins the runs to one pose every so often.
+For each experiment of ``../shared/data/optiodom-diffdrive``: the geometry calibrated (least
+squares) on the other nine experiments pooled and the noise model identified on them
+(``diffdrive.calibration.noise.cross_validate``): each wheel's random walk, and the geometry
+as a random constant per experiment with its full 3x3 covariance, the motion capture held
+at its stated accuracy (``noise.MOTION_CAPTURE``) rather than fitted. Then, on this
+experiment's runs, the odometry with the calibrated geometry, the covariance the model
+predicts (``noise.covariances``) and its consistency against the motion capture
+(``evaluation.consistency``): the share of poses inside the 95 % ellipse and ANEES, pooled
+over the experiment's runs. An experiment passes when the model is not overconfident on it:
+coverage 0.80 or more with ANEES 3 or less. Pooled over every held-out pose, the share
+inside and ANEES say whether the model is right on average; and each held-out model is
+scored the same way on 30 references it draws itself on the experiment's runs
+(``noise.draw_reference``, one geometry a draw), which it should pass if its terms can make
+errors like these. Then the same held out by session (``io.optiodom_sessions``: every
+experiment of the held-out one's sitting left out of the training).
 
     python examples/noise_model.py [--data ../shared/data/optiodom-diffdrive]
         [--bags ../shared/data/ros-bags] [--figure FIGURE.png]
-
-Then the model's best chance: calibrated and identified on all ten experiments and scored on
-each (in-sample), and scored on 30 references it draws itself on each experiment's runs
-(``noise.draw_reference``), which it passes if its terms can make errors like these.
 
 Last, the TurtleBot3 bag against ``/odom`` (one run: what it can identify, in-sample), and
 the figure: its errors against time with their 2-sigma bands.
@@ -30,9 +33,14 @@ from pathlib import Path
 import numpy as np
 
 from diffdrive.calibration import noise
-from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
+from diffdrive.io.optiodom import optiodom_robot, optiodom_sessions, read_optiodom_run
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "optiodom-diffdrive"
+STATED = {
+    "reference_sigma": noise.MOTION_CAPTURE[0],
+    "reference_heading_sigma": noise.MOTION_CAPTURE[1],
+}
+DRAWS = 30
 
 
 def load(folder: Path) -> dict[str, tuple[str, list]]:
@@ -49,59 +57,55 @@ def load(folder: Path) -> dict[str, tuple[str, list]]:
     return experiments
 
 
-def held_out(experiments, same_kind: bool) -> dict[str, dict[str, object]]:
-    """Each experiment scored by ``noise.cross_validate`` over its kind's experiments (or all
-    of them)."""
-    pools: dict[str, dict[str, list]] = {}
-    for name, (kind, runs) in experiments.items():
-        pools.setdefault(kind if same_kind else "all", {})[name] = runs
-    scores = {}
-    for groups in pools.values():
-        scores.update(noise.cross_validate(optiodom_robot(), groups))
+def passes(found) -> bool:
+    """Not overconfident on one experiment: 95 % coverage of 0.80 or more, ANEES 3 or less."""
+    return found.inside_95 >= 0.80 and found.anees <= 3
+
+
+def held_out(experiments, by_session: bool, draws: int = DRAWS, seed: int = 0) -> dict:
+    """Each experiment scored by ``noise.cross_validate`` over all the others (or all the
+    other sessions'), and the share of ``draws`` references its model draws itself that it
+    passes."""
+    groups = {name: runs for name, (_, runs) in experiments.items()}
+    sessions = optiodom_sessions(groups) if by_session else None
+    scores = noise.cross_validate(optiodom_robot(), groups, sessions=sessions, fixed=STATED)
+    rng = np.random.default_rng(seed)
     table = {}
     for experiment, (kind, runs) in experiments.items():
-        score = scores[experiment]
-        model, found = score.model, score.consistency
+        held = scores[experiment]
         table[experiment] = {
             "kind": kind,
             "runs": len(runs),
-            "inside_95": found.inside_95,
-            "anees": found.anees,
-            "k": model.k,
-            "radius_sigma": model.radius_sigma,
-            "track_sigma": model.track_sigma,
-            "reference_sigma": model.reference_sigma,
-            "left_out": ", ".join(score.left_out) or "-",
+            "session": (sessions or optiodom_sessions(groups))[experiment],
+            "held": held,
+            "own": _own_draws(held, runs, draws, rng),
         }
     return table
 
 
-def passes(found) -> bool:
-    """The test of one experiment: 95 % coverage of 0.80 or more, and ANEES in [1/3, 3]."""
-    return found.inside_95 >= 0.80 and 1 / 3 <= found.anees <= 3
-
-
-def in_sample(experiments, draws: int = 30, seed: int = 0) -> dict[str, object]:
-    """The geometry calibrated and the model identified on every run, then each experiment
-    scored against its reference and against ``draws`` references the model itself draws on
-    its runs (``noise.draw_reference``): the model's best chance, and what it would pass if
-    the errors were its own."""
-    from diffdrive.calibration import calibrate
-
-    every = [run for _, runs in experiments.values() for run in runs]
-    robot = calibrate(optiodom_robot(), every, "least_squares").robot.equivalent
-    model, _ = noise.identify_what_it_can(robot, every)
-    rng = np.random.default_rng(seed)
-    real, own = {}, {}
-    for name, (_, runs) in experiments.items():
-        predicted = [noise.covariances(robot, i, truth[0], model) for i, truth in runs]
-        real[name] = _score(predicted, [truth for _, truth in runs])
-        drawn = [
-            [noise.draw_reference(robot, i, truth[0], model, rng) for i, truth in runs]
-            for _ in range(draws)
+def _own_draws(held, runs, draws, rng) -> float:
+    """The share of ``draws`` references, each one draw of the geometry for all ``runs``, on
+    which the held-out model passes."""
+    predicted = [noise.covariances(held.robot, i, truth[0], held.model) for i, truth in runs]
+    passed = 0
+    for _ in range(draws):
+        geometry = held.model.draw_geometry(rng)
+        references = [
+            noise.draw_reference(held.robot, i, t[0], held.model, rng, geometry=geometry)
+            for i, t in runs
         ]
-        own[name] = float(np.mean([passes(_score(predicted, refs)) for refs in drawn]))
-    return {"model": model, "real": real, "own": own}
+        passed += passes(_score(predicted, references))
+    return passed / draws
+
+
+def pooled(table) -> tuple[float, float, int]:
+    """The share inside the 95 % ellipse and ANEES over every held-out pose, and their
+    count."""
+    from scipy.stats import chi2
+
+    nees = np.concatenate([row["held"].consistency.nees for row in table.values()])
+    nees = nees[np.isfinite(nees)]
+    return float(np.mean(nees <= chi2.ppf(0.95, 3))), float(nees.mean() / 3), len(nees)
 
 
 def _score(predicted: list, references: list):
@@ -114,6 +118,34 @@ def _score(predicted: list, references: list):
         np.concatenate([covariance[1:] for _, covariance in predicted]),
         np.concatenate([reference[1:] for reference in references]),
     )
+
+
+def report(table, by_session: bool) -> None:
+    """The table of one way of holding out, and its counts."""
+    trained = "the other sessions" if by_session else "the nine other experiments"
+    print(f"\nheld out, trained on {trained}:\n")
+    print(
+        "| experiment | kind | session | runs | inside 95 % | ANEES | passes | k left, right (m) "
+        "| radius, track sigma | radii's correlation | passes on its own draws |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for experiment, row in table.items():
+        found, model = row["held"].consistency, row["held"].model
+        print(
+            f"| {experiment} | {row['kind']} | {row['session']} | {row['runs']} | "
+            f"{found.inside_95:.2f} | {found.anees:.2f} | {'yes' if passes(found) else 'no'} | "
+            f"{model.k_left:.2g}, {model.k_right:.2g} | {model.radius_sigma:.4f}, "
+            f"{model.track_sigma:.4f} | {model.correlation[0, 1]:.2f} | {row['own']:.0%} |"
+        )
+    good = sum(passes(row["held"].consistency) for row in table.values())
+    inside, anees, poses = pooled(table)
+    own = np.mean([row["own"] for row in table.values()])
+    way = "by session" if by_session else "by experiment"
+    print(f"\n{way}: coverage >= 0.80 with ANEES <= 3 on {good} of {len(table)} experiments")
+    print(
+        f"{way}, pooled over {poses} poses: {inside:.1%} inside the 95 % ellipse, ANEES {anees:.2f}"
+    )
+    print(f"{way}, on references the models draw themselves: {own:.0%} pass")
 
 
 def turtlebot3(bags: Path, figure: Path) -> str:
@@ -139,7 +171,8 @@ def turtlebot3(bags: Path, figure: Path) -> str:
     title = "TurtleBot3 against /odom, the model identified on it"
     plot_error_bands(run.times[1:], poses[1:], predicted[1:], truth[1:], figure, title)
     return (
-        f"TurtleBot3 against /odom: k {model.k:.2g} m, reference {model.reference_sigma:.2f} m "
+        f"TurtleBot3 against /odom: k {model.k_left:.2g} m left, {model.k_right:.2g} m right, "
+        f"reference {model.reference_sigma:.2f} m "
         f"and {model.reference_heading_sigma:.2f} rad ({', '.join(left_out)} left out); "
         f"{found.inside_95:.0%} inside the 95 % ellipse, ANEES {found.anees:.1f}"
     )
@@ -152,40 +185,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--figure", type=Path, default=Path("out/figures/noise_turtlebot3.png"))
     args = parser.parse_args(argv)
     experiments = load(args.data)
-    for same_kind in (True, False):
-        table = held_out(experiments, same_kind)
-        trained = "the other experiments of its kind" if same_kind else "all other experiments"
-        print(f"\nidentified on {trained}:\n")
-        print(
-            "| experiment | kind | runs | inside 95 % | ANEES | k, m | radius sigma | track "
-            "sigma | reference sigma, m | left out |"
-        )
-        print("|---|---|---|---|---|---|---|---|---|---|")
-        for experiment, row in table.items():
-            print(
-                f"| {experiment} | {row['kind']} | {row['runs']} | {row['inside_95']:.2f} | "
-                f"{row['anees']:.2f} | {row['k']:.2g} | {row['radius_sigma']:.4f} | "
-                f"{row['track_sigma']:.4f} | {row['reference_sigma']:.4f} | {row['left_out']} |"
-            )
-        good = sum(r["inside_95"] >= 0.80 and 1 / 3 <= r["anees"] <= 3 for r in table.values())
-        print(
-            f"\n95 % coverage >= 0.80 and ANEES in [1/3, 3] ({trained}): {good} of "
-            f"{len(table)} experiments"
-        )
-    found = in_sample(experiments)
-    real, own = found["real"], found["own"]
-    print("\nidentified on all ten (in-sample), and on references the model draws itself:\n")
-    print("| experiment | inside 95 % | ANEES | passes | passes on its own draws |")
-    print("|---|---|---|---|---|")
-    for name, score in real.items():
-        print(
-            f"| {name} | {score.inside_95:.2f} | {score.anees:.2f} | "
-            f"{'yes' if passes(score) else 'no'} | {own[name]:.0%} |"
-        )
-    print(
-        f"\nin-sample: {sum(map(passes, real.values()))} of {len(real)} experiments pass; on "
-        f"the model's own draws {np.mean(list(own.values())):.0%} of experiments do"
-    )
+    for by_session in (False, True):
+        report(held_out(experiments, by_session), by_session)
     print()
     print(turtlebot3(args.bags, args.figure))
     print(f"figure: {args.figure}")

@@ -2,6 +2,9 @@
 and checked against the structure its consumer expects, the figures against their stated
 derivation, and calibrate-then-export from logs."""
 
+import re
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -14,7 +17,7 @@ yaml = pytest.importorskip("yaml")
 
 NOMINAL = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
 CALIBRATED = dd.DiffDrive(left_wheel_radius=0.0502, right_wheel_radius=0.0499, track_width=0.305)
-MODEL = noise.NoiseModel(1e-4, 0.002, 0.005, 0.001, 0.01, np.zeros((5, 5)), 10, noise.TERMS)
+MODEL = noise.NoiseModel.symmetric(1e-4, 0.002, 0.005, 0.001, 0.01)
 
 
 # diff_drive_controller's documented parameters and their declared types
@@ -130,7 +133,7 @@ def test_the_figures_follow_their_stated_derivation():
     """With the wheel noise alone: the pose diagonal is Odometry's covariance after 1 m
     straight; the twist's that of the mean of a 10-update window of per-update velocities
     (k v rate / (2 window), 2 k v rate / (window T^2)); WPILib's the square roots."""
-    model = noise.NoiseModel(1e-4, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
+    model = noise.NoiseModel.symmetric(1e-4, 0.0, 0.0, 0.0, 0.0)
     at = export.Reference(distance=1.0, speed=0.5, rate=50.0)
     ros = export.parameters("ros2", NOMINAL, NOMINAL, model, at, wheel_names=WHEELS)
     odometry = dd.Odometry(NOMINAL, wheel_noise=1e-4)
@@ -156,7 +159,7 @@ def test_the_controllers_published_twist_has_the_variance_written():
     (each update's wheel travel over its period, the rolling mean of 10), with wheel noise of
     variance k |travel| per update: its variance is the file's twist diagonal."""
     k, v, rate, window = 1e-4, 0.5, 50.0, 10
-    model = noise.NoiseModel(k, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
+    model = noise.NoiseModel.symmetric(k, 0.0, 0.0, 0.0, 0.0)
     at = export.Reference(speed=v, rate=rate, window=window)
     written = export.parameters("ros2", NOMINAL, NOMINAL, model, at, wheel_names=WHEELS)
     rng = np.random.default_rng(5)
@@ -221,7 +224,7 @@ def test_amcl_alphas_give_the_models_covariance_through_nav2s_sampler():
     update's first heading, which no alpha can change; each is as the sampler predicts). The
     alphas written before were 2x too wide in heading and 0.25x too narrow along the path."""
     at = export.Reference()
-    model = noise.NoiseModel(1e-4, 0.002, 0.005, 0.0, 0.0, np.zeros((5, 5)), 10, noise.TERMS)
+    model = noise.NoiseModel.symmetric(1e-4, 0.002, 0.005, 0.0, 0.0)
     figures = export.parameters("amcl", NOMINAL, NOMINAL, model, at)
     alphas = [figures[f"alpha{i}"] for i in range(1, 5)]
     fit = export.amcl_fit(NOMINAL, model, at)
@@ -288,7 +291,7 @@ def test_a_noise_model_that_would_write_zero_or_wrong_covariances_is_refused(
     path = tmp_path / "params.yaml"
 
     def write():
-        model = noise.NoiseModel(*terms, 0.0, 0.0, np.zeros((5, 5)), 0, noise.TERMS[:3])
+        model = noise.NoiseModel.symmetric(*terms, 0.0, 0.0)
         export.export("ros2", NOMINAL, NOMINAL, model, path)
 
     with pytest.raises(ValueError, match=message):
@@ -353,9 +356,11 @@ def test_refusals_name_the_figures_that_fail():
     assert export.refusals(wide, MODEL) == []
     (reason,) = export.refusals(narrow, MODEL)
     assert "holds 55% of the runs' poses inside its 95 % ellipse (ANEES 4.2)" in reason
-    stuck = noise.NoiseModel(0.0, 0.002, 0.005, 0.001, 0.01, np.zeros((5, 5)), 10, noise.TERMS)
-    (reason,) = export.refusals(wide, stuck)
-    assert "wheel noise k came out at its bound, 0 m" in reason
+    stuck = replace(noise.NoiseModel.symmetric(0.0, 0.002, 0.005, 0.001, 0.01), terms=noise.TERMS)
+    left, right = export.refusals(wide, stuck)
+    assert "wheel noise k_left came out at its bound, 0 m" in left
+    assert "wheel noise k_right came out at its bound, 0 m" in right
+    assert export.refusals(wide, replace(stuck, k_left=1e-4)) == [right]
 
 
 @pytest.mark.slow
@@ -387,7 +392,7 @@ def test_the_optiodom_recipe_exports_what_its_runs_hold(tmp_path, monkeypatch, c
     assert deviations[2] > 0.01  # 0.066 degree before
     loose = ["--reference-sigma", "0.0136", "2.6"]
     assert main([*argv[:-1], "refused.json", *loose]) == 1
-    assert "k came out at its bound, 0 m" in capsys.readouterr().err
+    assert re.search("k_(left|right) came out at its bound, 0 m", capsys.readouterr().err)
     assert not (tmp_path / "refused.json").exists()
     assert main([*argv[:-1], "accepted.json", *loose, "--accept-inconsistent", "-q"]) == 0
     assert "written though its wheel noise k" in capsys.readouterr().err

@@ -362,7 +362,7 @@ def test_integers_fractions_numpy_scalars_and_lists_of_rows():
     planned = dd.control.plan([[0, 0], [1, 0], [1, 1]], ROBOT, limits)  # a list of rows
     follow = dd.control.follow(planned, dd.control.Ramsete(), robots=np.int64(2))
     assert follow.poses.shape[0] == 2
-    model = noise.NoiseModel(1e-4, 0.0, 0.0, 0.0, 0.0, np.zeros((5, 5)), 1, ("k",))
+    model = noise.NoiseModel.symmetric(1e-4, 0.0, 0.0, 0.0, 0.0)
     drawn = noise.draw_reference(ROBOT, increments, np.zeros(3), model, 5)  # an int seed
     again = noise.draw_reference(ROBOT, increments, np.zeros(3), model, 5)
     np.testing.assert_array_equal(drawn, again)

@@ -8,9 +8,12 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from diffdrive.calibration.noise import TERMS, NoiseModel, identify_what_it_can, score
+from diffdrive.calibration.noise import (
+    MOTION_CAPTURE,
+    NoiseModel,
+    identify_what_it_can,
+    score,
+)
 from diffdrive.cli.calibrate import _calibration_run
 from diffdrive.cli.options import (
     Command,
@@ -32,10 +35,6 @@ from diffdrive.export import (
 )
 from diffdrive.io import TableError, is_bag, read_drive, read_robot, robot_from_settings
 
-# The reference's own accuracy where the runs' ground truth is a table's (motion capture, as
-# OptiOdom's): 1 mm and 0.1 degree, well above a motion-capture room's sub-millimetre.
-MOTION_CAPTURE = (0.001, 0.1)
-
 
 def run_export(args: argparse.Namespace) -> int:
     _refuse_misplaced(args)
@@ -55,16 +54,7 @@ def run_export(args: argparse.Namespace) -> int:
     if args.runs:
         model, held, score = _identified(args, robot, ticks, notes, lines)
     else:
-        model = NoiseModel(
-            args.k,
-            args.radius_sigma or 0.0,
-            args.track_sigma or 0.0,
-            0.0,
-            0.0,
-            np.zeros((5, 5)),
-            0,
-            TERMS[:3],
-        )
+        model = NoiseModel.symmetric(args.k, args.radius_sigma or 0.0, args.track_sigma or 0.0)
         notes.append("noise model given by hand (--k, --radius-sigma, --track-sigma): not checked")
         held = []
     if held and not args.accept_inconsistent:
@@ -109,8 +99,9 @@ def run_export(args: argparse.Namespace) -> int:
         for line in lines:
             print(line)
         print(
-            f"noise model: k {model.k:.3g} m, radius sigma {model.radius_sigma:.4g}, track "
-            f"sigma {model.track_sigma:.4g}, reference {1000 * model.reference_sigma:.3g} mm "
+            f"noise model: k {model.k_left:.3g} m left, {model.k_right:.3g} m right, radius "
+            f"sigma {model.radius_sigma:.4g} (correlation {model.correlation[0, 1]:.2f}), "
+            f"track sigma {model.track_sigma:.4g}, reference {1000 * model.reference_sigma:.3g} mm "
             f"and {math.degrees(model.reference_heading_sigma):.3g} deg"
         )
         for name, value in figures.items():
@@ -209,7 +200,7 @@ def _identified(args, robot, ticks, notes: list[str], lines: list[str]):
     fixed = None
     stated = args.reference_sigma
     if stated is None and not any(is_bag(path) for path in args.runs):
-        stated = MOTION_CAPTURE
+        stated = (MOTION_CAPTURE[0], math.degrees(MOTION_CAPTURE[1]))  # --reference-sigma's
         source = "motion capture's (a table's ground truth), by default"
     else:
         source = "as stated (--reference-sigma)" if stated is not None else "identified"

@@ -187,7 +187,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     heading = args.heading or ("fused" if gyro is not None else "wheels")
     if heading != "wheels" and gyro is None:
         raise ValueError(f"--heading {heading} needs a gyro: --gyro-topic, or a gyro_z column")
-    noise, assumed = wheel_noise(args)
+    noise, assumed = wheel_noise(args, robot, log, increments)
     note += assumed
     # A receiver's fixes (--gps-topic) report its whole error: identified by default, given
     # enough of them; a covariance the user wrote (a table's sigmas) is taken as given.

@@ -61,7 +61,7 @@ def run_odometry(args: argparse.Namespace) -> int:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
-    noise, assumed = wheel_noise(args)
+    noise, assumed = wheel_noise(args, robot, log, increments)
     with_covariance = args.covariance or output_format(args) in ("mcap", "ros2")
     poses, covariances = odometry_of_run(
         robot,
@@ -104,13 +104,14 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     from diffdrive.estimation.gyro import gyro_odometry
 
     log, note = _within_gyro(log, gyro, note)
-    noise, assumed = wheel_noise(args)
+    increments = log.increments(ticks, args.counter_bits)
+    noise, assumed = wheel_noise(args, robot, log, increments)
     note += assumed
     options = {"wheel_noise": noise, "slip_test": args.slip_test or "episodes"}
     result = gyro_odometry(
         robot,
         log.times,
-        log.increments(ticks, args.counter_bits),
+        increments,
         gyro,
         args.heading or "fused",
         log.start_pose(),

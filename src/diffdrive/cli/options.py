@@ -309,15 +309,26 @@ def estimate_columns(args, covariances, twists, twist_covariances, covariance: b
     return columns
 
 
-def wheel_noise(args: argparse.Namespace) -> tuple[WheelNoise, str]:
-    """``--k-left`` and ``--k-right`` (m) as a ``WheelNoise``, each wheel the library's
-    default (``diffdrive.sensor_noise.DEFAULT``) when not given, and a report's line (with its
-    newline) on what was assumed, or nothing. Both 0 are refused for a bag: its
+def wheel_noise(
+    args: argparse.Namespace, robot: Robot | None = None, log=None, increments=None
+) -> tuple[WheelNoise, str]:
+    """``--k-left`` and ``--k-right`` (m) as a ``WheelNoise`` and a report's line (with its
+    newline) on what was assumed, or nothing. A wheel not given is identified from the log's
+    ground truth where it has one (``log.truth``; ``noise.identify`` of ``increments`` against
+    it, the reference held at motion capture's accuracy), else the library's default
+    (``diffdrive.sensor_noise.DEFAULT``). Both 0 are refused for a bag: its
     ``nav_msgs/Odometry`` would carry zero covariances, which a filter reads as exact
     (robot_localization floors them to 1e-9 and holds the robot to them)."""
     given = (args.k_left, args.k_right)
     k_left = DEFAULT_WHEEL_NOISE.left if args.k_left is None else args.k_left
     k_right = DEFAULT_WHEEL_NOISE.right if args.k_right is None else args.k_right
+    source = "a default where not given: --k-left, --k-right"
+    truth = None if log is None else log.truth
+    if None in given and truth is not None and robot is not None:
+        found, source = _identified_wheels(robot, increments, truth)
+        if found is not None:
+            k_left = found.k_left if args.k_left is None else k_left
+            k_right = found.k_right if args.k_right is None else k_right
     noise = WheelNoise(k_left, k_right)
     if k_left == 0.0 and k_right == 0.0 and output_format(args) in ("mcap", "ros2"):
         raise ValueError(
@@ -326,10 +337,36 @@ def wheel_noise(args: argparse.Namespace) -> tuple[WheelNoise, str]:
         )
     if all(k is not None for k in given):
         return noise, ""
-    return (
-        noise,
-        f"\nwheel noise: k = {k_left:g} m left, {k_right:g} m right (a default where not given: "
-        "--k-left, --k-right)",
+    if any(k is not None for k in given):
+        source = (
+            f"the {'left' if args.k_left is not None else 'right'} as given, the other {source}"
+        )
+    return noise, f"\nwheel noise: k = {k_left:.3g} m left, {k_right:.3g} m right ({source})"
+
+
+def _identified_wheels(robot: Robot, increments, truth):
+    """Each wheel's ``k`` identified on the log against its ground truth, and where it came
+    from; ``None`` and the reason where the log cannot identify them."""
+    from diffdrive.calibration import noise
+
+    metres, radians = noise.MOTION_CAPTURE
+    fixed = {"reference_sigma": metres, "reference_heading_sigma": radians}
+    try:
+        found = noise.identify(
+            robot.equivalent, [(increments, truth)], terms=noise.TERMS[:2], fixed=fixed
+        )
+    except ValueError as refused:
+        return None, f"the default: the ground truth could not identify them ({refused})"
+    if found.k_left == 0.0 or found.k_right == 0.0:
+        return None, (
+            "the default: identified on the ground truth, a wheel came out at 0 m (its errors "
+            "are not the wheels' random walk)"
+        )
+    errors = found.standard_errors()
+    return found, (
+        f"identified on the log's ground truth, +-{errors['k_left']:.2g} and "
+        f"+-{errors['k_right']:.2g} m, the reference held at motion capture's "
+        f"{1000 * metres:g} mm and {math.degrees(radians):g} deg; --k-left, --k-right to give them"
     )
 
 

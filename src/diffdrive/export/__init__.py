@@ -50,11 +50,12 @@ def refusals(found, model: NoiseModel) -> list[str]:
             f"its covariance holds {found.inside_95:.0%} of the runs' poses inside its 95 % "
             f"ellipse (ANEES {found.anees:.3g}), fewer than {MIN_INSIDE_95:.0%}"
         )
-    if "k" in model.terms and model.k == 0.0:
-        reasons.append(
-            "its wheel noise k came out at its bound, 0 m: the runs' errors went to the other "
-            "terms (a reference less accurate than stated, --reference-sigma?)"
-        )
+    for wheel in ("k_left", "k_right"):
+        if wheel in model.terms and getattr(model, wheel) == 0.0:
+            reasons.append(
+                f"its wheel noise {wheel} came out at its bound, 0 m: the runs' errors went to "
+                "the other terms (a reference less accurate than stated, --reference-sigma?)"
+            )
     return reasons
 
 

@@ -133,10 +133,10 @@ def parameters(
         return _ros2(robot, nominal, model, at, wheel_names)
     if target == "amcl":
         return _amcl(robot, model, at)
-    k, sigma, track = model.k, model.radius_sigma, robot.track_width
+    k, track = model.k, robot.track_width
     if target == "robot_localization":
         diagonal = list(_RL_DEFAULT)
-        diagonal[0] = diagonal[1] = k * at.speed / 2 + (at.speed * sigma) ** 2 / 2
+        diagonal[0] = diagonal[1] = k * at.speed / 2 + at.speed**2 * _speed_share(model)
         diagonal[5] = 2 * k * at.speed / track**2
         return {"process_noise_covariance": np.diag(diagonal).ravel().tolist()}
     straight = _motion_covariance(robot, model, _straight(robot, at.distance))
@@ -158,11 +158,13 @@ def _ros2(robot, nominal, model, at, wheel_names) -> dict[str, object]:
             "wheels' joint names"
         )
     straight = _motion_covariance(robot, model, _straight(robot, at.distance))
-    k, sigma, track, v = model.k, model.radius_sigma, robot.track_width, at.speed
+    k, track, v = model.k, robot.track_width, at.speed
     # The published velocity: the mean over the window of each update's travel over its
     # period, so the travel's noise averages over window updates; a radius error does not.
-    var_v = k * v * at.rate / (2 * at.window) + (v * sigma) ** 2 / 2
-    var_w = 2 * k * v * at.rate / (at.window * track**2) + 2 * (v * sigma / track) ** 2
+    var_v = k * v * at.rate / (2 * at.window) + v**2 * _speed_share(model)
+    geometry = model.geometry
+    turned = geometry[0, 0] + geometry[1, 1] - 2 * geometry[0, 1]
+    var_w = 2 * k * v * at.rate / (at.window * track**2) + (v / track) ** 2 * turned
     base = nominal.left_wheel_radius
     return {
         "left_wheel_names": [wheel_names[0]],
@@ -178,6 +180,13 @@ def _ros2(robot, nominal, model, at, wheel_names) -> dict[str, object]:
         ],
         "twist_covariance_diagonal": [var_v, KNOWN_ZERO, UNKNOWN, UNKNOWN, UNKNOWN, var_w],
     }  # fmt: skip
+
+
+def _speed_share(model: NoiseModel) -> float:
+    """The relative variance of a straight's speed from the radii's errors: a quarter of
+    their sum's (the radii move together where the model says they do)."""
+    geometry = model.geometry
+    return float(geometry[0, 0] + geometry[1, 1] + 2 * geometry[0, 1]) / 4
 
 
 def _amcl(robot, model, at) -> dict[str, object]:

@@ -22,7 +22,12 @@ the line and column when known; every writer leaves the target as it was when it
 from diffdrive.atomic import atomic_output, atomic_write
 from diffdrive.io.drives import read_drive, write_drive
 from diffdrive.io.logs import read_log
-from diffdrive.io.optiodom import OPTIODOM_TICKS_PER_REVOLUTION, optiodom_robot, read_optiodom_run
+from diffdrive.io.optiodom import (
+    OPTIODOM_TICKS_PER_REVOLUTION,
+    optiodom_robot,
+    optiodom_sessions,
+    read_optiodom_run,
+)
 from diffdrive.io.read import read_commands, read_run
 from diffdrive.io.robots import (
     ROBOT_KEYS,
@@ -53,6 +58,7 @@ __all__ = [
     "is_bag",
     "narrower_counter",
     "optiodom_robot",
+    "optiodom_sessions",
     "overridden",
     "read_commands",
     "read_drive",

@@ -7,6 +7,7 @@ were counted over ``(t[i-1], t[i]]`` and row 0 holds zeros. Note the order: righ
 
 from __future__ import annotations
 
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +19,12 @@ from diffdrive.model import DiffDrive
 __all__ = [
     "OPTIODOM_TICKS_PER_REVOLUTION",
     "optiodom_robot",
+    "optiodom_sessions",
     "read_optiodom_run",
 ]
+
+# Experiments started less than this apart (h) were recorded in one sitting.
+SESSION_GAP_HOURS = 12.0
 
 # 43.7:1 gearbox times 64 encoder counts per motor revolution.
 OPTIODOM_TICKS_PER_REVOLUTION = 43.7 * 64
@@ -34,6 +39,30 @@ def optiodom_robot(
         right_wheel_radius=right_diameter / 2,
         track_width=track_width,
     )
+
+
+def optiodom_sessions(experiments) -> dict[str, str]:
+    """Each experiment's session: its name is its start, ``ddmmyyyyHHMM``, and experiments
+    started less than ``SESSION_GAP_HOURS`` after the one before share a session (one sitting
+    across midnight is one), named by its first day, ``yyyy-mm-dd``. ``ValueError`` names an
+    experiment whose name is no such time."""
+    starts = {}
+    for name in experiments:
+        try:
+            starts[name] = datetime.strptime(str(name), "%d%m%Y%H%M")
+        except ValueError:
+            raise ValueError(
+                f"experiment {name!r}: an OptiOdom experiment is named by its start, "
+                "ddmmyyyyHHMM (e.g. 231220200029)"
+            ) from None
+    sessions: dict[str, str] = {}
+    ordered = sorted(starts, key=starts.__getitem__)
+    for before, name in zip([None, *ordered], ordered, strict=False):
+        gap = None if before is None else starts[name] - starts[before]
+        if gap is None or gap.total_seconds() > 3600 * SESSION_GAP_HOURS:
+            session = starts[name].strftime("%Y-%m-%d")
+        sessions[name] = session
+    return sessions
 
 
 def read_optiodom_run(path: str | Path, time_unit: str | None = None) -> Run:
