@@ -170,6 +170,7 @@ ALL_CALLS = {
     "compose": lambda a3, a2: batch.compose(a3, a3),
     "inverse": lambda a3, a2: batch.inverse(a3),
     "relative_to": lambda a3, a2: batch.relative_to(a3, a3),
+    "relative_jacobians": lambda a3, a2: batch.relative_jacobians(a3, a3[::-1])[0],
     "wrap_angle": lambda a3, a2: batch.wrap_angle(a3),
     "rotation_matrix": lambda a3, a2: batch.rotation_matrix(a3[..., 2]),
     "to_matrix": lambda a3, a2: batch.to_matrix(a3),

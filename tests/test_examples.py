@@ -263,3 +263,27 @@ def test_mppi_obstacles_goes_around_and_draws(tmp_path, capsys):
     assert recording.samples[0][1].shape == (48, 30, 2)
     readme = (ROOT / "README.md").read_text()
     assert printed.split("goal reached in ")[1].split(" x the")[0].split(", ")[1] in readme
+
+
+@pytest.mark.slow
+def test_calibration_from_driving_meets_the_husky_targets_the_readme_quotes(capsys):
+    """The Husky's wheels, GPS and gyro: the distance scale in 0.96-0.98, the gyro's clock
+    about 0.1 s with its standard error, the gyro-heading ATE with the calibrated wheels and
+    clock at most 2.62 m; each figure as the README quotes it."""
+    from data import data_folder
+
+    script = load("calibrate_from_driving")
+    script.main(["--bags", str(data_folder("ros-bags"))])
+    printed = capsys.readouterr().out
+    readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
+    scale = next(line for line in printed.splitlines() if line.startswith("distance scale"))
+    assert 0.96 <= float(scale.split()[2]) <= 0.98
+    clock = next(line for line in printed.splitlines() if line.startswith("gyro clock"))
+    value, error = float(clock.split()[5]), float(clock.split()[7])
+    assert 0.05 <= value <= 0.15
+    assert 0 < error < 0.05
+    ate = next(line for line in printed.splitlines() if line.startswith("gyro-heading ATE"))
+    figures = [float(part.split(" m")[0].split()[-1]) for part in ate.split(", ")]
+    assert figures[2] <= 2.62 < figures[0]
+    for quoted in (scale, clock, ate):
+        assert quoted in readme, quoted

@@ -150,6 +150,30 @@ def relative_to(poses: object, references: object) -> Any:
     return xp.stack([c * dx + s * dy, -s * dx + c * dy, p[..., 2] - r[..., 2]], axis=-1)
 
 
+def relative_jacobians(poses: object, references: object) -> tuple[Any, Any]:
+    """The derivatives ``(..., 3, 3)`` of ``relative_to(poses, references)`` with respect to
+    a small change of each reference and of each pose, both in the world frame's ``(x, y,
+    theta)``: how a sensor's noise at both ends enters the motion between its readings."""
+    xp = namespace(poses, references)
+    p, r = _poses(xp, poses), _poses(xp, references, "references")
+    leading_shape(poses=tuple(p.shape[:-1]), references=tuple(r.shape[:-1]))
+    c, s = xp.cos(r[..., 2]), xp.sin(r[..., 2])
+    dx, dy = p[..., 0] - r[..., 0], p[..., 1] - r[..., 1]
+    zero, one = xp.zeros_like(c), xp.ones_like(c)
+    at_pose = xp.stack(
+        [xp.stack([c, s, zero], axis=-1), xp.stack([-s, c, zero], axis=-1),
+         xp.stack([zero, zero, one], axis=-1)],
+        axis=-2,
+    )  # fmt: skip
+    at_reference = xp.stack(
+        [xp.stack([-c, -s, -s * dx + c * dy], axis=-1),
+         xp.stack([s, -c, -c * dx - s * dy], axis=-1),
+         xp.stack([zero, zero, -one], axis=-1)],
+        axis=-2,
+    )  # fmt: skip
+    return at_reference, at_pose
+
+
 def transform_points(poses: object, points: object) -> Any:
     """Body-frame points ``(..., 2)`` in m expressed in the world frame of ``poses``."""
     xp = namespace(poses, points)

@@ -5,6 +5,9 @@
 - ``cross_validation``: ``cross_validate``, held-out scores of a calibration;
 - ``online``: ``OnlineCalibrator``, recursive least squares while the robot drives;
 - ``gyro_track``: ``track_from_gyro``, the track width from a gyro, without a pose reference;
+- ``reference``: ``calibrate_to_reference``, the wheels, a sensor's mount and clock and a
+  gyro's terms from ordinary driving against a reference that is not ground truth (a
+  camera's poses, GPS positions);
 - ``noise``: the odometry's noise model fitted to runs against a reference (``identify``,
   ``covariances``), and the gyro's noise from its Allan deviation (``identify_gyro``, from
   ``estimation.standing``).
@@ -30,6 +33,7 @@ from diffdrive.calibration.offline import (
     run_names,
 )
 from diffdrive.calibration.online import OnlineCalibrator
+from diffdrive.calibration.reference import ReferenceCalibration, calibrate_to_reference
 
 __all__ = [
     "CALIBRATION_METHODS",
@@ -46,8 +50,10 @@ __all__ = [
     "LeastSquares",
     "MethodOptions",
     "OnlineCalibrator",
+    "ReferenceCalibration",
     "UMBmark",
     "calibrate",
+    "calibrate_to_reference",
     "checked_runs",
     "cross_validate",
     "noise",

@@ -89,20 +89,13 @@ def _run_terms(robot: DiffDrive, increments, truth, count: int, method: Method):
         jacobian[:, index] = ((batch.relative_to(shifted[b], shifted[a]) - moved) / _STEP).ravel()
     # The reference's noise at both ends of each window, through the relative motion,
     # linearised at the reference: (position, heading) parts.
+    at_a, at_b = batch.relative_jacobians(truth[b], truth[a])
     ends = np.zeros((2, 3 * windows, 3 * (windows + 1)))
     for w in range(windows):
-        theta = truth[a[w], 2]
-        c, s = np.cos(theta), np.sin(theta)
-        rotation = np.array([[c, s], [-s, c]])  # world to the window's frame
-        gap = truth[b[w], :2] - truth[a[w], :2]
-        turned = np.array([-s * gap[0] + c * gap[1], -c * gap[0] - s * gap[1]])
-        at_a, at_b = 3 * w, 3 * (w + 1)
-        rows = slice(3 * w, 3 * w + 2)
-        ends[0, rows, at_a : at_a + 2] = -rotation
-        ends[0, rows, at_b : at_b + 2] = rotation
-        ends[1, rows, at_a + 2] = turned
-        ends[1, 3 * w + 2, at_a + 2] = -1.0
-        ends[1, 3 * w + 2, at_b + 2] = 1.0
+        rows = slice(3 * w, 3 * w + 3)
+        for part, columns in ((0, slice(0, 2)), (1, slice(2, 3))):
+            ends[part, rows, 3 * w : 3 * w + 3][:, columns] = at_a[w][:, columns]
+            ends[part, rows, 3 * w + 3 : 3 * w + 6][:, columns] = at_b[w][:, columns]
     reference = [part @ part.T for part in ends]
     return error.ravel(), np.array([*wheels, *reference]), jacobian
 

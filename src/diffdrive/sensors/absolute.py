@@ -10,6 +10,11 @@ A receiver that ``wander``s (m/sqrt(s)) adds an offset to the positions, a rando
 zero at the first measurement in each axis (``offsets``): multipath and the satellites moving,
 what ``estimate_trajectory(..., fixes="identified")`` takes as the fixes' offset.
 
+The sensor sits at ``mount`` ``(x, y, yaw)`` (m, m, rad) on the robot: it measures its own
+pose, the robot's composed with the mount (a GPS antenna's position, a camera's pose). Its
+clock runs ``clock_offset`` s ahead of the wheels': a reading taken at ``t`` is stamped
+``t + clock_offset`` (``times``), what ``calibration.calibrate_to_reference`` estimates.
+
 A position sensor (``position_only``) has no heading; ``geodetic`` turns its positions into
 latitude and longitude (deg) and height (m) about an origin, through the local east-north-up
 frame (pymap3d, the ``ros`` extra): the world frame's x is east and y north.
@@ -22,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive import batch
 from diffdrive._validate import finite, geodetic_point, positive, rng_of
 from diffdrive.model import Robot
 from diffdrive.sensors.motion import motion_of
@@ -42,6 +48,8 @@ class AbsoluteModel:
     outlier_distance: float = 1.0
     position_only: bool = False
     wander: float = 0.0
+    mount: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    clock_offset: float = 0.0
 
     def __post_init__(self) -> None:
         if len(self.sigma) != 3 or not all(finite("sigma", s) >= 0.0 for s in self.sigma):
@@ -58,13 +66,19 @@ class AbsoluteModel:
         positive("outlier_distance", self.outlier_distance)
         if not finite("wander", self.wander) >= 0.0:
             raise ValueError(f"wander must be >= 0 m/sqrt(s), got {self.wander!r}")
+        if len(self.mount) != 3:
+            raise ValueError(f"mount must be (x, y, yaw) (m, m, rad), got {self.mount!r}")
+        for value in self.mount:
+            finite("mount", value)
+        finite("clock_offset", self.clock_offset)
 
 
 @dataclass(frozen=True, eq=False)
 class AbsoluteReadings:
-    """``poses`` ``(N, M, 3)`` measured at ``times`` ``(M,)`` (``theta`` NaN for a position
-    sensor), arriving at ``arrival`` ``(M,)``; ``kept`` ``(N, M)`` those not lost;
-    ``outliers`` ``(N, M)`` the labels; ``truth`` ``(B, M, 3)`` the true poses then; ``model``
+    """``poses`` ``(N, M, 3)`` measured, stamped ``times`` ``(M,)`` (the sensor's clock;
+    ``theta`` NaN for a position sensor), arriving at ``arrival`` ``(M,)`` (the wheels'
+    clock); ``kept`` ``(N, M)`` those not lost; ``outliers`` ``(N, M)`` the labels; ``truth``
+    ``(B, M, 3)`` the sensor's true poses then (the robot's composed with the mount); ``model``
     its terms; ``offsets`` ``(N, M, 2)`` the wandering receiver's offsets (m; zero without
     ``wander``)."""
 
@@ -110,6 +124,8 @@ def absolute_readings(
     truth = np.stack(
         [np.stack([np.interp(at, t, p[:, i]) for i in range(3)], axis=-1) for p in motion.poses]
     )
+    if any(model.mount):
+        truth = batch.compose(truth, np.asarray(model.mount, dtype=float))
     measured = truth + np.asarray(model.sigma) * rng.standard_normal((count, len(at), 3))
     outliers = (
         rng.random((count, len(at))) < model.outlier
@@ -131,4 +147,7 @@ def absolute_readings(
         spans = np.sqrt(np.diff(at, prepend=at[0]))[None, :, None]
         offsets = np.cumsum(model.wander * spans * rng.standard_normal(offsets.shape), axis=1)
         measured[..., :2] += offsets
-    return AbsoluteReadings(at, at + model.latency, measured, kept, outliers, truth, model, offsets)
+    stamps = at + model.clock_offset
+    return AbsoluteReadings(
+        stamps, at + model.latency, measured, kept, outliers, truth, model, offsets
+    )

@@ -1,0 +1,159 @@
+"""Calibration against a reference that is not ground truth, on synthetic drives of known
+parameters (``tests/reference_drive.py``): how often each parameter lands within its target
+and within two of its reported standard errors, against the Cramer-Rao bound, and what a
+calibration costs.
+
+Per seed: a 5-minute mixed drive (straights, arcs and turns in place both ways) at 100 Hz,
+wheels with a random walk of 1e-5 m, and either
+
+- a camera at 10 Hz with 2 cm and 1 degree of noise, mounted at (0.15, -0.05) m and 0.1 rad,
+  its clock 50 ms ahead; or
+- a GPS receiver at 2 Hz with 0.5 m of noise, its antenna at (-0.2, 0.1) m, its clock 0.3 s
+  ahead, and a gyro of 2e-3 rad/s/sqrt(Hz) with a 1 % scale error, a bias of 5e-3 rad/s and
+  its clock 20 ms ahead.
+
+``calibration.calibrate_to_reference`` starts from the nominal robot. The Cramer-Rao bound
+is the inverse of the information at the true parameters under the true noise: the least
+standard error an unbiased calibration of that drive can have (the model's, which leaves out
+the gyro heading's own random walk). Last, one 10-minute log at 100 Hz with each reference,
+timed (median of 3).
+
+    python benchmarks/bench_reference_calibration.py [--seeds 100]
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from diffdrive.calibration import reference
+from diffdrive.sensor_noise import GyroNoise
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import reference_drive as scenario  # the tests' scenario
+
+GEOMETRY = {
+    "left_radius": scenario.TRUE.left_wheel_radius,
+    "right_radius": scenario.TRUE.right_wheel_radius,
+    "track": scenario.TRUE.track_width,
+}
+CAMERA_TRUTH = {
+    **GEOMETRY,
+    "lever_x": scenario.MOUNT[0],
+    "lever_y": scenario.MOUNT[1],
+    "yaw": scenario.MOUNT[2],
+    "offset": scenario.CLOCK,
+}
+GPS_TRUTH = {
+    **GEOMETRY,
+    "lever_x": scenario.ANTENNA[0],
+    "lever_y": scenario.ANTENNA[1],
+    "offset": scenario.GPS_CLOCK,
+    "gyro_scale": scenario.GYRO["scale"],
+    "gyro_bias": scenario.GYRO["bias"],
+    "gyro_offset": scenario.GYRO["clock"],
+}
+# Each parameter's target, and how its error is shown: (target, scale to the unit, unit).
+CAMERA_TARGETS = {
+    "left_radius": (0.001, 100, "%"),
+    "right_radius": (0.001, 100, "%"),
+    "track": (0.0015, 100, "%"),
+    "lever_x": (0.005, 1000, "mm"),
+    "lever_y": (0.005, 1000, "mm"),
+    "yaw": (np.radians(0.2), 180 / np.pi, "deg"),
+    "offset": (0.002, 1000, "ms"),
+}
+GPS_TARGETS = {
+    "left_radius": (0.006, 100, "%"),
+    "right_radius": (0.006, 100, "%"),
+    "track": (0.006, 100, "%"),
+    "lever_x": (0.08, 1000, "mm"),
+    "lever_y": (0.08, 1000, "mm"),
+    "offset": (0.2, 1000, "ms"),
+    "gyro_scale": (np.nan, 100, "%"),
+    "gyro_bias": (np.nan, 1000, "mrad/s"),
+    "gyro_offset": (0.005, 1000, "ms"),
+}
+
+
+def _calibrate(robot, data, gps: bool, **options):
+    if gps:
+        times, increments, gyro, stamps, positions = data
+        return reference.calibrate_to_reference(
+            robot, times, increments, stamps, positions, sigma=scenario.GPS_SIGMA, gyro=gyro,
+            gyro_noise=GyroNoise(angle_random_walk=scenario.GYRO_ARW), wheel_noise=scenario.K,
+            **options,
+        )  # fmt: skip
+    times, increments, stamps, poses = data
+    return reference.calibrate_to_reference(
+        robot, times, increments, stamps, poses, sigma=scenario.CAMERA, wheel_noise=scenario.K,
+        **options,
+    )  # fmt: skip
+
+
+def one_seed(seed: int, gps: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The errors (relative for the geometry), the reported standard errors and the
+    Cramer-Rao bound, each ``(P,)`` over the scenario's parameters."""
+    truth = GPS_TRUTH if gps else CAMERA_TRUTH
+    data = scenario.gps_drive(seed) if gps else scenario.drive(seed)
+    found = _calibrate(scenario.NOMINAL, data, gps)
+    at_truth = {name: value for name, value in truth.items() if name not in GEOMETRY}
+    if gps:
+        at_truth["heading"] = found.value("heading")
+    bound = _calibrate(scenario.TRUE, data, gps, initial=at_truth, iterations=1)
+    names = list(truth)
+    size = np.array([truth[n] if n in GEOMETRY else 1.0 for n in names])
+    errors = np.array([found.value(n) - truth[n] for n in names]) / size
+    reported = np.array([found.standard_errors()[n] for n in names]) / size
+    spread = np.sqrt(np.diag(np.linalg.pinv(bound.information)))
+    crb = np.array([spread[bound.estimated.index(n)] for n in names]) / size
+    return errors, reported, crb
+
+
+def table(gps: bool, seeds: int) -> None:
+    targets = GPS_TARGETS if gps else CAMERA_TARGETS
+    results = [one_seed(seed, gps) for seed in range(seeds)]
+    errors = np.abs(np.array([e for e, _, _ in results]))
+    reported = np.array([r for _, r, _ in results])
+    crb = np.array([c for _, _, c in results])
+    print(f"\n{'GPS at 2 Hz and a gyro' if gps else 'camera at 10 Hz'}, {seeds} seeds:\n")
+    print("| parameter | target | within target | within 2 SE | median error | median SE | "
+          "Cramer-Rao bound |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
+    for index, (name, (target, scale, unit)) in enumerate(targets.items()):
+        within = f"{np.mean(errors[:, index] <= target):.0%}" if np.isfinite(target) else "-"
+        shown = f"{target * scale:.3g} {unit}" if np.isfinite(target) else "-"
+        honest = np.mean(errors[:, index] <= 2 * reported[:, index])
+        print(
+            f"| {name} | {shown} | {within} | {honest:.0%}"
+            f" | {np.median(errors[:, index]) * scale:.3g} {unit} | "
+            f"{np.median(reported[:, index]) * scale:.3g} {unit} | "
+            f"{np.median(crb[:, index]) * scale:.3g} {unit} |"
+        )
+    data = scenario.gps_drive(0, seconds=600.0) if gps else scenario.drive(0, seconds=600.0)
+    spent = []
+    for _ in range(3):
+        start = time.perf_counter()
+        _calibrate(scenario.NOMINAL, data, gps)
+        spent.append(time.perf_counter() - start)
+    print(f"\na 10-minute log at 100 Hz: {np.median(spent):.2f} s to calibrate (median of 3; "
+          "target 10 s)")  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=100)
+    args = parser.parse_args(argv)
+    print(f"machine: {platform.machine()}, Python {platform.python_version()}, NumPy "
+          f"{np.__version__}")  # fmt: skip
+    for gps in (False, True):
+        table(gps, args.seeds)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,342 @@
+"""Calibration against an absolute reference that is not ground truth: a camera's or a
+localiser's poses, or a GPS receiver's positions, each with its noise, its own stamps and its
+own rate, and a gyro where there is one.
+
+Estimated jointly (``PARAMETERS``, in ``UNITS``): the left and right wheel radii and the
+track; the sensor's mount on the robot (``lever_x``, ``lever_y``; ``yaw`` for poses) and its
+clock ``offset`` (a reading taken at ``t`` on the wheels' clock is stamped ``t + offset``);
+the gyro's ``gyro_scale`` and ``gyro_bias`` (it reads ``(1 + scale) omega + bias``, as
+``sensors.GyroModel``) and ``gyro_offset`` (its clock against the wheels', likewise); for
+positions, the ``heading`` of the reference's frame in the odometry's.
+
+Why a batch least squares over the motion between readings, and not the parameters as the
+estimator's states: the motion between two readings depends on the parameters and on the
+noise over that stretch alone, whatever the odometry got wrong before; a lever arm and a clock
+offset are not states the estimator's motion model has, and a filter would carry the same
+information through a linearisation at every step. Between readings ``k`` and ``k+1``:
+
+- poses: the sensor moved ``S_k^-1 S_k+1`` (its readings) where the wheels say it moved
+  ``E^-1 O_k E`` (``O_k`` the odometry's motion between the two instants, interpolated at the
+  stamps less the offset; ``E`` the mount);
+- positions: the antenna moved ``g_k+1 - g_k`` where the wheels' travel, turned by the gyro's
+  heading (the wheels' own without a gyro) and carrying the lever arm, says it moved;
+- with a gyro, the wheels' turn against the gyro's over the same stretches of the wheels'
+  clock: each sensor is timed against the wheels.
+
+Each stretch's residual is Gaussian with a covariance known in closed form: the wheels' noise
+over the stretch (``Odometry``'s, seen from the sensor), the gyro's angle random walk, and the
+reference's noise at both ends, which neighbouring stretches share, so it is block banded
+(the wheels' turn noise that a stretch's two comparisons share is left out: beside the
+reference's it is small). For positions the heading that turns the wheels' travel is
+integrated from the start, and its random walk is added: the covariance is then dense. The
+generalised least squares over it (Gauss-Newton, central-difference Jacobians) gives the
+parameters and their covariance, inflated by the residuals' chi-square per degree of freedom
+where the noise stated was too small. Without a gyro the positions' heading is the wheels'
+own, whose drift the covariance leaves out.
+
+What the drive made observable: the information matrix, scaled to unit diagonal, is
+examined. A direction it barely sees is a combination the log cannot tell apart (named, with
+its largest parts); a parameter whose standard error passes ``LIMITS`` is not determined.
+Either is refused by name, with the drive that would supply it, and nothing is reported. A log
+with too few readings, a reference that never moves, clocks that do not overlap: refused
+before any fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from diffdrive._validate import finite, whole
+from diffdrive.calibration.reference_model import PARAMETERS, RELATIVE, Log, antenna_positions, fit
+from diffdrive.estimation.imu import Gyro
+from diffdrive.integrate import Method
+from diffdrive.model import DiffDrive
+from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
+
+__all__ = [
+    "LIMITS",
+    "PARAMETERS",
+    "UNITS",
+    "ReferenceCalibration",
+    "calibrate_to_reference",
+]
+
+UNITS = ("m", "m", "m", "m", "m", "rad", "s", "", "rad/s", "s", "rad")
+# The standard error past which a parameter is not determined by the log (radii and track
+# relative to their value).
+LIMITS = {
+    "left_radius": 0.05,
+    "right_radius": 0.05,
+    "track": 0.05,
+    "lever_x": 0.5,
+    "lever_y": 0.5,
+    "yaw": 0.2,
+    "offset": 0.2,
+    "gyro_scale": 0.05,
+    "gyro_bias": 0.01,
+    "gyro_offset": 0.2,
+    "heading": 0.5,
+}
+# What drive shows each parameter.
+DRIVES = {
+    "left_radius": "drive some distance and turn (one wheel apart from the other)",
+    "right_radius": "drive some distance and turn (one wheel apart from the other)",
+    "track": "turn",
+    "lever_x": "turn, in place or on arcs",
+    "lever_y": "turn, in place or on arcs",
+    "yaw": "drive straight as well as turn",
+    "offset": "change speed and turn rate",
+    "gyro_scale": "turn a good deal, both ways",
+    "gyro_bias": "drive for longer, or stand still",
+    "gyro_offset": "change the turn rate",
+    "heading": "drive some distance",
+}
+LEAST_READINGS = 20
+# s kept off each end of the wheels' span (and of the gyro's): room for a clock offset.
+CLOCK_MARGIN = 1.0
+_FLAT = 1e-9  # a direction of the scaled information below this is not seen at all
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceCalibration:
+    """``calibrate_to_reference``'s result: the calibrated ``robot``, the ``estimated``
+    parameter names, all ``values`` ``(11,)`` over ``PARAMETERS`` (those not estimated at
+    what was given), the ``covariance`` ``(E, E)`` of the estimated ones (inflated where
+    ``chi2`` > 1) and the ``information`` ``(E, E)`` under the noise stated, ``chi2`` (the
+    residuals' chi-square per degree of freedom under that noise), the ``readings`` used and
+    the ``report``'s lines."""
+
+    robot: DiffDrive
+    estimated: tuple[str, ...]
+    values: np.ndarray
+    covariance: np.ndarray
+    information: np.ndarray
+    chi2: float
+    readings: int
+    report: tuple[str, ...]
+
+    def value(self, name: str) -> float:
+        """One parameter's value, in its unit (``UNITS``)."""
+        return float(self.values[PARAMETERS.index(name)])
+
+    def standard_errors(self) -> dict[str, float]:
+        """Each estimated parameter's standard error, in its unit."""
+        spread = np.sqrt(np.diag(self.covariance))
+        return {name: float(error) for name, error in zip(self.estimated, spread, strict=True)}
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """The estimated parameters' correlation matrix ``(E, E)``."""
+        spread = np.sqrt(np.diag(self.covariance))
+        return self.covariance / np.outer(spread, spread)
+
+
+def _checked(times, increments, stamps, reference, sigma, gyro) -> tuple:
+    """The arrays as floats, the wheels within the gyro's span and the readings within the
+    wheels', ``CLOCK_MARGIN`` off each end; ``ValueError`` for what no fit can use."""
+    times = np.asarray(times, dtype=float)
+    increments = np.asarray(increments, dtype=float)
+    stamps = np.asarray(stamps, dtype=float)
+    readings = np.asarray(reference, dtype=float)
+    if increments.ndim != 2 or increments.shape[1] != 2 or len(times) != len(increments) + 1:
+        raise ValueError(
+            f"increments must be (T, 2) rad with times (T+1,) s, got {increments.shape} and "
+            f"{times.shape}"
+        )
+    if gyro is not None:
+        kept = (times >= gyro.times[0] + CLOCK_MARGIN) & (times <= gyro.times[-1] - CLOCK_MARGIN)
+        if np.count_nonzero(kept) < 2:
+            raise ValueError(
+                f"the clocks do not overlap: the gyro's stamps span [{gyro.times[0]:g}, "
+                f"{gyro.times[-1]:g}] s and the wheels' [{times[0]:g}, {times[-1]:g}] s; are "
+                "they on the same clock, in the same unit?"
+            )
+        first, last = np.flatnonzero(kept)[[0, -1]]
+        times, increments = times[first : last + 1], increments[first:last]
+    if readings.ndim == 2 and readings.shape[1] == 3 and np.all(np.isnan(readings[:, 2])):
+        readings = readings[:, :2]  # a position sensor's, headings NaN
+    if readings.ndim != 2 or readings.shape[1] not in (2, 3) or len(stamps) != len(readings):
+        raise ValueError(
+            "the reference must be (K, 3) poses or (K, 2) positions with stamps (K,), got "
+            f"{readings.shape} and {stamps.shape}"
+        )
+    for name, values in (("times", times), ("stamps", stamps)):
+        if not np.all(np.isfinite(values)) or np.any(np.diff(values) <= 0):
+            raise ValueError(f"{name} must be finite and increasing")
+    if not np.all(np.isfinite(increments)) or not np.all(np.isfinite(readings)):
+        raise ValueError("the increments and the reference's readings must be finite")
+    if not np.any((stamps >= times[0]) & (stamps <= times[-1])):
+        raise ValueError(
+            f"the clocks do not overlap: the reference's stamps span [{stamps[0]:g}, "
+            f"{stamps[-1]:g}] s and the wheels' [{times[0]:g}, {times[-1]:g}] s; are they on "
+            "the same clock, in the same unit?"
+        )
+    inside = (stamps >= times[0] + CLOCK_MARGIN) & (stamps <= times[-1] - CLOCK_MARGIN)
+    if np.count_nonzero(inside) < LEAST_READINGS:
+        raise ValueError(
+            f"too short a log: {np.count_nonzero(inside)} reference readings inside the wheels' "
+            f"span ({CLOCK_MARGIN:g} s off its ends, room for the clocks' offsets), at least "
+            f"{LEAST_READINGS} needed: record a longer drive"
+        )
+    stamps, readings = stamps[inside], readings[inside]
+    if readings.shape[1] == 3:
+        readings = np.column_stack([readings[:, :2], np.unwrap(readings[:, 2])])
+    sigma = np.atleast_1d(np.asarray(sigma, dtype=float))
+    wanted = 3 if readings.shape[1] == 3 else 1
+    if sigma.shape != (wanted,) or not np.all(np.isfinite(sigma)) or not np.all(sigma > 0):
+        what = "(x m, y m, theta rad)" if wanted == 3 else "one position noise (m)"
+        raise ValueError(f"sigma must be {what}, each > 0, got {sigma!r}")
+    sigma = sigma if wanted == 3 else np.array([sigma[0], sigma[0], 0.0])
+    spread = float(np.hypot(np.ptp(readings[:, 0]), np.ptp(readings[:, 1])))
+    if spread < 10 * sigma[0]:
+        raise ValueError(
+            f"the reference hardly moves: its readings span {spread:.3g} m, against their noise "
+            f"of {sigma[0]:.3g} m; drive some distance"
+        )
+    return times, increments, stamps, readings, sigma, spread
+
+
+def _parameters(poses: bool, gyro: bool) -> tuple[str, ...]:
+    """What a reference of this kind, with or without a gyro, can calibrate."""
+    names = ["left_radius", "right_radius", "track", "lever_x", "lever_y"]
+    names += ["yaw", "offset"] if poses else ["offset"]
+    if gyro:
+        names += ["gyro_scale", "gyro_bias", "gyro_offset"]
+    if not poses:
+        names.append("heading")
+    return tuple(names)
+
+
+def calibrate_to_reference(
+    robot: DiffDrive,
+    times: object,
+    increments: object,
+    stamps: object,
+    reference: object,
+    *,
+    sigma: object,
+    gyro: Gyro | None = None,
+    gyro_noise: GyroNoise | None = None,
+    wheel_noise: object = DEFAULT,
+    estimate: tuple[str, ...] | None = None,
+    initial: dict[str, float] | None = None,
+    method: Method = "exact",
+    iterations: int = 30,
+) -> ReferenceCalibration:
+    """``robot`` calibrated against a reference: wheel-angle ``increments`` ``(T, 2)`` rad over
+    ``times`` ``(T+1,)`` s; the reference's readings stamped ``stamps`` ``(K,)`` s on its own
+    clock, poses ``(K, 3)`` (its sensor's ``x, y, theta``) with noise ``sigma`` (m, m, rad),
+    or positions ``(K, 2)`` (or headings NaN) with noise ``sigma`` (m); a ``gyro`` (on its own
+    clock) with ``gyro_noise``'s angle random walk. ``estimate`` names the parameters fitted
+    (default: all the reference can show, see the module); the others stay at ``initial``
+    (the robot's geometry, 0 elsewhere). ``ValueError`` for a log no fit can use, and for a
+    parameter the drive did not determine, naming it and the drive that would."""
+    wheel_times, wheel_increments, reading_stamps, readings, noise, spread = _checked(
+        times, increments, stamps, reference, sigma, gyro
+    )
+    poses = readings.shape[1] == 3
+    allowed = _parameters(poses, gyro is not None)
+    estimate = allowed if estimate is None else tuple(estimate)
+    refused = [name for name in estimate if name not in allowed]
+    if refused or not estimate:
+        raise ValueError(
+            f"estimate must name some of {', '.join(allowed)} for this reference"
+            f"{' and gyro' if gyro is not None else ''}, got {estimate!r}"
+        )
+    if gyro is not None and gyro_noise is None:
+        raise ValueError("a gyro needs its noise: gyro_noise=GyroNoise(angle_random_walk=...)")
+    log = Log(
+        robot,
+        wheel_times,
+        wheel_increments,
+        reading_stamps,
+        readings,
+        noise,
+        WheelNoise.coerce(wheel_noise),
+        gyro,
+        0.0 if gyro_noise is None else gyro_noise.angle_random_walk,
+        method,
+    )
+    values = np.zeros(len(PARAMETERS))
+    values[:3] = robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width
+    for name, value in (initial or {}).items():
+        if name not in PARAMETERS:
+            raise ValueError(f"initial names {name!r}, not one of {', '.join(PARAMETERS)}")
+        values[PARAMETERS.index(name)] = finite(f"initial {name}", value)
+    if not poses and "heading" not in (initial or {}):
+        values[PARAMETERS.index("heading")] = _heading_of(log, values)
+    fitted = np.array([name in estimate for name in PARAMETERS])
+    covariance, information, values, chi2 = fit(
+        log, values, fitted, whole("iterations", iterations, 1)
+    )
+    for name in ("offset", "gyro_offset"):
+        if abs(values[PARAMETERS.index(name)]) > CLOCK_MARGIN:
+            raise ValueError(
+                f"{name} came out at {values[PARAMETERS.index(name)]:.3g} s, past the "
+                f"{CLOCK_MARGIN:g} s the log's ends leave for it: are the clocks that far apart? "
+                "Give initial={...} near it"
+            )
+    names = tuple(name for name in PARAMETERS if name in estimate)
+    moved = f"the reference's readings span {spread:.3g} m"
+    if poses:
+        moved += f" and turn through {np.ptp(readings[:, 2]):.3g} rad"
+    report = _refuse_the_undetermined(names, values, covariance, information, moved)
+    return ReferenceCalibration(
+        robot.with_geometry(*values[:3]),
+        names,
+        values,
+        covariance,
+        information,
+        chi2,
+        len(reading_stamps),
+        report,
+    )
+
+
+def _heading_of(log: Log, values: np.ndarray) -> float:
+    """The reference frame's heading in the odometry's that best lays the predicted antenna
+    path onto the readings (a rotation by complex least squares)."""
+    antenna = antenna_positions(log, values)
+    predicted = antenna[:, 0] + 1j * antenna[:, 1]
+    seen = log.readings[:, 0] + 1j * log.readings[:, 1]
+    predicted, seen = predicted - predicted.mean(), seen - seen.mean()
+    return float(np.angle(np.sum(np.conj(predicted) * seen)))
+
+
+def _refuse_the_undetermined(names, values, covariance, information, moved) -> tuple[str, ...]:
+    """``ValueError`` naming a combination the drive did not show, or a parameter whose
+    standard error passes its limit; else the report's lines."""
+    scale = np.sqrt(np.maximum(np.diag(information), 1e-300))
+    eigenvalues, vectors = np.linalg.eigh(information / np.outer(scale, scale))
+    weights = vectors[:, 0]  # the combination the log sees least
+    parts = [names[i] for i in np.argsort(-np.abs(weights)) if abs(weights[i]) > 0.3]
+    drives = "; ".join(f"{DRIVES[name]} ({name})" for name in parts)
+    if eigenvalues[0] < _FLAT * max(1.0, eigenvalues[-1]):
+        raise ValueError(
+            f"this log cannot tell {' from '.join(parts)} apart ({moved}): they move its "
+            f"readings alike. To determine them: {drives}; or leave them out of estimate"
+        )
+    errors = np.sqrt(np.diag(covariance))
+    lines, undetermined = [], []
+    for name, error in zip(names, errors, strict=True):
+        index = PARAMETERS.index(name)
+        value, unit = values[index], UNITS[index]
+        relative = name in RELATIVE
+        size = error / value if relative else error
+        if size > LIMITS[name]:
+            shown = "of its value" if relative else unit
+            undetermined.append(f"{name} (standard error {size:.3g} {shown}): {DRIVES[name]}")
+        elif relative:
+            lines.append(f"{name} {value:.6g} m, known to {100 * size:.2g} %")
+        else:
+            shown = f" {unit}" if unit else ""
+            lines.append(f"{name} {value:.4g}{shown} +- {error:.2g}{shown}")
+    if undetermined:
+        raise ValueError(
+            f"this log does not determine {'; '.join(undetermined)} ({moved}). The "
+            f"combination it sees least is of {', '.join(parts)}: to determine it, {drives}; "
+            "or leave them out of estimate"
+        )
+    return tuple(lines)

@@ -1,0 +1,328 @@
+"""The model behind ``calibration.reference``: what the wheels, the reference and the gyro
+say each stretch between two readings should show, the residuals' covariance (block banded
+for poses; dense, with the gyro heading's random walk, for positions) and the Gauss-Newton
+fit of the generalised least squares. See ``calibration.reference`` for the why."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from diffdrive import batch
+from diffdrive.estimation.imu import Gyro
+from diffdrive.estimation.odometry import Odometry
+from diffdrive.integrate import Method
+from diffdrive.model import DiffDrive
+from diffdrive.sensor_noise import WheelNoise
+from diffdrive.simulation import dead_reckon
+from diffdrive.types import Pose
+
+PARAMETERS = (
+    "left_radius",
+    "right_radius",
+    "track",
+    "lever_x",
+    "lever_y",
+    "yaw",
+    "offset",
+    "gyro_scale",
+    "gyro_bias",
+    "gyro_offset",
+    "heading",
+)
+RELATIVE = ("left_radius", "right_radius", "track")  # fitted relative to their value
+_STEPS = np.array([1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-6, 1e-5, 1e-6, 1e-7, 1e-5, 1e-6])
+_LEFT, _RIGHT, _TRACK, _LX, _LY, _YAW, _OFFSET, _SCALE, _BIAS, _GYRO_OFFSET, _HEADING = range(11)
+
+
+@dataclass(frozen=True)
+class Log:
+    """What a calibration reads: the wheels, the reference, the gyro, the noise."""
+
+    robot: DiffDrive
+    times: np.ndarray
+    increments: np.ndarray
+    stamps: np.ndarray
+    readings: np.ndarray  # (K, 3) poses or (K, 2) positions
+    sigma: np.ndarray  # (3,) (x, y, theta): a position's theta 0
+    wheels: WheelNoise
+    gyro: Gyro | None
+    gyro_noise: float  # angle random walk, rad/sqrt(s)
+    method: Method
+
+    @property
+    def poses(self) -> bool:
+        return self.readings.shape[1] == 3
+
+
+def _drive(log: Log, values: np.ndarray) -> DiffDrive:
+    return log.robot.with_geometry(*values[:3])
+
+
+def _gyro_turn(log: Log, values: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """The turn (rad) the gyro says the robot made from each ``start`` to ``end`` (the
+    wheels' clock)."""
+    assert log.gyro is not None
+    shift = values[_GYRO_OFFSET]
+    turned = log.gyro.angles(end + shift) - log.gyro.angles(start + shift)
+    return (turned - values[_BIAS] * (end - start)) / (1.0 + values[_SCALE])
+
+
+def _interpolated(times: np.ndarray, poses: np.ndarray, at: np.ndarray) -> np.ndarray:
+    return np.stack([np.interp(at, times, poses[:, i]) for i in range(poses.shape[1])], axis=-1)
+
+
+def _sensor_poses(log: Log, values: np.ndarray) -> np.ndarray:
+    """The sensor's poses ``(K, 3)`` at its readings as the wheels tell them, in the frame
+    of the wheels' start."""
+    odometry = _interpolated(log.times, _wheel_poses(log, values), log.stamps - values[_OFFSET])
+    return batch.compose(odometry, np.broadcast_to(values[_LX : _YAW + 1], odometry.shape))
+
+
+def _wheel_poses(log: Log, values: np.ndarray) -> np.ndarray:
+    """The wheels' dead reckoning ``(T+1, 3)`` from the origin."""
+    return dead_reckon(_drive(log, values), log.increments, np.zeros(3), log.method)
+
+
+def antenna_positions(log: Log, values: np.ndarray) -> np.ndarray:
+    """The antenna's positions ``(K, 2)`` at its readings in the reference's frame, up to a
+    shift: the wheels' travel along the gyro's heading (the wheels' own without a gyro), the
+    lever arm turned with it."""
+    drive = _drive(log, values)
+    if log.gyro is None:
+        wheel_poses = _wheel_poses(log, values)
+        heading = wheel_poses[:, 2]
+    else:
+        heading = _gyro_turn(log, values, np.full(len(log.times), log.times[0]), log.times)
+    heading = heading + values[_HEADING]
+    arcs = log.increments * np.array([drive.left_wheel_radius, drive.right_wheel_radius])
+    travel = arcs.mean(axis=1)
+    middle = 0.5 * (heading[1:] + heading[:-1])
+    steps = travel[:, None] * np.column_stack([np.cos(middle), np.sin(middle)])
+    path = np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
+    c, s = np.cos(heading), np.sin(heading)
+    lever = values[_LX : _LY + 1]
+    antenna = path + np.column_stack([c * lever[0] - s * lever[1], s * lever[0] + c * lever[1]])
+    return _interpolated(log.times, antenna, log.stamps - values[_OFFSET])
+
+
+def _residuals(log: Log, values: np.ndarray, shrink: float) -> np.ndarray:
+    """Each stretch's residual ``(K-1, m)``, measured less predicted."""
+    parts = []
+    if log.poses:
+        sensor = _sensor_poses(log, values)
+        predicted = batch.relative_to(sensor[1:], sensor[:-1])
+        # A reading's heading noise turns the displacement it measures: on average it is
+        # the true one times E[cos n] = exp(-sigma^2 / 2).
+        predicted[:, :2] *= shrink
+        measured = batch.relative_to(log.readings[1:], log.readings[:-1])
+        error = measured - predicted
+        error[:, 2] = batch.wrap_angle(error[:, 2])
+        parts.append(error)
+    else:
+        antenna = antenna_positions(log, values)
+        parts.append(np.diff(log.readings, axis=0) - np.diff(antenna, axis=0))
+    if log.gyro is not None:
+        # The wheels' turn against the gyro's, each timed against the wheels, over stretches
+        # of the wheels' own clock (the readings' stamps as they are): windows that moved with
+        # the reference's offset would make the fit depend on which noise fell inside them,
+        # and the reference's own turn would tie its noise to the gyro's comparison.
+        wheels = np.diff(np.interp(log.stamps, log.times, _wheel_poses(log, values)[:, 2]))
+        turned = _gyro_turn(log, values, log.stamps[:-1], log.stamps[1:])
+        parts.append((wheels - turned)[:, None])
+    return np.concatenate(parts, axis=1)
+
+
+def _adjoint_inverse(mount: np.ndarray) -> np.ndarray:
+    """How a small motion of the robot's frame shows in the sensor's: Ad(E^-1) ``(3, 3)``."""
+    x, y, yaw = batch.inverse(mount)
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, y], [s, c, -x], [0.0, 0.0, 1.0]])
+
+
+def _blocks(log: Log, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The residuals' covariance as its diagonal blocks ``(K-1, m, m)`` and the blocks just
+    below them ``(K-2, m, m)``: each stretch's wheel and gyro noise, and the reference's
+    noise at both of its ends."""
+    drive = _drive(log, values)
+    at = log.stamps - values[_OFFSET]
+    cut = np.clip(np.searchsorted(log.times, at), 0, len(log.times) - 1)
+    count = len(at) - 1
+    wheel = np.zeros((count, 3, 3))  # each stretch's odometry covariance, its start's frame
+    for k in range(count):
+        odometry = Odometry(drive, log.method, Pose(), wheel_noise=log.wheels)
+        rows = log.increments[cut[k] : cut[k + 1]]
+        if len(rows):
+            odometry.update_arrays("increments", rows[:, 0], rows[:, 1])
+        wheel[k] = odometry.covariance
+    gyro = log.gyro_noise**2 * np.diff(at) / (1.0 + values[_SCALE]) ** 2
+    noise = np.diag(np.square(log.sigma))
+    if log.poses:
+        # The Jacobians at the motion the wheels predict, not at the noisy readings: weights
+        # that moved with the noise would bias the fit. (Noise as round in x as in y does not
+        # mind the frame.)
+        sensor = _sensor_poses(log, values)
+        at_start, at_end = batch.relative_jacobians(sensor[1:], sensor[:-1])
+        adjoint = _adjoint_inverse(values[_LX : _YAW + 1])
+        own = adjoint @ wheel @ adjoint.T
+        # The start's heading noise turns the ends' position noise: a product of noises,
+        # small beside either, but the first-order noise of a long stretch of residuals
+        # telescopes away along the path (the readings' distance is known to its ends'),
+        # and this does not: it bounds what the path's length can tell.
+        own[:, 0, 0] += 2.0 * (log.sigma[2] * log.sigma[1]) ** 2
+        own[:, 1, 1] += 2.0 * (log.sigma[2] * log.sigma[0]) ** 2
+        if log.gyro is not None:  # the wheels' turn against the gyro's: no reference noise
+            quiet = np.zeros((count, 1, 3))
+            at_start = np.concatenate([at_start, quiet], axis=1)
+            at_end = np.concatenate([at_end, quiet], axis=1)
+            own = _padded(own, wheel[:, 2, 2] + gyro)
+    else:
+        size = 2 if log.gyro is None else 3
+        at_start = np.zeros((count, size, 3))
+        at_start[:, 0, 0] = at_start[:, 1, 1] = -1.0
+        at_end = -at_start
+        # The wheels' travel noise along the path, as round: a small share beside the fixes'.
+        own = np.zeros((count, size, size))
+        own[:, 0, 0] = own[:, 1, 1] = 0.5 * (wheel[:, 0, 0] + wheel[:, 1, 1])
+        if log.gyro is not None:
+            own[:, 2, 2] = wheel[:, 2, 2]  # the gyro's own noise: _heading_walk's
+    diagonal = own + at_start @ noise @ at_start.transpose(0, 2, 1)
+    diagonal += at_end @ noise @ at_end.transpose(0, 2, 1)
+    below = at_start[1:] @ noise @ at_end[:-1].transpose(0, 2, 1)
+    return diagonal, below
+
+
+def _padded(blocks: np.ndarray, extra: np.ndarray) -> np.ndarray:
+    """``blocks`` ``(K, 3, 3)`` with one more row and column holding ``extra`` ``(K,)``."""
+    out = np.zeros((len(blocks), 4, 4))
+    out[:, :3, :3] = blocks
+    out[:, 3, 3] = extra
+    return out
+
+
+def _banded(diagonal: np.ndarray, below: np.ndarray) -> np.ndarray:
+    """The block tridiagonal covariance in the lower banded form ``(2m, mK)`` that
+    ``scipy.linalg.cholesky_banded`` takes."""
+    count, size = len(diagonal), diagonal.shape[1]
+    banded = np.zeros((2 * size, size * count))
+    starts = size * np.arange(count)
+    for row in range(size):
+        for column in range(size):
+            if row >= column:
+                banded[row - column, starts + column] = diagonal[:, row, column]
+            banded[size + row - column, starts[:-1] + column] = below[:, row, column]
+    return banded
+
+
+def _heading_walk(log: Log, values: np.ndarray, wheel_turn: np.ndarray) -> np.ndarray:
+    """For positions: the covariance ``(m(K-1), m(K-1))`` the heading's own random walk adds.
+    The heading that turns the wheels' travel is the gyro's (the wheels' own without one),
+    integrated from the start: its noise over stretch ``i`` (variance ``q_i``: the gyro's
+    angle random walk, or the wheels' turn noise) turns every later stretch's predicted
+    displacement, ``u_k = J (A_k+1 - A_k)`` times the sum of the earlier ones; with a gyro it
+    is also the gyro's side of stretch ``i``'s turn residual."""
+    antenna = antenna_positions(log, values)
+    moved = np.diff(antenna, axis=0)
+    turned = np.column_stack([-moved[:, 1], moved[:, 0]])  # d(displacement)/d(heading)
+    count = len(moved)
+    if log.gyro is None:
+        variances = wheel_turn
+    else:
+        variances = log.gyro_noise**2 * np.diff(log.stamps) / (1.0 + values[_SCALE]) ** 2
+    size = 2 if log.gyro is None else 3
+    earlier = np.arange(count)[None, :] < np.arange(count)[:, None]  # stretch i before k
+    loading = np.zeros((count, size, count))
+    loading[:, 0, :] = turned[:, :1] * earlier
+    loading[:, 1, :] = turned[:, 1:] * earlier
+    if log.gyro is not None:
+        loading[:, 2, :] = -np.eye(count)
+    flat = loading.reshape(count * size, count)
+    return (flat * variances) @ flat.T
+
+
+class _Weights:
+    """The residuals' covariance factored: block banded (poses), or dense with the heading's
+    random walk (positions); ``solve(b)`` is ``covariance^-1 b``."""
+
+    def __init__(self, log: Log, values: np.ndarray) -> None:
+        from scipy.linalg import cho_factor, cholesky_banded
+
+        diagonal, below = _blocks(log, values)
+        self.banded = log.poses
+        if self.banded:
+            self.factor = cholesky_banded(_banded(diagonal, below), lower=True)
+            return
+        count, size = diagonal.shape[:2]
+        dense = np.zeros((count * size, count * size))
+        for k in range(count):
+            dense[size * k : size * k + size, size * k : size * k + size] = diagonal[k]
+        for k in range(count - 1):
+            block = slice(size * (k + 1), size * (k + 2)), slice(size * k, size * (k + 1))
+            dense[block] = below[k]
+            dense[block[1], block[0]] = below[k].T
+        wheel_turn = self._wheel_turn(log, values)
+        dense += _heading_walk(log, values, wheel_turn)
+        self.factor = cho_factor(dense, lower=True)
+
+    @staticmethod
+    def _wheel_turn(log: Log, values: np.ndarray) -> np.ndarray:
+        """Each stretch's turn variance from the wheels' noise ``(K-1,)``."""
+        drive = _drive(log, values)
+        cut = np.clip(np.searchsorted(log.times, log.stamps), 0, len(log.times) - 1)
+        arcs = np.abs(log.increments) * np.array(
+            [drive.left_wheel_radius, drive.right_wheel_radius]
+        )
+        per_step = (arcs @ np.array([log.wheels.left, log.wheels.right])) / drive.track_width**2
+        total = np.concatenate([[0.0], np.cumsum(per_step)])
+        return np.diff(total[cut])
+
+    def solve(self, right: np.ndarray) -> np.ndarray:
+        from scipy.linalg import cho_solve, cho_solve_banded
+
+        if self.banded:
+            return cho_solve_banded((self.factor, True), right)
+        return cho_solve(self.factor, right)
+
+
+def fit(log: Log, values: np.ndarray, fitted: np.ndarray, iterations: int):
+    """Gauss-Newton on the generalised least squares: the covariance of the fitted values
+    (inflated by the chi-square per degree of freedom where above 1), the information it
+    inverts, the values and that chi-square."""
+    shrink = float(np.exp(-0.5 * log.sigma[2] ** 2))
+
+    def residuals(trial):
+        return _residuals(log, trial, shrink).ravel()
+
+    def jacobian(at):
+        columns = []  # central differences: the interpolation in time has kinks
+        for index in np.flatnonzero(fitted):
+            step = _STEPS[index] * (at[index] if PARAMETERS[index] in RELATIVE else 1.0)
+            ahead, behind = at.copy(), at.copy()
+            ahead[index] += step
+            behind[index] -= step
+            columns.append((residuals(ahead) - residuals(behind)) / (2 * step))
+        return np.column_stack(columns)
+
+    def solve(at, weights):
+        base = residuals(at)
+        slope = jacobian(at)
+        weighted = weights.solve(slope)
+        return base, slope.T @ weighted, weighted.T @ base
+
+    weights = None
+    for round_ in range(iterations):
+        if round_ < 2:  # the weights at the first and at the once-improved values
+            weights = _Weights(log, values)
+        _, information, gradient = solve(values, weights)
+        step = np.linalg.lstsq(information, -gradient, rcond=None)[0]
+        values = values.copy()
+        values[fitted] += step
+        spread = np.sqrt(np.maximum(np.diag(np.linalg.pinv(information)), 1e-300))
+        if round_ >= 2 and np.max(np.abs(step) / spread) < 1e-6:
+            break
+    assert weights is not None
+    base, information, _ = solve(values, weights)
+    chi2 = float(base @ weights.solve(base))
+    chi2 /= max(1, len(base) - int(fitted.sum()))
+    return np.linalg.pinv(information) * max(1.0, chi2), information, values, chi2
