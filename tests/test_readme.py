@@ -103,3 +103,28 @@ def test_the_bag_walkthrough_runs_as_written(tmp_path, monkeypatch, capsys):
     # What the text says the commands print (3.9 m calibrated, from /odom's first pose).
     assert "position error max 3.94" in printed["odometry"]
     assert "max_position_error_m                   3.94" in printed["evaluate"]
+
+
+@pytest.mark.slow
+def test_the_calibration_from_driving_runs_as_written(tmp_path, monkeypatch, capsys):
+    """The block of "Calibration from ordinary driving", with the robot file its text gives:
+    it writes the robot, with the distance scale the section quotes."""
+    import shlex
+
+    from data import data_folder
+    from diffdrive.cli import main
+    from diffdrive.io import read_robot
+
+    section = README.read_text().split("## Calibration from ordinary driving", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", section, flags=re.S).group(1).replace("\\\n", " ")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "husky.toml").write_text("wheel_radius = 0.165\ntrack_width = 0.555\n")
+    bag = str(data_folder("ros-bags") / "husky_robot_localization_test1.bag")
+    for command in filter(None, (line.strip() for line in block.splitlines())):
+        if command.startswith("H="):
+            continue
+        words = shlex.split(command.replace("$H", bag))
+        assert words[0] == ".venv/bin/diffdrive", command
+        assert main(words[1:]) == 0, (command, capsys.readouterr().err)
+    robot = read_robot(tmp_path / "robot.toml")
+    assert 0.96 <= (robot["left_wheel_radius"] + robot["right_wheel_radius"]) / 0.33 <= 0.98

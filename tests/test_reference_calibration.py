@@ -208,3 +208,70 @@ def test_relative_jacobians_are_the_derivatives_of_relative_to(pose, reference):
         ) / (2 * step)
         np.testing.assert_allclose(at_reference[:, column], by_reference, atol=1e-6)
         np.testing.assert_allclose(at_pose[:, column], by_pose, atol=1e-6)
+
+
+def test_diffdrive_calibrate_drives_a_bag_against_its_gps(tmp_path, capsys):
+    """The Husky bag, its wheels from the controller's odometry, against /fix with its IMU:
+    the robot written with the distance scale in 0.96-0.98, every figure in its comments;
+    with noisier wheels the track is not determined, the command fails and writes nothing."""
+    from data import data_folder
+    from diffdrive.cli import main
+    from diffdrive.io import read_robot
+
+    bag = data_folder("ros-bags") / "husky_robot_localization_test1.bag"
+    nominal = tmp_path / "husky.toml"
+    nominal.write_text("wheel_radius = 0.165\ntrack_width = 0.555\n")
+    written = tmp_path / "robot.toml"
+    argv = [
+        "calibrate", str(bag), "--wheel-topic", "/husky_velocity_controller/odom",
+        "--robot", str(nominal), "--gps-topic", "/fix", "--gyro-topic", "/imu/data",
+        "--imu-rpy", "90", "0", "0", "-o", str(written),
+    ]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "noise 0.8 m (the median the fixes report)" in printed
+    assert "identified from the log's standing stretch" in printed
+    assert "wheel noise 0.0001 m, the library's default" in printed
+    robot = read_robot(written)
+    scale = (robot["left_wheel_radius"] + robot["right_wheel_radius"]) / (2 * 0.165)
+    assert 0.96 <= scale <= 0.98
+    text = written.read_text()
+    assert "# gyro_offset 0.1" in text
+    refused = tmp_path / "refused.toml"
+    assert main([*argv[:-1], str(refused), "--k", "1e-3"]) == 1
+    assert "does not determine track" in capsys.readouterr().err
+    assert not refused.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--reference-sigma", "0.5"], "--reference-sigma.*used only with --gps-topic"),
+        (["--gps-topic", "/fix", "--track-from-gyro"], "one calibration at a time"),
+        (["--gps-topic", "/fix", "--cv", "3"], "--cv.*not used by a calibration from driving"),
+    ],
+)
+def test_diffdrive_calibrate_refuses_options_that_do_not_fit_the_driving_calibration(
+    tmp_path, capsys, extra, message
+):
+    from diffdrive.cli import main
+
+    log = tmp_path / "log.csv"
+    log.write_text("t,left,right\n0,0,0\n1,1,1\n")
+    out = tmp_path / "robot.toml"
+    argv = ["calibrate", str(log), "--wheel-radius", "0.1", "--track-width", "0.3", "-o", str(out)]
+    assert main([*argv, *extra]) == 1
+    assert re.search(message, capsys.readouterr().err)
+    assert not out.exists()
+
+
+def test_diffdrive_calibrate_from_driving_takes_one_bag(tmp_path, capsys):
+    from diffdrive.cli import main
+
+    log = tmp_path / "log.csv"
+    log.write_text("t,left,right\n0,0,0\n1,1,1\n")
+    out = tmp_path / "robot.toml"
+    argv = ["calibrate", str(log), "--wheel-radius", "0.1", "--track-width", "0.3"]
+    assert main([*argv, "--gps-topic", "/fix", "-o", str(out)]) == 1
+    assert "calibrate one bag's drive" in capsys.readouterr().err
+    assert not out.exists()

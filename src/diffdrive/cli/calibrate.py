@@ -19,6 +19,12 @@ from diffdrive.calibration import (
     UMBmark,
     calibrate,
 )
+from diffdrive.cli.calibrate_driving import (
+    add_driving_options,
+    driving,
+    refuse_misplaced,
+    run_from_driving,
+)
 from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
@@ -101,9 +107,11 @@ def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
         log.times,
         log.increments(ticks, args.counter_bits),
         np.diff(gyro.angles(log.times)),
-        wheel_noise=args.k,
+        wheel_noise=0.0 if args.k is None else args.k,
         ticks_per_revolution=ticks,
-        gyro_noise=GyroNoise(angle_random_walk=args.gyro_arw),
+        gyro_noise=GyroNoise(
+            angle_random_walk=GYRO_ARW if args.gyro_arw is None else args.gyro_arw
+        ),
     )
     settings = nominal.with_geometry(
         nominal.left_wheel_radius, nominal.right_wheel_radius, found.track
@@ -140,8 +148,14 @@ def _radii_robot(args: argparse.Namespace) -> tuple[Robot, float | None]:
 
 
 def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
-    """--track-from-gyro's options without it, or a fit's options with it."""
-    if args.track_from_gyro:
+    """--track-from-gyro's options without it, or a fit's options with it; the driving
+    calibration's likewise."""
+    if args.track_from_gyro and driving(args):
+        raise ValueError(
+            "--track-from-gyro and --gps-topic/--pose-topic: one calibration at a time"
+        )
+    refuse_misplaced(args)
+    if args.track_from_gyro or driving(args):
         fit = {
             "--method": args.method != "least_squares",
             "--integration": args.integration != "exact",
@@ -151,15 +165,16 @@ def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
             "--fix": bool(args.fix),
             "--extra": args.extra is not None,
         }
-        refuse_unused(fit, "not used by --track-from-gyro, which fits the track alone")
+        mode = "--track-from-gyro" if args.track_from_gyro else "a calibration from driving"
+        refuse_unused(fit, f"not used by {mode}, which fits by its own model")
     else:
         gyro = {
             "--gyro-topic": args.gyro_topic is not None,
             "--imu-rpy": any(args.imu_rpy),
-            "--gyro-arw": args.gyro_arw != GYRO_ARW,
-            "--k": args.k != 0.0,
+            "--gyro-arw": args.gyro_arw is not None,
+            "--k": args.k is not None,
         }
-        refuse_unused(gyro, "used only with --track-from-gyro")
+        refuse_unused(gyro, "used only with --track-from-gyro, --gps-topic or --pose-topic")
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
@@ -167,6 +182,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if args.track_from_gyro:
         return _track_from_gyro(args, *_radii_robot(args))
     nominal, ticks = robot_from(args)
+    if driving(args):
+        refuse_assumed_robot(args, "calibration from driving starts from the nominal geometry")
+        return run_from_driving(args, nominal, ticks)
     if args.runs:
         # The fit starts from the nominal robot, and --fix and UMBmark keep parts of it.
         refuse_assumed_robot(args, "calibrate fits the robot from its nominal geometry")
@@ -319,6 +337,9 @@ EPILOGS = {
   diffdrive calibrate runs/*_run-*.csv --robot nominal.toml --method least_squares -o robot.toml
   diffdrive calibrate run.bag --left-joint L --right-joint R --wheel-radius 0.033 \
       --track-from-gyro --gyro-topic /imu -o robot.toml     the track from a gyro
+  diffdrive calibrate husky.bag --wheel-topic /husky_velocity_controller/odom --robot husky.toml \
+      --gps-topic /fix --gyro-topic /imu/data --imu-rpy 90 0 0 -o robot.toml
+                                           from ordinary driving: wheels, antenna, clocks, gyro
 
 runs with ground truth, each as below (x, y, theta needed; OptiOdom files count 2796.8 a
 turn unless told). Runs need the nominal robot (--robot, or the geometry flags: the fit starts
@@ -359,17 +380,18 @@ def add_to(command: Command, parents: Parents) -> None:
     gyro.add_argument(
         "--gyro-arw",
         type=float,
-        default=GYRO_ARW,
         metavar="RAD_S_SQRT_HZ",
-        help=f"the gyro's angle random walk (default {GYRO_ARW})",
+        help=f"the gyro's angle random walk (default: {GYRO_ARW} for --track-from-gyro; "
+        "identified from the log's standing stretch when driving)",
     )
     gyro.add_argument(
         "--k",
         type=float,
-        default=0.0,
         metavar="M",
-        help="the wheels' noise, m (default 0: read exactly)",
+        help="the wheels' noise, m (default: 0, read exactly, for --track-from-gyro; the "
+        "library's default when driving)",
     )
+    add_driving_options(cal)
     cal.add_argument(
         "--window",
         type=at_least(1),

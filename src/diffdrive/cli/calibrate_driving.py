@@ -1,0 +1,200 @@
+"""``diffdrive calibrate LOG --gps-topic|--pose-topic``: the wheels, the sensor's mount and
+clock, and the gyro's terms from ordinary driving, against a reference that is not ground
+truth (``calibration.calibrate_to_reference``).
+
+The reference is named as the odometry command names the same readings, ``--gps-topic``
+(``sensor_msgs/NavSatFix``) or ``--pose-topic`` (``nav_msgs/Odometry`` or
+``geometry_msgs/PoseWithCovarianceStamped``): ``--reference-topic`` already names ground truth
+in every command, which this is not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from diffdrive.calibration import calibrate_to_reference
+from diffdrive.cli.options import gyro_of, read_log_of, refuse_unused
+from diffdrive.io import TableError, is_bag, write_robot
+from diffdrive.model import DiffDrive
+from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
+
+
+def add_driving_options(parser: argparse.ArgumentParser) -> None:
+    """The options of calibration from ordinary driving."""
+    group = parser.add_argument_group(
+        "from ordinary driving, against a reference that is not ground truth (a bag)"
+    )
+    sources = group.add_mutually_exclusive_group()
+    sources.add_argument(
+        "--gps-topic", metavar="TOPIC", help="sensor_msgs/NavSatFix: the antenna's positions"
+    )
+    sources.add_argument(
+        "--pose-topic",
+        metavar="TOPIC",
+        help="nav_msgs/Odometry or PoseWithCovarianceStamped: a camera's or localiser's poses",
+    )
+    group.add_argument(
+        "--reference-sigma",
+        type=float,
+        nargs="+",
+        metavar="SIGMA",
+        help="the reference's noise: M for GPS; M DEG for poses (default: the median of the "
+        "covariances the readings report)",
+    )
+    group.add_argument(
+        "--datum",
+        type=float,
+        nargs=3,
+        metavar=("LAT", "LON", "ALT"),
+        help="the GPS frame's origin (deg, deg, m); default: the first fix",
+    )
+
+
+def driving(args: argparse.Namespace) -> bool:
+    """Whether the command calibrates from driving."""
+    return bool(args.gps_topic or args.pose_topic)
+
+
+def refuse_misplaced(args: argparse.Namespace) -> None:
+    """The options that need a reference to drive against, without one."""
+    if not driving(args):
+        refuse_unused(
+            {
+                "--reference-sigma": args.reference_sigma is not None,
+                "--datum": args.datum is not None,
+            },
+            "used only with --gps-topic or --pose-topic",
+        )
+
+
+def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> int:
+    """Calibrate one bag's wheels (and gyro) against its GPS or pose topic; write the robot,
+    print the report. A parameter the drive did not determine is refused, nothing written."""
+    if len(args.runs) != 1 or not is_bag(args.runs[0]):
+        raise TableError(
+            f"--gps-topic and --pose-topic calibrate one bag's drive, got {len(args.runs)} "
+            "logs" + ("" if len(args.runs) != 1 else f" ({args.runs[0]} is no bag)")
+        )
+    if not isinstance(nominal.equivalent, DiffDrive):
+        raise TableError("calibration from driving fits a DiffDrive's geometry")
+    path = args.runs[0]
+    log = read_log_of(args, path)
+    ticks = ticks or log.ticks_per_revolution
+    stamps, readings, sigma, said = _reference(args, path)
+    gyro = gyro_of(args, log, path)
+    lines = [said]
+    gyro_noise = None
+    if gyro is not None:
+        gyro_noise, line = _gyro_noise(args, log, gyro, ticks)
+        lines.append(line)
+    wheels, line = _wheel_noise(args)
+    lines.append(line)
+    found = calibrate_to_reference(
+        nominal.equivalent,
+        log.times,
+        log.increments(ticks, args.counter_bits),
+        stamps,
+        readings,
+        sigma=sigma,
+        gyro=gyro,
+        gyro_noise=gyro_noise,
+        wheel_noise=wheels,
+    )
+    settings = found.robot.settings()
+    if ticks is not None:
+        settings["ticks_per_revolution"] = ticks
+    source = args.gps_topic or args.pose_topic
+    comment = [f"calibrated by diffdrive from driving: {path} against {source}", *found.report]
+    write_robot(args.output, settings, "\n".join(comment))
+    if not args.quiet:
+        for line in lines:
+            print(line)
+        print(
+            f"calibration on {found.readings} readings (chi-square per degree of freedom "
+            f"{found.chi2:.2f}{', standard errors inflated by it' if found.chi2 > 1 else ''}):"
+        )
+        for line in found.report:
+            print(f"  {line}")
+        print(f"calibrate: wrote the robot to {args.output}")
+    return 0
+
+
+def _reference(args, path):
+    """The reference's stamps, readings (positions or poses), noise and a line on it."""
+    from diffdrive.io import ros
+
+    given = args.reference_sigma
+    if args.gps_topic:
+        fixes = ros.read_navsatfix(path, args.gps_topic, args.datum)
+        if given is not None:
+            if len(given) != 1:
+                raise ValueError(f"--reference-sigma for GPS is one noise (m), got {given}")
+            sigma, source = given[0], "as given (--reference-sigma)"
+        else:
+            reported = fixes.variance[np.isfinite(fixes.variance) & (fixes.variance > 0)]
+            if len(reported) < len(fixes.variance) / 2:
+                raise TableError(
+                    f"{path} {args.gps_topic}: most fixes report no covariance; give their noise, "
+                    "--reference-sigma M"
+                )
+            sigma, source = float(np.sqrt(np.median(reported))), "the median the fixes report"
+        said = f"{len(fixes.times)} fixes from {args.gps_topic}, noise {sigma:.3g} m ({source})"
+        return fixes.times, fixes.positions, sigma, said
+    topic = ros.read_odometry(path, args.pose_topic)
+    if given is not None:
+        if len(given) != 2:
+            raise ValueError(f"--reference-sigma for poses is M DEG, got {given}")
+        sigma3 = (given[0], given[0], math.radians(given[1]))
+        source = "as given (--reference-sigma)"
+    else:
+        diagonal = topic.covariances[:, [0, 1, 2], [0, 1, 2]]
+        usable = np.all(np.isfinite(diagonal) & (diagonal > 0), axis=1)
+        if np.count_nonzero(usable) < len(diagonal) / 2:
+            raise TableError(
+                f"{path} {args.pose_topic}: most poses report no covariance; give their noise, "
+                "--reference-sigma M DEG"
+            )
+        spread = np.sqrt(np.median(diagonal[usable], axis=0))
+        sigma3 = (float(spread[0]), float(spread[1]), float(spread[2]))
+        source = "the median the poses report"
+    said = (
+        f"{len(topic.times)} poses from {args.pose_topic}, noise {sigma3[0]:.3g} m and "
+        f"{math.degrees(sigma3[2]):.3g} deg ({source})"
+    )
+    return topic.times, topic.poses, sigma3, said
+
+
+def _gyro_noise(args, log, gyro, ticks) -> tuple[GyroNoise, str]:
+    """The gyro's noise: --gyro-arw, else identified from the log's standing stretch; a
+    log without one is refused, naming --gyro-arw."""
+    from diffdrive.estimation.standing import warm_up
+
+    if args.gyro_arw is not None:
+        arw = args.gyro_arw
+        return GyroNoise(angle_random_walk=arw), f"gyro noise {arw:g} rad/s/sqrt(Hz) (--gyro-arw)"
+    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
+    part = log.rows(inside)
+    standing = warm_up(part.times, part.increments(ticks, args.counter_bits), gyro)
+    if standing is None:
+        raise TableError(
+            "the log never stands still, so the gyro's noise cannot be identified from it: "
+            "give --gyro-arw RAD_S_SQRT_HZ"
+        )
+    noise = standing.noise
+    return noise, (
+        f"gyro noise {noise.angle_random_walk:.3g} rad/s/sqrt(Hz), identified from the log's "
+        f"standing stretch ({standing.longest:.3g} s)"
+    )
+
+
+def _wheel_noise(args) -> tuple[WheelNoise, str]:
+    """--k, else the library's default, and a line saying which."""
+    if args.k is not None:
+        return WheelNoise.symmetric(args.k), f"wheel noise {args.k:g} m (--k)"
+    return DEFAULT, (
+        f"wheel noise {DEFAULT.left:g} m, the library's default (--k to give it; the "
+        "calibration's figures move with it)"
+    )
