@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from diffdrive.calibration import calibrate_to_reference
-from diffdrive.cli.options import gyro_of, read_log_of, refuse_unused
+from diffdrive.cli.options import add_datum_option, gyro_of, read_log_of, refuse_unused
 from diffdrive.io import TableError, is_bag, write_robot
 from diffdrive.model import DiffDrive
 from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
@@ -44,13 +44,7 @@ def add_driving_options(parser: argparse.ArgumentParser) -> None:
         help="the reference's noise: M for GPS; M DEG for poses (default: the median of the "
         "covariances the readings report)",
     )
-    group.add_argument(
-        "--datum",
-        type=float,
-        nargs=3,
-        metavar=("LAT", "LON", "ALT"),
-        help="the GPS frame's origin (deg, deg, m); default: the first fix",
-    )
+    add_datum_option(group)
 
 
 def driving(args: argparse.Namespace) -> bool:
