@@ -275,3 +275,37 @@ def test_diffdrive_calibrate_from_driving_takes_one_bag(tmp_path, capsys):
     assert main([*argv, "--gps-topic", "/fix", "-o", str(out)]) == 1
     assert "calibrate one bag's drive" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_several_runs_of_poses_calibrate_together(camera_drive):
+    """The drive cut in two runs (each re-started, their poses in frames of their own):
+    together they find what the whole drive finds, within a standard error; GPS runs, each
+    with a frame heading of its own, are refused together."""
+    times, increments, stamps, poses = camera_drive
+    whole = calibrate_to_reference(
+        scenario.NOMINAL, times, increments, stamps, poses, sigma=scenario.CAMERA,
+        wheel_noise=scenario.K,
+    )  # fmt: skip
+    cut = len(times) // 2
+    at = np.searchsorted(stamps, times[cut])
+    moved = batch.compose(np.array([3.0, -1.0, 0.7]), poses[at:])  # another frame
+    parts = calibrate_to_reference(
+        scenario.NOMINAL, [times[: cut + 1], times[cut:]], [increments[:cut], increments[cut:]],
+        [stamps[:at], stamps[at:]], [poses[:at], moved], sigma=scenario.CAMERA,
+        wheel_noise=scenario.K,
+    )  # fmt: skip
+    errors = whole.standard_errors()
+    for name in CAMERA_TRUTH:
+        assert abs(parts.value(name) - whole.value(name)) <= errors[name], name
+    assert parts.readings == whole.readings - 20  # 1 s off each run's new end, at 10 Hz
+    with pytest.raises(ValueError, match="GPS positions need each run's own frame heading"):
+        calibrate_to_reference(
+            scenario.NOMINAL, [times[: cut + 1], times[cut:]],
+            [increments[:cut], increments[cut:]], [stamps[:at], stamps[at:]],
+            [poses[:at, :2], poses[at:, :2]], sigma=0.5,
+        )  # fmt: skip
+    with pytest.raises(ValueError, match="lists of one length"):
+        calibrate_to_reference(
+            scenario.NOMINAL, [times], [increments, increments], [stamps], [poses],
+            sigma=scenario.CAMERA,
+        )  # fmt: skip

@@ -45,6 +45,7 @@ before any fit.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -217,7 +218,7 @@ def calibrate_to_reference(
     reference: object,
     *,
     sigma: object,
-    gyro: Gyro | None = None,
+    gyro: Gyro | list[Gyro] | None = None,
     gyro_noise: GyroNoise | None = None,
     wheel_noise: object = DEFAULT,
     estimate: tuple[str, ...] | None = None,
@@ -232,33 +233,39 @@ def calibrate_to_reference(
     clock) with ``gyro_noise``'s angle random walk. ``estimate`` names the parameters fitted
     (default: all the reference can show, see the module); the others stay at ``initial``
     (the robot's geometry, 0 elsewhere). ``ValueError`` for a log no fit can use, and for a
-    parameter the drive did not determine, naming it and the drive that would."""
-    wheel_times, wheel_increments, reading_stamps, readings, noise, spread = _checked(
-        times, increments, stamps, reference, sigma, gyro
-    )
-    poses = readings.shape[1] == 3
-    allowed = _parameters(poses, gyro is not None)
+    parameter the drive did not determine, naming it and the drive that would. Several runs
+    of poses calibrate together: ``times``, ``increments``, ``stamps``, ``reference`` (and
+    ``gyro``) as lists, one item a run, the parameters shared."""
+    runs = _runs_of(times, increments, stamps, reference, gyro)
+    checked = [_checked(t, i, k, r, sigma, g) for t, i, k, r, g in runs]
+    poses = checked[0][3].shape[1] == 3
+    if len({c[3].shape[1] for c in checked}) > 1 or (len(runs) > 1 and not poses):
+        raise ValueError(
+            "several runs are calibrated together against poses only: GPS positions need "
+            "each run's own frame heading; calibrate one log at a time"
+        )
+    gyros = [run[4] for run in runs]
+    if len({g is None for g in gyros}) > 1:
+        raise ValueError("give every run a gyro, or none")
+    with_gyro = gyros[0] is not None
+    allowed = _parameters(poses, with_gyro)
     estimate = allowed if estimate is None else tuple(estimate)
     refused = [name for name in estimate if name not in allowed]
     if refused or not estimate:
         raise ValueError(
             f"estimate must name some of {', '.join(allowed)} for this reference"
-            f"{' and gyro' if gyro is not None else ''}, got {estimate!r}"
+            f"{' and gyro' if with_gyro else ''}, got {estimate!r}"
         )
-    if gyro is not None and gyro_noise is None:
+    if with_gyro and gyro_noise is None:
         raise ValueError("a gyro needs its noise: gyro_noise=GyroNoise(angle_random_walk=...)")
-    log = Log(
-        robot,
-        wheel_times,
-        wheel_increments,
-        reading_stamps,
-        readings,
-        noise,
-        WheelNoise.coerce(wheel_noise),
-        gyro,
-        0.0 if gyro_noise is None else gyro_noise.angle_random_walk,
-        method,
-    )
+    wheels = WheelNoise.coerce(wheel_noise)
+    arw = 0.0 if gyro_noise is None else gyro_noise.angle_random_walk
+    logs = [
+        Log(robot, t, i, k, r, noise, wheels, g, arw, method)
+        for (t, i, k, r, noise, _), g in zip(checked, gyros, strict=True)
+    ]
+    spread = max(c[5] for c in checked)
+    readings = np.concatenate([c[3] for c in checked])
     values = np.zeros(len(PARAMETERS))
     values[:3] = robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width
     for name, value in (initial or {}).items():
@@ -266,10 +273,10 @@ def calibrate_to_reference(
             raise ValueError(f"initial names {name!r}, not one of {', '.join(PARAMETERS)}")
         values[PARAMETERS.index(name)] = finite(f"initial {name}", value)
     if not poses and "heading" not in (initial or {}):
-        values[PARAMETERS.index("heading")] = _heading_of(log, values)
+        values[PARAMETERS.index("heading")] = _heading_of(logs[0], values)
     fitted = np.array([name in estimate for name in PARAMETERS])
     covariance, information, values, chi2 = fit(
-        log, values, fitted, whole("iterations", iterations, 1)
+        logs, values, fitted, whole("iterations", iterations, 1)
     )
     for name in ("offset", "gyro_offset"):
         if abs(values[PARAMETERS.index(name)]) > CLOCK_MARGIN:
@@ -281,7 +288,8 @@ def calibrate_to_reference(
     names = tuple(name for name in PARAMETERS if name in estimate)
     moved = f"the reference's readings span {spread:.3g} m"
     if poses:
-        moved += f" and turn through {np.ptp(readings[:, 2]):.3g} rad"
+        turned = max(float(np.ptp(c[3][:, 2])) for c in checked)
+        moved += f" and turn through {turned:.3g} rad"
     report = _refuse_the_undetermined(names, values, covariance, information, moved)
     return ReferenceCalibration(
         robot.with_geometry(*values[:3]),
@@ -290,9 +298,26 @@ def calibrate_to_reference(
         covariance,
         information,
         chi2,
-        len(reading_stamps),
+        len(readings),
         report,
     )
+
+
+def _runs_of(times, increments, stamps, reference, gyro) -> list[tuple[Any, ...]]:
+    """One log, or several as lists one item a run: ``(times, increments, stamps,
+    reference, gyro)`` each."""
+    if not isinstance(times, list | tuple):
+        return [(times, increments, stamps, reference, gyro)]
+    if not times:
+        raise ValueError("calibrate_to_reference needs a log, got an empty list of runs")
+    gyros = gyro if isinstance(gyro, list | tuple) else [gyro] * len(times)
+    try:
+        return list(zip(times, increments, stamps, reference, gyros, strict=True))
+    except (TypeError, ValueError):
+        raise ValueError(
+            "several runs: times, increments, stamps and reference (and a gyro's list) must be "
+            "lists of one length, an item a run"
+        ) from None
 
 
 def _heading_of(log: Log, values: np.ndarray) -> float:

@@ -249,6 +249,7 @@ class _Weights:
         from scipy.linalg import cho_factor, cholesky_banded
 
         diagonal, below = _blocks(log, values)
+        self.size = diagonal.shape[0] * diagonal.shape[1]  # the residuals it weighs
         self.banded = log.poses
         if self.banded:
             self.factor = cholesky_banded(_banded(diagonal, below), lower=True)
@@ -285,14 +286,27 @@ class _Weights:
         return cho_solve(self.factor, right)
 
 
-def fit(log: Log, values: np.ndarray, fitted: np.ndarray, iterations: int):
-    """Gauss-Newton on the generalised least squares: the covariance of the fitted values
-    (inflated by the chi-square per degree of freedom where above 1), the information it
-    inverts, the values and that chi-square."""
-    shrink = float(np.exp(-0.5 * log.sigma[2] ** 2))
+class _Runs:
+    """Each run's ``_Weights``: runs are independent, so their covariance is block
+    diagonal."""
+
+    def __init__(self, logs: list[Log], values: np.ndarray) -> None:
+        self.parts = [_Weights(log, values) for log in logs]
+
+    def solve(self, right: np.ndarray) -> np.ndarray:
+        edges = np.cumsum([part.size for part in self.parts])[:-1]
+        pieces = np.split(right, edges, axis=0)
+        return np.concatenate([p.solve(b) for p, b in zip(self.parts, pieces, strict=True)])
+
+
+def fit(logs: list[Log], values: np.ndarray, fitted: np.ndarray, iterations: int):
+    """Gauss-Newton on the generalised least squares over the runs' ``logs``: the covariance
+    of the fitted values (inflated by the chi-square per degree of freedom where above 1), the
+    information it inverts, the values and that chi-square."""
 
     def residuals(trial):
-        return _residuals(log, trial, shrink).ravel()
+        parts = [_residuals(log, trial, float(np.exp(-0.5 * log.sigma[2] ** 2))) for log in logs]
+        return np.concatenate([part.ravel() for part in parts])
 
     def jacobian(at):
         columns = []  # central differences: the interpolation in time has kinks
@@ -313,7 +327,7 @@ def fit(log: Log, values: np.ndarray, fitted: np.ndarray, iterations: int):
     weights = None
     for round_ in range(iterations):
         if round_ < 2:  # the weights at the first and at the once-improved values
-            weights = _Weights(log, values)
+            weights = _Runs(logs, values)
         _, information, gradient = solve(values, weights)
         step = np.linalg.lstsq(information, -gradient, rcond=None)[0]
         values = values.copy()
