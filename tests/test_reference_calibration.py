@@ -257,7 +257,7 @@ def test_diffdrive_calibrate_refuses_options_that_do_not_fit_the_driving_calibra
     from diffdrive.cli import main
 
     log = tmp_path / "log.csv"
-    log.write_text("t,left,right\n0,0,0\n1,1,1\n")
+    log.write_text("t,left_angle,right_angle\n0,0,0\n1,1,1\n")
     out = tmp_path / "robot.toml"
     argv = ["calibrate", str(log), "--wheel-radius", "0.1", "--track-width", "0.3", "-o", str(out)]
     assert main([*argv, *extra]) == 1
@@ -269,7 +269,7 @@ def test_diffdrive_calibrate_from_driving_takes_one_bag(tmp_path, capsys):
     from diffdrive.cli import main
 
     log = tmp_path / "log.csv"
-    log.write_text("t,left,right\n0,0,0\n1,1,1\n")
+    log.write_text("t,left_angle,right_angle\n0,0,0\n1,1,1\n")
     out = tmp_path / "robot.toml"
     argv = ["calibrate", str(log), "--wheel-radius", "0.1", "--track-width", "0.3"]
     assert main([*argv, "--gps-topic", "/fix", "-o", str(out)]) == 1
@@ -309,3 +309,29 @@ def test_several_runs_of_poses_calibrate_together(camera_drive):
             scenario.NOMINAL, [times], [increments, increments], [stamps], [poses],
             sigma=scenario.CAMERA,
         )  # fmt: skip
+
+
+def test_every_calibration_refuses_wheels_that_cannot_be_the_robots(tmp_path, capsys):
+    """Wheel angles in milliradians read as radians (1,000 times too large, a wrong unit):
+    the ground-truth calibration, the track from a gyro and the export refuse them, naming the
+    speed at the rim, and write nothing (they took them as read before)."""
+    from diffdrive.cli import main
+
+    t = np.arange(101) * 0.1
+    angles = 1000.0 * np.column_stack([t, 1.1 * t])  # mrad: 0.1 m/s at a 0.1 m rim
+    log = tmp_path / "log.csv"
+    rows = ["t,left_angle,right_angle,x,y,theta,gyro_z"] + [
+        f"{ti},{a},{b},{0.1 * ti},0,{0.02 * ti},0.02" for ti, (a, b) in zip(t, angles, strict=True)
+    ]
+    log.write_text("\n".join(rows) + "\n")
+    robot = ["--wheel-radius", "0.1", "--track-width", "0.3"]
+    out = tmp_path / "robot.toml"
+    for extra in ([], ["--track-from-gyro"]):
+        assert main(["calibrate", str(log), *robot, *extra, "-o", str(out)]) == 1
+        assert "faster than any wheeled robot drives" in capsys.readouterr().err
+        assert not out.exists()
+    written = tmp_path / "w.json"
+    argv = ["export", "--to", "wpilib", str(log), *robot, "-o", str(written)]
+    assert main(argv) == 1
+    assert "faster than any wheeled robot drives" in capsys.readouterr().err
+    assert not written.exists()

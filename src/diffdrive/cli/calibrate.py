@@ -71,15 +71,17 @@ def _example_runs() -> list[tuple[np.ndarray, np.ndarray]]:
     return runs
 
 
-def _calibration_run(args, path: Path, ticks: float | None):
-    """``(increments, truth)`` of a run, and the ticks per revolution its format fixes."""
+def _calibration_run(args, path: Path, ticks: float | None, robot: Robot):
+    """``(increments, truth)`` of a run, and the ticks per revolution its format fixes; the
+    increments refused where they cannot be ``robot``'s (``Run.checked_increments``)."""
     log = read_log_of(args, path)
     if log.truth is None:
         raise TableError(
             f"{path}: a run to calibrate on needs ground truth: columns x, y, theta, or a bag's "
             "--reference-topic"
         )
-    return (log.increments(ticks, args.counter_bits), log.truth), log.ticks_per_revolution
+    increments, _ = log.checked_increments(robot, ticks, args.counter_bits)
+    return (increments, log.truth), log.ticks_per_revolution
 
 
 def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
@@ -102,10 +104,11 @@ def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
         raise TableError(f"{path}: the gyro does not cover the log's times")
     log = log.rows(inside) if not inside.all() else log
     ticks = ticks or log.ticks_per_revolution
+    increments, _ = log.checked_increments(nominal, ticks, args.counter_bits)
     found = track_from_gyro(
         nominal,
         log.times,
-        log.increments(ticks, args.counter_bits),
+        increments,
         np.diff(gyro.angles(log.times)),
         wheel_noise=0.0 if args.k is None else args.k,
         ticks_per_revolution=ticks,
@@ -189,7 +192,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         # The fit starts from the nominal robot, and --fix and UMBmark keep parts of it.
         refuse_assumed_robot(args, "calibrate fits the robot from its nominal geometry")
     if args.runs:
-        read = [_calibration_run(args, path, ticks) for path in args.runs]
+        read = [_calibration_run(args, path, ticks, nominal) for path in args.runs]
         runs = [run for run, _ in read]
         ticks = ticks or next((own for _, own in read if own is not None), None)
         what = f"{len(runs)} runs"

@@ -77,9 +77,11 @@ def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> 
     path = args.runs[0]
     log = read_log_of(args, path)
     ticks = ticks or log.ticks_per_revolution
+    # Refused where they cannot be this robot's wheels (a counter's width, a unit).
+    increments, speed = log.checked_increments(nominal, ticks, args.counter_bits)
     stamps, readings, sigma, said = _reference(args, path)
     gyro = gyro_of(args, log, path)
-    lines = [said]
+    lines = [speed, said]
     gyro_noise = None
     if gyro is not None:
         gyro_noise, line = _gyro_noise(args, log, gyro, ticks)
@@ -89,7 +91,7 @@ def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> 
     found = calibrate_to_reference(
         nominal.equivalent,
         log.times,
-        log.increments(ticks, args.counter_bits),
+        increments,
         stamps,
         readings,
         sigma=sigma,
@@ -126,7 +128,7 @@ def _reference(args, path):
         if given is not None:
             if len(given) != 1:
                 raise ValueError(f"--reference-sigma for GPS is one noise (m), got {given}")
-            sigma, source = given[0], "as given (--reference-sigma)"
+            sigma, source = given[0], "given by --reference-sigma"
         else:
             reported = fixes.variance[np.isfinite(fixes.variance) & (fixes.variance > 0)]
             if len(reported) < len(fixes.variance) / 2:
@@ -142,7 +144,7 @@ def _reference(args, path):
         if len(given) != 2:
             raise ValueError(f"--reference-sigma for poses is M DEG, got {given}")
         sigma3 = (given[0], given[0], math.radians(given[1]))
-        source = "as given (--reference-sigma)"
+        source = "given by --reference-sigma"
     else:
         diagonal = topic.covariances[:, [0, 1, 2], [0, 1, 2]]
         usable = np.all(np.isfinite(diagonal) & (diagonal > 0), axis=1)

@@ -196,7 +196,7 @@ def _identified(args, robot, ticks, notes: list[str], lines: list[str]):
     """The noise model identified on the runs, the reference's accuracy held at what was
     stated (or at motion capture's for tables), the reasons its own runs give against
     writing it (``export.refusals``) and the line of its score on them."""
-    read = [_calibration_run(args, path, ticks)[0] for path in args.runs]
+    read = [_calibration_run(args, path, ticks, robot)[0] for path in args.runs]
     fixed = None
     stated = args.reference_sigma
     if stated is None and not any(is_bag(path) for path in args.runs):
