@@ -306,10 +306,8 @@ def identify(
     groups = _groups_of(runs)
     if not groups:
         raise ValueError("identify needs at least one run")
-    flat = checked_runs(
-        [run for group in groups for run in group],
-        run_names([run for group in groups for run in group], None),
-    )
+    every = [run for group in groups for run in group]
+    flat = checked_runs(every, run_names(every, None))
     per_group = {"radius_sigma", "track_sigma"} & set(terms)
     if per_group and len(groups) < 2:
         raise ValueError(

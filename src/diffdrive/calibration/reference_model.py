@@ -141,10 +141,10 @@ def _adjoint_inverse(mount: np.ndarray) -> np.ndarray:
     return np.array([[c, -s, y], [s, c, -x], [0.0, 0.0, 1.0]])
 
 
-def _blocks(log: Log, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _blocks(log: Log, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The residuals' covariance as its diagonal blocks ``(K-1, m, m)`` and the blocks just
     below them ``(K-2, m, m)``: each stretch's wheel and gyro noise, and the reference's
-    noise at both of its ends."""
+    noise at both of its ends; and each stretch's turn variance from the wheels ``(K-1,)``."""
     drive = _drive(log, values)
     at = log.stamps - values[_OFFSET]
     cut = np.clip(np.searchsorted(log.times, at), 0, len(log.times) - 1)
@@ -190,7 +190,7 @@ def _blocks(log: Log, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     diagonal = own + at_start @ noise @ at_start.transpose(0, 2, 1)
     diagonal += at_end @ noise @ at_end.transpose(0, 2, 1)
     below = at_start[1:] @ noise @ at_end[:-1].transpose(0, 2, 1)
-    return diagonal, below
+    return diagonal, below, wheel[:, 2, 2]
 
 
 def _padded(blocks: np.ndarray, extra: np.ndarray) -> np.ndarray:
@@ -248,7 +248,7 @@ class _Weights:
     def __init__(self, log: Log, values: np.ndarray) -> None:
         from scipy.linalg import cho_factor, cholesky_banded
 
-        diagonal, below = _blocks(log, values)
+        diagonal, below, wheel_turn = _blocks(log, values)
         self.size = diagonal.shape[0] * diagonal.shape[1]  # the residuals it weighs
         self.banded = log.poses
         if self.banded:
@@ -262,21 +262,8 @@ class _Weights:
             block = slice(size * (k + 1), size * (k + 2)), slice(size * k, size * (k + 1))
             dense[block] = below[k]
             dense[block[1], block[0]] = below[k].T
-        wheel_turn = self._wheel_turn(log, values)
         dense += _heading_walk(log, values, wheel_turn)
         self.factor = cho_factor(dense, lower=True)
-
-    @staticmethod
-    def _wheel_turn(log: Log, values: np.ndarray) -> np.ndarray:
-        """Each stretch's turn variance from the wheels' noise ``(K-1,)``."""
-        drive = _drive(log, values)
-        cut = np.clip(np.searchsorted(log.times, log.stamps), 0, len(log.times) - 1)
-        arcs = np.abs(log.increments) * np.array(
-            [drive.left_wheel_radius, drive.right_wheel_radius]
-        )
-        per_step = (arcs @ np.array([log.wheels.left, log.wheels.right])) / drive.track_width**2
-        total = np.concatenate([[0.0], np.cumsum(per_step)])
-        return np.diff(total[cut])
 
     def solve(self, right: np.ndarray) -> np.ndarray:
         from scipy.linalg import cho_solve, cho_solve_banded
