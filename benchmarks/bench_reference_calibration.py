@@ -16,9 +16,11 @@ wheels with a random walk of 1e-5 m, and either
 is the inverse of the information at the true parameters under the true noise: the least
 standard error an unbiased calibration of that drive can have (the model's, which leaves out
 the gyro heading's own random walk). Last, one 10-minute log at 100 Hz with each reference,
-timed (median of 3).
+timed (median of 3). Then the noise identified from the log (``identify_noise``): a camera
+at 10 Hz and a gyro, every figure started 2-10 times off; each term and each parameter under
+it against the truth, and a 10-minute log's time.
 
-    python benchmarks/bench_reference_calibration.py [--seeds 100]
+    python benchmarks/bench_reference_calibration.py [--seeds 100] [--noise-seeds 40]
 """
 
 from __future__ import annotations
@@ -145,14 +147,71 @@ def table(gps: bool, seeds: int) -> None:
           "target 10 s)")  # fmt: skip
 
 
+NOISE_TRUTH = {
+    "wheels": scenario.K,
+    "gyro": scenario.GYRO_ARW,
+    "reference": scenario.CAMERA[0],
+    "reference_heading": scenario.CAMERA[2],
+}
+
+
+def _identified(data, **options):
+    """The camera-and-gyro calibration with every noise figure found from the log, started
+    from figures off by 2-10 times."""
+    times, increments, stamps, poses, gyro = data
+    return reference.calibrate_to_reference(
+        scenario.NOMINAL, times, increments, stamps, poses, sigma=(0.04, 0.04, 0.035),
+        wheel_noise=1e-4, gyro=gyro, gyro_noise=GyroNoise(angle_random_walk=1e-2),
+        identify_noise=True, **options,
+    )  # fmt: skip
+
+
+def noise_table(seeds: int) -> None:
+    """How often each identified noise figure, and each parameter under it, lies within two
+    standard errors of the truth."""
+    rows, honest = [], []
+    for seed in range(seeds):
+        found = _identified(scenario.camera_and_gyro(seed))
+        assert found.noise is not None
+        rows.append([(found.noise.values[n], found.noise.standard_errors[n]) for n in NOISE_TRUTH])
+        spread = found.standard_errors()
+        honest.append(
+            [abs(found.value(n) - true) <= 2 * spread[n] for n, true in CAMERA_TRUTH.items()]
+        )
+    table = np.array(rows)  # (seeds, terms, 2)
+    print(f"\nthe noise identified from the log (camera at 10 Hz and a gyro), {seeds} seeds:\n")
+    print("| term | truth | within 2 SE | median error | median SE |")
+    print("|---|---|---|---|---|")
+    for index, (name, true) in enumerate(NOISE_TRUTH.items()):
+        found, spread = table[:, index, 0], table[:, index, 1]
+        within = np.mean(np.abs(found - true) <= 2 * spread)
+        error = np.median(np.abs(found / true - 1))
+        print(f"| {name} | {true:.3g} | {within:.0%} | {error:.1%} | "
+              f"{np.median(spread / true):.1%} |")  # fmt: skip
+    inside = np.mean(honest, axis=0)
+    print("\nunder the identified noise, each parameter within 2 SE: " + ", ".join(
+        f"{name} {share:.0%}" for name, share in zip(CAMERA_TRUTH, inside, strict=True)
+    ))  # fmt: skip
+    data = scenario.camera_and_gyro(0, seconds=600.0)
+    spent = []
+    for _ in range(3):
+        start = time.perf_counter()
+        _identified(data)
+        spent.append(time.perf_counter() - start)
+    print(f"a 10-minute log at 100 Hz, camera and gyro, noise identified: "
+          f"{np.median(spent):.2f} s (median of 3)")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=100)
+    parser.add_argument("--noise-seeds", type=int, default=40)
     args = parser.parse_args(argv)
     print(f"machine: {platform.machine()}, Python {platform.python_version()}, NumPy "
           f"{np.__version__}")  # fmt: skip
     for gps in (False, True):
         table(gps, args.seeds)
+    noise_table(args.noise_seeds)
 
 
 if __name__ == "__main__":

@@ -2,12 +2,13 @@
 
 ``diffdrive.calibration.calibrate_to_reference`` on the wheels of
 ``../shared/data/ros-bags/husky_robot_localization_test1.bag`` (from its ``/odom``, 10 Hz),
-its ``/fix`` positions (their median reported noise) and its IMU's yaw rate (30 Hz; the
-gyro's noise identified from the log's standing stretch, no setting given), the track too
-where the log determines it (else left at the robot's, and why). It prints the
-calibration's report, the wheels' distance scale, the gyro's clock against the wheels, and the
-gyro-heading dead reckoning's SE(2)-aligned ATE against the fixes (m) with the nominal
-wheels, the calibrated ones, and those with the gyro's clock corrected, all over the same span.
+its ``/fix`` positions and its IMU's yaw rate (30 Hz), no noise figure given: the wheels' and
+the fixes' noise identified from the drive (``identify_noise``), the gyro's from the log's
+standing stretch; what the log does not determine (``UndeterminedError``) left out, and
+why. It prints the calibration's report, the wheels' distance scale, the gyro's clock
+against the wheels, and the gyro-heading dead reckoning's SE(2)-aligned ATE against the
+fixes (m) with the nominal wheels, the calibrated ones, and those with the gyro's clock
+corrected, all over the same span.
 
     python examples/calibrate_from_driving.py [--bags ../shared/data/ros-bags]
 """
@@ -20,41 +21,36 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.calibration import calibrate_to_reference
+from diffdrive.calibration.reference import UndeterminedError, calibrate_to_reference, estimable
 from diffdrive.estimation import Gyro, estimate_trajectory
 from diffdrive.estimation.standing import warm_up
 
 sys_path = Path(__file__).resolve().parent
 BAGS = sys_path.parents[1] / "shared" / "data" / "ros-bags"
-# What is calibrated where the log does not determine the track.
-ESTIMATE = (
-    "left_radius",
-    "right_radius",
-    "lever_x",
-    "lever_y",
-    "offset",
-    "gyro_scale",
-    "gyro_bias",
-    "gyro_offset",
-    "heading",
-)
 
 
 def calibrated(data: dict):
-    """The calibration against the fixes (the track too where the log determines it; else
-    without it, and why), and the gyro's noise from the standing stretch."""
+    """The calibration against the fixes, the noise of the wheels and the fixes identified
+    from the log and the gyro's from its standing stretch; what the log does not determine
+    left out, with the reason. The calibration, the standing stretch and the lines on what
+    was left out."""
     from husky_fusion import HUSKY
 
     standing = warm_up(data["times"], data["increments"], data["gyro"])
     if standing is None:
         raise ValueError("the log has no standing stretch to identify the gyro's noise from")
-    common = dict(sigma=data["sigma"], gyro=data["gyro"], gyro_noise=standing.noise)
+    common = dict(
+        sigma=data["sigma"], gyro=data["gyro"], gyro_noise=standing.noise,
+        identify_noise=("wheels", "reference"),
+    )  # fmt: skip
     args = (HUSKY, data["times"], data["increments"], data["fix_times"], data["fixes"])
-    try:
-        return calibrate_to_reference(*args, **common), standing, "the track calibrated too"
-    except ValueError as refused:
-        without = calibrate_to_reference(*args, **common, estimate=ESTIMATE)
-        return without, standing, f"the track left at the robot's: {refused}"
+    estimate, left_out = estimable(poses=False, gyro=True), []
+    while True:
+        try:
+            return calibrate_to_reference(*args, **common, estimate=estimate), standing, left_out
+        except UndeterminedError as refused:
+            left_out.append(f"left out {', '.join(refused.parameters)}: {refused}")
+            estimate = tuple(name for name in estimate if name not in refused.parameters)
 
 
 def dead_reckoning_ate(data: dict, robot: dd.DiffDrive, gyro: Gyro, span) -> float:
@@ -83,12 +79,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--bags", type=Path, default=BAGS)
     args = parser.parse_args(argv)
     data = read(args.bags)
-    found, standing, track = calibrated(data)
+    found, standing, left_out = calibrated(data)
     for line in standing.report:
         print(f"gyro, from the standing stretch: {line}")
-    print(track)
-    print(f"calibration (chi-square per degree of freedom {found.chi2:.2f}, standard errors "
-          f"inflated by it):")  # fmt: skip
+    for line in left_out:
+        print(line)
+    print(f"calibration (chi-square per degree of freedom {found.chi2:.2f}):")
     for line in found.report:
         print(f"  {line}")
     radius = 0.5 * (found.value("left_radius") + found.value("right_radius"))

@@ -287,3 +287,38 @@ def test_calibration_from_driving_meets_the_husky_targets_the_readme_quotes(caps
     assert figures[2] <= 2.62 < figures[0]
     for quoted in (scale, clock, ate):
         assert quoted in readme, quoted
+
+
+@pytest.mark.slow
+def test_standin_camera_finds_the_camera_noise_and_the_readme_quotes_its_lines(capsys):
+    """OptiOdom's motion capture thinned to 2 Hz with 1 cm and 0.5 degree of noise: on two
+    experiments the camera's noise is found within 6 % of its 1 cm, the delay within 3 of its
+    standard errors of the 50 ms added, the held-out folds scored; each line's figures as the
+    README's table quotes them."""
+    import re
+
+    from data import data_folder
+
+    script = load("standin_camera")
+    only = ["230620202042", "250620201618"]
+    found = script.main(["--data", str(data_folder("optiodom-diffdrive")), "--only", *only])
+    printed = capsys.readouterr().out
+    readme = (ROOT / "README.md").read_text()
+    pattern = (
+        r"(\d+): (\d+) runs, z (\S+) (\S+) (\S+), camera (\S+) mm (\S+) deg, k \S+ m, "
+        r"delay (\S+) \+- (\S+) ms"
+    )
+    lines = [re.match(pattern, line) for line in printed.splitlines()]
+    lines = [line for line in lines if line]
+    assert [line.group(1) for line in lines] == only
+    for line in lines:
+        name, runs, a, b, c, mm, deg, delay, spread = line.groups()
+        assert abs(float(mm) - 10.0) <= 0.6
+        assert abs(float(delay) - 50.0) <= 3 * float(spread)
+        row = f"| {name} | {runs} | {a}, {b}, {c} | {mm} mm, {deg} deg | {delay} +- {spread} ms |"
+        assert row in readme, row
+    # The held-out target (1.10) missed on these two as on all ten, and the precision this
+    # camera allows would miss it too (README: 1.19 and 1.11 times here).
+    assert found["folds"] == 15
+    assert 1.10 < found["ratio"] < 1.3
+    assert 1.0 < found["bound"] < 1.3

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 import reference_drive as scenario
 from diffdrive import batch, sensors
 from diffdrive.calibration import calibrate_to_reference
+from diffdrive.calibration.reference import UndeterminedError
 from diffdrive.sensor_noise import GyroNoise
 
 CAMERA_TRUTH = {
@@ -104,15 +105,73 @@ def test_gps_and_a_gyro_calibrate_the_wheels_the_antenna_and_both_clocks():
     assert abs(found.value("gyro_offset") - scenario.GYRO["clock"]) <= 0.005
 
 
+def test_the_noise_is_identified_from_the_log_from_figures_far_off():
+    """The camera-and-gyro drive started from every noise figure wrong (the camera's twice
+    over, the wheels' ten times, the gyro's five): REML finds each within 3 of its standard
+    errors of the truth (2 cm, 1 degree, k 1e-5 m, 2e-3 rad/s/sqrt(Hz)), the chi-square then
+    near 1, and the geometry as well calibrated as with the noise given."""
+    times, increments, stamps, poses, rates = scenario.camera_and_gyro(4)
+    found = calibrate_to_reference(
+        scenario.NOMINAL, times, increments, stamps, poses, sigma=(0.04, 0.04, 0.035),
+        wheel_noise=1e-4, gyro=rates, gyro_noise=GyroNoise(angle_random_walk=1e-2),
+        identify_noise=True,
+    )  # fmt: skip
+    assert found.noise is not None
+    truth = {
+        "wheels": scenario.K,
+        "gyro": scenario.GYRO_ARW,
+        "reference": scenario.CAMERA[0],
+        "reference_heading": scenario.CAMERA[2],
+    }
+    assert set(found.noise.values) == set(truth)
+    for name, true in truth.items():
+        assert abs(found.noise.values[name] - true) <= 3 * found.noise.standard_errors[name], name
+    assert found.noise.undetermined == ()
+    assert abs(found.noise.values["reference"] / scenario.CAMERA[0] - 1) < 0.03
+    assert 0.95 < found.chi2 < 1.05
+    errors = found.standard_errors()
+    for name, true in CAMERA_TRUTH.items():
+        assert abs(found.value(name) - true) <= 3 * errors[name], name
+    assert any(re.match(r"the wheels' k [0-9.e-]+ \+- .* identified from the log", line)
+               for line in found.report)  # fmt: skip
+
+
+def test_gps_noise_is_identified_and_a_term_the_drive_cannot_split_is_named():
+    """GPS at 2 Hz, started at 1 m of noise and every other figure off: the receiver's 0.5 m
+    and the wheels' k found within 3 standard errors; the gyro's noise, seen on this drive
+    only beside the wheels' turn noise, is named as not determined (yet weighs the fit)."""
+    times, increments, gyro, stamps, positions = scenario.gps_drive(2)
+    found = calibrate_to_reference(
+        scenario.NOMINAL, times, increments, stamps, positions, sigma=1.0, gyro=gyro,
+        gyro_noise=GyroNoise(angle_random_walk=1e-2), wheel_noise=1e-4, identify_noise=True,
+    )  # fmt: skip
+    assert found.noise is not None
+    noise, spread = found.noise.values, found.noise.standard_errors
+    assert abs(noise["reference"] - scenario.GPS_SIGMA) <= 3 * spread["reference"]
+    assert abs(noise["wheels"] - scenario.K) <= 3 * spread["wheels"]
+    assert found.noise.undetermined == ("gyro",)
+    assert any("gyro's angle random walk" in line and "not determined by this log" in line
+               for line in found.report)  # fmt: skip
+    assert abs(found.value("lever_x") - scenario.ANTENNA[0]) <= 0.08
+    held = calibrate_to_reference(
+        scenario.NOMINAL, times, increments, stamps, positions, sigma=1.0, gyro=gyro,
+        gyro_noise=GyroNoise(angle_random_walk=scenario.GYRO_ARW), wheel_noise=1e-4,
+        identify_noise=("wheels", "reference"),
+    )  # fmt: skip
+    assert held.noise is not None
+    assert set(held.noise.values) == {"wheels", "reference"}
+
+
 def test_a_drive_that_never_turns_is_refused_naming_what_it_cannot_show():
     """Straights alone: the lever arm cannot be seen, nor each radius apart from the other
     and the track; refused, naming them and the drive that would show them."""
     times, increments, stamps, poses = scenario.drive(5, seconds=60.0, kinds=1)
-    with pytest.raises(ValueError, match=r"does not determine lever_x .*: turn"):
+    with pytest.raises(UndeterminedError, match=r"does not determine lever_x .*: turn") as caught:
         calibrate_to_reference(
             scenario.NOMINAL, times, increments, stamps, poses, sigma=scenario.CAMERA,
             wheel_noise=scenario.K,
         )  # fmt: skip
+    assert {"lever_x", "lever_y"} <= set(caught.value.parameters)
     held = {"lever_x": scenario.MOUNT[0], "lever_y": scenario.MOUNT[1], "yaw": scenario.MOUNT[2]}
     with pytest.raises(ValueError, match=r"does not determine left_radius") as caught:
         calibrate_to_reference(
@@ -128,6 +187,14 @@ def test_a_drive_that_never_turns_is_refused_naming_what_it_cannot_show():
                  "yaw": scenario.MOUNT[2]},
     )  # fmt: skip
     assert found.estimated == ("left_radius", "right_radius", "lever_y", "offset")
+
+
+def test_wheels_counted_backwards_are_refused_not_calibrated_to_negative_radii(camera_drive):
+    times, increments, stamps, poses = camera_drive
+    with pytest.raises(ValueError, match=r"did not converge: the radii and track went to -0\.0"):
+        calibrate_to_reference(
+            scenario.NOMINAL, times, -increments, stamps, poses, sigma=scenario.CAMERA
+        )
 
 
 @pytest.mark.parametrize(
@@ -158,6 +225,8 @@ def test_what_no_fit_can_use_is_refused_before_any_fit(camera_drive, change, mes
         (True, {"sigma": 0.5, "estimate": ("yaw",)}, "estimate must name some of .* for this"),
         (False, {"sigma": scenario.CAMERA, "gyro": "a gyro"}, "a gyro needs its noise"),
         (False, {"sigma": scenario.CAMERA, "initial": {"wheelbase": 1.0}}, "initial names 'wh"),
+        (False, {"sigma": scenario.CAMERA, "identify_noise": ("slip",)}, "identify_noise must"),
+        (False, {"sigma": scenario.CAMERA, "identify_noise": "wheels"}, "identify_noise must"),
     ],
 )
 def test_settings_that_do_not_fit_the_reference_are_refused(
@@ -211,9 +280,10 @@ def test_relative_jacobians_are_the_derivatives_of_relative_to(pose, reference):
 
 
 def test_diffdrive_calibrate_drives_a_bag_against_its_gps(tmp_path, capsys):
-    """The Husky bag, its wheels from the controller's odometry, against /fix with its IMU:
-    the robot written with the distance scale in 0.96-0.98, every figure in its comments;
-    with noisier wheels the track is not determined, the command fails and writes nothing."""
+    """The Husky bag, its wheels from the controller's odometry, against /fix with its IMU,
+    no noise figure given: the fixes' clock is not determined, so the command fails naming it
+    and the flag that leaves it out, and writes nothing; with it held, the robot written with
+    the distance scale in 0.96-0.98, the noise identified and every figure in its comments."""
     from data import data_folder
     from diffdrive.cli import main
     from diffdrive.io import read_robot
@@ -227,20 +297,29 @@ def test_diffdrive_calibrate_drives_a_bag_against_its_gps(tmp_path, capsys):
         "--robot", str(nominal), "--gps-topic", "/fix", "--gyro-topic", "/imu/data",
         "--imu-rpy", "90", "0", "0", "-o", str(written),
     ]  # fmt: skip
-    assert main(argv) == 0
+    assert main(argv) == 1
+    refused = capsys.readouterr().err
+    assert "does not determine offset" in refused
+    assert "(here: --hold offset)" in refused
+    assert not written.exists()
+    assert main([*argv, "--hold", "offset"]) == 0
     printed = capsys.readouterr().out
-    assert "noise 0.8 m (the median the fixes report)" in printed
-    assert "identified from the log's standing stretch" in printed
-    assert "wheel noise 0.0001 m, the library's default" in printed
+    assert "noise 0.8 m (the median the fixes report: the start of its identification)" in printed
+    assert "identified from the log's standing stretch (10.5 s), held" in printed
+    assert "wheel noise: identified from the drive, starting at the library's default" in printed
     robot = read_robot(written)
     scale = (robot["left_wheel_radius"] + robot["right_wheel_radius"]) / (2 * 0.165)
     assert 0.96 <= scale <= 0.98
     text = written.read_text()
-    assert "# gyro_offset 0.1" in text
-    refused = tmp_path / "refused.toml"
-    assert main([*argv[:-1], str(refused), "--k", "1e-3"]) == 1
-    assert "does not determine track" in capsys.readouterr().err
-    assert not refused.exists()
+    assert "# gyro_offset 0.09" in text
+    assert "# track 0.5" in text
+    assert re.search(r"# the wheels' k [0-9.e-]+ \+- [0-9.e-]+ m, identified from the log", text)
+    assert re.search(r"# the reference's position noise 1\.\d+ \+- 0\.0\d+ m, identified", text)
+    assert "# offset" not in text
+    held = tmp_path / "held.toml"
+    assert main([*argv[:-1], str(held), "--hold", "yaw"]) == 1
+    assert "--hold yaw: not calibrated against this reference" in capsys.readouterr().err
+    assert not held.exists()
 
 
 @pytest.mark.parametrize(

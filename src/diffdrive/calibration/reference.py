@@ -50,7 +50,15 @@ from typing import Any
 import numpy as np
 
 from diffdrive._validate import finite, whole
-from diffdrive.calibration.reference_model import PARAMETERS, RELATIVE, Log, antenna_positions, fit
+from diffdrive.calibration.reference_model import (
+    NOISES,
+    PARAMETERS,
+    RELATIVE,
+    Log,
+    antenna_positions,
+    fit,
+)
+from diffdrive.calibration.reference_noise import UNDETERMINED, IdentifiedNoise, identify
 from diffdrive.estimation.imu import Gyro
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive
@@ -58,10 +66,13 @@ from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
 
 __all__ = [
     "LIMITS",
+    "NOISES",
     "PARAMETERS",
     "UNITS",
     "ReferenceCalibration",
+    "UndeterminedError",
     "calibrate_to_reference",
+    "estimable",
 ]
 
 UNITS = ("m", "m", "m", "m", "m", "rad", "s", "", "rad/s", "s", "rad")
@@ -117,6 +128,7 @@ class ReferenceCalibration:
     chi2: float
     readings: int
     report: tuple[str, ...]
+    noise: IdentifiedNoise | None = None
 
     def value(self, name: str) -> float:
         """One parameter's value, in its unit (``UNITS``)."""
@@ -134,9 +146,10 @@ class ReferenceCalibration:
         return self.covariance / np.outer(spread, spread)
 
 
-def _checked(times, increments, stamps, reference, sigma, gyro) -> tuple:
+def _checked(times, increments, stamps, reference, sigma, gyro, least=LEAST_READINGS) -> tuple:
     """The arrays as floats, the wheels within the gyro's span and the readings within the
-    wheels', ``CLOCK_MARGIN`` off each end; ``ValueError`` for what no fit can use."""
+    wheels', ``CLOCK_MARGIN`` off each end, at least ``least`` of them; ``ValueError`` for
+    what no fit can use."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     stamps = np.asarray(stamps, dtype=float)
@@ -175,11 +188,11 @@ def _checked(times, increments, stamps, reference, sigma, gyro) -> tuple:
             "the same clock, in the same unit?"
         )
     inside = (stamps >= times[0] + CLOCK_MARGIN) & (stamps <= times[-1] - CLOCK_MARGIN)
-    if np.count_nonzero(inside) < LEAST_READINGS:
+    if np.count_nonzero(inside) < least:
         raise ValueError(
             f"too short a log: {np.count_nonzero(inside)} reference readings inside the wheels' "
             f"span ({CLOCK_MARGIN:g} s off its ends, room for the clocks' offsets), at least "
-            f"{LEAST_READINGS} needed: record a longer drive"
+            f"{least} needed: record a longer drive"
         )
     stamps, readings = stamps[inside], readings[inside]
     if readings.shape[1] == 3:
@@ -191,16 +204,29 @@ def _checked(times, increments, stamps, reference, sigma, gyro) -> tuple:
         raise ValueError(f"sigma must be {what}, each > 0, got {sigma!r}")
     sigma = sigma if wanted == 3 else np.array([sigma[0], sigma[0], 0.0])
     spread = float(np.hypot(np.ptp(readings[:, 0]), np.ptp(readings[:, 1])))
-    if spread < 10 * sigma[0]:
+    turned = float(np.ptp(readings[:, 2])) if wanted == 3 else 0.0
+    if spread < 10 * sigma[0] and turned < 10 * sigma[2]:
+        turns = f" and turn through {turned:.3g} rad" if wanted == 3 else ""
+        noise = f" and {sigma[2]:.3g} rad" if wanted == 3 else ""
         raise ValueError(
-            f"the reference hardly moves: its readings span {spread:.3g} m, against their noise "
-            f"of {sigma[0]:.3g} m; drive some distance"
+            f"the reference hardly moves: its readings span {spread:.3g} m{turns}, against "
+            f"their noise of {sigma[0]:.3g} m{noise}; drive some distance"
         )
     return times, increments, stamps, readings, sigma, spread
 
 
-def _parameters(poses: bool, gyro: bool) -> tuple[str, ...]:
-    """What a reference of this kind, with or without a gyro, can calibrate."""
+class UndeterminedError(ValueError):
+    """A calibration refused because the log did not determine ``parameters`` (the message
+    says why and what drive would); leaving them out of ``estimate`` may let the rest go."""
+
+    def __init__(self, message: str, parameters: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.parameters = parameters
+
+
+def estimable(poses: bool, gyro: bool) -> tuple[str, ...]:
+    """What a reference of poses (else positions), with or without a gyro, can calibrate
+    (``calibrate_to_reference``'s default ``estimate``)."""
     names = ["left_radius", "right_radius", "track", "lever_x", "lever_y"]
     names += ["yaw", "offset"] if poses else ["offset"]
     if gyro:
@@ -225,6 +251,7 @@ def calibrate_to_reference(
     initial: dict[str, float] | None = None,
     method: Method = "exact",
     iterations: int = 30,
+    identify_noise: bool | tuple[str, ...] = False,
 ) -> ReferenceCalibration:
     """``robot`` calibrated against a reference: wheel-angle ``increments`` ``(T, 2)`` rad over
     ``times`` ``(T+1,)`` s; the reference's readings stamped ``stamps`` ``(K,)`` s on its own
@@ -232,12 +259,24 @@ def calibrate_to_reference(
     or positions ``(K, 2)`` (or headings NaN) with noise ``sigma`` (m); a ``gyro`` (on its own
     clock) with ``gyro_noise``'s angle random walk. ``estimate`` names the parameters fitted
     (default: all the reference can show, see the module); the others stay at ``initial``
-    (the robot's geometry, 0 elsewhere). ``ValueError`` for a log no fit can use, and for a
-    parameter the drive did not determine, naming it and the drive that would. Several runs
+    (the robot's geometry, 0 elsewhere). ``ValueError`` for a log no fit can use, and
+    ``UndeterminedError`` (a ``ValueError``) for parameters the drive did not determine, naming
+    them and the drive that would. Several runs
     of poses calibrate together: ``times``, ``increments``, ``stamps``, ``reference`` (and
-    ``gyro``) as lists, one item a run, the parameters shared."""
+    ``gyro``) as lists, one item a run, the parameters shared. ``identify_noise``: True, or
+    some of ``NOISES``, finds the wheels', the gyro's and the reference's noise from the log
+    itself (``reference_noise``), the figures given its start and the others held; the
+    result's ``noise``."""
     runs = _runs_of(times, increments, stamps, reference, gyro)
-    checked = [_checked(t, i, k, r, sigma, g) for t, i, k, r, g in runs]
+    # Several runs need a stretch each and the readings of one log between them.
+    least = LEAST_READINGS if len(runs) == 1 else 2
+    checked = [_checked(t, i, k, r, sigma, g, least) for t, i, k, r, g in runs]
+    if sum(len(c[2]) for c in checked) < LEAST_READINGS:
+        raise ValueError(
+            f"too short a log: {sum(len(c[2]) for c in checked)} reference readings inside "
+            f"the runs' spans ({CLOCK_MARGIN:g} s off their ends), at least {LEAST_READINGS} "
+            "needed: record longer drives"
+        )
     poses = checked[0][3].shape[1] == 3
     if len({c[3].shape[1] for c in checked}) > 1 or (len(runs) > 1 and not poses):
         raise ValueError(
@@ -248,7 +287,7 @@ def calibrate_to_reference(
     if len({g is None for g in gyros}) > 1:
         raise ValueError("give every run a gyro, or none")
     with_gyro = gyros[0] is not None
-    allowed = _parameters(poses, with_gyro)
+    allowed = estimable(poses, with_gyro)
     estimate = allowed if estimate is None else tuple(estimate)
     refused = [name for name in estimate if name not in allowed]
     if refused or not estimate:
@@ -275,9 +314,14 @@ def calibrate_to_reference(
     if not poses and "heading" not in (initial or {}):
         values[PARAMETERS.index("heading")] = _heading_of(logs[0], values)
     fitted = np.array([name in estimate for name in PARAMETERS])
-    covariance, information, values, chi2 = fit(
-        logs, values, fitted, whole("iterations", iterations, 1)
-    )
+    iterations = whole("iterations", iterations, 1)
+    noise = None
+    terms = _noise_terms(identify_noise)
+    if terms:
+        logs, result, noise = identify(logs, values, fitted, iterations, terms)
+    else:
+        result = fit(logs, values, fitted, iterations)
+    values, covariance, information = result.values, result.covariance, result.information
     for name in ("offset", "gyro_offset"):
         if abs(values[PARAMETERS.index(name)]) > CLOCK_MARGIN:
             raise ValueError(
@@ -291,16 +335,55 @@ def calibrate_to_reference(
         turned = max(float(np.ptp(c[3][:, 2])) for c in checked)
         moved += f" and turn through {turned:.3g} rad"
     report = _refuse_the_undetermined(names, values, covariance, information, moved)
+    if noise is not None:
+        report += _noise_lines(noise)
     return ReferenceCalibration(
         robot.with_geometry(*values[:3]),
         names,
         values,
         covariance,
         information,
-        chi2,
+        result.chi2,
         len(readings),
         report,
+        noise,
     )
+
+
+_NOISE_NAMES = {
+    "wheels": ("the wheels' k", "m", ".2g"),
+    "gyro": ("the gyro's angle random walk", "rad/s/sqrt(Hz)", ".2g"),
+    "reference": ("the reference's position noise", "m", ".3g"),
+    "reference_heading": ("the reference's heading noise", "rad", ".3g"),
+}
+
+
+def _noise_terms(identify_noise: object) -> tuple[str, ...]:
+    """The noise terms to identify: all for True, none for False, or those named."""
+    if isinstance(identify_noise, bool):
+        return NOISES if identify_noise else ()
+    terms = tuple(identify_noise) if isinstance(identify_noise, list | tuple) else (None,)
+    if not terms or any(term not in NOISES for term in terms):
+        raise ValueError(
+            f"identify_noise must be True, False or some of {', '.join(NOISES)}, got "
+            f"{identify_noise!r}"
+        )
+    return terms
+
+
+def _noise_lines(noise: IdentifiedNoise) -> tuple[str, ...]:
+    """The report's lines for the noise identified: each term, and whether the log set it."""
+    lines = []
+    for name, value in noise.values.items():
+        what, unit, form = _NOISE_NAMES[name]
+        found = f"{what} {value:{form}} +- {noise.standard_errors[name]:.2g} {unit}"
+        if name in noise.undetermined:
+            found += (
+                f": not determined by this log (its variance to no better than "
+                f"{100 * UNDETERMINED:.0f} %), only weighs the fit"
+            )
+        lines.append(found + ("" if name in noise.undetermined else ", identified from the log"))
+    return tuple(lines)
 
 
 def _runs_of(times, increments, stamps, reference, gyro) -> list[tuple[Any, ...]]:
@@ -339,12 +422,13 @@ def _refuse_the_undetermined(names, values, covariance, information, moved) -> t
     parts = [names[i] for i in np.argsort(-np.abs(weights)) if abs(weights[i]) > 0.3]
     drives = "; ".join(f"{DRIVES[name]} ({name})" for name in parts)
     if eigenvalues[0] < _FLAT * max(1.0, eigenvalues[-1]):
-        raise ValueError(
+        raise UndeterminedError(
             f"this log cannot tell {' from '.join(parts)} apart ({moved}): they move its "
-            f"readings alike. To determine them: {drives}; or leave them out of estimate"
+            f"readings alike. To determine them: {drives}; or leave them out of estimate",
+            tuple(parts),
         )
     errors = np.sqrt(np.diag(covariance))
-    lines, undetermined = [], []
+    lines, undetermined, loose = [], [], []
     for name, error in zip(names, errors, strict=True):
         index = PARAMETERS.index(name)
         value, unit = values[index], UNITS[index]
@@ -353,15 +437,17 @@ def _refuse_the_undetermined(names, values, covariance, information, moved) -> t
         if size > LIMITS[name]:
             shown = "of its value" if relative else unit
             undetermined.append(f"{name} (standard error {size:.3g} {shown}): {DRIVES[name]}")
+            loose.append(name)
         elif relative:
             lines.append(f"{name} {value:.6g} m, known to {100 * size:.2g} %")
         else:
             shown = f" {unit}" if unit else ""
             lines.append(f"{name} {value:.4g}{shown} +- {error:.2g}{shown}")
     if undetermined:
-        raise ValueError(
+        raise UndeterminedError(
             f"this log does not determine {'; '.join(undetermined)} ({moved}). The "
             f"combination it sees least is of {', '.join(parts)}: to determine it, {drives}; "
-            "or leave them out of estimate"
+            "or leave them out of estimate",
+            tuple(loose),
         )
     return tuple(lines)

@@ -141,10 +141,56 @@ def _adjoint_inverse(mount: np.ndarray) -> np.ndarray:
     return np.array([[c, -s, y], [s, c, -x], [0.0, 0.0, 1.0]])
 
 
-def _blocks(log: Log, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The residuals' covariance as its diagonal blocks ``(K-1, m, m)`` and the blocks just
-    below them ``(K-2, m, m)``: each stretch's wheel and gyro noise, and the reference's
-    noise at both of its ends; and each stretch's turn variance from the wheels ``(K-1,)``."""
+NOISES = ("wheels", "gyro", "reference", "reference_heading")  # the residuals' noise terms
+
+
+@dataclass(frozen=True)
+class Part:
+    """One term of the residuals' covariance: its diagonal blocks ``(K-1, m, m)``, the blocks
+    just below them ``(K-2, m, m)`` and, for positions, a ``dense`` ``(m(K-1), m(K-1))``
+    remainder (the heading's random walk) or None."""
+
+    diagonal: np.ndarray
+    below: np.ndarray
+    dense: np.ndarray | None = None
+
+    def scaled(self, factor: float) -> Part:
+        dense = None if self.dense is None else factor * self.dense
+        return Part(factor * self.diagonal, factor * self.below, dense)
+
+    def __add__(self, other: Part) -> Part:
+        dense = self.dense if other.dense is None else other.dense
+        if self.dense is not None and other.dense is not None:
+            dense = self.dense + other.dense
+        return Part(self.diagonal + other.diagonal, self.below + other.below, dense)
+
+    def times(self, vectors: np.ndarray) -> np.ndarray:
+        """This term times ``vectors`` ``(m(K-1), p)``."""
+        count, size = self.diagonal.shape[:2]
+        blocks = vectors.reshape(count, size, -1)
+        out = self.diagonal @ blocks
+        out[1:] += self.below @ blocks[:-1]
+        out[:-1] += self.below.transpose(0, 2, 1) @ blocks[1:]
+        out = out.reshape(vectors.shape)
+        return out if self.dense is None else out + self.dense @ vectors
+
+    def matrix(self) -> np.ndarray:
+        """This term as a dense matrix ``(m(K-1), m(K-1))``."""
+        count, size = self.diagonal.shape[:2]
+        out = np.zeros((count * size, count * size)) if self.dense is None else self.dense.copy()
+        for k in range(count):
+            out[size * k : size * (k + 1), size * k : size * (k + 1)] += self.diagonal[k]
+            if k + 1 < count:
+                block = self.below[k]
+                out[size * (k + 1) : size * (k + 2), size * k : size * (k + 1)] += block
+                out[size * k : size * (k + 1), size * (k + 1) : size * (k + 2)] += block.T
+        return out
+
+
+def components(log: Log, values: np.ndarray) -> dict[str, Part]:
+    """The residuals' covariance by the noise it comes from (``NOISES``, those the log has,
+    each linear in its variance at the log's figures) and ``"product"``, the reference's
+    heading noise times its position noise."""
     drive = _drive(log, values)
     at = log.stamps - values[_OFFSET]
     cut = np.clip(np.searchsorted(log.times, at), 0, len(log.times) - 1)
@@ -157,7 +203,8 @@ def _blocks(log: Log, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
             odometry.update_arrays("increments", rows[:, 0], rows[:, 1])
         wheel[k] = odometry.covariance
     gyro = log.gyro_noise**2 * np.diff(at) / (1.0 + values[_SCALE]) ** 2
-    noise = np.diag(np.square(log.sigma))
+    size = (3 if log.poses else 2) + (log.gyro is not None)
+    own = {name: np.zeros((count, size, size)) for name in ("wheels", "gyro", "product")}
     if log.poses:
         # The Jacobians at the motion the wheels predict, not at the noisy readings: weights
         # that moved with the noise would bias the fit. (Noise as round in x as in y does not
@@ -165,32 +212,52 @@ def _blocks(log: Log, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
         sensor = _sensor_poses(log, values)
         at_start, at_end = batch.relative_jacobians(sensor[1:], sensor[:-1])
         adjoint = _adjoint_inverse(values[_LX : _YAW + 1])
-        own = adjoint @ wheel @ adjoint.T
+        own["wheels"][:, :3, :3] = adjoint @ wheel @ adjoint.T
         # The start's heading noise turns the ends' position noise: a product of noises,
         # small beside either, but the first-order noise of a long stretch of residuals
         # telescopes away along the path (the readings' distance is known to its ends'),
         # and this does not: it bounds what the path's length can tell.
-        own[:, 0, 0] += 2.0 * (log.sigma[2] * log.sigma[1]) ** 2
-        own[:, 1, 1] += 2.0 * (log.sigma[2] * log.sigma[0]) ** 2
+        own["product"][:, 0, 0] = 2.0 * (log.sigma[2] * log.sigma[1]) ** 2
+        own["product"][:, 1, 1] = 2.0 * (log.sigma[2] * log.sigma[0]) ** 2
         if log.gyro is not None:  # the wheels' turn against the gyro's: no reference noise
             quiet = np.zeros((count, 1, 3))
             at_start = np.concatenate([at_start, quiet], axis=1)
             at_end = np.concatenate([at_end, quiet], axis=1)
-            own = _padded(own, wheel[:, 2, 2] + gyro)
     else:
-        size = 2 if log.gyro is None else 3
         at_start = np.zeros((count, size, 3))
         at_start[:, 0, 0] = at_start[:, 1, 1] = -1.0
         at_end = -at_start
         # The wheels' travel noise along the path, as round: a small share beside the fixes'.
-        own = np.zeros((count, size, size))
-        own[:, 0, 0] = own[:, 1, 1] = 0.5 * (wheel[:, 0, 0] + wheel[:, 1, 1])
-        if log.gyro is not None:
-            own[:, 2, 2] = wheel[:, 2, 2]  # the gyro's own noise: _heading_walk's
-    diagonal = own + at_start @ noise @ at_start.transpose(0, 2, 1)
-    diagonal += at_end @ noise @ at_end.transpose(0, 2, 1)
-    below = at_start[1:] @ noise @ at_end[:-1].transpose(0, 2, 1)
-    return diagonal, below, wheel[:, 2, 2]
+        own["wheels"][:, 0, 0] = own["wheels"][:, 1, 1] = 0.5 * (wheel[:, 0, 0] + wheel[:, 1, 1])
+    if log.gyro is not None:  # the wheels' turn against the gyro's
+        own["wheels"][:, -1, -1] = wheel[:, 2, 2]
+        if log.poses:  # for positions, _heading_walk's
+            own["gyro"][:, -1, -1] = gyro
+    quiet = np.zeros((max(count - 1, 0), size, size))
+    parts = {name: Part(blocks, quiet) for name, blocks in own.items()}
+    for name, variances in (
+        ("reference", np.square([log.sigma[0], log.sigma[1], 0.0])),
+        ("reference_heading", np.array([0.0, 0.0, log.sigma[2] ** 2])),
+    ):
+        noise = np.diag(variances)
+        diagonal = at_start @ noise @ at_start.transpose(0, 2, 1)
+        diagonal += at_end @ noise @ at_end.transpose(0, 2, 1)
+        parts[name] = Part(diagonal, at_start[1:] @ noise @ at_end[:-1].transpose(0, 2, 1))
+    if not log.poses:
+        walk = _heading_walk(log, values, wheel[:, 2, 2])
+        with_gyro = log.gyro is not None
+        parts["gyro" if with_gyro else "wheels"] += Part(0 * own["gyro"], quiet, walk)
+    kept = {"wheels": True, "gyro": log.gyro is not None, "reference": True}
+    kept.update(reference_heading=log.poses, product=log.poses)
+    return {name: part for name, part in parts.items() if kept[name]}
+
+
+def _total(parts: dict[str, Part]) -> Part:
+    total = None
+    for part in parts.values():
+        total = part if total is None else total + part
+    assert total is not None
+    return total
 
 
 def _padded(blocks: np.ndarray, extra: np.ndarray) -> np.ndarray:
@@ -245,25 +312,18 @@ class _Weights:
     """The residuals' covariance factored: block banded (poses), or dense with the heading's
     random walk (positions); ``solve(b)`` is ``covariance^-1 b``."""
 
-    def __init__(self, log: Log, values: np.ndarray) -> None:
+    def __init__(self, covariance: Part) -> None:
         from scipy.linalg import cho_factor, cholesky_banded
 
-        diagonal, below, wheel_turn = _blocks(log, values)
-        self.size = diagonal.shape[0] * diagonal.shape[1]  # the residuals it weighs
-        self.banded = log.poses
+        count, size = covariance.diagonal.shape[:2]
+        self.size = count * size  # the residuals it weighs
+        self.banded = covariance.dense is None
         if self.banded:
-            self.factor = cholesky_banded(_banded(diagonal, below), lower=True)
+            self.factor = cholesky_banded(
+                _banded(covariance.diagonal, covariance.below), lower=True
+            )
             return
-        count, size = diagonal.shape[:2]
-        dense = np.zeros((count * size, count * size))
-        for k in range(count):
-            dense[size * k : size * k + size, size * k : size * k + size] = diagonal[k]
-        for k in range(count - 1):
-            block = slice(size * (k + 1), size * (k + 2)), slice(size * k, size * (k + 1))
-            dense[block] = below[k]
-            dense[block[1], block[0]] = below[k].T
-        dense += _heading_walk(log, values, wheel_turn)
-        self.factor = cho_factor(dense, lower=True)
+        self.factor = cho_factor(covariance.matrix(), lower=True)
 
     def solve(self, right: np.ndarray) -> np.ndarray:
         from scipy.linalg import cho_solve, cho_solve_banded
@@ -273,57 +333,97 @@ class _Weights:
         return cho_solve(self.factor, right)
 
 
-class _Runs:
-    """Each run's ``_Weights``: runs are independent, so their covariance is block
-    diagonal."""
+class Runs:
+    """Each run's residual covariance by its terms (``components``) and its factor: runs are
+    independent, so their covariance is block diagonal."""
 
-    def __init__(self, logs: list[Log], values: np.ndarray) -> None:
-        self.parts = [_Weights(log, values) for log in logs]
+    def __init__(self, terms: list[dict[str, Part]]) -> None:
+        self.components = terms
+        self.parts = [_Weights(_total(parts)) for parts in terms]
+
+    @classmethod
+    def of(cls, logs: list[Log], values: np.ndarray) -> Runs:
+        """The runs' covariance at ``values``, the noise at each log's figures."""
+        return cls([components(log, values) for log in logs])
 
     def solve(self, right: np.ndarray) -> np.ndarray:
-        edges = np.cumsum([part.size for part in self.parts])[:-1]
-        pieces = np.split(right, edges, axis=0)
-        return np.concatenate([p.solve(b) for p, b in zip(self.parts, pieces, strict=True)])
+        """The covariance's inverse times ``right`` ``(n, ...)``."""
+        return np.concatenate(
+            [p.solve(b) for p, b in zip(self.parts, self._split(right), strict=True)]
+        )
+
+    def times(self, name: str, right: np.ndarray) -> np.ndarray:
+        """The covariance's ``name`` term (``NOISES``) times ``right`` ``(n, p)``; 0 where a
+        run has none."""
+        pieces = []
+        for parts, piece in zip(self.components, self._split(right), strict=True):
+            pieces.append(parts[name].times(piece) if name in parts else 0.0 * piece)
+        return np.concatenate(pieces)
+
+    def _split(self, right: np.ndarray) -> list[np.ndarray]:
+        return np.split(right, np.cumsum([part.size for part in self.parts])[:-1], axis=0)
 
 
-def fit(logs: list[Log], values: np.ndarray, fitted: np.ndarray, iterations: int):
-    """Gauss-Newton on the generalised least squares over the runs' ``logs``: the covariance
-    of the fitted values (inflated by the chi-square per degree of freedom where above 1), the
-    information it inverts, the values and that chi-square."""
+def residuals(logs: list[Log], values: np.ndarray) -> np.ndarray:
+    """Every run's stretches' residuals, flattened ``(n,)``."""
+    parts = [_residuals(log, values, float(np.exp(-0.5 * log.sigma[2] ** 2))) for log in logs]
+    return np.concatenate([part.ravel() for part in parts])
 
-    def residuals(trial):
-        parts = [_residuals(log, trial, float(np.exp(-0.5 * log.sigma[2] ** 2))) for log in logs]
-        return np.concatenate([part.ravel() for part in parts])
 
-    def jacobian(at):
-        columns = []  # central differences: the interpolation in time has kinks
-        for index in np.flatnonzero(fitted):
-            step = _STEPS[index] * (at[index] if PARAMETERS[index] in RELATIVE else 1.0)
-            ahead, behind = at.copy(), at.copy()
-            ahead[index] += step
-            behind[index] -= step
-            columns.append((residuals(ahead) - residuals(behind)) / (2 * step))
-        return np.column_stack(columns)
+def jacobian(logs: list[Log], values: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+    """The residuals' derivatives ``(n, E)`` in the ``fitted`` parameters, by central
+    differences: the interpolation in time has kinks."""
+    columns = []
+    for index in np.flatnonzero(fitted):
+        step = _STEPS[index] * (values[index] if PARAMETERS[index] in RELATIVE else 1.0)
+        ahead, behind = values.copy(), values.copy()
+        ahead[index] += step
+        behind[index] -= step
+        columns.append((residuals(logs, ahead) - residuals(logs, behind)) / (2 * step))
+    return np.column_stack(columns)
 
-    def solve(at, weights):
-        base = residuals(at)
-        slope = jacobian(at)
-        weighted = weights.solve(slope)
-        return base, slope.T @ weighted, weighted.T @ base
 
-    weights = None
+@dataclass(frozen=True)
+class Fit:
+    """What ``fit`` found: the ``values``, their ``covariance`` (inflated by ``chi2`` where
+    above 1) and the ``information`` it inverts, the residuals' ``chi2`` per degree of freedom,
+    and at the values the ``residual`` ``(n,)``, its ``slope`` ``(n, E)`` and the ``weights``
+    (``Runs``)."""
+
+    values: np.ndarray
+    covariance: np.ndarray
+    information: np.ndarray
+    chi2: float
+    residual: np.ndarray
+    slope: np.ndarray
+    weights: Runs
+
+
+def fit(logs: list[Log], values: np.ndarray, fitted: np.ndarray, iterations: int) -> Fit:
+    """Gauss-Newton on the generalised least squares over the runs' ``logs``, the weights
+    taken at the first and the once-improved values."""
+    weights = Runs.of(logs, values)
     for round_ in range(iterations):
-        if round_ < 2:  # the weights at the first and at the once-improved values
-            weights = _Runs(logs, values)
-        _, information, gradient = solve(values, weights)
-        step = np.linalg.lstsq(information, -gradient, rcond=None)[0]
+        if round_ == 1:
+            weights = Runs.of(logs, values)
+        slope = jacobian(logs, values, fitted)
+        weighted = weights.solve(slope)
+        information = slope.T @ weighted
+        step = np.linalg.lstsq(information, -weighted.T @ residuals(logs, values), rcond=None)[0]
         values = values.copy()
         values[fitted] += step
+        if np.any(values[:3] <= 0.0):
+            raise ValueError(
+                "the calibration did not converge: the radii and track went to "
+                f"{values[0]:.3g}, {values[1]:.3g} and {values[2]:.3g} m. Do the wheels' "
+                "increments count forward driving as positive, each wheel? Else the log may "
+                "not show them, or its noise is not what is stated"
+            )
         spread = np.sqrt(np.maximum(np.diag(np.linalg.pinv(information)), 1e-300))
         if round_ >= 2 and np.max(np.abs(step) / spread) < 1e-6:
             break
-    assert weights is not None
-    base, information, _ = solve(values, weights)
-    chi2 = float(base @ weights.solve(base))
-    chi2 /= max(1, len(base) - int(fitted.sum()))
-    return np.linalg.pinv(information) * max(1.0, chi2), information, values, chi2
+    base, slope = residuals(logs, values), jacobian(logs, values, fitted)
+    information = slope.T @ weights.solve(slope)
+    chi2 = float(base @ weights.solve(base)) / max(1, len(base) - int(fitted.sum()))
+    covariance = np.linalg.pinv(information) * max(1.0, chi2)
+    return Fit(values, covariance, information, chi2, base, slope, weights)

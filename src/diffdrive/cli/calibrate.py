@@ -385,14 +385,14 @@ def add_to(command: Command, parents: Parents) -> None:
         type=float,
         metavar="RAD_S_SQRT_HZ",
         help=f"the gyro's angle random walk (default: {GYRO_ARW} for --track-from-gyro; "
-        "identified from the log's standing stretch when driving)",
+        "identified from the drive when driving, and held where given)",
     )
     gyro.add_argument(
         "--k",
         type=float,
         metavar="M",
-        help="the wheels' noise, m (default: 0, read exactly, for --track-from-gyro; the "
-        "library's default when driving)",
+        help="the wheels' noise, m (default: 0, read exactly, for --track-from-gyro; "
+        "identified from the drive when driving, and held where given)",
     )
     add_driving_options(cal)
     cal.add_argument(

@@ -15,11 +15,16 @@ import math
 
 import numpy as np
 
-from diffdrive.calibration import calibrate_to_reference
+from diffdrive.calibration.reference import (
+    PARAMETERS,
+    UndeterminedError,
+    calibrate_to_reference,
+    estimable,
+)
 from diffdrive.cli.options import add_datum_option, gyro_of, read_log_of, refuse_unused
 from diffdrive.io import TableError, is_bag, write_robot
 from diffdrive.model import DiffDrive
-from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
+from diffdrive.sensor_noise import DEFAULT, DEFAULT_GYRO, GyroNoise, WheelNoise
 
 
 def add_driving_options(parser: argparse.ArgumentParser) -> None:
@@ -41,8 +46,16 @@ def add_driving_options(parser: argparse.ArgumentParser) -> None:
         type=float,
         nargs="+",
         metavar="SIGMA",
-        help="the reference's noise: M for GPS; M DEG for poses (default: the median of the "
-        "covariances the readings report)",
+        help="the reference's noise, held: M for GPS; M DEG for poses (default: identified "
+        "from the log, starting at the median of the covariances the readings report)",
+    )
+    group.add_argument(
+        "--hold",
+        nargs="+",
+        choices=PARAMETERS,
+        metavar="PARAMETER",
+        help="leave these out of the calibration, at the robot's geometry or 0 (one the log "
+        f"does not determine, say): {', '.join(PARAMETERS)}",
     )
     add_datum_option(group)
 
@@ -58,6 +71,7 @@ def refuse_misplaced(args: argparse.Namespace) -> None:
         refuse_unused(
             {
                 "--reference-sigma": args.reference_sigma is not None,
+                "--hold": args.hold is not None,
                 "--datum": args.datum is not None,
             },
             "used only with --gps-topic or --pose-topic",
@@ -82,23 +96,35 @@ def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> 
     stamps, readings, sigma, said = _reference(args, path)
     gyro = gyro_of(args, log, path)
     lines = [speed, said]
-    gyro_noise = None
+    gyro_noise, gyro_held = None, False
     if gyro is not None:
-        gyro_noise, line = _gyro_noise(args, log, gyro, ticks)
+        gyro_noise, gyro_held, line = _gyro_noise(args, log, gyro, ticks)
         lines.append(line)
     wheels, line = _wheel_noise(args)
     lines.append(line)
-    found = calibrate_to_reference(
-        nominal.equivalent,
-        log.times,
-        increments,
-        stamps,
-        readings,
-        sigma=sigma,
-        gyro=gyro,
-        gyro_noise=gyro_noise,
-        wheel_noise=wheels,
-    )
+    # What no flag gave is found from the log: no noise figure set by hand.
+    held = {"wheels": args.k is not None, "gyro": gyro_held}
+    held["reference"] = held["reference_heading"] = args.reference_sigma is not None
+    unknown = tuple(name for name, given in held.items() if not given)
+    estimate = _estimate(args, gyro is not None)
+    try:
+        found = calibrate_to_reference(
+            nominal.equivalent,
+            log.times,
+            increments,
+            stamps,
+            readings,
+            sigma=sigma,
+            gyro=gyro,
+            gyro_noise=gyro_noise,
+            wheel_noise=wheels,
+            estimate=estimate,
+            identify_noise=unknown,
+        )
+    except UndeterminedError as refused:
+        raise UndeterminedError(
+            f"{refused} (here: --hold {' '.join(refused.parameters)})", refused.parameters
+        ) from None
     settings = found.robot.settings()
     if ticks is not None:
         settings["ticks_per_revolution"] = ticks
@@ -118,6 +144,20 @@ def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> 
     return 0
 
 
+def _estimate(args: argparse.Namespace, with_gyro: bool) -> tuple[str, ...]:
+    """What the reference and gyro can calibrate, less --hold's; ``ValueError`` for a held
+    parameter they do not calibrate anyway."""
+    allowed = estimable(args.pose_topic is not None, with_gyro)
+    held = args.hold or []
+    stray = [name for name in held if name not in allowed]
+    if stray:
+        raise ValueError(
+            f"--hold {' '.join(stray)}: not calibrated against this reference"
+            f"{' and gyro' if with_gyro else ''} (it calibrates {', '.join(allowed)})"
+        )
+    return tuple(name for name in allowed if name not in held)
+
+
 def _reference(args, path):
     """The reference's stamps, readings (positions or poses), noise and a line on it."""
     from diffdrive.io import ros
@@ -128,7 +168,7 @@ def _reference(args, path):
         if given is not None:
             if len(given) != 1:
                 raise ValueError(f"--reference-sigma for GPS is one noise (m), got {given}")
-            sigma, source = given[0], "given by --reference-sigma"
+            sigma, source = given[0], "given by --reference-sigma, held"
         else:
             reported = fixes.variance[np.isfinite(fixes.variance) & (fixes.variance > 0)]
             if len(reported) < len(fixes.variance) / 2:
@@ -136,7 +176,8 @@ def _reference(args, path):
                     f"{path} {args.gps_topic}: most fixes report no covariance; give their noise, "
                     "--reference-sigma M"
                 )
-            sigma, source = float(np.sqrt(np.median(reported))), "the median the fixes report"
+            sigma = float(np.sqrt(np.median(reported)))
+            source = "the median the fixes report: the start of its identification"
         said = f"{len(fixes.times)} fixes from {args.gps_topic}, noise {sigma:.3g} m ({source})"
         return fixes.times, fixes.positions, sigma, said
     topic = ros.read_odometry(path, args.pose_topic)
@@ -144,7 +185,7 @@ def _reference(args, path):
         if len(given) != 2:
             raise ValueError(f"--reference-sigma for poses is M DEG, got {given}")
         sigma3 = (given[0], given[0], math.radians(given[1]))
-        source = "given by --reference-sigma"
+        source = "given by --reference-sigma, held"
     else:
         diagonal = topic.covariances[:, [0, 1, 2], [0, 1, 2]]
         usable = np.all(np.isfinite(diagonal) & (diagonal > 0), axis=1)
@@ -155,7 +196,7 @@ def _reference(args, path):
             )
         spread = np.sqrt(np.median(diagonal[usable], axis=0))
         sigma3 = (float(spread[0]), float(spread[1]), float(spread[2]))
-        source = "the median the poses report"
+        source = "the median the poses report: the start of its identification"
     said = (
         f"{len(topic.times)} poses from {args.pose_topic}, noise {sigma3[0]:.3g} m and "
         f"{math.degrees(sigma3[2]):.3g} deg ({source})"
@@ -163,34 +204,46 @@ def _reference(args, path):
     return topic.times, topic.poses, sigma3, said
 
 
-def _gyro_noise(args, log, gyro, ticks) -> tuple[GyroNoise, str]:
-    """The gyro's noise: --gyro-arw, else identified from the log's standing stretch; a
-    log without one is refused, naming --gyro-arw."""
+def _gyro_noise(args, log, gyro, ticks) -> tuple[GyroNoise, bool, str]:
+    """The gyro's noise, whether it is held, and a line saying which: --gyro-arw, or the
+    log's standing stretch's (held: driving, the gyro's noise shows only beside the wheels'
+    slip, which it would take up); else identified from the drive, starting at the library's
+    default."""
     from diffdrive.estimation.standing import warm_up
 
     if args.gyro_arw is not None:
         arw = args.gyro_arw
-        return GyroNoise(angle_random_walk=arw), f"gyro noise {arw:g} rad/s/sqrt(Hz) (--gyro-arw)"
+        line = f"gyro noise {arw:g} rad/s/sqrt(Hz) (--gyro-arw, held)"
+        return GyroNoise(angle_random_walk=arw), True, line
     inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
     part = log.rows(inside)
     standing = warm_up(part.times, part.increments(ticks, args.counter_bits), gyro)
     if standing is None:
-        raise TableError(
-            "the log never stands still, so the gyro's noise cannot be identified from it: "
-            "give --gyro-arw RAD_S_SQRT_HZ"
+        noise = GyroNoise(angle_random_walk=DEFAULT_GYRO.angle_random_walk)
+        return (
+            noise,
+            False,
+            (
+                f"gyro noise: identified from the drive, as the log never stands still, starting "
+                f"at the library's default {noise.angle_random_walk:.3g} rad/s/sqrt(Hz)"
+            ),
         )
     noise = standing.noise
-    return noise, (
-        f"gyro noise {noise.angle_random_walk:.3g} rad/s/sqrt(Hz), identified from the log's "
-        f"standing stretch ({standing.longest:.3g} s)"
+    return (
+        noise,
+        True,
+        (
+            f"gyro noise {noise.angle_random_walk:.3g} rad/s/sqrt(Hz), identified from the log's "
+            f"standing stretch ({standing.longest:.3g} s), held"
+        ),
     )
 
 
 def _wheel_noise(args) -> tuple[WheelNoise, str]:
-    """--k, else the library's default, and a line saying which."""
+    """--k (held), else the start of its identification, and a line saying which."""
     if args.k is not None:
-        return WheelNoise.symmetric(args.k), f"wheel noise {args.k:g} m (--k)"
+        return WheelNoise.symmetric(args.k), f"wheel noise {args.k:g} m (--k, held)"
     return DEFAULT, (
-        f"wheel noise {DEFAULT.left:g} m, the library's default (--k to give it; the "
-        "calibration's figures move with it)"
+        f"wheel noise: identified from the drive, starting at the library's default "
+        f"{DEFAULT.left:g} m"
     )
