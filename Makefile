@@ -8,7 +8,7 @@ SOURCES := pyproject.toml setup.py src/diffdrive/backends/_odometry.c \
 	src/diffdrive/backends/_estimator.c src/diffdrive/backends/_odometry.h \
 	src/diffdrive/backends/_module.c
 
-.PHONY: demo test bench clean
+.PHONY: demo test docs bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -32,10 +32,17 @@ test: $(VENV)/.test               ## linter, type check, then the whole test sui
 	# One BLAS thread a worker: the workers already fill the cores, and more threads fight.
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -n auto --maxprocesses 4
 
+$(VENV)/.docs: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --group docs
+	touch $@
+
+docs: $(VENV)/.docs               ## the documentation site, strict, into site/ (untracked)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
+
 bench: $(VENV)/.test              ## benchmarks/, with numba and the peer libraries
 	$(BIN)/python -m pip install --quiet -e '.[bench]'
 	$(BIN)/python benchmarks/bench_simulate.py
 	$(BIN)/python benchmarks/bench_odometry.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis .ruff_cache build src/*.egg-info
+	rm -rf $(VENV) .pytest_cache .hypothesis .ruff_cache build site src/*.egg-info

@@ -440,7 +440,7 @@ def test_calibrate_increments_a_window_at_a_time(tmp_path, capsys):
     code, _, _ = run([*argv, "--window", 20], capsys)
     assert code == 0
     windowed = read_robot(output)
-    # The same as the library's fit, which the README's table scores (12.3 mm in-sample).
+    # The same as the library's fit, which the calibration guide's table scores (12.3 mm in-sample).
     nominal, read = dd.io.optiodom_robot(), [dd.io.read_run(path) for path in runs]
     robot = dd.calibration.calibrate(
         nominal, read, "increments", dd.calibration.Increments(20)

@@ -100,7 +100,8 @@ def test_the_calibrate_report_gives_in_sample_and_held_out_side_by_side(tmp_path
 
 @pytest.mark.slow
 def test_held_out_optiodom_squares_beat_the_authors_in_sample_figure_with_the_offsets():
-    """The README's held-out table: square/230620202042, six runs, one held out at a time."""
+    """The calibration guide's held-out table: square/230620202042, six runs, one held out
+    at a time."""
     from data import data_folder
     from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 

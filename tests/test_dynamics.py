@@ -1,6 +1,6 @@
 """diffdrive.dynamics: a velocity-commanded drive's delay, time constant, gain and
 acceleration limit found again on synthetic logs at three noise levels, the refusals, and the
-TurtleBot3 figures the README quotes."""
+TurtleBot3 figures the guides quote."""
 
 import importlib.util
 import math
@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import docs_pages
 from diffdrive.dynamics import VelocityResponse, cross_validate, identify_velocity_response
 
 T = np.arange(0.0, 60.0, 0.02)
@@ -153,7 +154,7 @@ def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys, tmp_path):
     spec.loader.exec_module(script)
     script.main(["--bags", str(data_folder("ros-bags")), "--output", str(tmp_path / "f.png")])
     lines = capsys.readouterr().out.splitlines()
-    readme = " ".join((path.parents[1] / "README.md").read_text().split())
+    readme = docs_pages.text(flat=True)
     scored = [line for line in lines if line.startswith("held-out wheel-velocity RMSE")]
     for line in scored:
         model, instant = re.findall(r"(\d\.\d{3}) rad/s", line)

@@ -77,7 +77,8 @@ def test_no_module_imports_one_that_imports_it_back(graph):
             visit(module)
 
 
-# The floors of the README's layout, bottom up: a module imports from its own floor or below.
+# The floors of the layout on the design page (docs/guides/design.md), bottom up: a module
+# imports from its own floor or below.
 FLOORS = [
     ("diffdrive._step", "diffdrive._validate", "diffdrive.angles", "diffdrive.types",
      "diffdrive._arrays", "diffdrive._stats", "diffdrive.errors", "diffdrive.atomic",

@@ -6,83 +6,32 @@ these tests are skipped with a message that says so, except under CI, where they
 run leaves screenshots in ``build/`` for a person to look at.
 """
 
-import os
-import shutil
-import socket
 import subprocess
 import sys
-import time
-import urllib.request
-from pathlib import Path
 
 import pytest
 
+import headless
 from diffdrive import DiffDrive
 from diffdrive.learn import lessons
 
 pytestmark = pytest.mark.slow
 
-SCREENSHOTS = Path(__file__).resolve().parents[1] / "build"
-# Chromium as root in a closed network: no sandbox, no GPU, and no calls home.
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
-
-
-def _chromium() -> str:
-    path = (
-        os.environ.get("CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
-    )
-    if path:
-        return path
-    message = (
-        "Chromium not found, so the browser tests of the learning page did NOT run. "
-        "Install it with: apt-get install chromium (or set CHROMIUM to its path)"
-    )
-    if os.environ.get("CI"):
-        pytest.fail(message + "; .ci/run installs it, so under CI this is a failure")
-    pytest.skip(message)
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
 
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
     """``diffdrive learn --no-browser`` on a free local port: yields its address."""
-    chromium = _chromium()
-    port = _free_port()
+    chromium = headless.chromium("the learning page")
+    port = headless.free_port()
     log = tmp_path_factory.mktemp("learn") / "server.log"
-    with log.open("w") as out:
-        server = subprocess.Popen(
-            [sys.executable, "-m", "diffdrive", "learn", "--no-browser", "--port", str(port)],
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    address = f"http://127.0.0.1:{port}/"
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                with urllib.request.urlopen(address, timeout=2):
-                    break
-            except OSError:
-                if server.poll() is not None or time.monotonic() > deadline:
-                    pytest.fail(f"diffdrive learn did not serve: {log.read_text()}")
-                time.sleep(0.3)
+    command = [sys.executable, "-m", "diffdrive", "learn", "--no-browser", "--port", str(port)]
+    with (
+        log.open("w") as out,
+        headless.serving(
+            command, port, log.read_text, stdout=out, stderr=subprocess.STDOUT
+        ) as address,
+    ):
         yield address, chromium
-    finally:
-        server.terminate()
-        server.wait(timeout=30)
 
 
 @pytest.fixture(scope="module")
@@ -92,19 +41,14 @@ def page(served):
     address, chromium = served
     outside: list[str] = []
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+        browser = playwright.chromium.launch(executable_path=chromium, args=headless.CHROMIUM_ARGS)
         tab = browser.new_page(viewport={"width": 1400, "height": 1000})
-        tab.on("request", lambda request: _note_outside(request.url, outside))
+        tab.on("request", lambda request: headless.note_outside(request.url, outside))
         tab.goto(address)
         tab.get_by_test_id("dd-exact-theta").wait_for(timeout=90_000)  # the last cell has run
         tab.outside_requests = outside
         yield tab
         browser.close()
-
-
-def _note_outside(url: str, outside: list[str]) -> None:
-    if not url.startswith(("http://127.0.0.1", "ws://127.0.0.1", "data:", "blob:")):
-        outside.append(url)
 
 
 def number(tab, test_id: str) -> float:
@@ -136,8 +80,8 @@ def test_the_turning_radius_follows_a_slider_and_matches_the_library(page):
     after = _images(page)
     assert after[0] != pictures[0], "the robot's picture did not change with the wheel"
     right.blur()  # no slider tooltip in the picture
-    SCREENSHOTS.mkdir(exist_ok=True)
-    page.screenshot(path=SCREENSHOTS / "learn-section-1.png")
+    headless.SCREENSHOTS.mkdir(exist_ok=True)
+    page.screenshot(path=headless.SCREENSHOTS / "learn-section-1.png")
     assert page.outside_requests == [], "the page reached beyond this machine"
 
 
@@ -159,6 +103,6 @@ def test_check_my_answer_matches_the_library(page):
     assert number(page, "check-omega") == pytest.approx(want.twist.omega, rel=1e-5)
     page.set_viewport_size({"width": 1400, "height": 5600})  # the whole page, for a person
     page.wait_for_timeout(500)
-    page.screenshot(path=SCREENSHOTS / "learn-page.png")
-    print(f"screenshots: {SCREENSHOTS}/learn-page.png, learn-section-1.png")
+    page.screenshot(path=headless.SCREENSHOTS / "learn-page.png")
+    print(f"screenshots: {headless.SCREENSHOTS}/learn-page.png, learn-section-1.png")
     assert page.outside_requests == [], "the page reached beyond this machine"

@@ -74,6 +74,7 @@ class RunErrors:
     final_heading: float
 
     def to_array(self) -> np.ndarray:
+        """The four measures ``(4,)`` in the fields' order."""
         return np.array(
             [self.max_position, self.max_heading, self.final_position, self.final_heading]
         )

@@ -87,6 +87,7 @@ class MonteCarlo:
 
     @property
     def mean(self) -> np.ndarray:
+        """The robots' mean final pose ``(3,)``."""
         return self.moments.mean
 
     @property
@@ -118,6 +119,7 @@ class Plan:
 
     @property
     def chunks(self) -> int:
+        """How many chunks of ``chunk`` robots the run takes."""
         return math.ceil(self.robots / self.chunk)
 
 

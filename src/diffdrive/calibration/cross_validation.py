@@ -69,6 +69,7 @@ class CrossValidation:
 
     @property
     def refused(self) -> list[Fold]:
+        """The folds whose calibration was refused (``parameters`` None)."""
         return [fold for fold in self.folds if fold.parameters is None]
 
 

@@ -87,7 +87,7 @@ PARAMETERS = ("left_wheel_radius", "right_wheel_radius", "track_width")
 EXTRAS = ("axle_offset", "heading_offset")
 # The extra parameters fitted unless asked (the library's and the command line's): none. The
 # heading offset belongs to the reference, not to the robot file, and an axle offset only
-# helps runs that turn while driving (README: which to use when).
+# helps runs that turn while driving (docs/guides/calibration.md: which to use when).
 DEFAULT_EXTRA: tuple[str, ...] = ()
 # A motion-capture body is set up within a few degrees of the robot's heading.
 PLAUSIBLE_HEADING_OFFSET = math.radians(10.0)
@@ -280,7 +280,7 @@ def calibrate(
     source, else ``run 0``, ``run 1``, ...; a ``Run`` of ticks needs its own ticks per
     revolution); ``progress`` shows a progress bar of the fit's evaluations on standard error.
     On the OptiOdom runs held out one at a time, the axle offset lowers the errors and the
-    heading offset's gain is the reference's, not the robot file's (see the README); a
+    heading offset's gain is the reference's, not the robot file's (see docs/guides/calibration.md); a
     per-run start-pose offset raised them and a time offset changed nothing, so neither is
     offered.
 

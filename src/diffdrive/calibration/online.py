@@ -149,6 +149,7 @@ class OnlineCalibrator:
 
     @property
     def robot(self) -> DiffDrive:
+        """The robot with the radii and track estimated so far (the nominal axle offset)."""
         left, right, track = self.parameters
         return DiffDrive(
             left_wheel_radius=left,

@@ -53,6 +53,7 @@ class Log:
 
     @property
     def poses(self) -> bool:
+        """Whether the reference reads poses (else positions)."""
         return self.readings.shape[1] == 3
 
 
@@ -155,6 +156,7 @@ class Part:
     dense: np.ndarray | None = None
 
     def scaled(self, factor: float) -> Part:
+        """This term times ``factor``."""
         dense = None if self.dense is None else factor * self.dense
         return Part(factor * self.diagonal, factor * self.below, dense)
 

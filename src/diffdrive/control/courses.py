@@ -34,10 +34,12 @@ class Course:
 
     @property
     def start(self) -> np.ndarray:
+        """The start pose ``(3,)``: the origin, facing along x."""
         return np.array([0.0, 0.0, 0.0])
 
     @property
     def goal(self) -> np.ndarray:
+        """The goal pose ``(3,)``: ``length`` m along x."""
         return np.array([self.length, 0.0, 0.0])
 
     def clearance(self, points: object) -> np.ndarray:

@@ -47,7 +47,10 @@ __all__ = [
 class Tracker(Protocol):
     """What ``follow`` drives with."""
 
-    def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray: ...
+    def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:
+        """Body twists ``(N, 2)`` ``(v, omega)`` for robots at ``poses`` ``(N, 3)`` tracking
+        ``plan`` at time ``t`` s."""
+        ...
 
 
 def errors_in_robot(poses: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -79,6 +82,7 @@ class Ramsete:
             raise ValueError(f"zeta must be in (0, 1), got {self.zeta!r}")
 
     def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:
+        """``Tracker.command``: twists ``(N, 2)`` for ``poses`` ``(N, 3)`` at ``t`` s."""
         poses = _poses(poses)
         ref = plan.sample(t)
         v_r, w_r = ref["twist"]
@@ -134,6 +138,7 @@ class LTVUnicycle:
         return np.array([np.interp(v, self.speeds, column) for column in flat.T]).reshape(2, 3)
 
     def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:
+        """``Tracker.command``: twists ``(N, 2)`` for ``poses`` ``(N, 3)`` at ``t`` s."""
         poses = _poses(poses)
         ref = plan.sample(t)
         e = errors_in_robot(poses, ref["pose"])
@@ -167,6 +172,7 @@ class PurePursuit:
             raise ValueError("min_lookahead must not exceed max_lookahead")
 
     def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:
+        """``Tracker.command``: twists ``(N, 2)`` for ``poses`` ``(N, 3)`` at ``t`` s."""
         poses = _poses(poses)
         ref = plan.sample(t)
         v_r = float(ref["twist"][0])
@@ -232,6 +238,7 @@ class Predictive:
         self._applied = np.zeros((0, 2))  # the twist the lag has reached
 
     def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:
+        """``Tracker.command``: twists ``(N, 2)`` for ``poses`` ``(N, 3)`` at ``t`` s."""
         poses = _poses(poses)
         if len(self._applied) == 0:
             self._sent = np.zeros((len(poses), self.steps, 2))

@@ -100,6 +100,7 @@ class ForwardLesson:
         return self.robot.to_twist_matrix()
 
     def markdown(self) -> str:
+        """The lesson's text in Markdown with LaTeX, its numbers from the library."""
         r = self.robot.wheel_radius
         half = self.robot.half_track
         v_l, v_r = self.rim_speeds
@@ -182,6 +183,7 @@ class InverseLesson:
         return self.delivered_wheels != self.wheels
 
     def markdown(self) -> str:
+        """The lesson's text in Markdown with LaTeX, its numbers from the library."""
         r, half = self.robot.wheel_radius, self.robot.half_track
         v, w = self.twist.vx, self.twist.omega
         lines = [
@@ -289,6 +291,7 @@ class ModernRoboticsLesson:
         return self.q @ self.pinv_twist
 
     def markdown(self) -> str:
+        """The lesson's text in Markdown with LaTeX, its numbers from the library."""
         d = self.robot.axle_offset
         left, right = self.robot.wheel_frames()
         frames = ", ".join(
@@ -370,6 +373,7 @@ class IntegrationLesson:
         return self.duration / counts, errors
 
     def markdown(self) -> str:
+        """The lesson's text in Markdown with LaTeX, its numbers from the library."""
         n = len(self.paths["exact"]) - 1
         rows = [
             "| method | one step | end-position error (m) |",
@@ -438,6 +442,7 @@ class CheckLesson:
     exact: Pose
 
     def markdown(self) -> str:
+        """The lesson's text in Markdown with LaTeX, its numbers from the library."""
         v, w, h = self.twist.vx, self.twist.omega, self.step
         r, half = self.robot.wheel_radius, self.robot.half_track
         lines = [

@@ -41,6 +41,7 @@ class Motion:
 
     @property
     def durations(self) -> np.ndarray:
+        """Each step's length ``(T,)``, s."""
         return np.diff(self.times)
 
     def robots(self, robots: int | None) -> int:

@@ -1,0 +1,246 @@
+"""The documentation runs as written: the README (the front page) and the site's pages
+under ``docs/``, their code, their walkthroughs and the figures they draw; the site builds in
+strict mode; every public module has a reference page and its names their docstrings."""
+
+import re
+
+import pytest
+
+import docs_pages
+from docs_pages import DOCS, README, ROOT
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=lambda path: path.name)
+def test_every_python_block_on_every_page_runs(path, monkeypatch):
+    from data import data_folder
+
+    monkeypatch.chdir(ROOT)  # the pages' paths are the clone's (../shared/data/...)
+    blocks = re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.S)
+    for block in blocks:
+        for folder in re.findall(r"shared/data/([\w-]+)", block):
+            data_folder(folder)  # a block on the recordings: fail in CI, skip without them
+        exec(compile(block, str(path), "exec"), {})
+
+
+def test_readme_starts_with_the_two_setup_commands():
+    text = README.read_text()
+    commands = re.findall(r"```sh\n(.*?)```", text, flags=re.S)[0].strip().splitlines()
+    assert [line.split("#")[0].strip() for line in commands] == ["make demo", "make test"]
+
+
+@pytest.mark.slow
+def test_the_command_line_walkthrough_makes_the_pictures_shown(tmp_path):
+    """Runs the README's command-line block as written, then compares the figure it drew."""
+    import shlex
+    import subprocess
+    import sys
+
+    import matplotlib.image
+
+    block = re.search(r"```sh\n(.*?)```", docs_pages.page("guides/command-line.md"), flags=re.S)
+    block = block.group(1)
+    (tmp_path / "docs" / "figures").mkdir(parents=True)
+    commands = [line.split("#")[0].strip() for line in block.splitlines()]
+    for command in filter(None, commands):
+        words = shlex.split(command)
+        assert words[0] == ".venv/bin/diffdrive", command
+        result = subprocess.run(
+            [sys.executable, "-m", "diffdrive", *words[1:]],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+        )
+        assert result.returncode == 0, (command, result.stderr)
+    figure = "docs/figures/trajectory.png"
+    assert "../figures/trajectory.png" in docs_pages.page("guides/command-line.md")
+    made = matplotlib.image.imread(tmp_path / figure)
+    shown = matplotlib.image.imread(ROOT / figure)
+    assert made.shape == shown.shape
+    assert abs(float(made.mean()) - float(shown.mean())) < 1e-3
+    assert (tmp_path / "trajectory.gif").stat().st_size > 10_000
+    assert (tmp_path / "trajectory.tum").read_text().startswith("# t x y z qx qy qz qw")
+
+
+def test_the_readme_is_a_front_page_that_links_into_the_site():
+    """At most 250 lines; every relative link lands on a file of the site or the clone."""
+    text = README.read_text()
+    assert len(text.splitlines()) <= 250
+    assert "a C compiler" in text.split("```sh", 1)[0]
+    links = re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", re.sub(r"```.*?```", "", text, flags=re.S))
+    assert links, "the README links none of the site's pages"
+    assert sorted(link for link in links if not (ROOT / link).is_file()) == []
+
+
+def test_the_readme_and_the_site_home_give_the_same_tour():
+    """The README is the repository's front page and ``docs/index.md`` the site's; their
+    set-up and tour are one text, held equal here."""
+    readme, home = README.read_text(), (DOCS / "index.md").read_text()
+
+    def tour(text: str) -> str:
+        start = text.index("On a fresh machine with Python 3.10+")
+        return text[start : text.index("```", text.index("```python") + 3)]
+
+    assert tour(readme) == tour(home)
+
+
+def test_the_pages_speak_to_users():
+    for path, text in docs_pages.pages().items():
+        for internal in ("seed 000's main job", "Issue ", "issue "):
+            assert internal not in text, (path, internal)
+
+
+@pytest.mark.slow
+def test_the_bag_walkthrough_runs_as_written(tmp_path, monkeypatch, capsys):
+    import shlex
+
+    from data import data_folder
+    from diffdrive.cli import main
+
+    section = docs_pages.page("guides/bags.md").split("## Robot logs", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", section, flags=re.S).group(1).replace("\\\n", " ")
+    monkeypatch.chdir(tmp_path)
+    bags = str(data_folder("ros-bags"))
+    commands = [line.split("#")[0].strip() for line in block.splitlines()]
+    printed: dict[str, str] = {}
+    for command in filter(None, commands):
+        if command.startswith("B="):
+            continue
+        words = shlex.split(command.replace("$B", bags))
+        assert words[0] == ".venv/bin/diffdrive", command
+        assert main(words[1:]) == 0, (command, capsys.readouterr().err)
+        printed[words[1]] = printed.get(words[1], "") + capsys.readouterr().out
+    assert (tmp_path / "tb3.mcap").stat().st_size > 100_000
+    # What the text says the commands print (3.9 m calibrated, from /odom's first pose).
+    assert "position error max 3.94" in printed["odometry"]
+    assert "max_position_error_m                   3.94" in printed["evaluate"]
+
+
+@pytest.mark.slow
+def test_the_calibration_from_driving_runs_as_written(tmp_path, monkeypatch, capsys):
+    """The block of "Calibration from ordinary driving", with the robot file its text gives:
+    it writes the robot, with the distance scale the section quotes."""
+    import shlex
+
+    from data import data_folder
+    from diffdrive.cli import main
+    from diffdrive.io import read_robot
+
+    section = docs_pages.page("guides/calibration.md")
+    section = section.split("## Calibration from ordinary driving", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", section, flags=re.S).group(1).replace("\\\n", " ")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "husky.toml").write_text("wheel_radius = 0.165\ntrack_width = 0.555\n")
+    bag = str(data_folder("ros-bags") / "husky_robot_localization_test1.bag")
+    for command in filter(None, (line.strip() for line in block.splitlines())):
+        if command.startswith("H="):
+            continue
+        words = shlex.split(command.replace("$H", bag))
+        assert words[0] == ".venv/bin/diffdrive", command
+        assert main(words[1:]) == 0, (command, capsys.readouterr().err)
+    robot = read_robot(tmp_path / "robot.toml")
+    assert 0.96 <= (robot["left_wheel_radius"] + robot["right_wheel_radius"]) / 0.33 <= 0.98
+
+
+@pytest.mark.slow
+def test_the_site_builds_in_strict_mode_without_a_warning(tmp_path):
+    """``make docs``' build: a broken link, a missing reference or any warning fails it."""
+    import subprocess
+    import sys
+
+    result = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path)],
+        cwd=ROOT, capture_output=True, text=True, env={**__import__("os").environ,
+        "NO_MKDOCS_2_WARNING": "1"},
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "WARNING" not in result.stderr, result.stderr
+    assert (tmp_path / "reference" / "calibration" / "reference" / "index.html").is_file()
+    assert "calibrate_to_reference" in (tmp_path / "reference" / "calibration" / "reference" /
+                                        "index.html").read_text()  # fmt: skip
+
+
+def _public_modules() -> list[str]:
+    """Every public module: no part of its name begins with an underscore; the command
+    line's and the compiled back ends' internals are not the library's API."""
+    source = ROOT / "src" / "diffdrive"
+    names = []
+    for path in sorted(source.rglob("*.py")):
+        parts = list(path.relative_to(source.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        if any(part.startswith("_") for part in parts) or parts[-1] == "__main__":
+            continue
+        if len(parts) > 1 and parts[1] in ("cli", "backends"):
+            continue
+        names.append(".".join(parts))
+    return names
+
+
+def _reference_page(module: str) -> str:
+    parts = module.split(".")[1:]
+    package = ROOT / "src" / "diffdrive" / "/".join(parts) / "__init__.py"
+    return "/".join(["reference", *parts, "index.md"] if package.is_file() or not parts else
+                    ["reference", *parts[:-1], parts[-1] + ".md"])  # fmt: skip
+
+
+def test_every_public_module_has_a_reference_page_in_the_navigation():
+    nav = (ROOT / "mkdocs.yml").read_text()
+    missing = []
+    for module in _public_modules():
+        page = _reference_page(module)
+        path = DOCS / page
+        if not path.is_file() or f"::: {module}\n" not in path.read_text() or page not in nav:
+            missing.append(f"{module}: {page} with '::: {module}', listed in mkdocs.yml")
+    assert missing == []
+
+
+def _documented(owner: object, name: str, value: object) -> bool:
+    doc = getattr(value, "__doc__", None)
+    if isinstance(value, property | staticmethod | classmethod):
+        doc = getattr(value, "__func__", getattr(value, "fget", None)).__doc__
+    # A dataclass without a docstring gets its signature as one.
+    generated = isinstance(value, type) and bool(doc) and doc.startswith(f"{name}(")
+    return bool(doc and doc.strip()) and not generated
+
+
+def test_the_public_api_is_documented():
+    """At least 95 % of the public names (each module's ``__all__``, or its own public
+    functions and classes, and their public methods and properties) have a docstring; what
+    lacks one is listed."""
+    import importlib
+    import inspect
+
+    names, lacking = 0, []
+    for module_name in _public_modules():
+        module = importlib.import_module(module_name)
+        exported = getattr(module, "__all__", None)
+        if exported is None:
+            exported = [
+                name for name, value in vars(module).items()
+                if not name.startswith("_") and (inspect.isfunction(value) or
+                inspect.isclass(value)) and value.__module__ == module_name
+            ]  # fmt: skip
+        for name in exported:
+            value = getattr(module, name)
+            if inspect.ismodule(value) or not (inspect.isfunction(value) or
+                                               inspect.isclass(value)):  # fmt: skip
+                continue  # constants are documented where they are set
+            if getattr(value, "__module__", module_name) != module_name:
+                continue  # a re-export: counted in its own module
+            names += 1
+            if not _documented(module, name, value):
+                lacking.append(f"{module_name}.{name}")
+            if inspect.isclass(value):
+                for member, attribute in vars(value).items():
+                    if member.startswith("_") or not (
+                        inspect.isfunction(attribute)
+                        or isinstance(attribute, property | staticmethod | classmethod)
+                    ):
+                        continue
+                    names += 1
+                    if not _documented(value, member, attribute):
+                        lacking.append(f"{module_name}.{name}.{member}")
+    share = 1 - len(lacking) / names
+    print(f"docstrings: {names - len(lacking)} of {names} public names ({share:.1%})")
+    assert share >= 0.95, "\n".join(lacking)
