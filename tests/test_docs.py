@@ -11,7 +11,7 @@ from docs_pages import DOCS, README, ROOT
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=lambda path: path.name)
+@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=lambda path: str(path.relative_to(ROOT)))
 def test_every_python_block_on_every_page_runs(path, monkeypatch):
     from data import data_folder
 
@@ -90,56 +90,86 @@ def test_the_pages_speak_to_users():
             assert internal not in text, (path, internal)
 
 
+# Commands the shell blocks hold that the tests do not run, and why.
+EXEMPT = {
+    "make demo": "the README's set-up: CI and the fresh-clone check run it",
+    "make test": "the README's set-up: CI and the fresh-clone check run it",
+    ".venv/bin/pip install": "an install step: the tests' environment has every extra",
+    ".venv/bin/diffdrive learn": "serves the page until stopped: test_learn_browser.py uses it",
+}
+
+
+def _inputs(name: str, where):
+    """A file a page's block reads that none of its blocks writes, made as the page says."""
+    import shutil
+
+    from data import data_folder
+    from sysid_log import write_sysid
+
+    robots = {"husky.toml": "wheel_radius = 0.165\ntrack_width = 0.555\n",
+              "nominal.toml": "wheel_radius = 0.042\ntrack_width = 0.2\n"}  # fmt: skip
+    if name in robots:
+        (where / name).write_text(robots[name])
+    elif name in ("run1.csv", "run2.csv"):
+        runs = sorted((data_folder("optiodom-diffdrive") / "free" / "030120210006").glob("*run*"))
+        shutil.copy(runs[int(name[3]) - 1], where / name)
+    elif name == "sysid.csv":
+        write_sysid(where / name, 0.042)
+
+
+def _blocks(text: str) -> list[tuple[str, str | None]]:
+    """Each shell block's text and the text block right after it, if any (what it prints)."""
+    found = re.finditer(r"```sh\n(.*?)```\s*?(?:\n\s*```text\n(.*?)```)?", text, flags=re.S)
+    return [(match.group(1), match.group(2)) for match in found]
+
+
 @pytest.mark.slow
-def test_the_bag_walkthrough_runs_as_written(tmp_path, monkeypatch, capsys):
+@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=lambda path: str(path.relative_to(ROOT)))
+def test_every_shell_block_on_every_page_runs_and_prints_what_it_shows(
+    path, tmp_path, monkeypatch, capsys
+):
+    """Each page's shell blocks in order, as one shell session in a new folder: ``NAME=value``
+    sets a variable, ``../shared/data/`` is the recordings (a test on them fails in CI and
+    skips elsewhere without them), each ``.venv/bin/diffdrive`` command must exit 0, a file a
+    block reads that no block wrote is made as the page describes it (``_inputs``), the
+    clone's folders a path names exist, and where a text block follows, each of its lines is
+    in what the block printed."""
     import shlex
 
     from data import data_folder
     from diffdrive.cli import main
 
-    section = docs_pages.page("guides/bags.md").split("## Robot logs", 1)[1]
-    block = re.search(r"```sh\n(.*?)```", section, flags=re.S).group(1).replace("\\\n", " ")
     monkeypatch.chdir(tmp_path)
-    bags = str(data_folder("ros-bags"))
-    commands = [line.split("#")[0].strip() for line in block.splitlines()]
-    printed: dict[str, str] = {}
-    for command in filter(None, commands):
-        if command.startswith("B="):
-            continue
-        words = shlex.split(command.replace("$B", bags))
-        assert words[0] == ".venv/bin/diffdrive", command
-        assert main(words[1:]) == 0, (command, capsys.readouterr().err)
-        printed[words[1]] = printed.get(words[1], "") + capsys.readouterr().out
-    assert (tmp_path / "tb3.mcap").stat().st_size > 100_000
-    # What the text says the commands print (3.9 m calibrated, from /odom's first pose).
-    assert "position error max 3.94" in printed["odometry"]
-    assert "max_position_error_m                   3.94" in printed["evaluate"]
-
-
-@pytest.mark.slow
-def test_the_calibration_from_driving_runs_as_written(tmp_path, monkeypatch, capsys):
-    """The block of "Calibration from ordinary driving", with the robot file its text gives:
-    it writes the robot, with the distance scale the section quotes."""
-    import shlex
-
-    from data import data_folder
-    from diffdrive.cli import main
-    from diffdrive.io import read_robot
-
-    section = docs_pages.page("guides/calibration.md")
-    section = section.split("## Calibration from ordinary driving", 1)[1]
-    block = re.search(r"```sh\n(.*?)```", section, flags=re.S).group(1).replace("\\\n", " ")
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "husky.toml").write_text("wheel_radius = 0.165\ntrack_width = 0.555\n")
-    bag = str(data_folder("ros-bags") / "husky_robot_localization_test1.bag")
-    for command in filter(None, (line.strip() for line in block.splitlines())):
-        if command.startswith("H="):
-            continue
-        words = shlex.split(command.replace("$H", bag))
-        assert words[0] == ".venv/bin/diffdrive", command
-        assert main(words[1:]) == 0, (command, capsys.readouterr().err)
-    robot = read_robot(tmp_path / "robot.toml")
-    assert 0.96 <= (robot["left_wheel_radius"] + robot["right_wheel_radius"]) / 0.33 <= 0.98
+    variables: dict[str, str] = {}
+    for block, shown in _blocks(path.read_text()):
+        printed = ""
+        for line in block.replace("\\\n", " ").splitlines():
+            command = line.split(" #")[0].strip()
+            if not command or any(command.startswith(start) for start in EXEMPT):
+                continue
+            for folder in re.findall(r"\.\./shared/data/([\w-]+)", command):
+                command = command.replace(f"../shared/data/{folder}", str(data_folder(folder)))
+            assignment = re.fullmatch(r"(\w+)=(.*)", command)
+            if assignment:
+                variables[assignment.group(1)] = shlex.split(assignment.group(2))[0]
+                continue
+            for name, value in sorted(variables.items(), key=lambda item: -len(item[0])):
+                command = command.replace(f"${name}", value)
+            words = shlex.split(command)
+            assert words[0] == ".venv/bin/diffdrive", (path, command)
+            for word in words[1:]:
+                if re.fullmatch(r"[\w-]+\.(csv|toml)", word) and not (tmp_path / word).exists():
+                    _inputs(word, tmp_path)
+                if "/" in word and not word.startswith("/"):  # docs/figures/... as in the clone
+                    (tmp_path / word).parent.mkdir(parents=True, exist_ok=True)
+            code = main(words[1:])
+            out, err = capsys.readouterr()
+            assert code == 0, (path, command, err)
+            printed += out
+        if shown:
+            flat = " ".join(printed.split())
+            for expected in filter(None, (" ".join(line.split()) for line in shown.splitlines())):
+                assert expected in flat, (path, expected)
 
 
 @pytest.mark.slow

@@ -406,27 +406,11 @@ def test_wpilib_takes_the_drive_identify_found(tmp_path, monkeypatch, capsys):
     in a JSON file its schema admits."""
     import json
 
-    from diffdrive.dynamics import DriveModel, Feedforward
+    from sysid_log import write_sysid
 
     jsonschema = pytest.importorskip("jsonschema")
     monkeypatch.chdir(tmp_path)
-    r = NOMINAL.left_wheel_radius
-    motor = DriveModel(feedforward=Feedforward(1.0, 3.0 * r, 0.5 * r))  # per rad/s of the wheel
-    t = np.arange(0.0, 40.0, 0.01)
-    ramp = np.where(t < 10, 0.25 * t, -0.25 * (t - 10))
-    steps = np.where(t < 25, 7.0, -7.0)
-    straight = np.where(t < 20, ramp, steps)
-    volts = np.column_stack([straight, straight])
-    volts = np.concatenate([volts, volts * np.array([-1.0, 1.0])])  # then turning both ways
-    times = np.arange(len(volts)) * 0.01
-    wheels = motor.wheel_velocities(times, times, volts)
-    wheels += np.random.default_rng(3).normal(0, 0.002 / r, wheels.shape)
-    columns = [times, wheels[:, 0], wheels[:, 1], volts[:, 0], volts[:, 1]]
-    with open("sysid.csv", "w") as out:
-        out.write("t,left_velocity,right_velocity,left_voltage,right_voltage\n")
-        out.writelines(
-            ",".join(repr(float(v)) for v in row) + "\n" for row in zip(*columns, strict=True)
-        )
+    write_sysid(tmp_path / "sysid.csv", NOMINAL.left_wheel_radius)
     robot = ["--wheel-radius", "0.05", "--track-width", "0.3"]
     assert main(["identify", "sysid.csv", *robot, "-o", "drive.toml"]) == 0
     assert "linear: kS 0.99" in capsys.readouterr().out
