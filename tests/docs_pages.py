@@ -26,3 +26,8 @@ def text(flat: bool = False) -> str:
 def page(name: str) -> str:
     """One page of ``docs/`` by its path there (``guides/bags.md``)."""
     return (DOCS / name).read_text()
+
+
+def name(path: Path) -> str:
+    """A page's path from the clone's root: its name in a test's id."""
+    return str(path.relative_to(ROOT))

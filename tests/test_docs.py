@@ -11,7 +11,7 @@ from docs_pages import DOCS, README, ROOT
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=lambda path: str(path.relative_to(ROOT)))
+@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=docs_pages.name)
 def test_every_python_block_on_every_page_runs(path, monkeypatch):
     from data import data_folder
 
@@ -124,7 +124,7 @@ def _blocks(text: str) -> list[tuple[str, str | None]]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=lambda path: str(path.relative_to(ROOT)))
+@pytest.mark.parametrize("path", list(docs_pages.pages()), ids=docs_pages.name)
 def test_every_shell_block_on_every_page_runs_and_prints_what_it_shows(
     path, tmp_path, monkeypatch, capsys
 ):

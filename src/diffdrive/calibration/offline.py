@@ -280,9 +280,9 @@ def calibrate(
     source, else ``run 0``, ``run 1``, ...; a ``Run`` of ticks needs its own ticks per
     revolution); ``progress`` shows a progress bar of the fit's evaluations on standard error.
     On the OptiOdom runs held out one at a time, the axle offset lowers the errors and the
-    heading offset's gain is the reference's, not the robot file's (see docs/guides/calibration.md); a
-    per-run start-pose offset raised them and a time offset changed nothing, so neither is
-    offered.
+    heading offset's gain is the reference's, not the robot file's (see
+    docs/guides/calibration.md); a per-run start-pose offset raised them and a time offset
+    changed nothing, so neither is offered.
 
     Before fitting, the runs must excite every free parameter: they must drive (the wheel
     radii), turn (the track width) and turn both ways (a difference between the wheels apart
