@@ -24,9 +24,11 @@ import diffdrive as dd
 from diffdrive.calibration.reference import UndeterminedError, calibrate_to_reference, estimable
 from diffdrive.estimation import Gyro, estimate_trajectory
 from diffdrive.estimation.standing import warm_up
+from diffdrive.sensor_noise import DEFAULT
 
 sys_path = Path(__file__).resolve().parent
 BAGS = sys_path.parents[1] / "shared" / "data" / "ros-bags"
+NOISE = ("wheels", "reference")  # identified; the gyro's is the standing stretch's
 
 
 def calibrated(data: dict):
@@ -39,18 +41,22 @@ def calibrated(data: dict):
     standing = warm_up(data["times"], data["increments"], data["gyro"])
     if standing is None:
         raise ValueError("the log has no standing stretch to identify the gyro's noise from")
-    common = dict(
-        sigma=data["sigma"], gyro=data["gyro"], gyro_noise=standing.noise,
-        identify_noise=("wheels", "reference"),
-    )  # fmt: skip
+    common = dict(gyro=data["gyro"], gyro_noise=standing.noise)
+    start = dict(sigma=data["sigma"], wheel_noise=DEFAULT)
     args = (HUSKY, data["times"], data["increments"], data["fix_times"], data["fixes"])
     estimate, left_out = estimable(poses=False, gyro=True), []
     while True:
         try:
-            return calibrate_to_reference(*args, **common, estimate=estimate), standing, left_out
+            found = calibrate_to_reference(
+                *args, **common, **start, estimate=estimate, identify_noise=NOISE
+            )
+            return found, standing, left_out
         except UndeterminedError as refused:
             left_out.append(f"left out {', '.join(refused.parameters)}: {refused}")
             estimate = tuple(name for name in estimate if name not in refused.parameters)
+            if refused.noise is not None:  # the next try starts from the noise found
+                found_noise = refused.noise.values
+                start = dict(sigma=found_noise["reference"], wheel_noise=found_noise["wheels"])
 
 
 def dead_reckoning_ate(data: dict, robot: dd.DiffDrive, gyro: Gyro, span) -> float:

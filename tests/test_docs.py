@@ -29,39 +29,6 @@ def test_readme_starts_with_the_two_setup_commands():
     assert [line.split("#")[0].strip() for line in commands] == ["make demo", "make test"]
 
 
-@pytest.mark.slow
-def test_the_command_line_walkthrough_makes_the_pictures_shown(tmp_path):
-    """Runs the README's command-line block as written, then compares the figure it drew."""
-    import shlex
-    import subprocess
-    import sys
-
-    import matplotlib.image
-
-    block = re.search(r"```sh\n(.*?)```", docs_pages.page("guides/command-line.md"), flags=re.S)
-    block = block.group(1)
-    (tmp_path / "docs" / "figures").mkdir(parents=True)
-    commands = [line.split("#")[0].strip() for line in block.splitlines()]
-    for command in filter(None, commands):
-        words = shlex.split(command)
-        assert words[0] == ".venv/bin/diffdrive", command
-        result = subprocess.run(
-            [sys.executable, "-m", "diffdrive", *words[1:]],
-            capture_output=True,
-            text=True,
-            cwd=tmp_path,
-        )
-        assert result.returncode == 0, (command, result.stderr)
-    figure = "docs/figures/trajectory.png"
-    assert "../figures/trajectory.png" in docs_pages.page("guides/command-line.md")
-    made = matplotlib.image.imread(tmp_path / figure)
-    shown = matplotlib.image.imread(ROOT / figure)
-    assert made.shape == shown.shape
-    assert abs(float(made.mean()) - float(shown.mean())) < 1e-3
-    assert (tmp_path / "trajectory.gif").stat().st_size > 10_000
-    assert (tmp_path / "trajectory.tum").read_text().startswith("# t x y z qx qy qz qw")
-
-
 def test_the_readme_is_a_front_page_that_links_into_the_site():
     """At most 250 lines; every relative link lands on a file of the site or the clone."""
     text = README.read_text()
@@ -132,8 +99,8 @@ def test_every_shell_block_on_every_page_runs_and_prints_what_it_shows(
     sets a variable, ``../shared/data/`` is the recordings (a test on them fails in CI and
     skips elsewhere without them), each ``.venv/bin/diffdrive`` command must exit 0, a file a
     block reads that no block wrote is made as the page describes it (``_inputs``), the
-    clone's folders a path names exist, and where a text block follows, each of its lines is
-    in what the block printed."""
+    clone's folders a path names exist, where a text block follows each of its lines is in
+    what the block printed, and a figure drawn into ``docs/figures/`` is the site's."""
     import shlex
 
     from data import data_folder
@@ -170,6 +137,18 @@ def test_every_shell_block_on_every_page_runs_and_prints_what_it_shows(
             flat = " ".join(printed.split())
             for expected in filter(None, (" ".join(line.split()) for line in shown.splitlines())):
                 assert expected in flat, (path, expected)
+    _same_figures(tmp_path)
+
+
+def _same_figures(folder) -> None:
+    """A figure the blocks drew into ``docs/figures/`` is the one the site shows."""
+    import matplotlib.image
+
+    for made in sorted((folder / "docs" / "figures").glob("*.png")):
+        shown = matplotlib.image.imread(DOCS / "figures" / made.name)
+        drawn = matplotlib.image.imread(made)
+        assert drawn.shape == shown.shape, made.name
+        assert abs(float(drawn.mean()) - float(shown.mean())) < 1e-3, made.name
 
 
 @pytest.mark.slow

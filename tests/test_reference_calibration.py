@@ -158,6 +158,7 @@ def test_gps_noise_is_identified_and_a_term_the_drive_cannot_split_is_named():
     assert any("gyro's angle random walk" in line and "not determined by this log" in line
                for line in found.report)  # fmt: skip
     assert abs(found.value("lever_x") - scenario.ANTENNA[0]) <= 0.08
+    times, increments, gyro, stamps, positions = scenario.gps_drive(2, seconds=120.0)
     held = calibrate_to_reference(
         scenario.NOMINAL, times, increments, stamps, positions, sigma=1.0, gyro=gyro,
         gyro_noise=GyroNoise(angle_random_walk=scenario.GYRO_ARW), wheel_noise=1e-4,

@@ -217,11 +217,16 @@ def _checked(times, increments, stamps, reference, sigma, gyro, least=LEAST_READ
 
 class UndeterminedError(ValueError):
     """A calibration refused because the log did not determine ``parameters`` (the message
-    says why and what drive would); leaving them out of ``estimate`` may let the rest go."""
+    says why and what drive would); leaving them out of ``estimate`` may let the rest go. Where
+    the noise was identified, ``noise`` is what was found (``IdentifiedNoise``): a good start
+    for the next try's figures."""
 
-    def __init__(self, message: str, parameters: tuple[str, ...]) -> None:
+    def __init__(
+        self, message: str, parameters: tuple[str, ...], noise: IdentifiedNoise | None = None
+    ) -> None:
         super().__init__(message)
         self.parameters = parameters
+        self.noise = noise
 
 
 def estimable(poses: bool, gyro: bool) -> tuple[str, ...]:
@@ -334,7 +339,10 @@ def calibrate_to_reference(
     if poses:
         turned = max(float(np.ptp(c[3][:, 2])) for c in checked)
         moved += f" and turn through {turned:.3g} rad"
-    report = _refuse_the_undetermined(names, values, covariance, information, moved)
+    try:
+        report = _refuse_the_undetermined(names, values, covariance, information, moved)
+    except UndeterminedError as refused:
+        raise UndeterminedError(str(refused), refused.parameters, noise) from None
     if noise is not None:
         report += _noise_lines(noise)
     return ReferenceCalibration(

@@ -300,14 +300,20 @@ def _heading_walk(log: Log, values: np.ndarray, wheel_turn: np.ndarray) -> np.nd
     else:
         variances = log.gyro_noise**2 * np.diff(log.stamps) / (1.0 + values[_SCALE]) ** 2
     size = 2 if log.gyro is None else 3
-    earlier = np.arange(count)[None, :] < np.arange(count)[:, None]  # stretch i before k
-    loading = np.zeros((count, size, count))
-    loading[:, 0, :] = turned[:, :1] * earlier
-    loading[:, 1, :] = turned[:, 1:] * earlier
+    # Stretches k and l share the walk of every stretch before both: its variance summed,
+    # S[min(k, l)], O(K^2) where the loadings' product would be O(K^3).
+    shared = np.concatenate([[0.0], np.cumsum(variances)])[:-1]
+    order = np.arange(count)
+    common = shared[np.minimum.outer(order, order)]
+    out = np.zeros((count, size, count, size))
+    out[:, :2, :, :2] = np.einsum("ka,lb,kl->kalb", turned, turned, common)
     if log.gyro is not None:
-        loading[:, 2, :] = -np.eye(count)
-    flat = loading.reshape(count * size, count)
-    return (flat * variances) @ flat.T
+        # The gyro's side of stretch k's turn residual against every later displacement.
+        later = (order[:, None] < order[None, :]) * -variances[:, None]  # (k, l): k before l
+        out[:, 2, :, :2] = later[:, :, None] * turned[None, :, :]
+        out[:, :2, :, 2] = np.einsum("kla->lak", out[:, 2, :, :2])
+        out[order, 2, order, 2] = variances
+    return out.reshape(count * size, count * size)
 
 
 class _Weights:
@@ -322,17 +328,18 @@ class _Weights:
         self.banded = covariance.dense is None
         if self.banded:
             self.factor = cholesky_banded(
-                _banded(covariance.diagonal, covariance.below), lower=True
+                _banded(covariance.diagonal, covariance.below), lower=True, check_finite=False
             )
             return
-        self.factor = cho_factor(covariance.matrix(), lower=True)
+        # Built here from checked readings: the finiteness scan would cost a tenth of the fit.
+        self.factor = cho_factor(covariance.matrix(), lower=True, check_finite=False)
 
     def solve(self, right: np.ndarray) -> np.ndarray:
         from scipy.linalg import cho_solve, cho_solve_banded
 
         if self.banded:
-            return cho_solve_banded((self.factor, True), right)
-        return cho_solve(self.factor, right)
+            return cho_solve_banded((self.factor, True), right, check_finite=False)
+        return cho_solve(self.factor, right, check_finite=False)
 
 
 class Runs:
