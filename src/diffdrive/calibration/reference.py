@@ -341,8 +341,8 @@ def calibrate_to_reference(
         moved += f" and turn through {turned:.3g} rad"
     try:
         report = _refuse_the_undetermined(names, values, covariance, information, moved)
-    except UndeterminedError as refused:
-        raise UndeterminedError(str(refused), refused.parameters, noise) from None
+    except UndeterminedError as undetermined:
+        raise UndeterminedError(str(undetermined), undetermined.parameters, noise) from None
     if noise is not None:
         report += _noise_lines(noise)
     return ReferenceCalibration(
