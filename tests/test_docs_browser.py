@@ -1,7 +1,8 @@
-"""The documentation site built as ``make docs`` builds it, served on a local port and used
-in a real headless Chromium as a reader would: the home page, the navigation into a guide and
-the reference, and a search; no console error and no request off this machine on the way.
-Each run leaves screenshots in ``build/``."""
+"""The documentation site built as ``make docs`` builds it (strict: a broken link, a missing
+reference or any warning fails), then served on a local port and used in a real headless
+Chromium as a reader would: the home page, the navigation into a guide and the reference, and
+a search; no console error and no request off this machine on the way. Each run leaves
+screenshots in ``build/``."""
 
 import os
 import subprocess
@@ -17,14 +18,29 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    """The site built (strict) and served by ``http.server``: yields its address."""
-    chromium = headless.chromium("the documentation site")
+def built(tmp_path_factory):
+    """The site as ``make docs`` builds it, strict: its folder and the build's messages."""
     site = tmp_path_factory.mktemp("site")
     build = subprocess.run(
         [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
         cwd=ROOT, capture_output=True, text=True, env={**os.environ, "NO_MKDOCS_2_WARNING": "1"},
     )  # fmt: skip
+    return site, build
+
+
+def test_the_site_builds_in_strict_mode_without_a_warning(built):
+    site, build = built
+    assert build.returncode == 0, build.stderr
+    assert "WARNING" not in build.stderr, build.stderr
+    page = site / "reference" / "calibration" / "reference" / "index.html"
+    assert "calibrate_to_reference" in page.read_text()
+
+
+@pytest.fixture(scope="module")
+def served(built):
+    """The built site served by ``http.server``: yields its address."""
+    chromium = headless.chromium("the documentation site")
+    site, build = built
     assert build.returncode == 0, build.stderr
     port = headless.free_port()
     command = [sys.executable, "-m", "http.server", str(port), "--bind", "127.0.0.1"]
