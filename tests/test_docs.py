@@ -12,15 +12,19 @@ from docs_pages import DOCS, README, ROOT
 
 @pytest.mark.slow
 @pytest.mark.parametrize("path", list(docs_pages.pages()), ids=docs_pages.name)
-def test_every_python_block_on_every_page_runs(path, monkeypatch):
+def test_every_python_block_on_every_page_runs(path, monkeypatch, capsys):
+    """A page's Python blocks run in order from the clone's root, one namespace for the page
+    (a later block uses an earlier one's names); where a text block follows, each of its
+    lines is in what the block printed."""
     from data import data_folder
 
     monkeypatch.chdir(ROOT)  # the pages' paths are the clone's (../shared/data/...)
-    blocks = re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.S)
-    for block in blocks:
+    names: dict = {}
+    for block, shown in _blocks(path.read_text(), "python"):
         for folder in re.findall(r"shared/data/([\w-]+)", block):
             data_folder(folder)  # a block on the recordings: fail in CI, skip without them
-        exec(compile(block, str(path), "exec"), {})
+        exec(compile(block, str(path), "exec"), names)
+        _printed_as_shown(path, capsys.readouterr().out, shown)
 
 
 def test_readme_starts_with_the_two_setup_commands():
@@ -46,7 +50,8 @@ def test_the_readme_and_the_site_home_give_the_same_tour():
 
     def tour(text: str) -> str:
         start = text.index("On a fresh machine with Python 3.10+")
-        return text[start : text.index("```", text.index("```python") + 3)]
+        shown = text.index("```text")
+        return text[start : text.index("```", shown + 3)]
 
     assert tour(readme) == tour(home)
 
@@ -84,10 +89,20 @@ def _inputs(name: str, where):
         write_sysid(where / name, 0.042)
 
 
-def _blocks(text: str) -> list[tuple[str, str | None]]:
-    """Each shell block's text and the text block right after it, if any (what it prints)."""
-    found = re.finditer(r"```sh\n(.*?)```\s*?(?:\n\s*```text\n(.*?)```)?", text, flags=re.S)
-    return [(match.group(1), match.group(2)) for match in found]
+def _blocks(text: str, language: str = "sh") -> list[tuple[str, str | None]]:
+    """Each block of ``language`` and the text block right after it, if any (what it
+    prints)."""
+    pattern = rf"```{language}\n(.*?)```\s*?(?:\n\s*```text\n(.*?)```)?"
+    return [(match.group(1), match.group(2)) for match in re.finditer(pattern, text, re.S)]
+
+
+def _printed_as_shown(path, printed: str, shown: str | None) -> None:
+    """Each line a page shows after a block is in what the block printed (whitespace runs as
+    one space)."""
+    if shown:
+        flat = " ".join(printed.split())
+        for expected in filter(None, (" ".join(line.split()) for line in shown.splitlines())):
+            assert expected in flat, (path, expected)
 
 
 @pytest.mark.slow
@@ -133,10 +148,7 @@ def test_every_shell_block_on_every_page_runs_and_prints_what_it_shows(
             out, err = capsys.readouterr()
             assert code == 0, (path, command, err)
             printed += out
-        if shown:
-            flat = " ".join(printed.split())
-            for expected in filter(None, (" ".join(line.split()) for line in shown.splitlines())):
-                assert expected in flat, (path, expected)
+        _printed_as_shown(path, printed, shown)
     _same_figures(tmp_path)
 
 
