@@ -141,6 +141,31 @@ def test_the_noise_is_identified_from_the_log_from_figures_far_off():
 
 
 @pytest.mark.slow
+def test_a_log_the_identified_noise_does_not_describe_is_flagged(camera_drive, monkeypatch):
+    """Where the fit's residuals stay larger than the identified terms say (the Husky's GPS
+    without its gyro: chi-square 2.00), the report says so; here the misfit is made by hand
+    on a log that fits, to hold the rule at ``MISFIT``."""
+    from dataclasses import replace
+
+    from diffdrive.calibration import reference
+
+    real = reference.identify
+
+    def misfit(*args):
+        logs, result, noise = real(*args)
+        return logs, replace(result, chi2=reference.MISFIT + 0.5), noise
+
+    times, increments, stamps, poses = camera_drive
+    options = dict(sigma=scenario.CAMERA, wheel_noise=scenario.K, identify_noise=("reference",))
+    fits = calibrate_to_reference(scenario.NOMINAL, times, increments, stamps, poses, **options)
+    assert not any("do not describe" in line for line in fits.report)
+    monkeypatch.setattr(reference, "identify", misfit)
+    flagged = calibrate_to_reference(scenario.NOMINAL, times, increments, stamps, poses, **options)
+    assert flagged.report[-1].startswith("the residuals' chi-square per degree of freedom is 2.00")
+    assert "do not describe this log's errors well" in flagged.report[-1]
+
+
+@pytest.mark.slow
 def test_gps_noise_is_identified_and_a_term_the_drive_cannot_split_is_named():
     """GPS at 2 Hz, started at 1 m of noise and every other figure off: the receiver's 0.5 m
     and the wheels' k found within 3 standard errors; the gyro's noise, seen on this drive
@@ -235,6 +260,7 @@ def test_what_no_fit_can_use_is_refused_before_any_fit(camera_drive, change, mes
         (False, {"sigma": scenario.CAMERA, "initial": {"wheelbase": 1.0}}, "initial names 'wh"),
         (False, {"sigma": scenario.CAMERA, "identify_noise": ("slip",)}, "identify_noise must"),
         (False, {"sigma": scenario.CAMERA, "identify_noise": "wheels"}, "identify_noise must"),
+        (False, {"sigma": scenario.CAMERA, "identify_noise": ("gyro",)}, "has none of them"),
     ],
 )
 def test_settings_that_do_not_fit_the_reference_are_refused(

@@ -106,6 +106,8 @@ DRIVES = {
     "heading": "drive some distance",
 }
 LEAST_READINGS = 20
+# The chi-square per degree of freedom past which the noise identified does not describe a log.
+MISFIT = 1.5
 # s kept off each end of the wheels' span (and of the gyro's): room for a clock offset.
 CLOCK_MARGIN = 1.0
 _FLAT = 1e-9  # a direction of the scaled information below this is not seen at all
@@ -345,6 +347,14 @@ def calibrate_to_reference(
         raise UndeterminedError(str(undetermined), undetermined.parameters, noise) from None
     if noise is not None:
         report += _noise_lines(noise)
+        if result.chi2 > MISFIT:
+            # REML settled, yet the fit's residuals are larger than the terms say: errors of
+            # a shape no term has (a receiver's slow wander, slip that follows the turns).
+            report += (
+                f"the residuals' chi-square per degree of freedom is {result.chi2:.2f} under the "
+                "noise identified: its terms do not describe this log's errors well (the "
+                "standard errors are inflated by it); read the figures with care",
+            )
     return ReferenceCalibration(
         robot.with_geometry(*values[:3]),
         names,
@@ -367,11 +377,12 @@ _NOISE_NAMES = {
 
 
 def _noise_terms(identify_noise: object) -> tuple[str, ...]:
-    """The noise terms to identify: all for True, none for False, or those named."""
+    """The noise terms to identify: all for True, none for False or an empty sequence, or
+    those named."""
     if isinstance(identify_noise, bool):
         return NOISES if identify_noise else ()
     terms = tuple(identify_noise) if isinstance(identify_noise, list | tuple) else (None,)
-    if not terms or any(term not in NOISES for term in terms):
+    if any(term not in NOISES for term in terms):
         raise ValueError(
             f"identify_noise must be True, False or some of {', '.join(NOISES)}, got "
             f"{identify_noise!r}"

@@ -52,6 +52,11 @@ def identify(
     """The logs with the noise ``terms`` (of ``NOISES``) identified where the logs have them,
     the others at their figures; the calibration's fit under it, and the noise found."""
     names = [name for name in NOISES if name in terms and _present(logs, name)]
+    if not names:
+        raise ValueError(
+            f"identify_noise names {', '.join(terms)}: this log has none of them at a figure "
+            f"above 0 (it has {', '.join(name for name in NOISES if _present(logs, name))})"
+        )
     logs, result, errors = _alternate(logs, values, fitted, iterations, names)
     found = _figures(logs[0])
     return (

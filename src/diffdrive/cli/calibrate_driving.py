@@ -105,6 +105,8 @@ def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> 
     # What no flag gave is found from the log: no noise figure set by hand.
     held = {"wheels": args.k is not None, "gyro": gyro_held}
     held["reference"] = held["reference_heading"] = args.reference_sigma is not None
+    held["gyro"] |= gyro is None  # what the log has not, nothing to find
+    held["reference_heading"] |= args.gps_topic is not None
     unknown = tuple(name for name, given in held.items() if not given)
     estimate = _estimate(args, gyro is not None)
     try:
