@@ -335,6 +335,40 @@ def test_diffdrive_calibrate_refuses_holding_what_the_reference_does_not_calibra
     assert not held.exists()
 
 
+@pytest.mark.parametrize("kind", ["gps", "poses"])
+def test_a_reference_that_reports_no_covariance_has_its_noise_identified_from_a_start(
+    kind, monkeypatch
+):
+    """Fixes or poses without a covariance are no longer refused: the noise is identified from
+    the drive, starting at ``START_GPS`` or ``START_POSE``, and the line says so."""
+    import argparse
+
+    from diffdrive.cli import calibrate_driving
+    from diffdrive.io import ros
+    from diffdrive.io.ros.reader import OdometryTopic
+
+    times, positions = np.arange(5.0), np.zeros((5, 2))
+    fixes = argparse.Namespace(times=times, positions=positions, variance=np.zeros(5))
+    poses = OdometryTopic(
+        times, np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3, 3)), np.zeros((5, 3, 3)),
+        "map", "", "header", 0,
+    )  # fmt: skip
+    monkeypatch.setattr(ros, "read_navsatfix", lambda *args: fixes)
+    monkeypatch.setattr(ros, "read_odometry", lambda *args: poses)
+    args = argparse.Namespace(
+        gps_topic="/fix" if kind == "gps" else None,
+        pose_topic="/pose" if kind == "poses" else None, reference_sigma=None, datum=None,
+    )  # fmt: skip
+    _, _, sigma, said = calibrate_driving._reference(args, "log.bag")
+    if kind == "gps":
+        assert sigma == calibrate_driving.START_GPS
+        assert "noise 1 m (most fixes report no covariance: identified from the drive" in said
+    else:
+        start = calibrate_driving.START_POSE
+        assert sigma == pytest.approx((start[0], start[0], math.radians(start[1])))
+        assert "noise 0.05 m and 2 deg (most poses report no covariance: identified" in said
+
+
 def test_diffdrive_calibrate_names_the_hold_that_leaves_out_what_a_drive_cannot_show(
     tmp_path, capsys, monkeypatch
 ):
