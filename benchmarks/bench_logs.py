@@ -23,6 +23,7 @@ import numpy as np
 import diffdrive as dd
 from diffdrive.cli import main as cli
 from diffdrive.demo import example_robot
+from diffdrive.io import ros
 from timing import median_time  # benchmarks/timing.py
 
 TICKS = 4096
@@ -102,7 +103,7 @@ def bag_phases(folder: Path, messages: int, repeats: int) -> dict[str, float]:
     out = folder / "bag_odometry.csv"
 
     def decode():
-        dd.io.ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
+        ros.read_joint_states(bag, "wheel_left_joint", "wheel_right_joint")
 
     argv = [
         "odometry",

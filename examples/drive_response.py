@@ -105,7 +105,10 @@ def main(argv: list[str] | None = None) -> None:
         )
     for name, result in (("the stamps as recorded", recorded), ("the sample times", restored)):
         found = result["found"]
-        each = ", ".join(f"{a / b:.0%}" for a, b in zip(found.rmse, found.instant, strict=True))
+        each = ", ".join(
+            f"{a / b:.0%} ({a:.2f} against {b:.2f} rad/s)"
+            for a, b in zip(found.rmse, found.instant, strict=True)
+        )
         print(
             f"held-out wheel-velocity RMSE over {name}, {args.folds} folds: {found.pooled:.3f} "
             f"rad/s with the response, {found.pooled_instant:.3f} rad/s at once "

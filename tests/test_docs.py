@@ -116,6 +116,7 @@ def test_every_shell_block_on_every_page_runs_and_prints_what_it_shows(
     block reads that no block wrote is made as the page describes it (``_inputs``), the
     clone's folders a path names exist, where a text block follows each of its lines is in
     what the block printed, and a figure drawn into ``docs/figures/`` is the site's."""
+    import glob
     import shlex
 
     from data import data_folder
@@ -137,7 +138,11 @@ def test_every_shell_block_on_every_page_runs_and_prints_what_it_shows(
                 continue
             for name, value in sorted(variables.items(), key=lambda item: -len(item[0])):
                 command = command.replace(f"${name}", value)
-            words = shlex.split(command)
+            words = [
+                match
+                for word in shlex.split(command)
+                for match in (sorted(glob.glob(word)) if "*" in word else [word])
+            ]  # the shell's globbing, as a page's reader's shell does it
             assert words[0] == ".venv/bin/diffdrive", (path, command)
             for word in words[1:]:
                 if re.fullmatch(r"[\w-]+\.(csv|toml)", word) and not (tmp_path / word).exists():

@@ -11,6 +11,7 @@ import pytest
 
 import docs_pages
 from diffdrive.dynamics import VelocityResponse, cross_validate, identify_velocity_response
+from records import assert_as_recorded
 
 T = np.arange(0.0, 60.0, 0.02)
 COMMAND_TIMES = np.arange(0.0, 60.0, 0.5)
@@ -153,7 +154,9 @@ def test_the_turtlebot3_example_prints_what_the_readme_quotes(capsys, tmp_path):
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
     script.main(["--bags", str(data_folder("ros-bags")), "--output", str(tmp_path / "f.png")])
-    lines = capsys.readouterr().out.splitlines()
+    printed = capsys.readouterr().out
+    assert_as_recorded("drive_response", printed)
+    lines = printed.splitlines()
     readme = docs_pages.text(flat=True)
     scored = [line for line in lines if line.startswith("held-out wheel-velocity RMSE")]
     for line in scored:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import docs_pages
+from records import assert_as_recorded
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -23,7 +24,9 @@ def test_step_size_error_shows_the_orders_and_exact_on_held_commands(tmp_path, c
     script = load("step_size_error")
     output = tmp_path / "figure.png"
     script.main(["--output", str(output)])
-    assert f"figure: {output}" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert f"figure: {output}" in printed
+    assert_as_recorded("step_size_error", printed)
     import matplotlib.image
 
     pixels = matplotlib.image.imread(output)
@@ -49,7 +52,9 @@ def test_commanded_path_draws_both_paths_within_the_wheel_limit(tmp_path, capsys
     script = load("commanded_path")
     output = tmp_path / "paths.png"
     script.main(["--output", str(output)])
-    assert "largest wheel velocity 20.00 rad/s (limit 20.0)" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "largest wheel velocity 20.00 rad/s (limit 20.0)" in printed
+    assert_as_recorded("commanded_path", printed)
     import matplotlib.image
 
     pixels = matplotlib.image.imread(output)
@@ -78,7 +83,11 @@ def test_optiodom_calibration_table_and_figure_on_two_experiments(tmp_path):
     held = script.held_out(two)
     assert held["ivanjko/231220200104"]["least_squares, held out"] == "refused"
     assert held["circular/250620202345"]["with offsets, held out"] == "refused"
-    assert "| ivanjko/231220200104 | 3 | 11.5 |" in script.held_out_markdown(held, authors)
+    rows = script.held_out_markdown(held, authors)
+    assert "| ivanjko/231220200104 | 3 | 11.5 |" in rows
+    # Held out one run at a time, an experiment's row needs no other experiment: the two
+    # rows are the record's (the whole table takes a minute).
+    assert_as_recorded("optiodom_calibration", rows, only=lambda line: line.startswith("| "))
     script.draw(experiments[script.DRAWN], tmp_path / "figure.png")
     import matplotlib.image
 
@@ -96,6 +105,7 @@ def test_ros_bags_example_calibrates_the_turtlebot3_and_aligns_the_husky_to_gps(
     assert "TurtleBot3: calibrated radii 0.0325" in printed
     assert "track 0.29" in printed
     assert "Husky: 359 m of wheel odometry against 989 GPS fixes" in printed
+    assert_as_recorded("ros_bags", printed)
     import matplotlib.image
 
     assert matplotlib.image.imread(output)[..., :3].std() > 0.05
@@ -112,6 +122,7 @@ def test_gyro_slip_example_fuses_better_on_the_synthetic_run(tmp_path, capsys):
     output = tmp_path / "gyro.png"
     script.main(["--bags", str(data_folder("ros-bags")), "--output", str(output)])
     printed = capsys.readouterr().out
+    assert_as_recorded("gyro_slip", printed)
     readme = docs_pages.text(flat=True)
     lines = printed.splitlines()
     errors = {line.split()[0]: float(line.split()[1]) for line in lines[1:4]}
@@ -131,7 +142,9 @@ def test_online_calibration_example_settles_near_batch_least_squares(tmp_path, c
     script.main(
         ["--data", str(data_folder("optiodom-diffdrive")), "--output", str(tmp_path / "online.png")]
     )
-    printed = capsys.readouterr().out.split("window 1:")[0]  # the default window's reports
+    printed = capsys.readouterr().out
+    assert_as_recorded("online_calibration", printed)
+    printed = printed.split("window 1:")[0]  # the default window's reports
     readme = docs_pages.text(flat=True)
     lines = [row for row in printed.splitlines() if "whole-path least squares" in row]
     assert len(lines) == 3  # two circular experiments and the free path
@@ -145,8 +158,10 @@ def test_online_calibration_example_settles_near_batch_least_squares(tmp_path, c
 def test_late_vision_example_fuses_the_camera_and_draws(tmp_path, capsys):
     script = load("late_vision")
     output = tmp_path / "late.png"
-    script.main(["--seeds", "3", "--output", str(output)])
-    lines = capsys.readouterr().out.splitlines()
+    script.main(["--output", str(output)])
+    printed = capsys.readouterr().out
+    assert_as_recorded("late_vision", printed)
+    lines = printed.splitlines()
     alone, fused = (float(line.split("error ")[1].split()[0]) for line in lines[:2])
     assert fused < alone
     assert output.stat().st_size > 10_000
@@ -163,6 +178,7 @@ def test_husky_fusion_example_prints_the_figures_the_readme_quotes(capsys, tmp_p
     figure = tmp_path / "husky.png"
     script.main(["--bags", str(data_folder("ros-bags")), "--figure", str(figure)])
     printed = capsys.readouterr().out.replace(f"figure: {figure}", "")
+    assert_as_recorded("husky_fusion", printed)
     readme = docs_pages.text(flat=True)
     tokens = [part.rstrip(":,") for part in printed.replace(";", " ").split()]
     figures = [n for n in tokens if n[:1].isdigit() and "." in n and not n.endswith(")")]
@@ -199,6 +215,7 @@ def test_noise_model_example_prints_the_held_out_figures_the_readme_quotes(capsy
     script.main([*folders, "--bags", str(data_folder("ros-bags")), "--figure", str(figure)])
     assert figure.stat().st_size > 10_000
     printed = capsys.readouterr().out
+    assert_as_recorded("noise_model", printed)
     readme = docs_pages.text(flat=True)
     least = {"by experiment": 9, "by session": 8}
     for way, fewest in least.items():
@@ -228,6 +245,7 @@ def test_follow_path_plans_within_the_limits_and_draws(tmp_path, capsys):
     script.main(["--output", str(output)])
     printed = capsys.readouterr().out
     assert "voltage: at most" in printed
+    assert_as_recorded("follow_path", printed)
     assert f"figure: {output}" in printed
     planned, followed = script.run()
     from diffdrive.control import limit_ratios
@@ -256,6 +274,7 @@ def test_mppi_obstacles_goes_around_and_draws(tmp_path, capsys):
     script.main(["--output", str(output)])
     printed = capsys.readouterr().out
     assert "touched no" in printed
+    assert_as_recorded("mppi_obstacles", printed)
     course, _, _, result, recording = script.run(7)
     poses = result.poses[0]
     closest = course.clearance(poses[:, :2]).min() - script.FOOTPRINT
@@ -277,6 +296,7 @@ def test_calibration_from_driving_meets_the_husky_targets_the_guide_quotes(capsy
     script = load("calibrate_from_driving")
     script.main(["--bags", str(data_folder("ros-bags"))])
     printed = capsys.readouterr().out
+    assert_as_recorded("calibrate_from_driving", printed)
     readme = docs_pages.text(flat=True)
     scale = next(line for line in printed.splitlines() if line.startswith("distance scale"))
     assert 0.96 <= float(scale.split()[2]) <= 0.98
@@ -305,6 +325,7 @@ def test_standin_camera_finds_the_camera_noise_and_the_guide_quotes_its_line(cap
     only = ["230620202042"]
     found = script.main(["--data", str(data_folder("optiodom-diffdrive")), "--only", *only])
     printed = capsys.readouterr().out
+    assert_as_recorded("standin_camera", printed, only=lambda line: line.startswith(only[0]))
     readme = docs_pages.text()
     pattern = (
         r"(\d+): (\d+) runs, z (\S+) (\S+) (\S+), camera (\S+) mm (\S+) deg, k \S+ m, "
