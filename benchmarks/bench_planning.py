@@ -166,9 +166,10 @@ def compare(paths: int, seed: int = 1) -> None:
     )
     print(f"worst wheel voltage: wpimath {worst_volts[0]:.1f} V, diffdrive {worst_volts[1]:.2f} V")
     ratios = np.array(time_ratios)
+    spread = f"median {np.median(ratios):.3f}, max {ratios.max():.3f}" if len(ratios) else "-"
     print(
         f"total time, diffdrive / wpimath, on the {len(ratios)} paths wpimath keeps within limits: "
-        f"median {np.median(ratios):.3f}, max {ratios.max():.3f}"
+        + spread
     )
 
 
@@ -333,15 +334,15 @@ def speed(repeats: int) -> None:
     )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--paths", type=int, default=300)
+    parser.add_argument("--paths", type=int, default=300, help="compared; at most 100 sampled")
     parser.add_argument("--repeats", type=int, default=7)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}")
     compare(args.paths)
-    samples()
-    jerk()
+    samples(min(args.paths, 100))
+    jerk(min(args.paths, 100))
     tracking()
     speed(args.repeats)
     rollout_speed(args.repeats)

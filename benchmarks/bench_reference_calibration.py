@@ -21,6 +21,7 @@ at 10 Hz and a gyro, every figure started 2-10 times off; each term and each par
 it against the truth, and a 10-minute log's time.
 
     python benchmarks/bench_reference_calibration.py [--seeds 100] [--noise-seeds 40]
+        [--log-seconds 600] [--repeats 3]
 """
 
 from __future__ import annotations
@@ -117,7 +118,17 @@ def one_seed(seed: int, gps: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return errors, reported, crb
 
 
-def table(gps: bool, seeds: int) -> None:
+def timed(work, seconds: float, repeats: int) -> tuple[str, str, int]:
+    """The median wall time of ``repeats`` runs of ``work``, and what it timed, in words."""
+    spent = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        work()
+        spent.append(time.perf_counter() - start)
+    return f"a {seconds / 60:g}-minute log at 100 Hz", f"{np.median(spent):.2f} s", repeats
+
+
+def table(gps: bool, seeds: int, seconds: float = 600.0, repeats: int = 3) -> None:
     targets = GPS_TARGETS if gps else CAMERA_TARGETS
     results = [one_seed(seed, gps) for seed in range(seeds)]
     errors = np.abs(np.array([e for e, _, _ in results]))
@@ -137,14 +148,9 @@ def table(gps: bool, seeds: int) -> None:
             f"{np.median(reported[:, index]) * scale:.3g} {unit} | "
             f"{np.median(crb[:, index]) * scale:.3g} {unit} |"
         )
-    data = scenario.gps_drive(0, seconds=600.0) if gps else scenario.drive(0, seconds=600.0)
-    spent = []
-    for _ in range(3):
-        start = time.perf_counter()
-        _calibrate(scenario.NOMINAL, data, gps)
-        spent.append(time.perf_counter() - start)
-    print(f"\na 10-minute log at 100 Hz: {np.median(spent):.2f} s to calibrate (median of 3; "
-          "target 10 s)")  # fmt: skip
+    data = (scenario.gps_drive if gps else scenario.drive)(0, seconds=seconds)
+    log, spent, runs = timed(lambda: _calibrate(scenario.NOMINAL, data, gps), seconds, repeats)
+    print(f"\n{log}: {spent} to calibrate (median of {runs}; target 10 s)")
 
 
 NOISE_TRUTH = {
@@ -166,7 +172,7 @@ def _identified(data, **options):
     )  # fmt: skip
 
 
-def noise_table(seeds: int) -> None:
+def noise_table(seeds: int, seconds: float = 600.0, repeats: int = 3) -> None:
     """How often each identified noise figure, and each parameter under it, lies within two
     standard errors of the truth."""
     rows, honest = [], []
@@ -192,26 +198,23 @@ def noise_table(seeds: int) -> None:
     print("\nunder the identified noise, each parameter within 2 SE: " + ", ".join(
         f"{name} {share:.0%}" for name, share in zip(CAMERA_TRUTH, inside, strict=True)
     ))  # fmt: skip
-    data = scenario.camera_and_gyro(0, seconds=600.0)
-    spent = []
-    for _ in range(3):
-        start = time.perf_counter()
-        _identified(data)
-        spent.append(time.perf_counter() - start)
-    print(f"a 10-minute log at 100 Hz, camera and gyro, noise identified: "
-          f"{np.median(spent):.2f} s (median of 3)")  # fmt: skip
+    data = scenario.camera_and_gyro(0, seconds=seconds)
+    log, spent, runs = timed(lambda: _identified(data), seconds, repeats)
+    print(f"{log}, camera and gyro, noise identified: {spent} (median of {runs})")
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=100)
     parser.add_argument("--noise-seeds", type=int, default=40)
+    parser.add_argument("--log-seconds", type=float, default=600.0, help="the timed logs' length")
+    parser.add_argument("--repeats", type=int, default=3, help="timed runs of each log")
     args = parser.parse_args(argv)
     print(f"machine: {platform.machine()}, Python {platform.python_version()}, NumPy "
           f"{np.__version__}")  # fmt: skip
     for gps in (False, True):
-        table(gps, args.seeds)
-    noise_table(args.noise_seeds)
+        table(gps, args.seeds, args.log_seconds, args.repeats)
+    noise_table(args.noise_seeds, args.log_seconds, args.repeats)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,59 @@
+"""Every benchmark runs: the scripts whose records hold the figures the guides quote
+(``benchmarks/records/``) are run here on sizes too small to time anything, so that one that
+breaks (as ``bench_logs.py`` did, on a subpackage ``import diffdrive`` leaves unloaded) fails
+the suite, not the next person who records it. Their figures are their records', taken on the
+machine and date each record names; timings are not for unit tests."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Each benchmark with the smallest sizes it takes (its defaults are what its record used).
+SMALL = {
+    "bench_estimation": ["--seeds", "1", "--coverage-seeds", "1", "--repeats", "1"],
+    "bench_fixes": ["--seeds", "1"],
+    "bench_import": ["--runs", "1"],
+    "bench_logs": ["--rows", "1000", "--messages", "100", "--repeats", "1"],
+    "bench_montecarlo": ["--robots", "100", "--steps", "10", "--repeats", "1"],
+    "bench_mppi": ["--runs", "1", "--compare", "1", "--paths", "1", "--repeats", "1"],
+    "bench_noise_model": ["--seeds", "1"],
+    "bench_odometry": ["--repeats", "1", "--updates", "100"],
+    "bench_planning": ["--paths", "3", "--repeats", "1"],
+    "bench_reference_calibration": [
+        "--seeds",
+        "1",
+        "--noise-seeds",
+        "1",
+        "--log-seconds",
+        "120",
+        "--repeats",
+        "1",
+    ],
+    "bench_sensors": ["--robots", "10", "--steps", "10", "--repeats", "1"],
+    "bench_simulate": ["--repeats", "1", "--quick"],
+    "bench_slip_detection": ["--robots", "1"],
+    "bench_smoother": ["--intervals", "1000", "--twin-intervals", "100", "--repeats", "1"],
+}
+
+
+def test_every_benchmark_is_in_the_table():
+    scripts = sorted(path.stem for path in (ROOT / "benchmarks").glob("bench_*.py"))
+    assert scripts == sorted(SMALL)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(SMALL))
+def test_the_benchmark_runs_on_small_sizes(name):
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / f"{name}.py"), *SMALL[name]],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert run.stdout.strip(), f"{name} printed nothing"
