@@ -25,6 +25,7 @@ first ``--compare`` seeds: MPPI on the plan as given (no guide), and Predictive(
 the guide's plan (no obstacle costs).
 
     python benchmarks/bench_mppi.py [--runs 1000] [--paths 20] [--repeats 15]
+        [--libraries numba numpy torch jax]
 """
 
 from __future__ import annotations
@@ -58,10 +59,9 @@ DRIVE = DriveModel(delay=DELAY, time_constant=LAG)
 FOOTPRINT = 0.35
 
 
-def cycle_times(repeats: int) -> None:
+def cycle_times(repeats: int, libraries: list[str]) -> None:
     course = cluttered_corridor(np.random.default_rng(3), footprint=FOOTPRINT)
     path = plan([course.start, course.goal], ROBOT, PathLimits(1.0, 1.0, max_wheel_velocity=12))
-    libraries = ["numba", "numpy"] + [n for n in ("torch", "jax") if importlib.util.find_spec(n)]
     print("one MPPI cycle (one robot, clearance grid on; median):")
     for samples in (2048, 16384):
         for backend in libraries:
@@ -163,9 +163,12 @@ def main() -> None:
     parser.add_argument("--compare", type=int, default=100)
     parser.add_argument("--paths", type=int, default=20)
     parser.add_argument("--repeats", type=int, default=15)
+    installed = ["numba", "numpy"] + [n for n in ("torch", "jax") if importlib.util.find_spec(n)]
+    parser.add_argument("--libraries", nargs="+", default=installed, choices=installed,
+                        help="the cycle's back ends (default: every one installed)")  # fmt: skip
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}")
-    cycle_times(args.repeats)
+    cycle_times(args.repeats, args.libraries)
     tracking(args.paths)
     obstacles(args.runs, args.compare)
 

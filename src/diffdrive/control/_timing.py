@@ -17,10 +17,12 @@ by bisection under the velocity caps).
 ``parameterise`` runs the passes: forward, each state reached with the largest acceleration
 the state before allows and the state reached accepts; backward, each state lowered until the
 deceleration into the next is allowed at both ends. The segment's acceleration must hold at
-both its states. The plan is then checked as a controller stepping from state to state would
-drive it (``_segment_outside``: the differences between states over the time between them);
-a state outside its limits by either measure (rare: where the intervals of neighbouring states
-barely overlap, or the curvature's rate jumps) has its cap lowered and the passes run again.
+both its states, and the step must keep its limits as a controller stepping from state to
+state would drive it (``_segment_outside``: the differences between states over the time
+between them, the voltage along the way): where it does not, the pass lowers the speed it
+sets to the largest that does (``_settle``). The plan is then checked by both measures; a
+state still outside its limits (rare: where the intervals of neighbouring states barely
+overlap, or the curvature's rate jumps) has its cap lowered and the passes run again.
 
 Written in plain Python on floats and NumPy arrays; ``kernel()`` compiles it with numba when
 numba is installed (``diffdrive[fast]``), and otherwise runs it as it is.
@@ -152,6 +154,8 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
                     high = middle
             nxt = low
         u[i + 1] = nxt
+        if _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
+            _settle(i, i + 1, ds, u, lin, ang, wc, lim, ff)
     u[n - 1] = 0.0
     for i in range(n - 2, -1, -1):
         lo1, hi1 = bounds(i + 1, u[i + 1], lin, ang, dang, wc, wd, lim, ff)
@@ -175,6 +179,32 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
                 else:
                     high = middle
             u[i] = low
+        if _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
+            _settle(i, i, ds, u, lin, ang, wc, lim, ff)
+
+
+def _settle(k, moved, ds, u, lin, ang, wc, lim, ff):
+    """Lower ``u[moved]`` (state ``k`` or ``k + 1``) to the largest speed at which the step
+    from state ``k`` to ``k + 1`` keeps its limits (``_segment_outside``), searching down to
+    the other state's speed (a step of little change); where that breaks them too, leave it
+    for ``lower_where_outside``."""
+    high = u[moved]
+    other = u[k + 1] if moved == k else u[k]
+    low = min(other, high)
+    u[moved] = low
+    if low <= 0.0 or _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+        u[moved] = high
+        return
+    for _ in range(_BISECTIONS):
+        if high - low <= _RESOLUTION * high:
+            break
+        middle = 0.5 * (low + high)
+        u[moved] = middle
+        if _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+            high = middle
+        else:
+            low = middle
+    u[moved] = low
 
 
 def _outside(i, a, u, lin, ang, dang, wc, wd, lim, ff):
@@ -287,6 +317,7 @@ def _compiled() -> dict[str, Callable[..., Any]]:
     # The small ones inlined into their callers: each is called several times a state.
     for name in ("_narrow", "bounds", "cap", "_feasible"):
         module[name] = numba.njit(cache=True, inline="always")(module[name])
-    for name in ("speed_limit", "_passes", "_outside", "_segment_outside", "lower_where_outside"):
+    for name in ("speed_limit", "_segment_outside", "_settle", "_passes", "_outside",
+                 "lower_where_outside"):  # fmt: skip
         module[name] = jit(module[name])
     return {"parameterise": jit(parameterise), "lower_where_outside": module["lower_where_outside"]}
