@@ -1,9 +1,12 @@
-"""Every benchmark runs: the scripts whose records hold the figures the guides quote
-(``benchmarks/records/``) are run here on sizes too small to time anything, so that one that
-breaks (as ``bench_logs.py`` did, on a subpackage ``import diffdrive`` leaves unloaded) fails
-the suite, not the next person who records it. Their figures are their records', taken on the
-machine and date each record names; timings are not for unit tests."""
+"""Every benchmark runs and prints what its record keeps: the scripts whose records hold the
+figures the guides quote (``benchmarks/records/``) are run here on sizes too small to time
+anything, so that one that breaks (as ``bench_logs.py`` did, on a subpackage ``import
+diffdrive`` leaves unloaded) fails the suite, not the next person who records it, and one that
+prints something its record does not show (a line changed, added or renamed) asks for its
+record to be taken again. Their figures are their records', taken on the machine and date each
+record names; timings are not for unit tests."""
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # Each benchmark with the smallest sizes it takes (its defaults are what its record used).
 SMALL = {
-    "bench_estimation": ["--seeds", "1", "--coverage-seeds", "1", "--repeats", "1"],
+    "bench_estimation": ["--seeds", "30", "--coverage-seeds", "1", "--repeats", "1"],
     "bench_fixes": ["--seeds", "1"],
     "bench_import": ["--runs", "1"],
     "bench_logs": ["--rows", "1000", "--messages", "100", "--repeats", "1"],
@@ -35,7 +38,7 @@ SMALL = {
     ],
     "bench_noise_model": ["--seeds", "1"],
     "bench_odometry": ["--repeats", "1", "--updates", "100"],
-    "bench_planning": ["--paths", "3", "--repeats", "1"],
+    "bench_planning": ["--paths", "10", "--repeats", "1"],
     "bench_reference_calibration": [
         "--seeds",
         "1",
@@ -69,4 +72,19 @@ def test_the_benchmark_runs_on_small_sizes(name):
         timeout=300,
     )
     assert run.returncode == 0, run.stderr[-3000:]
-    assert run.stdout.strip(), f"{name} printed nothing"
+    record = (ROOT / "benchmarks" / "records" / f"{name}.txt").read_text().splitlines()[1:]
+    shapes = {_shape(line) for line in record}
+    printed = [line for line in run.stdout.splitlines() if line.strip()]
+    assert printed, f"{name} printed nothing"
+    new = [line for line in printed if _shape(line) not in shapes]
+    assert new == [], (
+        f"{name} prints lines its record does not show; take it again with python "
+        f"benchmarks/record.py benchmarks/{name}.py and quote the new figures: {new}"
+    )
+
+
+def _shape(line: str) -> str:
+    """A printed line with its numbers left out, and a run of numbers (as many as there are
+    groups of seeds) as one: what the sizes and the machine do not change."""
+    numbered = re.sub(r"[-+]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?", "#", line)
+    return " ".join(re.sub(r"#(?:[%x]?[,;/ ]+#)*[%x]?", "#", numbered).split())
