@@ -61,7 +61,7 @@ def record(script: Path, arguments: list[str]) -> Path:
                          f"{run.stderr}")  # fmt: skip
     path = script.parent / "records" / f"{script.stem}.txt"
     path.parent.mkdir(exist_ok=True)
-    command = " ".join(["python", str(script.relative_to(ROOT)), *arguments])
+    command = " ".join(["python", f"{script.parent.name}/{script.name}", *arguments])
     header = f"# {command}: {started:%Y-%m-%d %H:%M} UTC, {machine()}\n"
     path.write_text(header + run.stdout)
     return path

@@ -91,3 +91,28 @@ def _shape(line: str) -> str:
     groups of seeds) as one: what the sizes and the machine do not change."""
     numbered = re.sub(r"[-+]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?", "#", line)
     return " ".join(re.sub(r"#(?:[%x]?[,;/ ]+#)*[%x]?", "#", numbered).split())
+
+
+def test_a_record_says_when_and_where_and_a_failed_run_keeps_the_last(tmp_path):
+    """``benchmarks/record.py`` writes what a script printed under a line with the command,
+    the date and the machine; a script that fails leaves the record it had."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from record import record
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    script = tmp_path / "examples" / "hello.py"
+    script.parent.mkdir()
+    script.write_text("import sys\nprint('error 0.0907 m over', sys.argv[1:])\n")
+    written = record(script, ["--seeds", "3"])
+    lines = written.read_text().splitlines()
+    assert re.fullmatch(
+        r"# python examples/hello\.py --seeds 3: 20\d\d-\d\d-\d\d \d\d:\d\d UTC, .+ cores, "
+        r"Python 3\.\d+\.\d+, NumPy \d+\.\d+\.\d+",
+        lines[0],
+    ), lines[0]
+    assert lines[1:] == ["error 0.0907 m over ['--seeds', '3']"]
+    script.write_text("raise SystemExit(3)\n")
+    with pytest.raises(SystemExit, match="failed \\(exit 3\\); its record is unchanged"):
+        record(script, [])
+    assert written.read_text().splitlines() == lines
