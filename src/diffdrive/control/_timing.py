@@ -154,7 +154,8 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
                     high = middle
             nxt = low
         u[i + 1] = nxt
-        if _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
+        # (Both at rest is a stop the check after the passes names, not a step to time.)
+        if u[i] + u[i + 1] > 0.0 and _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
             _settle(i, i + 1, ds, u, lin, ang, wc, lim, ff)
     u[n - 1] = 0.0
     for i in range(n - 2, -1, -1):
@@ -179,7 +180,7 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
                 else:
                     high = middle
             u[i] = low
-        if _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
+        if u[i] + u[i + 1] > 0.0 and _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
             _settle(i, i, ds, u, lin, ang, wc, lim, ff)
 
 
