@@ -119,6 +119,9 @@ def _plan_or_none(waypoints, limits: PathLimits):
 
 @settings(max_examples=25, deadline=None)
 @given(RANDOM_WAYPOINTS)
+# A step the passes settled onto the very edge of the checks' rounding slack (1 + 1e-9), which
+# the judge's own arithmetic put a hair past it: the passes now keep 1e-9 clear of a limit.
+@example([(4.4461659443620345, 0.8569034250728931, 0.0), (0.0, 4.940113075325025, -1.1)])
 def test_a_plan_never_exceeds_a_limit(waypoints: list[tuple[float, float, float]]) -> None:
     result = _plan_or_none(waypoints, LIMITS)
     if result is None:

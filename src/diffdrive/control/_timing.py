@@ -155,7 +155,7 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
             nxt = low
         u[i + 1] = nxt
         # (Both at rest is a stop the check after the passes names, not a step to time.)
-        if u[i] + u[i + 1] > 0.0 and _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
+        if u[i] + u[i + 1] > 0.0 and _segment_outside(i, ds, u, lin, ang, wc, lim, ff, 1e-9):
             _settle(i, i + 1, ds, u, lin, ang, wc, lim, ff)
     u[n - 1] = 0.0
     for i in range(n - 2, -1, -1):
@@ -180,7 +180,7 @@ def _passes(top, ds, lin, ang, dang, wc, wd, lim, ff, u):
                 else:
                     high = middle
             u[i] = low
-        if u[i] + u[i + 1] > 0.0 and _segment_outside(i, ds, u, lin, ang, wc, lim, ff):
+        if u[i] + u[i + 1] > 0.0 and _segment_outside(i, ds, u, lin, ang, wc, lim, ff, 1e-9):
             _settle(i, i, ds, u, lin, ang, wc, lim, ff)
 
 
@@ -188,12 +188,13 @@ def _settle(k, moved, ds, u, lin, ang, wc, lim, ff):
     """Lower ``u[moved]`` (state ``k`` or ``k + 1``) to the largest speed at which the step
     from state ``k`` to ``k + 1`` keeps its limits (``_segment_outside``), searching down to
     the other state's speed (a step of little change); where that breaks them too, leave it
-    for ``lower_where_outside``."""
+    for ``lower_where_outside``. The speed found keeps 1e-9 of each limit clear, so that the
+    step sits within the limit, not on the rounding slack the checks allow beyond it."""
     high = u[moved]
     other = u[k + 1] if moved == k else u[k]
     low = min(other, high)
     u[moved] = low
-    if low <= 0.0 or _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+    if low <= 0.0 or _segment_outside(k, ds, u, lin, ang, wc, lim, ff, -1e-9):
         u[moved] = high
         return
     for _ in range(_BISECTIONS):
@@ -201,7 +202,7 @@ def _settle(k, moved, ds, u, lin, ang, wc, lim, ff):
             break
         middle = 0.5 * (low + high)
         u[moved] = middle
-        if _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+        if _segment_outside(k, ds, u, lin, ang, wc, lim, ff, -1e-9):
             high = middle
         else:
             low = middle
@@ -214,28 +215,29 @@ def _outside(i, a, u, lin, ang, dang, wc, wd, lim, ff):
     return a < lo - slack or a > hi + slack
 
 
-def _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+def _segment_outside(k, ds, u, lin, ang, wc, lim, ff, slack):
     """Whether the changes from state ``k`` to ``k + 1``, over the time between them, break a
     limit: the accelerations a controller stepping from state to state asks for (the same
     measure as ``planning.limit_ratios``), and the voltage all the way along, the wheel's
     velocity going in a straight line from one state's to the next (as ``Plan.sample`` gives
-    it) with that acceleration: at both ends, and where it passes zero."""
+    it) with that acceleration: at both ends, and where it passes zero. ``slack``: the share of
+    each limit allowed beyond it (negative: that share kept clear of it)."""
     dt = 2.0 * ds[k] / (u[k] + u[k + 1])
-    bad = abs(u[k + 1] * lin[k + 1] - u[k] * lin[k]) / dt > lim[AMAX] * (1.0 + 1e-9)
-    bad = bad or abs(u[k + 1] * ang[k + 1] - u[k] * ang[k]) / dt > lim[ALPHA] * (1.0 + 1e-9)
+    bad = abs(u[k + 1] * lin[k + 1] - u[k] * lin[k]) / dt > lim[AMAX] * (1.0 + slack)
+    bad = bad or abs(u[k + 1] * ang[k + 1] - u[k] * ang[k]) / dt > lim[ALPHA] * (1.0 + slack)
     for j in range(2):
         w = u[k] * wc[k, j]
         rate = (u[k + 1] * wc[k + 1, j] - w) / dt
-        bad = bad or abs(rate) > lim[WHEEL_A] * (1.0 + 1e-9)
+        bad = bad or abs(rate) > lim[WHEEL_A] * (1.0 + slack)
         if lim[VOLTAGE] < INF:
             ks, kv, ka = ff[j, 0], ff[j, 1], ff[j, 2]
             end = u[k + 1] * wc[k + 1, j]
             for v in (w, end):
                 sign = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
                 volts = ks * sign + kv * v + ka * rate
-                bad = bad or abs(volts) > lim[VOLTAGE] * (1.0 + 1e-9)
+                bad = bad or abs(volts) > lim[VOLTAGE] * (1.0 + slack)
             if w * end < 0.0:  # through zero: kS either way
-                bad = bad or ks + abs(ka * rate) > lim[VOLTAGE] * (1.0 + 1e-9)
+                bad = bad or ks + abs(ka * rate) > lim[VOLTAGE] * (1.0 + slack)
     return bad
 
 
@@ -248,7 +250,7 @@ def lower_where_outside(ds, lin, ang, dang, wc, wd, lim, ff, u, top):
     n = len(lin)
     count = 0
     for k in range(n - 1):
-        if _segment_outside(k, ds, u, lin, ang, wc, lim, ff):
+        if _segment_outside(k, ds, u, lin, ang, wc, lim, ff, 1e-9):
             count += 1
             top[k] = min(top[k], 0.98 * u[k])
             top[k + 1] = min(top[k + 1], 0.98 * u[k + 1])
