@@ -59,11 +59,13 @@ def record(script: Path, arguments: list[str]) -> Path:
     if run.returncode:
         raise SystemExit(f"{script} failed (exit {run.returncode}); its record is unchanged:\n"
                          f"{run.stderr}")  # fmt: skip
+    from diffdrive.atomic import atomic_write
+
     path = script.parent / "records" / f"{script.stem}.txt"
     path.parent.mkdir(exist_ok=True)
     command = " ".join(["python", f"{script.parent.name}/{script.name}", *arguments])
-    header = f"# {command}: {started:%Y-%m-%d %H:%M} UTC, {machine()}\n"
-    path.write_text(header + run.stdout)
+    with atomic_write(path) as handle:  # an interrupted write leaves the record it had
+        handle.write(f"# {command}: {started:%Y-%m-%d %H:%M} UTC, {machine()}\n{run.stdout}")
     return path
 
 

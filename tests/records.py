@@ -11,6 +11,12 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+# A record's first line: the command (the script by its folder, and its arguments), the date
+# (UTC) and the machine, as benchmarks/record.py writes it.
+HEADER = (
+    r"# python (examples|benchmarks)/\w+\.py[^:]*: 20\d\d-\d\d-\d\d \d\d:\d\d UTC, .+ cores, "
+    r"Python 3\.\d+\.\d+, NumPy \d+\.\d+\.\d+"
+)
 
 
 def record(folder: str, name: str) -> list[str]:

@@ -80,17 +80,15 @@ def test_the_ledger_names_only_figures_the_pages_quote():
 
 def test_every_record_says_when_where_and_how_it_was_taken():
     """A record's first line: the command, the date (UTC) and the machine."""
-    header = re.compile(
-        r"# python (examples|benchmarks)/\w+\.py[^:]*: 20\d\d-\d\d-\d\d \d\d:\d\d UTC, .+ "
-        r"cores, Python 3\.\d+\.\d+, NumPy \d+\.\d+\.\d+"
-    )
+    from records import HEADER
+
     records = sorted(ROOT.glob("examples/records/*.txt")) + sorted(
         ROOT.glob("benchmarks/records/*.txt")
     )
     assert records
     for path in records:
         first = path.read_text().splitlines()[0]
-        assert header.fullmatch(first), (path.name, first)
+        assert re.fullmatch(HEADER, first), (path.name, first)
         script = ROOT / path.parent.parent.name / f"{path.stem}.py"
         assert script.is_file(), f"{path} records {script.name}, which is gone"
 
