@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +38,7 @@ from diffdrive.sensor_noise import GyroNoise
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import reference_drive as scenario  # the tests' scenario
+from timing import median_time  # benchmarks/timing.py
 
 GEOMETRY = {
     "left_radius": scenario.TRUE.left_wheel_radius,
@@ -118,16 +118,6 @@ def one_seed(seed: int, gps: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return errors, reported, crb
 
 
-def timed(work, seconds: float, repeats: int) -> tuple[str, str, int]:
-    """The median wall time of ``repeats`` runs of ``work``, and what it timed, in words."""
-    spent = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        work()
-        spent.append(time.perf_counter() - start)
-    return f"a {seconds / 60:g}-minute log at 100 Hz", f"{np.median(spent):.2f} s", repeats
-
-
 def table(gps: bool, seeds: int, seconds: float = 600.0, repeats: int = 3) -> None:
     targets = GPS_TARGETS if gps else CAMERA_TARGETS
     results = [one_seed(seed, gps) for seed in range(seeds)]
@@ -149,8 +139,9 @@ def table(gps: bool, seeds: int, seconds: float = 600.0, repeats: int = 3) -> No
             f"{np.median(crb[:, index]) * scale:.3g} {unit} |"
         )
     data = (scenario.gps_drive if gps else scenario.drive)(0, seconds=seconds)
-    log, spent, runs = timed(lambda: _calibrate(scenario.NOMINAL, data, gps), seconds, repeats)
-    print(f"\n{log}: {spent} to calibrate (median of {runs}; target 10 s)")
+    spent = median_time(lambda: _calibrate(scenario.NOMINAL, data, gps), repeats)
+    print(f"\na {seconds / 60:g}-minute log at 100 Hz: {spent:.2f} s to calibrate (median of "
+          f"{repeats}; target 10 s)")  # fmt: skip
 
 
 NOISE_TRUTH = {
@@ -199,8 +190,9 @@ def noise_table(seeds: int, seconds: float = 600.0, repeats: int = 3) -> None:
         f"{name} {share:.0%}" for name, share in zip(CAMERA_TRUTH, inside, strict=True)
     ))  # fmt: skip
     data = scenario.camera_and_gyro(0, seconds=seconds)
-    log, spent, runs = timed(lambda: _identified(data), seconds, repeats)
-    print(f"{log}, camera and gyro, noise identified: {spent} (median of {runs})")
+    spent = median_time(lambda: _identified(data), repeats)
+    print(f"a {seconds / 60:g}-minute log at 100 Hz, camera and gyro, noise identified: "
+          f"{spent:.2f} s (median of {repeats})")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> None:
