@@ -342,3 +342,31 @@ def test_jerk_through_turns_in_place_reverse_and_stops() -> None:
 def test_sizes_that_would_fill_the_memory_are_refused_by_name(make, message) -> None:
     with pytest.raises(ValueError, match=message):
         make()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "waypoints",
+    [
+        [(0.0, 0.0, 0.0), (3.0, 1.0, 0.5), (5.0, 4.0, 1.5), (2.0, 6.0, 3.0)],  # the benchmark's
+        [(4.4461659443620345, 0.8569034250728931, 0.0), (0.0, 4.940113075325025, -1.1)],
+        [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (2.0, 2.0, 1.5707963267948966)],
+    ],
+)
+def test_the_timing_kernel_plans_alike_compiled_and_in_plain_python(waypoints, monkeypatch):
+    """The time-parameterisation runs compiled by numba where it is installed and as plain
+    Python where not (``control._timing``): one table of paths through both, the same plan."""
+    pytest.importorskip("numba")
+    from diffdrive.control import _timing
+
+    compiled = plan(waypoints, ROBOT, LIMITS)
+    for name in ("_narrow", "bounds", "cap", "_feasible", "speed_limit", "_segment_outside",
+                 "_settle", "_passes", "_outside", "lower_where_outside"):  # fmt: skip
+        function = getattr(_timing, name)
+        monkeypatch.setattr(_timing, name, getattr(function, "py_func", function))
+    monkeypatch.setattr(_timing, "kernel", lambda: _timing.parameterise)
+    monkeypatch.setattr(_timing, "checker", lambda: _timing.lower_where_outside)
+    assert not hasattr(_timing._passes, "py_func")  # plain Python from here on
+    plain = plan(waypoints, ROBOT, LIMITS)
+    np.testing.assert_allclose(plain.times, compiled.times, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(plain.poses, compiled.poses, rtol=0, atol=1e-9)
