@@ -34,7 +34,7 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive import batch
-from diffdrive.estimation import PoseEstimator
+from diffdrive.estimation import EstimatorSettings, PoseEstimator
 from timing import per_call  # benchmarks/timing.py
 
 DT = 0.02
@@ -101,7 +101,10 @@ def sensors(rng, times, truth, increments, k, latencies):
 
 def run_diffdrive(times, truth, wheels, gyro, queue, k, vision=True):
     estimator = PoseEstimator(
-        ROBOT, "wheels", dd.Pose(*truth[0]), wheel_noise=k, initial_time=times[0]
+        ROBOT,
+        EstimatorSettings("wheels", wheel_noise=k),
+        initial_pose=dd.Pose(*truth[0]),
+        initial_time=times[0],
     )
     estimator.add_heading(times[0], gyro[0], GYRO_SIGMA)
     errors, distances, q = [], [], 0
@@ -221,7 +224,7 @@ def speed(repeats: int) -> None:
         pose, covariance = poses[form], covariances[form]
 
         def loop():
-            e = PoseEstimator(ROBOT, "fused", initial_time=0.0)
+            e = PoseEstimator(ROBOT, initial_time=0.0)
             for k in range(n):
                 t = (k + 1) * dt
                 e.update_increments(increments[k][0], increments[k][1], t, gyro_angle=turns[k])

@@ -1,4 +1,4 @@
-"""Fixes that wander, identified from themselves: ``estimate_trajectory(fixes="identified")``
+"""Fixes that wander, identified from themselves (``WholeLog(fixes="identified")``)
 against the same fixes taken as white noise and against interpolating them, over seeds of a
 synthetic drive with a receiver whose offset is a random walk (``tests/test_fixes.py``'s),
 side by side in one run.
@@ -24,7 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.estimation import estimate_trajectory, identify_fixes, measurements_of
+from diffdrive.estimation import (
+    EstimatorSettings,
+    WholeLog,
+    estimate_trajectory,
+    identify_fixes,
+    measurements_of,
+)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_fixes import ROBOT, drive, miss, predicted, wandering_fixes  # the scenario
@@ -33,22 +39,23 @@ from test_fixes import ROBOT, drive, miss, predicted, wandering_fixes  # the sce
 def one_seed(seed: int) -> dict:
     times, truth, increments, rng = drive(seed)
     stamps, fixes, offset = wandering_fixes(rng, times, truth, white=0.2)
-    dead = estimate_trajectory(ROBOT, times, increments, heading="wheels", smooth=False)
+    wheels = EstimatorSettings("wheels", wheel_noise=1e-4)
+    dead = estimate_trajectory(ROBOT, times, increments, settings=wheels, smooth=False)
     fit = identify_fixes(times, dead.poses, stamps, fixes)
     used = np.arange(len(stamps)) % 4 == 0
     left = ~used
-    common = dict(heading="wheels", wheel_noise=1e-4)
     started = time.perf_counter()
     identified = estimate_trajectory(
-        ROBOT, times, increments, fixes="identified",
-        measurements=measurements_of("position", stamps[used], fixes[used], 1.0), **common,
+        ROBOT, times, increments, settings=wheels.replace(whole_log=WholeLog(fixes="identified")),
+        measurements=measurements_of("position", stamps[used], fixes[used], 1.0),
     )  # fmt: skip
     cost = time.perf_counter() - started
     spread = math.sqrt(0.2**2 + float(np.var(offset)))  # what a receiver would report
     started = time.perf_counter()
     white = estimate_trajectory(
         ROBOT, times, increments, initial_pose=truth[0],
-        measurements=measurements_of("position", stamps[used], fixes[used], spread), **common,
+        measurements=measurements_of("position", stamps[used], fixes[used], spread),
+        settings=wheels,
     )  # fmt: skip
     plain = time.perf_counter() - started
     between = np.column_stack(

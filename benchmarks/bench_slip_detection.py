@@ -23,7 +23,7 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive import sensors
-from diffdrive.estimation import Gyro, gyro_odometry
+from diffdrive.estimation import EstimatorSettings, Gyro, WholeLog, gyro_odometry
 from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
 
 ROBOT = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
@@ -68,11 +68,12 @@ def detection(poses: np.ndarray, ratio: float, robots: int) -> dict[str, tuple[i
                 TIMES,
                 np.diff(encoders.readings[0], axis=0),
                 Gyro(TIMES, gyro.rates[0]),
-                "fused",
-                bias=0.0,
-                wheel_noise=K,
-                noise=noise,
-                slip_test=test,
+                EstimatorSettings(
+                    bias=0.0,
+                    wheel_noise=K,
+                    gyro_noise=noise,
+                    whole_log=WholeLog(slip_episodes=test == "episodes"),
+                ),
             )
             flagged = result.slip[1:]
             tally[0] += int(np.count_nonzero(flagged & labelled))

@@ -20,7 +20,14 @@ import platform
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.estimation import Gyro, estimate_trajectory, fusion, measurements_of
+from diffdrive.estimation import (
+    EstimatorSettings,
+    Gyro,
+    Window,
+    estimate_trajectory,
+    fusion,
+    measurements_of,
+)
 from diffdrive.estimation import smoother as whole
 from diffdrive.estimation.episodes import EDGE_COST, EPISODE_PENALTY, LONGEST, partition
 from timing import median_time  # benchmarks/timing.py
@@ -61,7 +68,8 @@ def per_interval(times, increments, gyro, measured, smooth, repeats) -> float:
 def parts(times, increments, gyro, repeats) -> dict[str, float]:
     """us per interval of the pieces: the C pass alone, forward and with the smoother, and
     the episodes' partition."""
-    estimator = fusion.PoseEstimator(ROBOT, "fused", initial_time=0.0, history=np.inf, ahead=0.0)
+    whole_log = EstimatorSettings(window=Window(np.inf, 0.0))
+    estimator = fusion.PoseEstimator(ROBOT, whole_log, initial_time=0.0)
     n = len(times) - 1
     log_ = whole._Log(
         times, increments, np.diff(gyro.angles(times)), np.zeros(n, bool), whole._packed([])

@@ -22,7 +22,7 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive.calibration.reference import UndeterminedError, calibrate_to_reference, estimable
-from diffdrive.estimation import Gyro, estimate_trajectory
+from diffdrive.estimation import EstimatorSettings, Gyro, estimate_trajectory
 from diffdrive.estimation.standing import warm_up
 from diffdrive.sensor_noise import DEFAULT
 
@@ -67,8 +67,8 @@ def dead_reckoning_ate(data: dict, robot: dd.DiffDrive, gyro: Gyro, span) -> flo
     first, last = span
     times = data["times"][first : last + 1]
     run = estimate_trajectory(
-        robot, times, data["increments"][first:last], gyro=gyro, heading="gyro",
-        initial_pose=data["start"], smooth=False,
+        robot, times, data["increments"][first:last], gyro=gyro,
+        settings=EstimatorSettings("gyro"), initial_pose=data["start"], smooth=False,
     )  # fmt: skip
     inside = (data["fix_times"] >= times[0]) & (data["fix_times"] <= times[-1])
     part = {"times": times, "fix_times": data["fix_times"][inside], "fixes": data["fixes"][inside]}

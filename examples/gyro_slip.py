@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
+from diffdrive.estimation import EstimatorSettings
 from diffdrive.estimation.gyro import HEADINGS, Gyro, gyro_odometry
 from diffdrive.evaluation import align, ate, interpolate
 
@@ -51,7 +52,10 @@ def synthetic(seed: int = 0) -> dict:
     bias = 0.01 + 0.02 * gyro_times / gyro_times[-1]
     noisy = np.interp(gyro_times, truth.times, rates) + bias
     gyro = Gyro(gyro_times, noisy + rng.normal(0, 0.02, len(gyro_times)))
-    runs = {h: gyro_odometry(ROBOT, t, measured, gyro, h, wheel_noise=2e-6) for h in HEADINGS}
+    runs = {
+        h: gyro_odometry(ROBOT, t, measured, gyro, EstimatorSettings(h, wheel_noise=2e-6))
+        for h in HEADINGS
+    }
     return {"runs": runs, "truth": truth, "slip": slip}
 
 
@@ -66,9 +70,8 @@ def husky(bags: Path) -> dict:
             data["times"],
             data["increments"],
             data["gyro"],
-            heading,
-            data["start"],
-            wheel_noise=1e-3,
+            EstimatorSettings(heading, wheel_noise=1e-3),
+            initial_pose=data["start"],
         )
         estimate = interpolate(data["times"], run.poses, data["fix_times"])
         estimate[:, 2] = 0.0  # positions only

@@ -32,7 +32,10 @@ import numpy as np
 import diffdrive as dd
 from diffdrive import batch
 from diffdrive.estimation import (
+    EstimatorSettings,
     Gyro,
+    Prior,
+    WholeLog,
     estimate_trajectory,
     identify_fixes,
     measurements_of,
@@ -90,8 +93,8 @@ def no_setting_given(data: dict) -> dict:
     for heading in ("wheels", "gyro", "fused"):
         for smooth in (False, True):
             run = estimate_trajectory(
-                HUSKY, data["times"], data["increments"], gyro=data["gyro"], heading=heading,
-                initial_pose=data["start"], smooth=smooth,
+                HUSKY, data["times"], data["increments"], gyro=data["gyro"],
+                settings=EstimatorSettings(heading), initial_pose=data["start"], smooth=smooth,
             )  # fmt: skip
             errors[heading, smooth] = against_gps(data, run)
             settings = run.settings
@@ -120,12 +123,16 @@ def fix_gaps(data: dict) -> dict:
         used = np.arange(len(stamps)) % round(gap / 0.4) == 0
         used[-1] = True
         left = ~used
-        whole = _smoothed(data, left, measurements=fit.measurements(stamps[used], fixes[used]),
-                          **fit.options)  # fmt: skip
+        whole = _smoothed(
+            data, left, fit.measurements(stamps[used], fixes[used]),
+            fit.settings(EstimatorSettings()), initial_pose=fit.start,
+            initial_covariance=fit.start_covariance,
+        )  # fmt: skip
         row = {"smoothed": whole[0], "refused": whole[1], "used": int(used.sum())}
         if used.sum() >= 10:  # enough to identify from the used fixes alone
             alone = measurements_of("position", stamps[used], fixes[used], data["sigma"])
-            row["alone"] = _smoothed(data, left, measurements=alone, fixes="identified")[0]
+            identified = EstimatorSettings(whole_log=WholeLog(fixes="identified"))
+            row["alone"] = _smoothed(data, left, alone, identified)[0]
             row["alone_white"] = identify_fixes(times, dead.poses, stamps[used], fixes[used]).white
         between = np.column_stack(
             [np.interp(stamps[left], stamps[used], fixes[used, i]) for i in (0, 1)]
@@ -141,11 +148,16 @@ def _away(points: np.ndarray, fixes: np.ndarray) -> float:
     return float(np.mean(np.hypot(*(points - fixes).T)))
 
 
-def _smoothed(data: dict, left: np.ndarray, **options) -> tuple[float, int]:
+def _smoothed(
+    data: dict, left: np.ndarray, measurements: list, settings: EstimatorSettings, **start
+) -> tuple[float, int]:
     """The smoother's mean distance (m) to the fixes ``left`` out, where it puts them (its
     position plus the offset), and how many fixes the gate refused."""
     stamps, times = data["fix_times"][left], data["times"]
-    run = estimate_trajectory(HUSKY, times, data["increments"], gyro=data["gyro"], **options)
+    run = estimate_trajectory(
+        HUSKY, times, data["increments"], gyro=data["gyro"], measurements=measurements,
+        settings=settings, **start,
+    )  # fmt: skip
     at = np.column_stack([np.interp(stamps, times, run.states[:, k]) for k in range(ekf.N)])
     placed = at[:, :2] + at[:, ekf.OFFSET : ekf.OFFSET + 2]
     return _away(placed, data["fixes"][left]), run.rejected
@@ -174,7 +186,10 @@ def distance_scale(data: dict, fit) -> dict:
     run = estimate_trajectory(
         HUSKY, data["times"], data["increments"], gyro=data["gyro"],
         measurements=fit.measurements(data["fix_times"], data["fixes"]),
-        distance_scale_sigma=fit.scale_error, **fit.options,
+        settings=fit.settings(
+            EstimatorSettings(distance_scale=Prior(fit.distance_scale, fit.scale_error))
+        ),
+        initial_pose=fit.start, initial_covariance=fit.start_covariance,
     )  # fmt: skip
     state = float(run.states[-1, ekf.DISTANCE])
     sigma = math.sqrt(run.state_covariances[-1, ekf.DISTANCE, ekf.DISTANCE])
@@ -182,8 +197,8 @@ def distance_scale(data: dict, fit) -> dict:
     def scaled_ate(scale: float) -> float:
         wheels = dd.DiffDrive(wheel_radius=HUSKY.wheel_radius * scale, track_width=0.555)
         gyro_run = estimate_trajectory(
-            wheels, data["times"], data["increments"], gyro=data["gyro"], heading="gyro",
-            initial_pose=data["start"], smooth=False,
+            wheels, data["times"], data["increments"], gyro=data["gyro"],
+            settings=EstimatorSettings("gyro"), initial_pose=data["start"], smooth=False,
         )  # fmt: skip
         return against_gps(data, gyro_run)
 
@@ -204,8 +219,8 @@ def consistency_against_gps(data: dict, figure: Path) -> dict:
     from diffdrive.plot import plot_error_bands
 
     estimate = estimate_trajectory(
-        HUSKY, data["times"], data["increments"], heading="gyro", gyro=data["gyro"],
-        initial_pose=data["start"], smooth=False,
+        HUSKY, data["times"], data["increments"], gyro=data["gyro"],
+        settings=EstimatorSettings("gyro"), initial_pose=data["start"], smooth=False,
     )  # fmt: skip
     stamps = data["fix_times"]
     at = interpolate(data["times"], estimate.poses, stamps)

@@ -23,7 +23,7 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive import sensors
-from diffdrive.estimation import PoseEstimator
+from diffdrive.estimation import EstimatorSettings, PoseEstimator
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=1.0)
 DT, K, GYRO_SIGMA, CAMERA_SIGMA = 0.02, 2e-5, 0.05, (0.1, 0.1, 0.05)
@@ -54,7 +54,8 @@ def run(seed: int, camera: bool = True) -> dict:
     )
     yaw = truth[:, 2] + np.random.default_rng(seed + 2).normal(size=len(times)) * GYRO_SIGMA
     order = np.argsort(poses.arrival, kind="stable")
-    estimator = PoseEstimator(ROBOT, "wheels", dd.Pose(*truth[0]), wheel_noise=K)
+    settings = EstimatorSettings("wheels", wheel_noise=K)
+    estimator = PoseEstimator(ROBOT, settings, initial_pose=dd.Pose(*truth[0]))
     estimator.update_positions(*wheels[0], times[0])
     estimates, covariances, next_pose = [truth[0]], [np.zeros((3, 3))], 0
     for step in range(1, len(times)):

@@ -22,6 +22,7 @@ import diffdrive as dd
 from diffdrive import batch, integrate
 from diffdrive.estimation import (
     COMPILED,
+    EstimatorSettings,
     GyroOdometry,
     PoseEstimator,
     PythonOdometry,
@@ -114,7 +115,8 @@ def _gyro(heading):
     wheels do (the turn from the robot's own forward kinematics, no bias)."""
 
     def run(case, method, dtype):
-        filter = GyroOdometry(case.robot, heading, dd.Pose(*case.start), method=method)
+        settings = EstimatorSettings(heading, method=method)
+        filter = GyroOdometry(case.robot, settings, initial_pose=dd.Pose(*case.start))
         poses = [case.start]
         for left, right in case.wheels * case.dt:
             turn = case.robot.to_twist((left, right)).omega
@@ -130,7 +132,8 @@ def _estimator(kind):
     accumulated wheel angles as a log gives them (the first reading is the reference)."""
 
     def run(case, method, dtype):
-        estimator = kind(case.robot, "wheels", dd.Pose(*case.start), method=method)
+        settings = EstimatorSettings("wheels", method=method)
+        estimator = kind(case.robot, settings, initial_pose=dd.Pose(*case.start))
         positions = np.concatenate([[[0.0, 0.0]], np.cumsum(case.wheels * case.dt, axis=0)])
         poses = []
         for k, (left, right) in enumerate(positions):
@@ -150,8 +153,8 @@ def _whole_log(kind, smooth):
         with pytest.MonkeyPatch.context() as patch:
             patch.setattr(smoother, "PoseEstimator", kind)
             estimate = estimate_trajectory(
-                case.robot, times, case.wheels * case.dt, heading="wheels",
-                initial_pose=case.start, method=method, smooth=smooth,
+                case.robot, times, case.wheels * case.dt, initial_pose=case.start,
+                settings=EstimatorSettings("wheels", method=method), smooth=smooth,
             )  # fmt: skip
         return estimate.poses
 

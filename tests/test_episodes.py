@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from diffdrive.estimation import Gyro, episodes, estimate_trajectory
+from diffdrive.estimation import EstimatorSettings, Gyro, WholeLog, episodes, estimate_trajectory
 from diffdrive.estimation.episodes import (
     EDGE_COST,
     EPISODE_PENALTY,
@@ -104,13 +104,15 @@ def test_a_weak_persistent_slip_is_found_whole_and_noise_is_not():
 
 def test_a_slip_test_that_does_not_exist_is_refused_by_name():
     t = np.arange(4) * 0.1
-    with pytest.raises(ValueError, match="slip_test must be one of"):
+    with pytest.raises(TypeError, match=r"WholeLog\.slip_episodes must be a bool, got 'window'"):
+        WholeLog(slip_episodes="window")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="settings must be an EstimatorSettings, got dict"):
         estimate_trajectory(
             dd.DiffDrive(0.05, 0.3),
             t,
             np.ones((3, 2)),
             gyro=Gyro(t, np.zeros(4)),
-            slip_test="window",
+            settings={"slip_test": "window"},  # type: ignore[arg-type]
         )
 
 
@@ -128,5 +130,5 @@ def test_a_noise_free_log_flags_no_slip(speed):
     path = dd.simulate(robot, wheels, times=t)
     gyro = Gyro.from_yaw(t, path.poses[:, 2])
     increments = np.diff(path.wheel_positions, axis=0)
-    found = gyro_odometry(robot, t, increments, gyro, "fused", bias=0.0)
+    found = gyro_odometry(robot, t, increments, gyro, EstimatorSettings(bias=0.0))
     assert not found.slip.any()

@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive.estimation import PoseEstimator, estimate_trajectory, measurements_of
+from diffdrive.estimation import EstimatorSettings as S
+from diffdrive.estimation import (
+    FixOffset,
+    Gate,
+    PoseEstimator,
+    Prior,
+    WholeLog,
+    estimate_trajectory,
+    measurements_of,
+)
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.fixes import identify_fixes
 from diffdrive.estimation.fusion import PythonPoseEstimator
@@ -17,6 +26,8 @@ from diffdrive.estimation.measurements import Measurement
 from diffdrive.sensors import AbsoluteModel, absolute_readings
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.5)
+WHEELS = S("wheels")
+IDENTIFIED = S("wheels", whole_log=WholeLog(fixes="identified"))
 RATE = 20.0  # Hz, the wheels
 FIX_RATE = 2.0  # Hz, the fixes
 
@@ -64,7 +75,7 @@ def test_identify_fixes_finds_the_wander_the_white_noise_and_the_wheels_scale():
     for seed in range(8):
         times, truth, increments, rng = drive(seed)
         stamps, fixes, _ = wandering_fixes(rng, times, truth, white=0.2)
-        dead = estimate_trajectory(ROBOT, times, increments, heading="wheels", smooth=False)
+        dead = estimate_trajectory(ROBOT, times, increments, settings=WHEELS, smooth=False)
         fit = identify_fixes(times, dead.poses, stamps, fixes)
         assert fit.wander == pytest.approx(0.3, rel=0.3)
         assert fit.white == pytest.approx(0.2, rel=0.3)
@@ -80,7 +91,7 @@ def test_a_steady_receiver_gives_the_wheels_scale_to_a_percent():
     for seed in range(4):
         times, truth, increments, rng = drive(seed)
         stamps, fixes, _ = wandering_fixes(rng, times, truth, wander=0.02, white=0.3)
-        dead = estimate_trajectory(ROBOT, times, increments, heading="wheels", smooth=False)
+        dead = estimate_trajectory(ROBOT, times, increments, settings=WHEELS, smooth=False)
         fit = identify_fixes(times, dead.poses, stamps, fixes)
         assert fit.fitted_scale == pytest.approx(0.97, rel=0.015)
         assert abs(fit.fitted_scale - 0.97) < 3 * fit.scale_error
@@ -91,7 +102,7 @@ def test_white_fixes_are_identified_as_white():
     wander small beside it (under 0.05 m/sqrt(s))."""
     times, truth, increments, rng = drive(7, scale=1.0)
     stamps, fixes, _ = wandering_fixes(rng, times, truth, wander=0.0, white=0.5)
-    dead = estimate_trajectory(ROBOT, times, increments, heading="wheels", smooth=False)
+    dead = estimate_trajectory(ROBOT, times, increments, settings=WHEELS, smooth=False)
     fit = identify_fixes(times, dead.poses, stamps, fixes)
     assert fit.white == pytest.approx(0.5, rel=0.2)
     assert fit.wander < 0.05
@@ -107,16 +118,17 @@ def test_identified_fixes_follow_the_wander_where_white_ones_cannot():
         stamps, fixes, offset = wandering_fixes(rng, times, truth)
         used = np.arange(len(stamps)) % 4 == 0
         left = ~used
-        common = dict(heading="wheels", wheel_noise=1e-4)
+        settings = S("wheels", wheel_noise=1e-4)
         identified = estimate_trajectory(
-            ROBOT, times, increments, fixes="identified",
-            measurements=measurements_of("position", stamps[used], fixes[used], 1.0), **common,
+            ROBOT, times, increments,
+            settings=settings.replace(whole_log=WholeLog(fixes="identified")),
+            measurements=measurements_of("position", stamps[used], fixes[used], 1.0),
         )  # fmt: skip
         spread = float(np.std(offset))
         white = estimate_trajectory(
             ROBOT, times, increments, initial_pose=truth[0],
             measurements=measurements_of("position", stamps[used], fixes[used], spread),
-            **common,
+            settings=settings,
         )  # fmt: skip
         assert identified.rejected == 0
         assert any(line.startswith("fixes: white noise") for line in identified.settings)
@@ -146,10 +158,10 @@ def test_the_distance_scale_state_finds_the_wheels_scale_from_white_fixes():
     times, truth, increments, rng = drive(3)
     stamps, fixes, _ = wandering_fixes(rng, times, truth, wander=0.0, white=0.3)
     estimate = estimate_trajectory(
-        ROBOT, times, increments, heading="wheels", initial_pose=truth[0],
-        initial_covariance=np.diag([0.1, 0.1, 0.01]), wheel_noise=1e-4,
+        ROBOT, times, increments, initial_pose=truth[0],
+        initial_covariance=np.diag([0.1, 0.1, 0.01]),
         measurements=measurements_of("position", stamps, fixes, 0.3),
-        distance_scale_sigma=0.1,
+        settings=S("wheels", wheel_noise=1e-4, distance_scale=Prior(sigma=0.1)),
     )  # fmt: skip
     found = estimate.states[-1, ekf.DISTANCE]
     sigma = math.sqrt(estimate.state_covariances[-1, ekf.DISTANCE, ekf.DISTANCE])
@@ -162,8 +174,8 @@ def test_a_position_carries_the_offset_and_a_pose_does_not(core):
     """With the offset a state from 0 +- 1 m and the pose known to 1 mm, a position fix 0.5 m
     off moves the offset, not the pose; a pose measurement does not see the offset."""
     estimator = core(
-        ROBOT, "wheels", (0.0, 0.0, 0.0), np.eye(3) * 1e-6, initial_time=0.0,
-        fix_offset_sigma=1.0, fix_offset_rate=0.1,
+        ROBOT, S("wheels", fix_offset=FixOffset(rate=0.1, sigma=1.0)), initial_pose=(0.0, 0.0, 0.0),
+        initial_covariance=np.eye(3) * 1e-6, initial_time=0.0,
     )  # fmt: skip
     estimator.update_increments(0.0, 0.0, 0.1)
     assert estimator.add_position(0.1, (0.5, 0.0), 0.01)
@@ -209,7 +221,7 @@ def test_the_log_likelihood_is_the_innovations_gaussian_density():
     times = np.array([0.0, 0.1])
     fix = measurements_of("position", [0.0], [(0.3, -0.2)], 0.1)
     estimate = estimate_trajectory(
-        ROBOT, times, np.zeros((1, 2)), heading="wheels", measurements=fix,
+        ROBOT, times, np.zeros((1, 2)), settings=WHEELS, measurements=fix,
         initial_covariance=np.diag([0.04, 0.09, 0.01]),
     )  # fmt: skip
     S = np.diag([0.04 + 0.01, 0.09 + 0.01])
@@ -227,17 +239,15 @@ def test_fixes_that_cannot_be_identified_are_refused_by_name():
     still = np.zeros((len(times) - 1, 2))
     few = measurements_of("position", times[:5], np.zeros((5, 2)), 0.5)
     with pytest.raises(ValueError, match="5 position fixes: at least 10"):
-        estimate_trajectory(ROBOT, times, still, heading="wheels", measurements=few,
-                            fixes="identified")  # fmt: skip
+        estimate_trajectory(ROBOT, times, still, settings=IDENTIFIED, measurements=few)
     many = measurements_of("position", times[::5], np.zeros((20, 2)), 0.5)
     with pytest.raises(ValueError, match="hardly moves"):
-        estimate_trajectory(ROBOT, times, still, heading="wheels", measurements=many,
-                            fixes="identified")  # fmt: skip
-    with pytest.raises(ValueError, match="fixes must be one of given, identified"):
-        estimate_trajectory(ROBOT, times, still, heading="wheels", fixes="auto")
-    with pytest.raises(ValueError, match="outliers must be one of refuse, inflate"):
-        PoseEstimator(ROBOT, "wheels", outliers="keep")
-    with pytest.raises(ValueError, match="fix_offset_rate must be >= 0"):
-        PoseEstimator(ROBOT, "wheels", fix_offset_rate=-0.1)
-    with pytest.raises(ValueError, match="distance_scale must be"):
-        PoseEstimator(ROBOT, "wheels", distance_scale=0.0)
+        estimate_trajectory(ROBOT, times, still, settings=IDENTIFIED, measurements=many)
+    with pytest.raises(ValueError, match=r"WholeLog\.fixes must be one of given, identified"):
+        WholeLog(fixes="auto")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"Gate\.outliers must be one of refuse, inflate"):
+        Gate(outliers="keep")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"FixOffset\.rate must be >= 0"):
+        FixOffset(rate=-0.1)
+    with pytest.raises(ValueError, match=r"Prior\.start must be"):
+        Prior(0.0)

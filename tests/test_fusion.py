@@ -11,15 +11,19 @@ from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive.estimation import (
+    Encoders,
     Gyro,
     GyroNoise,
     Measurement,
     PoseEstimator,
+    Prior,
+    Window,
     chi2_quantile,
     estimate_trajectory,
     fusion,
     measurements_of,
 )
+from diffdrive.estimation import EstimatorSettings as S
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=1.0)
 DT = 0.02
@@ -59,7 +63,9 @@ def run_scenario(seed, with_vision=True, latencies=(0.25,), k=K):
     increments = noisy_increments(rng, k)
     yaw = TRUTH[:, 2] + rng.normal(size=len(T)) * GYRO_SIGMA
     queue = vision(rng, latencies) if with_vision else []
-    estimator = PoseEstimator(ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=k, initial_time=0.0)
+    estimator = PoseEstimator(
+        ROBOT, S("wheels", wheel_noise=k), initial_pose=dd.Pose(*TRUTH[0]), initial_time=0.0
+    )
     estimator.add_heading(0.0, yaw[0], GYRO_SIGMA)
     errors, distances, q = [], [], 0
     for step in range(1, len(T)):
@@ -77,9 +83,12 @@ def run_scenario(seed, with_vision=True, latencies=(0.25,), k=K):
 def test_wheel_heading_is_odometry_for_every_reading_kind_and_counter():
     ticks = np.round(np.cumsum(WHEELS * DT, axis=0) / (2 * np.pi) * 1024).astype(np.int64)
     ticks = np.concatenate([[[0, 0]], ticks]) % 4096  # 12-bit counters that roll over
-    options = dict(ticks_per_revolution=1024, counter_bits=12, wheel_noise=(K, 2 * K))
-    odometry = dd.Odometry(ROBOT, initial_pose=dd.Pose(1, 2, 0.3), **options)
-    estimator = PoseEstimator(ROBOT, "wheels", dd.Pose(1, 2, 0.3), **options)
+    options = dict(ticks_per_revolution=1024, counter_bits=12)
+    odometry = dd.Odometry(
+        ROBOT, initial_pose=dd.Pose(1, 2, 0.3), wheel_noise=(K, 2 * K), **options
+    )
+    settings = S("wheels", wheel_noise=(K, 2 * K), encoders=Encoders(**options))
+    estimator = PoseEstimator(ROBOT, settings, initial_pose=dd.Pose(1, 2, 0.3))
     for k, (left, right) in enumerate(ticks):
         odometry.update_ticks(int(left), int(right), T[k])
         estimator.update_ticks(int(left), int(right), T[k])
@@ -90,7 +99,7 @@ def test_wheel_heading_is_odometry_for_every_reading_kind_and_counter():
 def test_skid_steer_runs_as_its_equivalent_drive():
     robot = dd.SkidSteer(0.11, 0.45, -0.40, icr_x=0.03)
     odometry = dd.Odometry(robot, initial_pose=dd.Pose(0, 1, 1), wheel_noise=K)
-    estimator = PoseEstimator(robot, "wheels", dd.Pose(0, 1, 1), wheel_noise=K)
+    estimator = PoseEstimator(robot, S("wheels", wheel_noise=K), initial_pose=dd.Pose(0, 1, 1))
     estimator.update_positions(0.0, 0.0, 0.0)
     odometry.update_positions(0.0, 0.0, 0.0)
     for k, (left, right) in enumerate(np.cumsum(WHEELS[:200] * DT, axis=0)):
@@ -103,7 +112,8 @@ def test_skid_steer_runs_as_its_equivalent_drive():
 def test_bad_wheel_readings_are_refused_with_odometrys_message_and_nothing_changes():
     for reading in ((math.nan, 0), (0, 0, -1.0)):
         messages = []
-        for make in (dd.Odometry, lambda *a, **o: PoseEstimator(*a, "wheels", **o)):
+        wheels = lambda r, **o: PoseEstimator(r, S("wheels", encoders=Encoders(**o)))  # noqa: E731
+        for make in (dd.Odometry, wheels):
             target = make(ROBOT, ticks_per_revolution=100, counter_bits=8, max_wheel_speed=50.0)
             target.update_ticks(0, 0, 0.0)
             before = target.pose
@@ -115,7 +125,7 @@ def test_bad_wheel_readings_are_refused_with_odometrys_message_and_nothing_chang
             assert target.time == 0.0
         assert messages[0] == messages[1]
     # A jump past max_wheel_speed (a roll-over with the wrong counter width).
-    estimator = PoseEstimator(ROBOT, ticks_per_revolution=100, counter_bits=8, max_wheel_speed=5.0)
+    estimator = PoseEstimator(ROBOT, S(encoders=Encoders(100, 8, max_wheel_speed=5.0)))
     estimator.update_ticks(0, 0, 0.0, gyro_angle=0.0)
     with pytest.raises(ValueError, match="over max_wheel_speed"):
         estimator.update_ticks(90, 0, 0.01, gyro_angle=0.0)
@@ -127,8 +137,10 @@ def test_a_late_measurement_lands_at_its_stamp_as_if_it_had_come_in_time():
     rng = np.random.default_rng(1)
     increments = noisy_increments(rng)
     poses = TRUTH[::10] + rng.normal(size=(len(T[::10]), 3)) * VISION_SIGMA
-    on_time = PoseEstimator(ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
-    late = PoseEstimator(ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
+    on_time, late = (
+        PoseEstimator(ROBOT, S("wheels", wheel_noise=K), initial_pose=TRUTH[0], initial_time=0.0)
+        for _ in range(2)
+    )
     for step in range(1, 300):
         for estimator in (on_time, late):
             estimator.update_increments(*increments[step - 1], T[step])
@@ -161,7 +173,7 @@ def test_numpy_lists_and_tuples_are_the_same_measurement():
     states = {}
     for name, form in forms.items():
         estimator = PoseEstimator(
-            ROBOT, "wheels", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0
+            ROBOT, S("wheels", wheel_noise=K), initial_pose=dd.Pose(*TRUTH[0]), initial_time=0.0
         )
         for step in range(1, 200):
             estimator.update_increments(*increments[step - 1], T[step])
@@ -189,7 +201,9 @@ def test_the_result_does_not_depend_on_the_order_measurements_arrive_in(order):
     measured = [
         dd.evaluation.interpolate(T, TRUTH, [s])[0] + n for s, n in zip(stamps, noise, strict=True)
     ]
-    estimator = PoseEstimator(ROBOT, "fused", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
+    estimator = PoseEstimator(
+        ROBOT, S("fused", wheel_noise=K), initial_pose=dd.Pose(*TRUTH[0]), initial_time=0.0
+    )
     for step in range(1, 101):
         estimator.update_increments(
             *increments[step - 1], T[step], gyro_angle=TRUTH[step, 2] - TRUTH[step - 1, 2]
@@ -204,7 +218,9 @@ def test_the_result_does_not_depend_on_the_order_measurements_arrive_in(order):
 
 
 def _ordered_reference(increments, stamps, measured):
-    estimator = PoseEstimator(ROBOT, "fused", dd.Pose(*TRUTH[0]), wheel_noise=K, initial_time=0.0)
+    estimator = PoseEstimator(
+        ROBOT, S("fused", wheel_noise=K), initial_pose=dd.Pose(*TRUTH[0]), initial_time=0.0
+    )
     for step in range(1, 101):
         estimator.update_increments(
             *increments[step - 1], T[step], gyro_angle=TRUTH[step, 2] - TRUTH[step - 1, 2]
@@ -218,7 +234,7 @@ def _ordered_reference(increments, stamps, measured):
 
 
 def test_the_gate_refuses_an_outlier_and_counts_it():
-    estimator = PoseEstimator(ROBOT, "wheels", wheel_noise=K, initial_time=0.0)
+    estimator = PoseEstimator(ROBOT, S("wheels", wheel_noise=K), initial_time=0.0)
     for step in range(1, 50):
         estimator.update_increments(*WHEELS[step - 1] * DT, T[step])
     before = estimator.state
@@ -247,7 +263,7 @@ def test_the_gate_refuses_an_outlier_and_counts_it():
     ],
 )
 def test_bad_input_names_the_measurement_and_changes_nothing(measure, message):
-    estimator = PoseEstimator(ROBOT, "fused", initial_time=-1.0, history=2.0)
+    estimator = PoseEstimator(ROBOT, S("fused", window=Window(history=2.0)), initial_time=-1.0)
     for step in range(1, 50):
         estimator.update_increments(*WHEELS[step - 1] * DT, -1.0 + 2 * T[step], gyro_angle=0.01)
     state, covariance, counts = estimator.state, estimator.state_covariance, estimator.rejected
@@ -273,7 +289,7 @@ def test_measurement_made_checks_its_covariance_forms():
 
 
 def test_pose_at_a_stamp_inside_the_history():
-    estimator = PoseEstimator(ROBOT, "wheels", wheel_noise=K, initial_time=0.0)
+    estimator = PoseEstimator(ROBOT, S("wheels", wheel_noise=K), initial_time=0.0)
     seen = {}
     for step in range(1, 150):
         estimator.update_increments(*WHEELS[step - 1] * DT, T[step])
@@ -288,13 +304,17 @@ def test_pose_at_a_stamp_inside_the_history():
     with pytest.raises(ValueError, match="outside the history"):
         estimator.pose_at(0.1)
     with pytest.raises(ValueError, match="has had no wheel reading"):
-        PoseEstimator(ROBOT, "wheels").pose_at(0.0)
+        PoseEstimator(ROBOT, S("wheels")).pose_at(0.0)
 
 
 def test_a_lever_arm_is_where_the_sensor_sits():
     """A position measured exactly at a sensor 0.3 m ahead and 0.1 m left moves nothing."""
     estimator = PoseEstimator(
-        ROBOT, "wheels", dd.Pose(1, 1, 0.7), np.eye(3) * 0.01, initial_time=0.0
+        ROBOT,
+        S("wheels"),
+        initial_pose=dd.Pose(1, 1, 0.7),
+        initial_covariance=np.eye(3) * 0.01,
+        initial_time=0.0,
     )
     estimator.update_increments(0.0, 0.0, 0.1)
     sensor = dd.Pose(1, 1, 0.7).compose(dd.Pose(0.3, 0.1)).to_array()[:2]
@@ -321,7 +341,7 @@ def test_smoothing_uses_what_came_after_and_ends_where_the_filter_does():
         fixes = TRUTH[::25, :2] + rng.normal(size=(len(T[::25]), 2)) * 0.1
         measurements = measurements_of("position", T[::25], fixes, 0.1)
         measurements += measurements_of("heading", T, yaw, GYRO_SIGMA)
-        options = dict(heading="wheels", initial_pose=TRUTH[0], wheel_noise=1e-3)
+        options = dict(settings=S("wheels", wheel_noise=1e-3), initial_pose=TRUTH[0])
         runs = {
             smooth: estimate_trajectory(
                 ROBOT, T, increments, measurements=measurements, smooth=smooth, **options
@@ -345,7 +365,7 @@ def test_smoothing_uses_what_came_after_and_ends_where_the_filter_does():
 
 def test_without_measurements_the_smoother_is_the_filter():
     increments = noisy_increments(np.random.default_rng(5))
-    options = dict(heading="wheels", wheel_noise=K)
+    options = dict(settings=S("wheels", wheel_noise=K))
     forward = estimate_trajectory(ROBOT, T[:100], increments[:99], smooth=False, **options)
     smoothed = estimate_trajectory(ROBOT, T[:100], increments[:99], **options)
     np.testing.assert_allclose(smoothed.poses, forward.poses, atol=1e-12)
@@ -356,7 +376,7 @@ def test_a_measurement_outside_the_log_is_named_with_the_log_span():
     increments = noisy_increments(np.random.default_rng(5))[:9]
     late = measurements_of("position", [5.0], [[0.0, 0.0]], 0.1)
     with pytest.raises(ValueError, match=r"t = 5.0 s lies outside the log \[0, 0.18\] s"):
-        estimate_trajectory(ROBOT, T[:10], increments, heading="wheels", measurements=late)
+        estimate_trajectory(ROBOT, T[:10], increments, settings=S("wheels"), measurements=late)
 
 
 def test_the_turn_scale_state_learns_wheels_that_under_turn():
@@ -366,13 +386,14 @@ def test_the_turn_scale_state_learns_wheels_that_under_turn():
     gyro = Gyro(T, np.gradient(np.unwrap(TRUTH[:, 2]), T))
     noise = GyroNoise(angle_random_walk=1e-3, rate_random_walk=1e-6, initial_bias_sigma=1e-4)
 
-    def run(**options):
+    def run(sigma=0.0):
+        settings = S(wheel_noise=1e-5, gyro_noise=noise, turn_scale=Prior(sigma=sigma))
         return estimate_trajectory(
             robot_says, T, WHEELS * DT, gyro=gyro, initial_pose=TRUTH[0], smooth=False,
-            wheel_noise=1e-5, noise=noise, **options,
+            settings=settings,
         )  # fmt: skip
 
-    learnt, fixed = run(turn_scale_sigma=0.2), run()
+    learnt, fixed = run(0.2), run()
     assert learnt.states[-1, 4] == pytest.approx(1.075, abs=0.01)
     final = lambda e: math.hypot(*(e.poses[-1, :2] - TRUTH[-1, :2]))  # noqa: E731
     assert final(learnt) < final(fixed)
@@ -409,10 +430,13 @@ readings = st.lists(
 def test_the_c_core_is_its_python_twin(steps, heading, scale):
     """Any wheel, gyro and measurement sequence, late stamps included: the C core and the
     pure-Python core give the same state, covariance, counts and pose in the past."""
-    options = dict(wheel_noise=(1e-4, 2e-4), turn_scale_sigma=0.1 if scale else 0.0)
-    options.update(initial_time=0.0, history=0.5, initial_covariance=np.eye(3) * 1e-4)
+    settings = S(
+        heading, wheel_noise=(1e-4, 2e-4), turn_scale=Prior(sigma=0.1 if scale else 0.0),
+        window=Window(history=0.5),
+    )  # fmt: skip
+    options = dict(initial_time=0.0, initial_covariance=np.eye(3) * 1e-4)
     pair = [
-        kind(ROBOT, heading, **options)
+        kind(ROBOT, settings, **options)
         for kind in (fusion.PoseEstimator, fusion.PythonPoseEstimator)
     ]
     now = 0.0

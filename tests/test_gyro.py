@@ -9,6 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
+from diffdrive.estimation import EstimatorSettings as S
+from diffdrive.estimation import SlipTest
 from diffdrive.estimation.gyro import (
     Gyro,
     GyroNoise,
@@ -55,7 +57,7 @@ def test_fused_beats_the_wheels_and_the_gyro_alone():
     t, measured, gyro, truth, _ = slipping_run()
     found = {
         heading: errors(
-            gyro_odometry(ROBOT, t, measured, gyro, heading, wheel_noise=2e-6), truth
+            gyro_odometry(ROBOT, t, measured, gyro, S(heading, wheel_noise=2e-6)), truth
         ).max()
         for heading in ("wheels", "gyro", "fused")
     }
@@ -69,7 +71,7 @@ def test_slip_detection_rate_and_false_alarms_at_the_default_threshold():
     rates = []
     for seed in range(3):
         t, measured, gyro, _, slip = slipping_run(seed)
-        result = gyro_odometry(ROBOT, t, measured, gyro, "fused", wheel_noise=2e-6)
+        result = gyro_odometry(ROBOT, t, measured, gyro, S(wheel_noise=2e-6))
         flagged = result.slip[1:]
         rates.append((flagged[slip].mean(), flagged[~slip].mean()))
     detection, false_alarm = np.mean(rates, axis=0)
@@ -80,7 +82,7 @@ def test_slip_detection_rate_and_false_alarms_at_the_default_threshold():
 
 def test_the_fused_bias_follows_a_drifting_bias():
     t, measured, gyro, _, _ = slipping_run()
-    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", wheel_noise=2e-6)
+    result = gyro_odometry(ROBOT, t, measured, gyro, S(wheel_noise=2e-6))
     assert result.bias[0] == pytest.approx(0.01, abs=2e-3)  # from the first second, standing
     assert result.bias[-1] > 0.018  # the true bias ends at 0.03 rad/s; a fixed one stays 0.01
 
@@ -91,7 +93,7 @@ def test_with_a_perfect_gyro_and_wheels_every_heading_gives_the_truth():
     truth = dd.simulate(ROBOT, wheels, dt=DT)
     gyro = Gyro(t, np.full(201, truth.twists[0, 2]))
     for heading in ("wheels", "gyro", "fused"):
-        result = gyro_odometry(ROBOT, t, wheels * DT, gyro, heading, bias=0.0)
+        result = gyro_odometry(ROBOT, t, wheels * DT, gyro, S(heading, bias=0.0))
         np.testing.assert_allclose(result.poses, truth.poses, atol=1e-9)
         assert not result.slip.any()
 
@@ -102,8 +104,9 @@ def test_streaming_equals_the_whole_log():
     own from where the wheels stand still)."""
     t, measured, gyro, _, _ = slipping_run()
     noise = DEFAULT_GYRO
-    whole = gyro_odometry(ROBOT, t[:300], measured[:299], gyro, "fused", bias=0.01, noise=noise)
-    streaming = GyroOdometry(ROBOT, "fused", bias=0.01, noise=noise)
+    settings = S("fused", bias=0.01, gyro_noise=noise)
+    whole = gyro_odometry(ROBOT, t[:300], measured[:299], gyro, settings)
+    streaming = GyroOdometry(ROBOT, settings)
     turned, steps = np.diff(gyro.angles(t[:300])), np.diff(t[:300])
     for k in range(299):
         streaming.update(*measured[k], turned[k], steps[k])
@@ -113,7 +116,7 @@ def test_streaming_equals_the_whole_log():
 
 def test_covariance_is_symmetric_positive_and_grows_with_distance():
     t, measured, gyro, _, _ = slipping_run()
-    result = gyro_odometry(ROBOT, t, measured, gyro, "fused", wheel_noise=2e-6)
+    result = gyro_odometry(ROBOT, t, measured, gyro, S(wheel_noise=2e-6))
     for covariance in result.covariances[::300]:
         np.testing.assert_allclose(covariance, covariance.T, atol=1e-15)
         assert np.linalg.eigvalsh(covariance).min() > -1e-12
@@ -187,12 +190,12 @@ def test_a_wrapped_yaw_is_unwrapped_before_it_comes_back():
             lambda: Gyro([0.0, 1.0], [0.0, 0.0]).angles(np.array([0.5, 1.5])),
             r"the wheel log spans \[0.5, 1.5\] s, the gyro only \[0, 1\] s",
         ),
-        (lambda: GyroOdometry(ROBOT, slip_threshold=-1.0), "slip_threshold must be > 0"),
-        (lambda: GyroOdometry(ROBOT, heading="compass"), "heading must be one of"),
+        (lambda: SlipTest(threshold=-1.0), r"SlipTest\.threshold must be > 0"),
+        (lambda: S(heading="compass"), "heading must be one of"),  # type: ignore[arg-type]
         (lambda: GyroNoise(angle_random_walk=-1.0), "angle_random_walk must be >= 0"),
         (
             lambda: gyro_odometry(
-                ROBOT, [0.0, 1.0], np.ones((1, 2)), Gyro([0.0, 1.0], [0.0, 0.0]), "gyro"
+                ROBOT, [0.0, 1.0], np.ones((1, 2)), Gyro([0.0, 1.0], [0.0, 0.0]), S("gyro")
             ),
             "heading 'gyro' needs the gyro bias",
         ),
@@ -204,7 +207,7 @@ def test_bad_gyro_input_is_refused(make, message):
 
 
 def test_a_refused_update_changes_nothing():
-    odometry = GyroOdometry(ROBOT, "fused")
+    odometry = GyroOdometry(ROBOT, S("fused"))
     odometry.update(0.1, 0.12, 0.01, 0.02)
     before = (odometry.state.copy(), odometry.covariance4.copy(), odometry.slip)
     for args in ((math.nan, 0.1, 0.0, 0.02), (0.1, 0.1, 0.0, 0.0), (1e300, 1e300, 0.0, 0.02)):
@@ -272,16 +275,16 @@ def test_commanded_wheel_velocities_flag_a_wheel_that_spins_up_beyond_its_comman
     measured[spin] *= 1.5  # both wheels spin 50 % faster than commanded, straight ahead
     gyro = Gyro(t, np.zeros(301))
     result = gyro_odometry(
-        ROBOT, t, measured, gyro, "fused", bias=0.0, commanded=wheels, command_sigma=0.5
+        ROBOT, t, measured, gyro, S(bias=0.0, slip=SlipTest(command_sigma=0.5)), commanded=wheels
     )
     flagged = result.slip[1:]
     assert flagged[spin].all()
     assert not flagged[~spin].any()
-    without = gyro_odometry(ROBOT, t, measured, gyro, "fused", bias=0.0)
+    without = gyro_odometry(ROBOT, t, measured, gyro, S(bias=0.0))
     assert not without.slip.any()  # the gyro alone sees nothing: no turn
     assert result.covariances[-1, 0, 0] > without.covariances[-1, 0, 0]  # inflated travel
     with pytest.raises(ValueError, match=r"commanded must be \(300, 2\)"):
-        gyro_odometry(ROBOT, t, measured, gyro, "fused", bias=0.0, commanded=wheels[:5])
+        gyro_odometry(ROBOT, t, measured, gyro, S(bias=0.0), commanded=wheels[:5])
 
 
 def test_the_command_line_reads_command_columns(tmp_path, capsys):
@@ -334,6 +337,6 @@ def test_the_exact_heading_as_yaw_flags_no_slip_and_follows_the_wheels():
     path = dd.simulate(robot, wheels, times=t)
     increments = wheels * 0.02
     gyro = Gyro.from_yaw(t, path.poses[:, 2])
-    result = gyro_odometry(robot, t, increments, gyro, "gyro", bias=0.0)
+    result = gyro_odometry(robot, t, increments, gyro, S("gyro", bias=0.0))
     assert not result.slip.any()
     np.testing.assert_allclose(result.poses, path.poses, atol=1e-9)

@@ -8,6 +8,8 @@ import pytest
 
 import diffdrive as dd
 from diffdrive.calibration import OnlineCalibrator, calibrate
+from diffdrive.estimation import EstimatorSettings as S
+from diffdrive.estimation import SlipTest
 from diffdrive.estimation.gyro import Gyro, GyroOdometry, gyro_odometry
 from diffdrive.evaluation import worst
 
@@ -18,7 +20,16 @@ QUIET = Gyro([0.0, 3.0], [0.0, 0.0])
 @pytest.mark.parametrize(
     ("call", "error", "message"),
     [
-        (lambda: GyroOdometry(ROBOT, noise=3), TypeError, "noise must be a GyroNoise, got int"),
+        (
+            lambda: GyroOdometry(ROBOT, S(gyro_noise=3)),  # type: ignore[arg-type]
+            TypeError,
+            "EstimatorSettings.gyro_noise must be a GyroNoise, got 3",
+        ),
+        (
+            lambda: GyroOdometry(ROBOT, "fused"),  # type: ignore[arg-type]
+            TypeError,
+            "settings must be an EstimatorSettings, got str",
+        ),
         (lambda: Gyro([0, 1], [0, 0], max_gap="a"), TypeError, "max_gap must be a real number"),
         (lambda: Gyro([0, 1], [0, 0], max_gap=None), TypeError, "max_gap must be a real number"),
         (lambda: Gyro([0, 1], [0, 0], max_gap=math.nan), ValueError, "max_gap must be finite"),
@@ -45,14 +56,14 @@ QUIET = Gyro([0.0, 3.0], [0.0, 0.0])
             "icr_left - icr_right .* overflows",  # later errors named track_width before
         ),
         (
-            lambda: GyroOdometry(ROBOT, noise=dd.estimation.GyroNoise(angle_random_walk=1e200)),
+            lambda: S(gyro_noise=dd.estimation.GyroNoise(angle_random_walk=1e200)),
             ValueError,
             "angle_random_walk 1e\\+200 squares past the largest float",  # an OverflowError
         ),
         (
-            lambda: GyroOdometry(ROBOT, command_sigma=1e-200),
+            lambda: SlipTest(command_sigma=1e-200),
             ValueError,
-            "command_sigma 1e-200 squares to 0",
+            "SlipTest.command_sigma 1e-200 squares to 0",
         ),
         (
             lambda: dd.simulate(ROBOT, lambda t: np.ones((len(t), 2)), dt=1e-320, duration=1.0),
@@ -196,7 +207,7 @@ def test_a_robot_file_with_a_number_of_hundreds_of_digits_is_named(tmp_path):
 
 def _estimator(core):
     """E() of the campaign: a wheels-heading estimator two readings in."""
-    e = core(dd.DiffDrive(wheel_radius=0.1, track_width=1.0), "wheels")
+    e = core(dd.DiffDrive(wheel_radius=0.1, track_width=1.0), S("wheels"))
     e.update_positions(0.0, 0.0, t=0.0)
     e.update_positions(0.19, 0.21, t=0.02)
     return e
@@ -309,7 +320,11 @@ def test_a_queued_fix_with_a_huge_lever_arm_is_gated_out_and_the_estimator_goes_
         ),
         (
             lambda: dd.estimation.estimate_trajectory(
-                ROBOT, [0.0, 1.0], [[0.1, 0.1]], heading="wheels", measurements=[(1.0, (0, 0, 0))]
+                ROBOT,
+                [0.0, 1.0],
+                [[0.1, 0.1]],
+                settings=S("wheels"),
+                measurements=[(1.0, (0, 0, 0))],
             ),
             TypeError,
             "measurements must be Measurements",  # AttributeError before

@@ -11,7 +11,7 @@ import pytest
 import diffdrive as dd
 from diffdrive import sensor_noise
 from diffdrive.control import follow
-from diffdrive.estimation import GyroOdometry, PoseEstimator, estimate_trajectory
+from diffdrive.estimation import EstimatorSettings, GyroOdometry, PoseEstimator, estimate_trajectory
 from diffdrive.estimation.odometry import odometry_of_run
 from diffdrive.montecarlo import monte_carlo
 from diffdrive.sensor_noise import DEFAULT, NONE, WheelNoise, draw_geometry, draw_travel
@@ -55,11 +55,12 @@ def test_every_estimator_assumes_the_one_default_and_every_simulator_none():
     # diffdrive); the value it takes is DEFAULT.
     assert _default(dd.Odometry.__init__) is None
     assert _default(odometry_of_run) is None
-    assert _default(PoseEstimator.__init__) is DEFAULT
-    assert PoseEstimator(dd.DiffDrive(0.05, 0.3)).wheel_noise is DEFAULT
-    assert GyroOdometry(dd.DiffDrive(0.05, 0.3)).wheel_noise is DEFAULT
+    # The estimators take theirs from EstimatorSettings, whose default is DEFAULT.
+    assert EstimatorSettings().wheel_noise is DEFAULT
+    assert PoseEstimator(dd.DiffDrive(0.05, 0.3)).settings.wheel_noise is DEFAULT
+    assert GyroOdometry(dd.DiffDrive(0.05, 0.3)).settings.wheel_noise is DEFAULT
     assert dd.Odometry(dd.DiffDrive(0.05, 0.3)).wheel_noise is DEFAULT
-    assert "wheel_noise" not in inspect.signature(estimate_trajectory).parameters  # its options
+    assert "wheel_noise" not in inspect.signature(estimate_trajectory).parameters  # its settings
     for simulator in (monte_carlo, follow):
         assert _default(simulator) is NONE, simulator
     assert EncoderModel().wheel_noise == NONE
@@ -107,7 +108,7 @@ def test_one_gyro_noise_for_the_estimators_the_synthetic_gyro_and_the_allan_fit(
     from diffdrive.calibration.noise import identify_gyro
     from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
 
-    assert PoseEstimator(dd.DiffDrive(0.05, 0.3)).noise is DEFAULT_GYRO
+    assert PoseEstimator(dd.DiffDrive(0.05, 0.3)).settings.gyro is DEFAULT_GYRO
     assert GyroNoise(2e-3, 1e-4, 5e-3) == DEFAULT_GYRO
     assert sensors.GyroModel().noise == GyroNoise()
     assert GyroNoise() == GyroNoise(0.0, 0.0, 0.0, 0.0, 100.0)  # made without arguments: none

@@ -10,6 +10,7 @@ import pytest
 
 import diffdrive as dd
 from diffdrive import sensors
+from diffdrive.estimation import EstimatorSettings, WholeLog
 from diffdrive.estimation.gyro import Gyro, gyro_odometry
 from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
 from diffdrive.simulation import dead_reckon
@@ -97,7 +98,7 @@ def test_wheel_noise_matches_the_odometry_covariance_it_is_modelled_on():
     np.testing.assert_allclose(np.diag(sample), np.diag(propagated), rtol=0.05)
 
 
-def slip_flags(model, k, arw, robots, seeds, slip_test="episodes"):
+def slip_flags(model, k, arw, robots, seeds, slip_episodes=True):
     """Each robot's labelled slipping intervals and the gyro filter's flags, ``(robots, T-1)``:
     encoders from ``model``, a gyro with angle random walk ``arw``, the filter told both."""
     trajectory = path()
@@ -118,11 +119,12 @@ def slip_flags(model, k, arw, robots, seeds, slip_test="episodes"):
             T,
             np.diff(readings.readings[n], axis=0),
             Gyro(T, gyro.rates[n]),
-            "fused",
-            bias=0.0,
-            wheel_noise=k,
-            noise=dataclasses.replace(DEFAULT_GYRO, angle_random_walk=arw),
-            slip_test=slip_test,
+            EstimatorSettings(
+                bias=0.0,
+                wheel_noise=k,
+                gyro_noise=dataclasses.replace(DEFAULT_GYRO, angle_random_walk=arw),
+                whole_log=WholeLog(slip_episodes=slip_episodes),
+            ),
         ).slip[1:]
         for n in range(robots)
     ]
@@ -146,7 +148,7 @@ def test_the_whole_log_finds_slips_too_weak_for_one_interval():
     the streaming test alone passes about half the time; the episodes find the whole slip."""
     slips = (sensors.Slip(1.0, 1.4, "right", 0.5), sensors.Slip(6.4, 6.8, "left", 0.5))
     model = sensors.EncoderModel(wheel_noise=1e-5, slips=slips)
-    labelled, alone = slip_flags(model, 1e-5, 2e-3, 20, (5, 6), "interval")
+    labelled, alone = slip_flags(model, 1e-5, 2e-3, 20, (5, 6), slip_episodes=False)
     _, pooled = slip_flags(model, 1e-5, 2e-3, 20, (5, 6))
     assert alone[labelled].mean() < 0.9  # measured 0.43
     assert pooled[labelled].mean() >= 0.99  # 0.995

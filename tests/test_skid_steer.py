@@ -180,15 +180,16 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
     """The gyro filter runs the model's equivalent drive as Odometry does: with the heading
     from the wheels its poses are Odometry's, and its covariance is the equivalent drive's
     filter's, moved to the body origin."""
+    from diffdrive.estimation import EstimatorSettings
     from diffdrive.estimation.gyro import GyroOdometry
     from diffdrive.estimation.odometry import offset_jacobian
 
     start = dd.Pose(0.3, -0.2, 0.4)
     offset = ASYMMETRIC.reference_offset
-    options = {"wheel_noise": (1e-3, 2e-3)}
-    gyro = GyroOdometry(ASYMMETRIC, "wheels", start, **options)
+    settings = EstimatorSettings("wheels", wheel_noise=(1e-3, 2e-3))
+    gyro = GyroOdometry(ASYMMETRIC, settings, initial_pose=start)
     drive = GyroOdometry(
-        ASYMMETRIC.equivalent, "wheels", start.compose(dd.Pose(0, offset)), **options
+        ASYMMETRIC.equivalent, settings, initial_pose=start.compose(dd.Pose(0, offset))
     )
     odometry = dd.Odometry(ASYMMETRIC, "exact", start)
     for left, right in WHEELS[:40] * 0.05:

@@ -11,9 +11,16 @@ from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive.estimation import (
+    Encoders,
+    EstimatorSettings,
+    FixOffset,
+    Gate,
     Gyro,
     GyroNoise,
     Measurement,
+    Prior,
+    WholeLog,
+    Window,
     estimate_trajectory,
     fusion,
     measurements_of,
@@ -21,6 +28,7 @@ from diffdrive.estimation import (
 from diffdrive.estimation import smoother as whole
 
 ROBOT = dd.SkidSteer(0.1, 0.45, -0.35, icr_x=0.03)  # an axle offset and a reference offset
+WHEELS = EstimatorSettings("wheels")
 needs_c = pytest.mark.skipif(not fusion.COMPILED, reason="the C core was not built")
 
 # one interval: left and right increments (rad), dt (s), the gyro's turn (rad), forced
@@ -54,19 +62,26 @@ def make_log(steps, seen):
 # the states beyond the pose, bias and turn scale: the distance scale, the fixes' offset
 EXTRA_STATES = (
     {},
-    {"distance_scale": 0.97, "distance_scale_sigma": 0.05},
-    {"fix_offset_rate": 0.2},
-    {"fix_offset_rate": 0.1, "fix_offset_sigma": 0.3, "distance_scale_sigma": 0.05},
+    {"distance_scale": Prior(0.97, 0.05)},
+    {"fix_offset": FixOffset(rate=0.2)},
+    {"fix_offset": FixOffset(0.1, 0.3), "distance_scale": Prior(sigma=0.05)},
 )
+
+
+def log_settings(heading, scale, **extra):
+    """The settings the tests here run: a whole log's window, the gyro's noise and the
+    wheels' given, the turn scale estimated if ``scale``, and ``extra``."""
+    return EstimatorSettings(
+        heading, wheel_noise=(1e-4, 2e-4), gyro_noise=GyroNoise(2e-2, 1e-3, 5e-2),
+        turn_scale=Prior(sigma=0.1 if scale else 0.0), window=Window(np.inf, 0.0), **extra,
+    )  # fmt: skip
 
 
 def run_core(kind, heading, scale, log, smooth, extra=None):
     times, increments, turns, forced, ordered = log
-    options = dict(wheel_noise=(1e-4, 2e-4), turn_scale_sigma=0.1 if scale else 0.0)
-    options.update(extra or {})
     estimator = kind(
-        ROBOT, heading, (0.1, -0.2, 0.3), np.eye(3) * 1e-3, initial_time=0.0, history=np.inf,
-        ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), **options,
+        ROBOT, log_settings(heading, scale, **(extra or {})), initial_pose=(0.1, -0.2, 0.3),
+        initial_covariance=np.eye(3) * 1e-3, initial_time=0.0,
     )  # fmt: skip
     log_of = whole._Log(
         times, increments, turns if heading != "wheels" else np.full(len(turns), np.nan),
@@ -98,7 +113,7 @@ def test_the_c_whole_log_pass_is_its_python_twin(
     smoothed, the same record of every step, which run back through the RTS step gives the
     smoothed states."""
     log = make_log(steps, seen)
-    extra = dict(extra, outliers=outliers, gate=0.9)
+    extra = dict(extra, gate=Gate(0.9, outliers))
     c = run_core(fusion.PoseEstimator, heading, scale, log, smooth, extra)
     python = run_core(fusion.PythonPoseEstimator, heading, scale, log, smooth, extra)
     if smooth:
@@ -156,9 +171,8 @@ def test_the_whole_log_filter_is_the_streaming_estimator(steps, seen):
     unforced = (*log[:3], np.zeros(len(turns), dtype=bool), ordered)
     run = run_core(fusion.PoseEstimator, "fused", True, unforced, False)
     streaming = fusion.PoseEstimator(
-        ROBOT, "fused", (0.1, -0.2, 0.3), np.eye(3) * 1e-3, initial_time=0.0, history=np.inf,
-        ahead=0.0, noise=GyroNoise(2e-2, 1e-3, 5e-2), wheel_noise=(1e-4, 2e-4),
-        turn_scale_sigma=0.1,
+        ROBOT, log_settings("fused", True), initial_pose=(0.1, -0.2, 0.3),
+        initial_covariance=np.eye(3) * 1e-3, initial_time=0.0,
     )  # fmt: skip
     given_ = 0
     while given_ < len(ordered) and ordered[given_].t == 0.0:
@@ -200,7 +214,7 @@ def test_the_pipeline_is_the_same_on_both_cores(monkeypatch):
                 increments,
                 gyro=Gyro(times, rate),
                 measurements=measurements,
-                wheel_noise=1e-4,
+                settings=EstimatorSettings(wheel_noise=1e-4),
             )
         )
     c, python = results
@@ -234,13 +248,14 @@ def test_a_bad_interval_is_named_before_anything_runs():
     increments = np.ones((5, 2))
     increments[3, 1] = np.nan
     with pytest.raises(ValueError, match=r"interval 3 \(0.3 to 0.4 s\): the wheel increments"):
-        estimate_trajectory(ROBOT, times, increments, heading="wheels")
+        estimate_trajectory(ROBOT, times, increments, settings=WHEELS)
     increments[3, 1] = 1.0
+    limited = WHEELS.replace(encoders=Encoders(max_wheel_speed=5.0))
     with pytest.raises(ValueError, match=r"interval 0 .*over max_wheel_speed 5.0 rad/s"):
-        estimate_trajectory(ROBOT, times, increments, heading="wheels", max_wheel_speed=5.0)
+        estimate_trajectory(ROBOT, times, increments, settings=limited)
     huge = np.full((5, 2), 1e307)  # 1e308 rad/s: finite, but the covariance overflows
     with pytest.raises(ValueError, match=r"interval 0 \(0 to 0.1 s\): the update would overflow"):
-        estimate_trajectory(ROBOT, times, huge, heading="wheels")
+        estimate_trajectory(ROBOT, times, huge, settings=WHEELS)
 
 
 def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
@@ -253,7 +268,9 @@ def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
     from diffdrive.estimation.estimator_python import EstimatorCore as PythonEstimatorCore
     from diffdrive.estimation.odometry_python import OdometryCore as PythonOdometryCore
 
-    estimator = fusion.PoseEstimator(ROBOT, "fused", (1.0, 2.0, 0.3), wheel_noise=(1e-4, 2e-4))
+    estimator = fusion.PoseEstimator(
+        ROBOT, EstimatorSettings(wheel_noise=(1e-4, 2e-4)), initial_pose=(1.0, 2.0, 0.3)
+    )
     odometry_settings, settings = estimator._wheels.settings, estimator.config
     assert settings.k == (1e-4, 2e-4)
     assert settings.gates[0] == pytest.approx(10.828, abs=1e-3)  # chi-square, 1 dof, 0.999
@@ -276,12 +293,15 @@ def test_estimate_trajectory_keeps_the_records_only_when_asked_and_smoothing():
     times = np.arange(0.0, 2.0 + 1e-9, 0.1)
     increments = np.full((len(times) - 1, 2), [0.5, 0.6])
     fixes = measurements_of("position", [0.55, 1.0, 1.05], np.zeros((3, 2)), 0.5)
-    options = dict(heading="wheels", measurements=fixes)
-    kept = estimate_trajectory(ROBOT, times, increments, records=True, **options)
+    records = WHEELS.replace(whole_log=WholeLog(records=True))
+    kept = estimate_trajectory(ROBOT, times, increments, measurements=fixes, settings=records)
     assert kept.records is not None
     # 20 intervals, the ones holding 0.55 and 1.05 cut in two (1.0 ends an interval)
     assert len(kept.records.interval) == 22
     assert kept.records.gain.shape == (22, 8, 8)
-    assert estimate_trajectory(ROBOT, times, increments, **options).records is None
+    plain = estimate_trajectory(ROBOT, times, increments, measurements=fixes, settings=WHEELS)
+    assert plain.records is None
     with pytest.raises(ValueError, match="records are the smoother's"):
-        estimate_trajectory(ROBOT, times, increments, smooth=False, records=True, **options)
+        estimate_trajectory(
+            ROBOT, times, increments, measurements=fixes, smooth=False, settings=records
+        )

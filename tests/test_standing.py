@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
-from diffdrive.estimation import Gyro, estimate_trajectory
+from diffdrive.estimation import EstimatorSettings, Gyro, WholeLog, Window, estimate_trajectory
 from diffdrive.estimation.gyro import gyro_odometry
 from diffdrive.estimation.standing import identify_standing
 from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
@@ -68,13 +68,21 @@ def test_the_whole_log_takes_the_identified_settings_unless_given():
     turned = np.diff(gyro.angles(times))
     fit = identify_standing(times, increments, turned, samples=(gyro.times, gyro.rates))
     assert found.settings == fit.report
+    settings = EstimatorSettings(gyro_noise=fit.noise, bias=fit.bias)
     explicit = estimate_trajectory(
-        ROBOT, times, increments, gyro=gyro, smooth=False, noise=fit.noise, bias=fit.bias
+        ROBOT, times, increments, gyro=gyro, smooth=False, settings=settings
     )
     np.testing.assert_array_equal(found.poses, explicit.poses)
     assert explicit.settings == ("gyro noise and bias: as given",)
     mine = GyroNoise(angle_random_walk=5e-3, rate_random_walk=1e-4, initial_bias_sigma=1e-2)
-    given = estimate_trajectory(ROBOT, times, increments, gyro=gyro, smooth=False, noise=mine)
+    given = estimate_trajectory(
+        ROBOT,
+        times,
+        increments,
+        gyro=gyro,
+        smooth=False,
+        settings=EstimatorSettings(gyro_noise=mine),
+    )
     assert given.settings[1] == "gyro noise: as given"
     assert given.settings[0].startswith("gyro bias")  # the bias still from the stretch
     assert given.states[0, 3] == pytest.approx(fit.bias)
@@ -88,8 +96,9 @@ def test_a_log_that_never_stands_still_says_which_defaults_it_used():
     assert f"the gyro noise is the default ({DEFAULT_GYRO})" in line
     assert "the bias starts at 0 rad/s" in line
     with pytest.raises(ValueError, match="heading 'gyro' needs the gyro bias"):
-        gyro_odometry(ROBOT, times, increments, gyro, "gyro")
-    assert estimate_trajectory(ROBOT, times, increments, heading="wheels").settings == ()  # no gyro
+        gyro_odometry(ROBOT, times, increments, gyro, EstimatorSettings("gyro"))
+    wheels = EstimatorSettings("wheels")
+    assert estimate_trajectory(ROBOT, times, increments, settings=wheels).settings == ()  # no gyro
 
 
 def test_the_command_line_prints_what_it_used(tmp_path, capsys):
@@ -124,12 +133,20 @@ def test_a_streaming_estimator_starts_from_a_warm_up():
     head = times <= 20.0
     fit = warm_up(times[head], increments[: np.count_nonzero(head) - 1], gyro)
     assert fit.noise.angle_random_walk == pytest.approx(ARW, rel=0.05)
-    assert fit.options == {"noise": fit.noise, "bias": fit.bias}
+    settings = fit.settings()
+    assert (settings.gyro_noise, settings.bias) == (fit.noise, fit.bias)
     whole = estimate_trajectory(
-        ROBOT, times, increments, gyro=gyro, smooth=False, slip_test="interval", **fit.options
+        ROBOT,
+        times,
+        increments,
+        gyro=gyro,
+        smooth=False,
+        settings=settings.replace(whole_log=WholeLog(slip_episodes=False)),
     )
     streaming = PoseEstimator(
-        ROBOT, "fused", initial_time=float(times[0]), history=np.inf, ahead=0.0, **fit.options
+        ROBOT,
+        settings.replace(window=Window(np.inf, 0.0)),
+        initial_time=float(times[0]),
     )
     turned = np.diff(gyro.angles(times))
     for k in range(1, len(times)):

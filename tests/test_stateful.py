@@ -17,7 +17,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 import diffdrive as dd
 from diffdrive.calibration import OnlineCalibrator
-from diffdrive.estimation import PoseEstimator
+from diffdrive.estimation import Encoders, EstimatorSettings, PoseEstimator, Window
 from diffdrive.estimation.fusion import PythonPoseEstimator
 from diffdrive.estimation.gyro import GyroOdometry
 
@@ -193,8 +193,9 @@ class GyroOdometryMachine(RuleBasedStateMachine):
 
     def __init__(self):
         super().__init__()
-        self.filters = [GyroOdometry(ROBOT, heading) for heading in ("fused", "gyro")]
-        self.twins = [GyroOdometry(ROBOT, heading) for heading in ("fused", "gyro")]
+        headings = [EstimatorSettings("fused"), EstimatorSettings("gyro")]
+        self.filters = [GyroOdometry(ROBOT, settings) for settings in headings]
+        self.twins = [GyroOdometry(ROBOT, settings) for settings in headings]
 
     @rule(left=numbers, right=numbers, angle=numbers, dt=steps)
     def update(self, left, right, angle, dt):
@@ -220,9 +221,11 @@ class _PoseEstimatorMachine(RuleBasedStateMachine):
 
     def __init__(self):
         super().__init__()
-        options = dict(ticks_per_revolution=100, counter_bits=8, max_wheel_speed=1e4, history=2.0)
-        self.ours = self.KIND(ROBOT, "fused", **options)
-        self.twin = self.KIND(ROBOT, "fused", **options)
+        settings = EstimatorSettings(
+            encoders=Encoders(100, 8, max_wheel_speed=1e4), window=Window(history=2.0)
+        )
+        self.ours = self.KIND(ROBOT, settings)
+        self.twin = self.KIND(ROBOT, settings)
 
     def same(self):
         ours, twin = self.ours, self.twin

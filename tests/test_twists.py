@@ -6,7 +6,7 @@ import pytest
 
 import diffdrive as dd
 from diffdrive import batch
-from diffdrive.estimation import Gyro, estimate_trajectory
+from diffdrive.estimation import EstimatorSettings, Gyro, estimate_trajectory
 from diffdrive.estimation.twists import interval_twists
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.5)
@@ -88,12 +88,16 @@ def test_the_estimators_twist_turns_with_the_gyro_less_its_bias():
     times = np.arange(101) * 0.02
     increments = np.tile([0.2, 0.21], (100, 1))
     gyro = Gyro(times, np.full(101, 0.05 + 0.01))  # a turn of 0.05 rad/s and a bias of 0.01
-    found = estimate_trajectory(ROBOT, times, increments, gyro=gyro, heading="gyro", bias=0.01)
+    found = estimate_trajectory(
+        ROBOT, times, increments, gyro=gyro, settings=EstimatorSettings("gyro", bias=0.01)
+    )
     np.testing.assert_allclose(found.twists[:, 2], 0.05, rtol=1e-9)
     np.testing.assert_allclose(found.twists[:, 0], 0.1 * 0.205 / 0.02, rtol=1e-12)
     arw = 2e-3  # GyroNoise's default
     np.testing.assert_allclose(found.twist_covariances[1:, 2, 2], arw**2 / 0.02, rtol=1e-9)
-    wheels = estimate_trajectory(ROBOT, times, increments, heading="wheels", smooth=False)
+    wheels = estimate_trajectory(
+        ROBOT, times, increments, settings=EstimatorSettings("wheels"), smooth=False
+    )
     expected, spread = interval_twists(ROBOT, times, increments, 1e-4)
     np.testing.assert_allclose(wheels.twists, expected, rtol=1e-12)
     np.testing.assert_allclose(wheels.twist_covariances, spread, rtol=1e-12)

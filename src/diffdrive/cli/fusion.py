@@ -16,6 +16,8 @@ span are left out, and said so.
 
 from __future__ import annotations
 
+import argparse
+import math
 import sys
 
 import numpy as np
@@ -26,10 +28,16 @@ from diffdrive.cli.report import error_summary
 from diffdrive.estimation import Measurement, estimate_trajectory
 from diffdrive.estimation.fixes import IDENTIFIED_GATE, LEAST_FIXES
 from diffdrive.estimation.measurements import start_in_frame
+from diffdrive.estimation.settings import EstimatorSettings, Gate, Prior, WholeLog
 from diffdrive.io import Run, TableError, is_bag
 from diffdrive.model import Robot
+from diffdrive.sensor_noise import WheelNoise
 
-GATE = 0.999  # --gate's default
+GATE_HELP = (
+    "chi-square gate: refuse a measurement outside this probability (default "
+    f"{Gate().probability:g}; with identified fixes 1 - {1 - IDENTIFIED_GATE:.0e}, a fix past it "
+    "inflated, not refused)"
+)
 
 
 def wants_fusion(args) -> bool:
@@ -49,7 +57,7 @@ def refuse_idle_options(args) -> None:
             "--pose-sigma": args.pose_sigma is not None,
             "--gps-sigma": args.gps_sigma is not None,
             "--lever-arm": args.lever_arm is not None,
-            "--gate": args.gate != GATE,
+            "--gate": args.gate is not None,
             "--fixes": args.fixes is not None,
         },
         "used only with absolute measurements (--pose-topic, --gps-topic or --measurements)",
@@ -167,6 +175,28 @@ def _table_measurements(args) -> list[Measurement]:
     return made
 
 
+def estimator_settings(
+    args: argparse.Namespace, noise: WheelNoise, fixes: str, with_gyro: bool
+) -> EstimatorSettings:
+    """The one ``EstimatorSettings`` the options ask for: the wheels' ``noise``
+    (``options.wheel_noise``), what the ``fixes`` are worth, and each option given (the
+    heading from the wheels where there is no gyro); the library's default for every part not
+    given. A ``--gate`` beside identified fixes keeps their inflated outliers."""
+    whole: dict = {"fixes": fixes}
+    if args.slip_test is not None:
+        whole["slip_episodes"] = args.slip_test == "episodes"
+    parts: dict = {"wheel_noise": noise, "method": args.method, "whole_log": WholeLog(**whole)}
+    if args.heading is not None or not with_gyro:
+        parts["heading"] = args.heading or "wheels"
+    if args.gyro_bias is not None:
+        parts["bias"] = args.gyro_bias
+    if getattr(args, "turn_scale_sigma", None):
+        parts["turn_scale"] = Prior(sigma=args.turn_scale_sigma)
+    if getattr(args, "gate", None) is not None:
+        parts["gate"] = Gate(args.gate, "inflate" if fixes == "identified" else "refuse")
+    return EstimatorSettings(**parts)
+
+
 def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, commanded=None) -> int:
     """The estimator over the log with the measurements, filtered or smoothed; the poses,
     covariance and the filter's own columns written. ``commanded``: the wheel velocities
@@ -184,9 +214,8 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         )
     if len(inside) < len(measurements):
         notes.append(f"{len(measurements) - len(inside)} measurements outside the log left out")
-    heading = args.heading or ("fused" if gyro is not None else "wheels")
-    if heading != "wheels" and gyro is None:
-        raise ValueError(f"--heading {heading} needs a gyro: --gyro-topic, or a gyro_z column")
+    if args.heading not in (None, "wheels") and gyro is None:
+        raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
     noise, assumed = wheel_noise(args, robot, log, increments)
     note += assumed
     # A receiver's fixes (--gps-topic) report its whole error: identified by default, given
@@ -200,23 +229,17 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
             f"fixes are too few to identify their noise from (at least {LEAST_FIXES}): give "
             "--gps-sigma M"
         )
-    options = {
-        "wheel_noise": noise,
-        "turn_scale_sigma": args.turn_scale_sigma or 0.0,
-        "method": args.method,
-        "slip_test": args.slip_test or "episodes",
-    }
-    if fixes == "given" or args.gate != GATE:  # identified fixes come with their own gate
-        options["gate"] = args.gate
-    if args.gyro_bias is not None:
-        options["bias"] = args.gyro_bias
-    common = dict(gyro=gyro, heading=heading, commanded=commanded, **options)
+    settings = estimator_settings(args, noise, fixes, gyro is not None)
+    heading = settings.heading
+    common = dict(gyro=gyro, commanded=commanded)
     start: np.ndarray | None = log.start_pose()
     covariance = None
     if fixes == "identified":  # the fixes' fit places the start
         start = None
     elif inside:
-        dead = estimate_trajectory(robot, log.times, increments, smooth=False, **common)
+        dead = estimate_trajectory(
+            robot, log.times, increments, settings=settings, smooth=False, **common
+        )
         start, covariance, fit = start_in_frame(log.times, dead.poses, inside)
         notes.append(
             f"start pose in the measurements' frame: ({start[0]:.3f} m, {start[1]:.3f} m, "
@@ -229,15 +252,15 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         measurements=inside,
         initial_pose=start,
         initial_covariance=covariance,
+        settings=settings,
         smooth=args.smooth,
-        fixes=fixes,
         **common,
     )
     twists, twist_covariances = result.twists, result.twist_covariances
     columns = estimate_columns(args, result.covariances, twists, twist_covariances, True)
     if heading != "wheels":
         columns.update(slip=result.slip.astype(float), gyro_bias=result.states[:, 3])
-    if options["turn_scale_sigma"]:
+    if settings.turn_scale.estimated:
         columns["turn_scale"] = result.states[:, 4]
     if fixes == "identified":  # where the fixes are: the body's track plus their offset
         columns["fix_offset_x"] = result.states[:, OFFSET]
@@ -258,12 +281,12 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         print(note)
         for line in (*result.settings, *notes):
             print(line)
-        gate = options.get("gate", IDENTIFIED_GATE)
+        gate = result.used.gating.probability if result.used else math.nan
         print(
             f"measurements: {len(inside) - result.rejected} taken, {result.rejected} refused by "
             f"the gate ({gate:.10g}), fixes {fixes}"
         )
-        if options["turn_scale_sigma"]:
+        if settings.turn_scale.estimated:
             print(f"turn scale at the end: {result.states[-1, 4]:.4f}")
         if fixes == "identified":
             x, y = result.states[-1, OFFSET : OFFSET + 2]

@@ -8,7 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.cli.fusion import GATE, refuse_idle_options, run_fusion, wants_fusion
+from diffdrive.cli.fusion import (
+    GATE_HELP,
+    estimator_settings,
+    refuse_idle_options,
+    run_fusion,
+    wants_fusion,
+)
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
     LOG_COLUMNS,
@@ -107,17 +113,14 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     increments = log.increments(ticks, args.counter_bits)
     noise, assumed = wheel_noise(args, robot, log, increments)
     note += assumed
-    options = {"wheel_noise": noise, "slip_test": args.slip_test or "episodes"}
     result = gyro_odometry(
         robot,
         log.times,
         increments,
         gyro,
-        args.heading or "fused",
-        log.start_pose(),
-        bias=args.gyro_bias,
+        estimator_settings(args, noise, "given", True),
+        initial_pose=log.start_pose(),
         commanded=_commands(args, robot, log),
-        **options,
     )
     twists, twist_covariances = result.twists, result.twist_covariances
     columns = estimate_columns(args, result.covariances, twists, twist_covariances, args.covariance)
@@ -284,14 +287,7 @@ def add_to(command: Command, parents: Parents) -> None:
         "the offset's wander, the wheels' distance scale, the start; the default for 10 or more "
         "--gps-topic fixes) or given (their covariance, white; the default for a table's)",
     )
-    fused.add_argument(
-        "--gate",
-        type=float,
-        default=GATE,
-        metavar="P",
-        help=f"chi-square gate: refuse a measurement outside this probability (default {GATE}; "
-        "with identified fixes 1 - 1e-9, a fix past it inflated, not refused)",
-    )
+    fused.add_argument("--gate", type=float, metavar="P", help=GATE_HELP)
     fused.add_argument(
         "--turn-scale-sigma",
         type=float,

@@ -2,6 +2,9 @@
 
 - ``odometry``: ``Odometry``, streaming dead reckoning from wheel encoders with covariance (its
   core in C, ``diffdrive.backends``);
+- ``settings``: ``EstimatorSettings``, everything the pose estimator is set up with, one value
+  of small checked parts (``Prior``, ``FixOffset``, ``Gate``, ``SlipTest``, ``Window``,
+  ``Encoders``, ``WholeLog``);
 - ``fusion``: ``PoseEstimator``, one extended Kalman filter for wheels, a gyro and absolute
   measurements that arrive late (``measurements``: ``Measurement``), on ``filter``'s step;
 - ``smoother``: ``estimate_trajectory``, a whole log forward and a Rauch-Tung-Striebel smoother
@@ -14,7 +17,7 @@
   streaming ``PoseEstimator``; ``identify_gyro`` and ``allan_deviation`` for one stretch);
 - ``fixes``: what position fixes are worth, from the fixes themselves (``identify_fixes``: their
   white noise, their offset's wander, the wheels' distance scale and the start in their frame;
-  what ``estimate_trajectory(..., fixes="identified")`` takes).
+  what ``estimate_trajectory`` takes with ``WholeLog(fixes="identified")``).
 
 Every estimator runs the robot model's equivalent drive through ``diffdrive._step`` and keeps
 the pose ``(x, y, theta)`` first in its state and covariance.
@@ -45,14 +48,31 @@ _NAMES = {
     **dict.fromkeys(["Estimate", "estimate_trajectory"], "smoother"),
     **dict.fromkeys(["StandingFit", "identify_standing", "warm_up"], "standing"),
     **dict.fromkeys(["FixFit", "identify_fixes"], "fixes"),
+    **dict.fromkeys(
+        [
+            "Encoders",
+            "EstimatorSettings",
+            "FixOffset",
+            "Gate",
+            "Prior",
+            "SlipTest",
+            "WholeLog",
+            "Window",
+        ],
+        "settings",
+    ),
 }
 __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
     "COMPILED",
     "HEADINGS",
     "UPDATE_KINDS",
+    "Encoders",
     "Estimate",
+    "EstimatorSettings",
     "FixFit",
+    "FixOffset",
+    "Gate",
     "Gyro",
     "GyroNoise",
     "GyroOdometry",
@@ -60,9 +80,13 @@ __all__ = [
     "Measurement",
     "Odometry",
     "PoseEstimator",
+    "Prior",
     "PythonOdometry",
     "RefusedUpdateError",
+    "SlipTest",
     "StandingFit",
+    "WholeLog",
+    "Window",
     "chi2_quantile",
     "estimate_trajectory",
     "gyro_odometry",
@@ -89,6 +113,16 @@ if TYPE_CHECKING:  # what the names are, for type checkers
         RefusedUpdateError,
         odometry_of_run,
         offset_jacobian,
+    )
+    from diffdrive.estimation.settings import (
+        Encoders,
+        EstimatorSettings,
+        FixOffset,
+        Gate,
+        Prior,
+        SlipTest,
+        WholeLog,
+        Window,
     )
     from diffdrive.estimation.smoother import Estimate, estimate_trajectory
     from diffdrive.estimation.standing import StandingFit, identify_standing, warm_up

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive.estimation.measurements import Measurement, measurements_of
+from diffdrive.estimation.settings import EstimatorSettings, FixOffset, Gate, Prior
 
 __all__ = ["FixFit", "identify_fixes"]
 
@@ -66,20 +67,19 @@ class FixFit:
     fixes: int
     report: tuple[str, ...]
 
-    @property
-    def options(self) -> dict:
-        """What ``estimate_trajectory`` and ``PoseEstimator`` take from it: the offset's
-        wander, the distance scale, the start and its covariance, and the gate: wide
-        (``IDENTIFIED_GATE``), a fix past it inflated, not refused (a receiver's jumps are
-        heavier-tailed than a Gaussian)."""
-        return {
-            "fix_offset_rate": self.wander,
-            "distance_scale": self.distance_scale,
-            "initial_pose": tuple(self.start.tolist()),
-            "initial_covariance": self.start_covariance,
-            "gate": IDENTIFIED_GATE,
-            "outliers": "inflate",
+    def settings(self, given: EstimatorSettings) -> EstimatorSettings:
+        """``given`` with what it leaves None taken from the fit: the offset's wander
+        (``fix_offset``), the distance scale (``distance_scale``, not estimated) and the gate:
+        wide (``IDENTIFIED_GATE``), a fix past it inflated, not refused (a receiver's jumps are
+        heavier-tailed than a Gaussian). The start is ``start`` and ``start_covariance``."""
+        found = {
+            "fix_offset": FixOffset(rate=self.wander),
+            "distance_scale": Prior(self.distance_scale),
+            "gate": Gate(IDENTIFIED_GATE, "inflate"),
         }
+        return given.replace(
+            **{name: value for name, value in found.items() if getattr(given, name) is None}
+        )
 
     def measurements(
         self, fix_times: object, fixes: object, lever_arm: object = None
@@ -107,7 +107,7 @@ def identify_fixes(
     if len(fix_times) < LEAST_FIXES:
         raise ValueError(
             f"{len(fix_times)} position fixes: at least {LEAST_FIXES} are needed to identify "
-            "their noise (give fix_offset_rate and the fixes' covariance, or fixes='given')"
+            "their noise (give the fixes' covariance, a FixOffset, and WholeLog(fixes='given'))"
         )
     along = np.column_stack([np.interp(fix_times, times, poses[:, i]) for i in (0, 1)])
     z, seen = along @ (1.0, 1j), fixes @ (1.0, 1j)
@@ -116,7 +116,7 @@ def identify_fixes(
         raise ValueError(
             "the dead reckoning hardly moves while the fixes were taken (under 0.1 m from its "
             "mean): no heading or scale can be fitted onto them; drive a few metres, or give "
-            "initial_pose, fix_offset_rate and fixes='given'"
+            "initial_pose, a FixOffset and WholeLog(fixes='given')"
         )
     residuals = seen - (turn * z + shift)
     flat = np.column_stack([residuals.real, residuals.imag])

@@ -41,22 +41,19 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from diffdrive._validate import finite, positive
+from diffdrive._validate import finite
 from diffdrive.backends.settings import HEADINGS, CoreSettings
 from diffdrive.estimation import estimator_python
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.imu import mounting_yaw_row
 from diffdrive.estimation.measurements import Measurement, chi2_quantile
 from diffdrive.estimation.odometry import Odometry, offset_jacobian
-from diffdrive.integrate import Method, check_method
+from diffdrive.estimation.settings import OUTLIERS, EstimatorSettings
 from diffdrive.model import Robot, check_robot
-from diffdrive.sensor_noise import DEFAULT as DEFAULT_WHEEL_NOISE
-from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise, WheelNoise, WheelNoiseLike
+from diffdrive.sensor_noise import GyroNoise
 from diffdrive.types import Pose
 
 __all__ = ["COMPILED", "HEADINGS", "OUTLIERS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
-
-OUTLIERS = ("refuse", "inflate")  # what the gate does with a measurement past it
 
 
 # The C core beside Odometry's when it was built, else its pure-Python twin (as Odometry's);
@@ -79,139 +76,38 @@ class _EstimatorMethods(_Base):
     """Wheels, gyro and absolute measurements in one extended Kalman filter (see the module).
 
     ``robot``: any model (its equivalent drive runs the filter; poses and covariances are
-    the body origin's). ``heading``: ``"wheels"``, ``"gyro"`` or ``"fused"``.
+    the body origin's). ``settings``: an ``EstimatorSettings`` (the heading's source, the
+    sensors' noise, the estimated states and their priors, the gate, the slip test, the
+    window, the integration, the mounting and the encoders; default ``EstimatorSettings()``).
     ``initial_pose`` and ``initial_covariance`` (3x3): the start; ``initial_time`` (s) its
-    time, else the first ticks or positions reading's. ``ticks_per_revolution``,
-    ``counter_bits``, ``max_wheel_speed``, ``method``, ``wheel_noise``: as ``Odometry``.
-    ``noise``: the gyro's (a ``GyroNoise``; default ``sensor_noise.DEFAULT_GYRO``, a
-    mid-range MEMS gyro's); ``bias`` (rad/s) its start.
-    ``turn_scale`` and ``turn_scale_sigma``: the turn scale's start and prior standard
-    deviation (0: not estimated); ``distance_scale`` and ``distance_scale_sigma`` likewise for
-    the distance scale (the true travel per metre of the wheels'; observable only with
-    absolute positions). ``fix_offset_rate`` (m/sqrt(s)): the random walk of the offset the
-    ``"position"`` fixes carry (a receiver's wander; 0: none, the fixes' error is white),
-    ``fix_offset_sigma`` (m) its start's standard deviation (0: the offset starts at zero,
-    the first fixes placing the robot). ``history`` (s, at least 2 by default): how far back a
-    measurement may be stamped; ``ahead`` (s): how far ahead of the wheels. ``gate``: the
-    probability inside the chi-square gate; ``outliers``: what becomes of a measurement past
-    it, ``"refuse"`` (left out, counted in ``rejected``) or ``"inflate"`` (taken with its
-    covariance grown until it lies on the gate: a heavy-tailed sensor's jumps followed, not
-    lost). ``slip_threshold``, ``slip_inflation``,
-    ``command_sigma`` (rad/s): the slip tests'.
+    time, else the first ticks or positions reading's.
     """
 
     def __init__(
         self,
         robot: Robot,
-        heading: str = "fused",
+        settings: EstimatorSettings | None = None,
+        *,
         initial_pose: object = None,
         initial_covariance: object = None,
-        *,
         initial_time: float | None = None,
-        ticks_per_revolution: float | None = None,
-        counter_bits: int | None = None,
-        max_wheel_speed: float | None = None,
-        method: Method = "exact",
-        wheel_noise: WheelNoiseLike = DEFAULT_WHEEL_NOISE,
-        noise: GyroNoise | None = None,
-        bias: float = 0.0,
-        turn_scale: float = 1.0,
-        turn_scale_sigma: float = 0.0,
-        distance_scale: float = 1.0,
-        distance_scale_sigma: float = 0.0,
-        fix_offset_rate: float = 0.0,
-        fix_offset_sigma: float = 0.0,
-        mounting: object = None,
-        history: float = 2.0,
-        ahead: float = 0.1,
-        gate: float = 0.999,
-        outliers: str = "refuse",
-        slip_threshold: float = ekf.SLIP_THRESHOLD,
-        slip_inflation: float = 100.0,
-        command_sigma: float = 1.0,
     ) -> None:
         check_robot(robot)
-        if heading not in HEADINGS:
-            raise ValueError(f"heading must be one of {', '.join(HEADINGS)}, got {heading!r}")
-        if noise is not None and not isinstance(noise, GyroNoise):
-            raise TypeError(f"noise must be a GyroNoise, got {type(noise).__name__}")
-        self.wheel_noise = WheelNoise.coerce(wheel_noise)
-        for name, value in (
-            ("turn_scale_sigma", turn_scale_sigma),
-            ("distance_scale_sigma", distance_scale_sigma),
-            ("fix_offset_rate", fix_offset_rate),
-            ("fix_offset_sigma", fix_offset_sigma),
-        ):
-            if not finite(name, value) >= 0.0:
-                raise ValueError(f"{name} must be >= 0, got {value!r}")
-        if not 0.0 < finite("gate", gate) < 1.0:
-            raise ValueError(f"gate must be a probability in (0, 1), got {gate!r}")
-        if outliers not in OUTLIERS:
-            raise ValueError(f"outliers must be one of {', '.join(OUTLIERS)}, got {outliers!r}")
-        if not finite("ahead", ahead) >= 0.0:
-            raise ValueError(f"ahead must be >= 0 s, got {ahead!r}")
-        self.command_sigma = positive("command_sigma", command_sigma)
-        if not 0.0 < self.command_sigma * self.command_sigma < math.inf:
-            raise ValueError(f"command_sigma {command_sigma!r} squares to 0 or past the floats")
-        self.robot, self.heading = robot, heading
-        self.noise = DEFAULT_GYRO if noise is None else noise
-        self.history = math.inf if history == math.inf else positive("history", history)
-        self.ahead = float(ahead)
-        self._mounting = mounting_yaw_row(mounting)
+        settings = EstimatorSettings.of(settings)
+        self.robot, self.settings, self.heading = robot, settings, settings.heading
+        encoders = settings.encoders
         wheels = Odometry(
             robot,
-            method,
-            ticks_per_revolution=ticks_per_revolution,
-            counter_bits=counter_bits,
-            max_wheel_speed=max_wheel_speed,
+            settings.method,
+            ticks_per_revolution=encoders.ticks_per_revolution,
+            counter_bits=encoders.counter_bits,
+            max_wheel_speed=encoders.max_wheel_speed,
         )
         if initial_time is not None:
             wheels.update_increments(0.0, 0.0, finite("initial_time", initial_time))
         self._wheels = wheels
-        x, P = _start_state(
-            robot,
-            initial_pose,
-            initial_covariance,
-            finite("bias", bias),
-            positive("turn_scale", turn_scale),
-            positive("distance_scale", distance_scale),
-        )
-        P[ekf.BIAS, ekf.BIAS] = self.noise.initial_bias_sigma**2 if heading == "fused" else 0.0
-        P[ekf.SCALE, ekf.SCALE] = turn_scale_sigma * turn_scale_sigma
-        P[ekf.DISTANCE, ekf.DISTANCE] = distance_scale_sigma * distance_scale_sigma
-        P[ekf.OFFSET, ekf.OFFSET] = P[ekf.OFFSET + 1, ekf.OFFSET + 1] = fix_offset_sigma**2
-        with_offset = bool(fix_offset_rate > 0.0 or fix_offset_sigma > 0.0)
-        drive = robot.equivalent
-        arw, rrw = self.noise.angle_random_walk, self.noise.rate_random_walk
-        self.config = CoreSettings(
-            drive=(
-                drive.left_wheel_radius,
-                drive.right_wheel_radius,
-                drive.track_width,
-                drive.axle_offset,
-            ),
-            method=check_method(method),
-            heading=heading,
-            k=(self.wheel_noise.left, self.wheel_noise.right),
-            arw2=arw * arw,
-            rrw2=rrw * rrw,
-            estimate_bias=heading == "fused",
-            estimate_scale=bool(turn_scale_sigma > 0.0),
-            estimate_distance=bool(distance_scale_sigma > 0.0),
-            estimate_offset=with_offset,
-            offset_rate2=float(fix_offset_rate) ** 2,
-            slip_threshold=positive("slip_threshold", slip_threshold),
-            slip_inflation=positive("slip_inflation", slip_inflation),
-            command_sigma=self.command_sigma,
-            gates=(chi2_quantile(gate, 1), chi2_quantile(gate, 2), chi2_quantile(gate, 3)),
-            inflate=outliers == "inflate",
-            offset=robot.reference_offset,
-            history=self.history,
-            ahead=self.ahead,
-            mounting=_three(self._mounting),
-            state=tuple(x.tolist()),
-            covariance=tuple(P.ravel().tolist()),
-        )
+        x, P = start_state(robot, settings, initial_pose, initial_covariance)
+        self.config = core_settings(robot, settings, x, P)
         super().__init__(wheels, self.config)
 
     # -- what it knows --------------------------------------------------------------------
@@ -352,9 +248,12 @@ class PythonPoseEstimator(_EstimatorMethods, estimator_python.EstimatorCore):
     same results, slower: the reference the tests hold the C core to."""
 
 
-def _start_state(
-    robot: Robot, pose: object, covariance: object, bias: float, scale: float, distance: float
-):
+def start_state(
+    robot: Robot, settings: EstimatorSettings, pose: object, covariance: object
+) -> tuple[np.ndarray, np.ndarray]:
+    """The filter's state ``(8,)`` and covariance ``(8, 8)`` at the start: the body pose
+    ``pose`` with its 3x3 ``covariance`` moved to the reference point, and the other states at
+    ``settings``' starts with their priors' variances."""
     start = Pose() if pose is None else Pose.coerce(pose, "initial_pose")
     matrix = np.zeros((3, 3)) if covariance is None else np.asarray(covariance, dtype=float)
     if matrix.shape != (3, 3) or not np.all(np.isfinite(matrix)):
@@ -365,9 +264,58 @@ def _start_state(
         raise ValueError("initial_covariance must be symmetric positive semi-definite")
     moved = offset_jacobian(start.theta, robot.reference_offset)
     start = robot.to_reference(start)
+    turn, distance, offset = settings.turn_scale, settings.distance, settings.offset
+    x = np.array(
+        [start.x, start.y, start.theta, settings.bias_start, turn.start, distance.start, 0, 0]
+    )
     P = np.zeros((ekf.N, ekf.N))
     P[:3, :3] = moved @ matrix @ moved.T
-    return np.array([start.x, start.y, start.theta, bias, scale, distance, 0.0, 0.0]), P
+    fused = settings.heading == "fused"
+    P[ekf.BIAS, ekf.BIAS] = settings.gyro.initial_bias_sigma**2 if fused else 0.0
+    P[ekf.SCALE, ekf.SCALE] = turn.sigma * turn.sigma
+    P[ekf.DISTANCE, ekf.DISTANCE] = distance.sigma * distance.sigma
+    P[ekf.OFFSET, ekf.OFFSET] = P[ekf.OFFSET + 1, ekf.OFFSET + 1] = offset.sigma**2
+    return x, P
+
+
+def core_settings(
+    robot: Robot, settings: EstimatorSettings, x: np.ndarray, P: np.ndarray
+) -> CoreSettings:
+    """What the estimator's core is built from: ``settings`` on ``robot``'s equivalent drive,
+    from state ``x`` ``(8,)`` with covariance ``P`` ``(8, 8)``."""
+    drive = robot.equivalent
+    gyro, gate, slip = settings.gyro, settings.gating, settings.slip
+    arw, rrw = gyro.angle_random_walk, gyro.rate_random_walk
+    probability = gate.probability
+    return CoreSettings(
+        drive=(
+            drive.left_wheel_radius,
+            drive.right_wheel_radius,
+            drive.track_width,
+            drive.axle_offset,
+        ),
+        method=settings.method,
+        heading=settings.heading,
+        k=(settings.wheel_noise.left, settings.wheel_noise.right),
+        arw2=arw * arw,
+        rrw2=rrw * rrw,
+        estimate_bias=settings.heading == "fused",
+        estimate_scale=settings.turn_scale.estimated,
+        estimate_distance=settings.distance.estimated,
+        estimate_offset=settings.offset.estimated,
+        offset_rate2=settings.offset.rate**2,
+        slip_threshold=slip.threshold,
+        slip_inflation=slip.inflation,
+        command_sigma=slip.command_sigma,
+        gates=tuple(chi2_quantile(probability, size) for size in (1, 2, 3)),  # type: ignore[arg-type]
+        inflate=gate.outliers == "inflate",
+        offset=robot.reference_offset,
+        history=settings.window.history,
+        ahead=settings.window.ahead,
+        mounting=_three(mounting_yaw_row(settings.mounting)),
+        state=tuple(x.tolist()),
+        covariance=tuple(P.ravel().tolist()),
+    )
 
 
 def _three(row: np.ndarray) -> tuple[float, float, float]:

@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from diffdrive._validate import positive
 from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
 from diffdrive.estimation.imu import Gyro, rotation_from_rpy
+from diffdrive.estimation.settings import EstimatorSettings
 from diffdrive.estimation.smoother import checked_log, estimate_trajectory
 from diffdrive.estimation.standing import identify_standing
 from diffdrive.model import Robot
@@ -35,23 +35,21 @@ __all__ = [
     "rotation_from_rpy",
 ]
 
-Heading = Literal["wheels", "gyro", "fused"]
-
 
 class GyroOdometry(PoseEstimator):
     """``PoseEstimator`` behind the interface gyro-aided odometry had before it: one
     ``update`` per interval of ``dt`` s with the wheel-angle increments and the angle the gyro
-    turned, its clock starting at 0 s. ``robot``, ``heading``, ``bias``, ``noise``,
-    ``wheel_noise``, the slip options and ``method`` are ``PoseEstimator``'s."""
+    turned, its clock starting at 0 s. ``robot``, ``settings`` and ``initial_pose`` are
+    ``PoseEstimator``'s."""
 
     def __init__(
         self,
         robot: Robot,
-        heading: Heading = "fused",
+        settings: EstimatorSettings | None = None,
+        *,
         initial_pose: Pose | None = None,
-        **options,
     ) -> None:
-        super().__init__(robot, heading, initial_pose, initial_time=0.0, **options)
+        super().__init__(robot, settings, initial_pose=initial_pose, initial_time=0.0)
 
     @property
     def covariance4(self) -> np.ndarray:
@@ -101,41 +99,41 @@ def gyro_odometry(
     times: object,
     increments: object,
     gyro: Gyro,
-    heading: Heading = "fused",
-    initial_pose: object = None,
+    settings: EstimatorSettings | None = None,
     *,
-    bias: float | None = None,
+    initial_pose: object = None,
     commanded: object = None,
-    **options,
 ) -> GyroTrajectory:
     """A whole log: wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s,
-    and the ``gyro``, integrated over each interval. ``bias`` (rad/s) and the gyro's ``noise``
-    default to what the log's standing stretches give (``estimate_trajectory``; refused for
+    and the ``gyro``, integrated over each interval, filtered (``estimate_trajectory`` with
+    ``smooth=False``). ``settings``: an ``EstimatorSettings``; its ``bias`` and ``gyro_noise``
+    left None default to what the log's standing stretches give (refused for the heading
     ``"gyro"`` when the wheels never stand still; 0 for ``"fused"``, which estimates it).
     ``commanded`` ``(N-1, 2)`` rad/s, if given, are the wheel velocities commanded over each
-    interval. ``options`` go to ``GyroOdometry``, but
-    ``slip_test`` (``"episodes"``, the default, or ``"interval"``) to ``estimate_trajectory``."""
+    interval."""
     if not isinstance(gyro, Gyro):
         raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
+    settings = EstimatorSettings.of(settings)
     times, increments, turned, commanded = checked_log(times, increments, gyro, commanded)
     assert turned is not None  # a gyro was given
-    if bias is not None:
-        options["bias"] = bias
-    elif heading == "gyro" and identify_standing(times, increments, turned) is None:
+    if (
+        settings.heading == "gyro"
+        and settings.bias is None
+        and identify_standing(times, increments, turned) is None
+    ):
         raise ValueError(
-            "heading 'gyro' needs the gyro bias: give it (bias=, --gyro-bias), or a log in "
-            "which the wheels stand still for a while"
+            "heading 'gyro' needs the gyro bias: give it (EstimatorSettings.bias, --gyro-bias), "
+            "or a log in which the wheels stand still for a while"
         )
     estimate = estimate_trajectory(
         robot,
         times,
         increments,
         gyro=gyro,
-        heading=heading,
+        settings=settings,
         initial_pose=initial_pose,
         smooth=False,
         commanded=commanded,
-        **options,
     )
     return GyroTrajectory(
         times,
@@ -144,7 +142,7 @@ def gyro_odometry(
         estimate.states[:, 3],
         estimate.slip,
         estimate.slip_score,
-        heading,
+        settings.heading,
         estimate.twists,
         estimate.twist_covariances,
         estimate.settings,

@@ -14,6 +14,7 @@ With a gyro, the whole log also finds slip episodes the per-interval test misses
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -26,13 +27,11 @@ from diffdrive.estimation.fixes import IDENTIFIED_GATE, identify_fixes
 from diffdrive.estimation.fusion import PoseEstimator, body_covariances, body_poses
 from diffdrive.estimation.imu import Gyro
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement
+from diffdrive.estimation.settings import EstimatorSettings, Gate, Window
 from diffdrive.estimation.standing import identify_standing
 from diffdrive.estimation.twists import interval_twists
 from diffdrive.model import Robot
-from diffdrive.sensor_noise import DEFAULT_GYRO
 
-SLIP_TESTS = ("episodes", "interval")
-FIXES = ("given", "identified")
 # measurements as the cores take them: stamps, kinds, values, covariances, lever arms
 _Packed = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
@@ -54,8 +53,10 @@ class Estimate:
     covariance, from the wheels and the heading source with the estimated bias or turn scale
     (``diffdrive.estimation.twists``); with ``records``, the smoother's record of every step
     (``filter.SmootherRecords``), else None; ``settings``: what the gyro's noise and bias
-    were, and the fixes' with ``fixes="identified"``, and where from (given, or identified
-    from the log's standing stretches and from the fixes themselves)."""
+    were, and the fixes' with ``WholeLog(fixes="identified")``, and where from (given, or
+    identified from the log's standing stretches and from the fixes themselves); ``used``: the
+    ``EstimatorSettings`` the pass ran with, what the log identified filled in (a streaming
+    ``PoseEstimator`` can start from it)."""
 
     times: np.ndarray
     poses: np.ndarray
@@ -74,6 +75,7 @@ class Estimate:
     records: ekf.SmootherRecords | None = None
     settings: tuple[str, ...] = ()
     log_dets: np.ndarray | None = None
+    used: EstimatorSettings | None = None
 
     @property
     def rejected(self) -> int:
@@ -124,38 +126,34 @@ def estimate_trajectory(
     *,
     gyro: Gyro | None = None,
     measurements: Iterable[Measurement] = (),
-    heading: str = "fused",
+    commanded: object = None,
+    settings: EstimatorSettings | None = None,
     initial_pose: object = None,
     initial_covariance: object = None,
     smooth: bool = True,
-    commanded: object = None,
-    slip_test: str = "episodes",
-    records: bool = False,
-    fixes: str = "given",
-    **options,
 ) -> Estimate:
     """A whole log: wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s,
-    the ``gyro`` (needed unless ``heading`` is ``"wheels"``), absolute ``measurements``
+    the ``gyro`` (needed unless the heading is ``"wheels"``), absolute ``measurements``
     stamped inside ``[times[0], times[-1]]``, and ``commanded`` wheel velocities ``(N-1, 2)``
-    rad/s if known. ``options`` go to ``PoseEstimator``. With ``smooth``, the smoothed
-    estimate; else the filter's. ``slip_test``: ``"episodes"`` flags, besides the intervals
-    the streaming test flags, the runs of intervals that one slipping wheel explains
-    (``diffdrive.estimation.episodes``; the log then runs again with them flagged);
-    ``"interval"`` only the streaming test's. ``records`` keeps the smoother's record of every
-    step (``Estimate.records``: 1,664 bytes a step; needs ``smooth``).
+    rad/s if known. ``settings``: an ``EstimatorSettings`` (default ``EstimatorSettings()``),
+    the whole log's part being ``settings.whole_log`` (its ``window`` is the streaming
+    estimator's: a whole log keeps all of itself and waits for nothing). With ``smooth``,
+    the smoothed estimate; else the filter's.
 
-    ``fixes``: what the ``"position"`` measurements (a GPS receiver's) are worth.
-    ``"identified"``: from the fixes themselves (``diffdrive.estimation.fixes``): their white
-    noise replaces their covariance, the offset state wanders at the identified rate, the
-    wheels' distance scale and the start (in the fixes' frame) are the dead reckoning's fit
-    onto them, each unless given (``fix_offset_rate``, ``distance_scale``, ``initial_pose``,
-    ``initial_covariance``); the gate, unless given, is ``1 - 1e-9`` with ``outliers``
-    ``"inflate"`` (a receiver's jumps are heavier-tailed than a Gaussian); it needs
-    ``fixes.LEAST_FIXES`` fixes or more. ``"given"``: the fixes as given (white noise of their
-    covariance; an offset state only with ``fix_offset_rate``). ``Estimate.settings`` says
-    what was used."""
-    if heading != "wheels" and gyro is None:
-        raise ValueError(f"heading {heading!r} needs a gyro")
+    Read from the log where ``settings`` leaves them None: the gyro's noise and bias, from
+    its standing stretches (``standing.identify_standing``); with ``whole_log.fixes``
+    ``"identified"``, what the ``"position"`` measurements (a GPS receiver's) are worth, from
+    the fixes themselves (``diffdrive.estimation.fixes``): their white noise replaces their
+    covariance, and unless given, the offset state wanders at the identified rate
+    (``fix_offset``), the wheels' distance scale (``distance_scale``) and the start (in the
+    fixes' frame: ``initial_pose``, ``initial_covariance``) are the dead reckoning's fit onto
+    them, and the gate is ``1 - 1e-9`` with outliers inflated (a receiver's jumps are
+    heavier-tailed than a Gaussian); it needs ``fixes.LEAST_FIXES`` fixes or more.
+    ``Estimate.settings`` says what was used."""
+    settings = EstimatorSettings.of(settings)
+    whole = settings.whole_log
+    if settings.heading != "wheels" and gyro is None:
+        raise ValueError(f"heading {settings.heading!r} needs a gyro")
     times, increments, turned, wanted = checked_log(times, increments, gyro, commanded)
     given = list(measurements)
     for m in given:
@@ -171,28 +169,23 @@ def estimate_trajectory(
                 f"{m.kind} measurement at t = {m.t!r} s lies outside the log "
                 f"[{times[0]:g}, {times[-1]:g}] s"
             )
-    if slip_test not in SLIP_TESTS:
-        raise ValueError(f"slip_test must be one of {SLIP_TESTS}, got {slip_test!r}")
-    if records and not smooth:
+    if whole.records and not smooth:
         raise ValueError("records are the smoother's, made on its pass back: give smooth=True")
-    if fixes not in FIXES:
-        raise ValueError(f"fixes must be one of {', '.join(FIXES)}, got {fixes!r}")
-    options.setdefault("history", float("inf"))
-    settings = _gyro_settings(times, increments, turned, gyro, heading, options)
-    _check_log(times, increments, turned, options.get("max_wheel_speed"))
+    settings = settings.replace(window=Window(math.inf, 0.0))  # the whole log, no waiting
+    settings, lines = _gyro_settings(times, increments, turned, gyro, settings)
+    _check_log(times, increments, turned, settings.encoders.max_wheel_speed)
     start: dict = {"initial_pose": initial_pose, "initial_covariance": initial_covariance}
     gyro_turns = np.full(len(increments), np.nan) if turned is None else turned
-    if fixes == "identified":
-        ordered, identified = _identified_fixes(
-            robot, heading, (times, increments, gyro_turns), ordered, start, options
+    if whole.fixes == "identified":
+        ordered, settings, identified = _identified_fixes(
+            robot, (times, increments, gyro_turns), ordered, start, settings
         )
-        settings += identified
-    estimator = PoseEstimator(
-        robot, heading, **start, initial_time=float(times[0]), ahead=0.0, **options
-    )
+        lines += identified
+    estimator = PoseEstimator(robot, settings, initial_time=float(times[0]), **start)
     missed = _commands_missed(estimator, times, increments, wanted)
     log = _Log(times, increments, gyro_turns, missed, _packed(ordered))
-    episodes = slip_test == "episodes" and turned is not None
+    episodes = whole.slip_episodes and turned is not None
+    records = whole.records
     run = _run(estimator, log, smooth and not episodes, None, records and not episodes)
     forced = None
     # Again with the episodes' wheel turns left out, and once more if what they had pulled
@@ -220,26 +213,26 @@ def estimate_trajectory(
         run.accepted,
         run.distances,
         smooth,
-        heading,
+        settings.heading,
         twists,
         twist_covariances,
         run.records,
-        settings,
+        lines,
         run.log_dets,
+        settings,
     )
 
 
 def _identified_fixes(
-    robot: Robot, heading: str, wheels: tuple, ordered: list, start: dict, options: dict
-) -> tuple[list[Measurement], tuple[str, ...]]:
-    """The measurements with the fixes' identified white noise, and ``start`` and
-    ``options`` filled from ``fixes.identify_fixes`` where not given; the lines that say
-    what was used. ``wheels``: the log's times, increments and gyro turns."""
+    robot: Robot, wheels: tuple, ordered: list, start: dict, settings: EstimatorSettings
+) -> tuple[list[Measurement], EstimatorSettings, tuple[str, ...]]:
+    """The measurements with the fixes' identified white noise, ``start`` filled and
+    ``settings`` completed from ``fixes.identify_fixes`` where not given, and the lines that
+    say what was used. ``wheels``: the log's times, increments and gyro turns."""
     times, increments, turned = wheels
     positions = [m for m in ordered if m.kind == "position"]
     # The dead reckoning the fixes are fitted onto: the same estimator without them.
-    free = {k: v for k, v in options.items() if k not in ("gate", "outliers")}
-    reckoner = PoseEstimator(robot, heading, initial_time=float(times[0]), ahead=0.0, **free)
+    reckoner = PoseEstimator(robot, settings.replace(gate=None), initial_time=float(times[0]))
     empty = _packed([])
     still = np.zeros(len(increments), dtype=bool)
     dead = _run(reckoner, _Log(times, increments, turned, still, empty), False, None)
@@ -251,13 +244,18 @@ def _identified_fixes(
         [m.value for m in positions],
     )
     lines = list(fit.report)
-    for name, value in fit.options.items():
-        place = start if name.startswith("initial") else options
-        if place.get(name) is None:
-            place[name] = value
-        else:
+    found = fit.settings(settings)
+    for name in ("fix_offset", "distance_scale", "initial_pose", "initial_covariance", "gate"):
+        place = start if name.startswith("initial") else vars(settings)
+        if place[name] is not None:
             lines.append(f"{name}: as given")
-    if options["gate"] == IDENTIFIED_GATE and options["outliers"] == "inflate":
+    start["initial_pose"] = (
+        tuple(fit.start.tolist()) if start["initial_pose"] is None else start["initial_pose"]
+    )
+    if start["initial_covariance"] is None:
+        start["initial_covariance"] = fit.start_covariance
+    settings = found
+    if settings.gating == Gate(IDENTIFIED_GATE, "inflate"):
         lines.append(
             f"gate 1 - {1 - IDENTIFIED_GATE:.0e}, past it inflated, not refused: a receiver's "
             "jumps are heavier-tailed than a Gaussian"
@@ -266,36 +264,33 @@ def _identified_fixes(
     made = [
         dataclasses.replace(m, covariance=white) if m.kind == "position" else m for m in ordered
     ]
-    return made, tuple(lines)
+    return made, settings, tuple(lines)
 
 
-def _gyro_settings(times, increments, turned, gyro, heading: str, options: dict) -> tuple:
-    """Fill the gyro's ``noise`` and ``bias`` into ``options`` from the log's standing
-    stretches where they were not given (``standing.identify_standing``); the lines that say
-    what was used and where from."""
+def _gyro_settings(
+    times, increments, turned, gyro, settings: EstimatorSettings
+) -> tuple[EstimatorSettings, tuple[str, ...]]:
+    """``settings`` with the gyro's noise and bias from the log's standing stretches where
+    they were not given (``standing.identify_standing``); the lines that say what was used and
+    where from."""
     if gyro is None:  # with the wheels' heading the gyro still tests for slip
-        return ()
-    given = [name for name in ("noise", "bias") if name in options]
-    if len(given) == 2:
-        return ("gyro noise and bias: as given",)
+        return settings, ()
+    noise_given, bias_given = settings.gyro_noise is not None, settings.bias is not None
+    if noise_given and bias_given:
+        return settings, ("gyro noise and bias: as given",)
     fit = identify_standing(times, increments, turned, samples=(gyro.times, gyro.rates))
     if fit is None:
-        used = options.get("noise", DEFAULT_GYRO)
-        return (
+        return settings, (
             "no standing stretch of 0.5 s in the log (the wheels never stand still): the gyro "
-            f"noise {'as given' if 'noise' in given else 'is the default'} ({used}), the bias "
-            f"{'as given' if 'bias' in given else 'starts at 0 rad/s'}",
+            f"noise {'as given' if noise_given else 'is the default'} ({settings.gyro}), the "
+            f"bias {'as given' if bias_given else 'starts at 0 rad/s'}",
         )
     report = list(fit.report)
-    if "noise" in given:
+    if noise_given:
         report = [report[0], "gyro noise: as given"]
-    else:
-        options["noise"] = fit.noise
-    if "bias" in given:
+    if bias_given:
         report[0] = "gyro bias: as given"
-    else:
-        options["bias"] = fit.bias
-    return tuple(report)
+    return fit.settings(settings), tuple(report)
 
 
 @dataclass(frozen=True)
@@ -432,7 +427,8 @@ def _commands_missed(estimator: PoseEstimator, times, increments, wanted) -> np.
     if wanted is None:
         return np.zeros(len(increments), dtype=bool)
     miss = increments / np.diff(times)[:, None] - wanted
-    sigma2 = estimator.command_sigma * estimator.command_sigma
+    sigma = estimator.config.command_sigma
+    sigma2 = sigma * sigma
     return (miss * miss).sum(axis=1) / sigma2 > ekf.COMMAND_THRESHOLD
 
 

@@ -23,7 +23,7 @@ reads its bias plus its noise, so:
 ``identify_standing`` says what it used and where from (``StandingFit.report``), and None when
 the wheels never stand still for ``least`` s: the caller then says which default it used.
 ``estimate_trajectory`` calls it on the whole log; a streaming ``PoseEstimator`` starts from
-a stated warm-up (``warm_up``, then ``PoseEstimator(robot, **fit.options)``).
+a stated warm-up (``warm_up``, then ``PoseEstimator(robot, fit.settings())``).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive._stats import nonnegative_least_squares
+from diffdrive.estimation.settings import EstimatorSettings
 from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise
 
 __all__ = [
@@ -131,11 +132,15 @@ class StandingFit:
     longest: float
     report: tuple[str, ...]
 
-    @property
-    def options(self) -> dict[str, object]:
-        """``noise`` and ``bias`` as ``PoseEstimator`` and ``estimate_trajectory`` take them:
-        ``PoseEstimator(robot, **fit.options)`` streams on from a warm-up."""
-        return {"noise": self.noise, "bias": self.bias}
+    def settings(self, given: EstimatorSettings | None = None) -> EstimatorSettings:
+        """``given`` (default ``EstimatorSettings()``) with the gyro's ``noise`` and ``bias``
+        where it leaves them None: ``PoseEstimator(robot, fit.settings())`` streams on from a
+        warm-up."""
+        given = EstimatorSettings() if given is None else given
+        return given.replace(
+            gyro_noise=self.noise if given.gyro_noise is None else given.gyro_noise,
+            bias=self.bias if given.bias is None else given.bias,
+        )
 
 
 def identify_standing(
@@ -222,7 +227,7 @@ def identify_standing(
 def warm_up(times: object, increments: object, gyro) -> StandingFit | None:
     """``identify_standing`` of a warm-up: wheel-angle ``increments`` ``(N-1, 2)`` rad between
     ``times`` ``(N,)`` s, standing for part of it, and the ``Gyro`` (an ``imu.Gyro``) over
-    them; a streaming estimator then starts from ``fit.options``."""
+    them; a streaming estimator then starts from ``fit.settings()``."""
     t = np.asarray(times, dtype=float)
     turned = np.diff(gyro.angles(t))
     return identify_standing(t, increments, turned, samples=(gyro.times, gyro.rates))

@@ -1,0 +1,318 @@
+"""The pose estimator's settings as one value: ``EstimatorSettings``, made of small values that
+each check themselves and carry one documented default.
+
+``PoseEstimator`` (streaming), ``GyroOdometry``, ``estimate_trajectory`` and ``gyro_odometry``
+(whole logs) and the command line all take one ``EstimatorSettings``; ``dataclasses.replace``
+changes a part, checked again. The parts:
+
+- ``heading``: the heading's source, ``"wheels"``, ``"gyro"`` or ``"fused"`` (default; the
+  filter's maths: ``diffdrive.estimation.filter``);
+- ``wheel_noise``: a ``WheelNoise`` (a number ``k`` (m) or a pair is read as one; default
+  ``sensor_noise.DEFAULT``);
+- ``gyro_noise`` and ``bias``: the gyro's ``GyroNoise`` and its bias's start (rad/s). None, the
+  default: a whole log identifies them from its standing stretches
+  (``standing.identify_standing``); where it has none, and in a streaming estimator,
+  ``sensor_noise.DEFAULT_GYRO`` and 0 rad/s;
+- ``turn_scale`` and ``distance_scale``: each a ``Prior`` (its start and the prior's standard
+  deviation; 0, the default: not estimated). ``distance_scale`` None (the default): ``Prior()``,
+  or with identified fixes the fixes' fit;
+- ``fix_offset``: the ``FixOffset`` of the position fixes (its random walk and its start's
+  spread); None (the default): no offset state, or with identified fixes the wander found;
+- ``gate``: the ``Gate`` of absolute measurements; None (the default): ``Gate()``, or with
+  identified fixes a wide gate whose outliers are inflated (``fixes.IDENTIFIED_GATE``);
+- ``slip``: the ``SlipTest``'s threshold, inflation and command spread;
+- ``window``: how late (``history``) and how early (``ahead``) a streaming estimator takes a
+  measurement (``Window``); a whole log keeps all of itself and waits for nothing;
+- ``method``: the integration of each interval, ``"euler"``, ``"rk2"`` or ``"exact"`` (default);
+- ``mounting``: the rotation from the IMU's frame to the body's (3x3), for three IMU rates;
+  None (default): the identity;
+- ``encoders``: the wheel readings' ``Encoders`` (counts per revolution, counter width, top
+  speed), as ``Odometry`` takes them;
+- ``whole_log``: what only a whole log does (``WholeLog``): the slip episodes, the fixes'
+  identification, the smoother's records.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from diffdrive._validate import finite, nonnegative, positive
+from diffdrive.backends.settings import HEADINGS
+from diffdrive.encoders import check_counter_bits
+from diffdrive.estimation.filter import SLIP_THRESHOLD
+from diffdrive.estimation.imu import mounting_yaw_row
+from diffdrive.integrate import Method, check_method
+from diffdrive.sensor_noise import DEFAULT, DEFAULT_GYRO, GyroNoise, WheelNoise
+
+__all__ = [
+    "OUTLIERS",
+    "SLIP_THRESHOLD",
+    "Encoders",
+    "EstimatorSettings",
+    "FixOffset",
+    "Gate",
+    "Prior",
+    "SlipTest",
+    "WholeLog",
+    "Window",
+]
+
+OUTLIERS = ("refuse", "inflate")  # what the gate does with a measurement past it
+FIXES = ("given", "identified")
+Heading = Literal["wheels", "gyro", "fused"]
+
+
+def _kind(owner: str, name: str, value: object, kind: type) -> None:
+    """``TypeError`` naming ``owner.name`` unless ``value`` is a ``kind`` (booleans are no
+    numbers here)."""
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise TypeError(f"{owner}.{name} must be a {kind.__name__}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A scale state's ``start`` (> 0; 1: the wheels' own figure) and its prior standard
+    deviation ``sigma`` (>= 0; 0: not estimated, held at ``start``)."""
+
+    start: float = 1.0
+    sigma: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "start", positive("Prior.start", self.start))
+        object.__setattr__(self, "sigma", nonnegative("Prior.sigma", self.sigma))
+        if not math.isfinite(self.sigma * self.sigma):
+            raise ValueError(f"Prior.sigma {self.sigma!r} squares past the largest float")
+
+    @property
+    def estimated(self) -> bool:
+        """Whether the state is estimated (``sigma`` > 0)."""
+        return self.sigma > 0.0
+
+
+@dataclass(frozen=True)
+class FixOffset:
+    """The offset (m, world frame) the ``"position"`` fixes carry from the point they fix: a
+    random walk of ``rate`` (m/sqrt(s); a receiver's wander) from a start of spread ``sigma``
+    (m; 0: the offset starts at zero, the first fixes placing the robot). Both 0: no offset
+    state, the fixes' error is white."""
+
+    rate: float = 0.0
+    sigma: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("rate", "sigma"):
+            value = nonnegative(f"FixOffset.{name}", getattr(self, name))
+            if not math.isfinite(value * value):
+                raise ValueError(f"FixOffset.{name} {value!r} squares past the largest float")
+            object.__setattr__(self, name, value)
+
+    @property
+    def estimated(self) -> bool:
+        """Whether the offset is a state (either figure > 0)."""
+        return self.rate > 0.0 or self.sigma > 0.0
+
+
+@dataclass(frozen=True)
+class Gate:
+    """The chi-square gate of absolute measurements: ``probability`` inside it (0 to 1,
+    exclusive) and what becomes of a measurement past it, ``outliers``: ``"refuse"`` (left out,
+    counted in ``rejected``) or ``"inflate"`` (taken with its covariance grown until it lies on
+    the gate: a heavy-tailed sensor's jumps followed, not lost)."""
+
+    probability: float = 0.999
+    outliers: Literal["refuse", "inflate"] = "refuse"
+
+    def __post_init__(self) -> None:
+        probability = finite("Gate.probability", self.probability)
+        if not 0.0 < probability < 1.0:
+            raise ValueError(f"Gate.probability must be in (0, 1), got {self.probability!r}")
+        object.__setattr__(self, "probability", probability)
+        if self.outliers not in OUTLIERS:
+            raise ValueError(
+                f"Gate.outliers must be one of {', '.join(OUTLIERS)}, got {self.outliers!r}"
+            )
+
+
+@dataclass(frozen=True)
+class SlipTest:
+    """The slip tests: an interval whose wheel turn and gyro turn differ by more than
+    ``threshold`` (chi-square, one degree of freedom; default P = 0.001) is flagged, its wheel
+    turn left out and its wheel noise multiplied by ``inflation``; ``command_sigma`` (rad/s) is
+    how far a wheel may run from its command before the command test flags it."""
+
+    threshold: float = SLIP_THRESHOLD
+    inflation: float = 100.0
+    command_sigma: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("threshold", "inflation", "command_sigma"):
+            object.__setattr__(self, name, positive(f"SlipTest.{name}", getattr(self, name)))
+        if not 0.0 < self.command_sigma * self.command_sigma < math.inf:
+            raise ValueError(
+                f"SlipTest.command_sigma {self.command_sigma!r} squares to 0 or past the floats"
+            )
+
+
+@dataclass(frozen=True)
+class Window:
+    """How late and how early a streaming estimator takes an absolute measurement: ``history``
+    (s, > 0; inf: all of it) of wheel intervals are kept to replay a late one, and one up to
+    ``ahead`` (s, >= 0) past the newest wheel reading waits for the wheels."""
+
+    history: float = 2.0
+    ahead: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.history != math.inf:
+            object.__setattr__(self, "history", positive("Window.history", self.history))
+        else:
+            object.__setattr__(self, "history", math.inf)
+        object.__setattr__(self, "ahead", nonnegative("Window.ahead", self.ahead))
+
+
+@dataclass(frozen=True)
+class Encoders:
+    """The wheel readings: ``ticks_per_revolution`` (counts per wheel revolution; needed for
+    counter readings), ``counter_bits`` (2 to 64; None: counters that never roll over) and
+    ``max_wheel_speed`` (rad/s; None: no limit), past which a jump is refused: as ``Odometry``
+    takes them."""
+
+    ticks_per_revolution: float | None = None
+    counter_bits: int | None = None
+    max_wheel_speed: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.ticks_per_revolution is not None:
+            ticks = positive("Encoders.ticks_per_revolution", self.ticks_per_revolution)
+            if not math.isfinite(2.0 * math.pi / ticks):
+                raise ValueError(
+                    "Encoders.ticks_per_revolution must give a finite angle per count, got "
+                    f"{self.ticks_per_revolution!r}"
+                )
+            object.__setattr__(self, "ticks_per_revolution", ticks)
+        object.__setattr__(self, "counter_bits", check_counter_bits(self.counter_bits))
+        if self.max_wheel_speed is not None:
+            speed = positive("Encoders.max_wheel_speed", self.max_wheel_speed)
+            object.__setattr__(self, "max_wheel_speed", speed)
+
+
+@dataclass(frozen=True)
+class WholeLog:
+    """What only a whole log (``estimate_trajectory``) does. ``slip_episodes``: besides the
+    intervals the streaming test flags, flag the runs of intervals one slipping wheel explains
+    (``diffdrive.estimation.episodes``; the log then runs again with them flagged); False: the
+    streaming test's alone. ``fixes``: what the ``"position"`` measurements are worth,
+    ``"given"`` (their covariance, white) or ``"identified"`` from the fixes themselves
+    (``diffdrive.estimation.fixes``). ``records``: keep the smoother's record of every step
+    (1,664 bytes a step; needs the smoother)."""
+
+    slip_episodes: bool = True
+    fixes: Literal["given", "identified"] = "given"
+    records: bool = False
+
+    def __post_init__(self) -> None:
+        _kind("WholeLog", "slip_episodes", self.slip_episodes, bool)
+        _kind("WholeLog", "records", self.records, bool)
+        if self.fixes not in FIXES:
+            raise ValueError(
+                f"WholeLog.fixes must be one of {', '.join(FIXES)}, got {self.fixes!r}"
+            )
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """Everything the pose estimator is set up with but the robot and its start (see the
+    module for each part and its default)."""
+
+    heading: Heading = "fused"
+    wheel_noise: WheelNoise = DEFAULT
+    gyro_noise: GyroNoise | None = None
+    bias: float | None = None
+    turn_scale: Prior = field(default_factory=Prior)
+    distance_scale: Prior | None = None
+    fix_offset: FixOffset | None = None
+    gate: Gate | None = None
+    slip: SlipTest = field(default_factory=SlipTest)
+    window: Window = field(default_factory=Window)
+    method: Method = "exact"
+    mounting: tuple[tuple[float, float, float], ...] | None = None
+    encoders: Encoders = field(default_factory=Encoders)
+    whole_log: WholeLog = field(default_factory=WholeLog)
+
+    def __post_init__(self) -> None:
+        if self.heading not in HEADINGS:
+            raise ValueError(
+                f"EstimatorSettings.heading must be one of {', '.join(HEADINGS)}, got "
+                f"{self.heading!r}"
+            )
+        noise = WheelNoise.coerce(self.wheel_noise, "EstimatorSettings.wheel_noise")
+        object.__setattr__(self, "wheel_noise", noise)
+        if self.bias is not None:
+            object.__setattr__(self, "bias", finite("EstimatorSettings.bias", self.bias))
+        parts: tuple[tuple[str, type, bool], ...] = (
+            ("gyro_noise", GyroNoise, True),
+            ("turn_scale", Prior, False),
+            ("distance_scale", Prior, True),
+            ("fix_offset", FixOffset, True),
+            ("gate", Gate, True),
+            ("slip", SlipTest, False),
+            ("window", Window, False),
+            ("encoders", Encoders, False),
+            ("whole_log", WholeLog, False),
+        )
+        for name, kind, optional in parts:
+            value = getattr(self, name)
+            if not (optional and value is None):
+                _kind("EstimatorSettings", name, value, kind)
+        check_method(self.method)
+        if self.mounting is not None:
+            rotation = np.asarray(self.mounting, dtype=float)
+            mounting_yaw_row(rotation)  # a rotation, or ValueError naming it
+            rows = tuple(tuple(float(v) for v in row) for row in rotation)
+            object.__setattr__(self, "mounting", rows)
+
+    @classmethod
+    def of(cls, value: object) -> EstimatorSettings:
+        """``value`` if it is an ``EstimatorSettings``, the default for None; ``TypeError``
+        naming ``settings`` otherwise."""
+        if value is None:
+            return cls()
+        if not isinstance(value, cls):
+            raise TypeError(f"settings must be an EstimatorSettings, got {type(value).__name__}")
+        return value
+
+    # What a streaming estimator takes where a whole log would identify (see the module).
+
+    @property
+    def gyro(self) -> GyroNoise:
+        """``gyro_noise``, else ``sensor_noise.DEFAULT_GYRO``."""
+        return DEFAULT_GYRO if self.gyro_noise is None else self.gyro_noise
+
+    @property
+    def bias_start(self) -> float:
+        """``bias``, else 0 rad/s."""
+        return 0.0 if self.bias is None else self.bias
+
+    @property
+    def distance(self) -> Prior:
+        """``distance_scale``, else ``Prior()``."""
+        return Prior() if self.distance_scale is None else self.distance_scale
+
+    @property
+    def offset(self) -> FixOffset:
+        """``fix_offset``, else ``FixOffset()`` (no offset state)."""
+        return FixOffset() if self.fix_offset is None else self.fix_offset
+
+    @property
+    def gating(self) -> Gate:
+        """``gate``, else ``Gate()``."""
+        return Gate() if self.gate is None else self.gate
+
+    def replace(self, **changes: object) -> EstimatorSettings:
+        """A copy with ``changes`` (parts by name), checked again."""
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
