@@ -29,6 +29,7 @@ from diffdrive.demo import example_robot
 
 DURATION = 10.0  # s
 COMMAND_PERIOD = 0.1  # s, for the held history
+ROUNDING = 1e-12  # m: below it an error is the floats' rounding, not the method's
 ROBOT = example_robot()
 STEPS = {  # numbers of steps over the manoeuvre; the held ones divide each command period
     "smooth": [10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000],
@@ -116,6 +117,12 @@ def draw(tables: dict[str, dict[str, list[float]]], output: Path) -> None:
     plt.close(figure)
 
 
+def _figure(error: float) -> str:
+    """An error as the table prints it: below ``ROUNDING`` m, only that bound (its digits are
+    the processor's rounding, which differ between machines)."""
+    return f"{'<' + format(ROUNDING, 'g'):>10}" if error < ROUNDING else f"{error:10.1e}"
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", type=Path, default=Path("out/figures/step_size_error.png"))
@@ -125,7 +132,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{history}: final-position error, m")
         print("  steps " + "".join(f"{s:>10}" for s in STEPS[history]))
         for method, values in table.items():
-            print(f"  {method:5} " + "".join(f"{v:10.1e}" for v in values))
+            print(f"  {method:5} " + "".join(_figure(v) for v in values))
     args.output.parent.mkdir(parents=True, exist_ok=True)
     draw(tables, args.output)
     print(f"figure: {args.output}")
