@@ -1,6 +1,7 @@
 """The learning page's lessons, pictures and cells, as plain Python (the browser test drives the
 served page: test_learn_browser.py)."""
 
+import importlib.util
 import math
 import re
 import subprocess
@@ -25,7 +26,11 @@ def _draws_a_figure(picture: str, lesson) -> bool:
     return isinstance(getattr(drawings, picture)(lesson), Figure)
 
 
-pytest.importorskip("marimo", reason="marimo (the learn extra) is in the test group")
+# Skipped without marimo, found without importing it (its import takes over a second).
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("marimo") is None,
+    reason="marimo (the learn extra) is in the test group",
+)
 
 
 def shown(markdown: str, test_id: str) -> float:

@@ -4,6 +4,7 @@ courses on fixed seeds, maps, and bad input refused by name with the controller 
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -29,7 +30,14 @@ from diffdrive.control.mppi_arrays import ArrayCycle, drive_period, to_numpy
 from diffdrive.dynamics import DriveModel, Feedforward
 from optional import Library
 
-numba_mppi = pytest.importorskip("diffdrive.backends.numba_mppi", reason="numba is optional")
+
+@functools.cache
+def compiled():
+    """The compiled cycle's module, imported at a test's first use rather than at collection
+    (numba's import takes most of a second); the test is skipped without numba."""
+    return pytest.importorskip("diffdrive.backends.numba_mppi", reason="numba is optional")
+
+
 LIBRARIES = {"torch": Library("torch"), "jax": Library("jax")}
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
@@ -56,7 +64,7 @@ def test_the_compiled_update_is_the_same_weighted_mean():
     noise = rng.normal(size=(30, 2, 500)).astype(np.float32)
     costs = rng.uniform(0.0, 3.0, 500)
     step = np.empty((30, 2))
-    weights = numba_mppi.update(costs, noise, 0.2, step)
+    weights = compiled().update(costs, noise, 0.2, step)
     expected, reference = weighted_update(costs, np.moveaxis(noise, 2, 0).astype(float), 0.2)
     np.testing.assert_allclose(step, expected, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(weights, reference, rtol=1e-12)
@@ -84,12 +92,12 @@ def test_the_compiled_sampler_draws_standard_normals_per_candidate_stream():
 
     q, _, course = _q()
     mean, reference = np.zeros((50, 2)), np.tile([0.0, 0.0, 1.0, 0.0], (50, 1))
-    state = numba_mppi.in_flight(np.zeros(3), np.zeros(2), np.zeros((0, 2)), q)
+    state = compiled().in_flight(np.zeros(3), np.zeros(2), np.zeros((0, 2)), q)
     big = np.empty((50, 2, 4096), dtype=np.float32)
-    numba_mppi.cycle(mean, q, state, reference, course.obstacles.clearance, np.uint64(7), True,
+    compiled().cycle(mean, q, state, reference, course.obstacles.clearance, np.uint64(7), True,
                      big, np.empty(4096))  # fmt: skip
     small = np.empty((50, 2, 64), dtype=np.float32)
-    numba_mppi.cycle(mean, q, state, reference, course.obstacles.clearance, np.uint64(7), True,
+    compiled().cycle(mean, q, state, reference, course.obstacles.clearance, np.uint64(7), True,
                      small, np.empty(64))  # fmt: skip
     np.testing.assert_array_equal(small, big[:, :, :64])
     normals = big / np.array([q.sigma_v, q.sigma_omega])[None, :, None]
@@ -144,8 +152,8 @@ def test_every_backend_scores_the_same_candidates_alike(library, tolerance, seed
     noise, mean, pose, wheels, flight = _case(seed)
     reference, grid = _reference(path, len(mean)), course.obstacles.clearance
     costs = np.empty(noise.shape[2])
-    state = numba_mppi.in_flight(pose, wheels, flight, q)
-    numba_mppi.cycle(mean, q, state, reference, grid, np.uint64(0), False, noise, costs)
+    state = compiled().in_flight(pose, wheels, flight, q)
+    compiled().cycle(mean, q, state, reference, grid, np.uint64(0), False, noise, costs)
     cycle = ArrayCycle(library, 0)
     given_noise = cycle.xp.asarray(noise.astype(float), dtype=cycle.dtype)
     theirs = to_numpy(cycle.costs(q, mean, given_noise, pose, wheels, flight, reference, grid))
@@ -170,7 +178,7 @@ def test_the_drive_rolled_out_is_drive_model_step(wheels, command, tau, limit):
     np.testing.assert_allclose(drive_period(q, np.array(wheels), np.array(command)), expected,
                                rtol=1e-12, atol=1e-12)  # fmt: skip
     # The compiled step moves with the mean over the period.
-    state = numba_mppi.in_flight(np.zeros(3), np.array(wheels), np.array([command]), q)
+    state = compiled().in_flight(np.zeros(3), np.array(wheels), np.array([command]), q)
     twist = ROBOT.to_twist(dd.WheelVelocities(*mean))
     assert state[6] == pytest.approx(twist.vx, abs=1e-12)
     assert state[7] == pytest.approx(twist.omega, abs=1e-12)

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive.estimation.odometry import PythonOdometry
+from processes import run_bounded
 
 ROBOT = dd.DiffDrive(
     left_wheel_radius=0.049, right_wheel_radius=0.051, track_width=0.31, axle_offset=0.04
@@ -104,39 +105,6 @@ def test_whole_logs_agree_row_by_row_with_the_same_refusal():
     np.testing.assert_allclose(results[0][2], results[1][2], rtol=1e-13)
 
 
-_TWIN: dict[str, subprocess.Popen] = {}
-
-
-def start_twin_run() -> subprocess.Popen:
-    """Start the twin's run of the odometry tests in a process of its own (once): conftest
-    puts the test below first and, in a run of one process, starts this as the session begins,
-    so that it runs on the second core beside the rest of the suite instead of after it."""
-    if "run" not in _TWIN:
-        tests = Path(__file__).resolve().parent
-        environment = os.environ | {"DIFFDRIVE_PURE_PYTHON": "1"}
-        names = ("odometry", "stateful", "fusion", "edges")
-        modules = [str(tests / f"test_{name}.py") for name in names]
-        _TWIN["run"] = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "pytest",
-                "-q",
-                "-p",
-                "no:cacheprovider",
-                *modules,
-                "-k",
-                "not bounded_memory and not long_streaming_run and not reading_subcommand_crash",
-            ],
-            env=environment,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-            cwd=tests.parent,
-        )
-    return _TWIN["run"]
-
-
 @pytest.mark.slow
 def test_the_odometry_tests_pass_on_the_twin():
     """test_odometry, test_stateful, test_fusion and test_edges with DIFFDRIVE_PURE_PYTHON=1
@@ -150,6 +118,15 @@ def test_the_odometry_tests_pass_on_the_twin():
         "assert not o.COMPILED and not f.COMPILED"
     )
     subprocess.run([sys.executable, "-c", check], env=environment, check=True)
-    done = start_twin_run()
-    report, _ = done.communicate()
+    tests = Path(__file__).resolve().parent
+    modules = [
+        str(tests / f"test_{name}.py") for name in ("odometry", "stateful", "fusion", "edges")
+    ]
+    skipped = "not bounded_memory and not long_streaming_run and not reading_subcommand_crash"
+    done = run_bounded(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *modules, "-k", skipped],
+        env=environment,
+        cwd=tests.parent,
+    )
+    report = done.stdout
     assert done.returncode == 0, report[report.find("= FAILURES =") :][:6000] or report[-3000:]
