@@ -360,7 +360,8 @@ def test_refusals_name_the_figures_that_fail():
     left, right = export.refusals(wide, stuck)
     assert "wheel noise k_left came out at its bound, 0 m" in left
     assert "wheel noise k_right came out at its bound, 0 m" in right
-    assert export.refusals(wide, replace(stuck, k_left=1e-4)) == [right]
+    unstuck = replace(stuck, wheel_noise=(1e-4, 0.0))
+    assert export.refusals(wide, unstuck) == [right]
 
 
 @pytest.mark.slow

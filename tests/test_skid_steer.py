@@ -182,7 +182,6 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
     filter's, moved to the body origin."""
     from diffdrive.estimation import EstimatorSettings
     from diffdrive.estimation.gyro import GyroOdometry
-    from diffdrive.estimation.odometry import offset_jacobian
 
     start = dd.Pose(0.3, -0.2, 0.4)
     offset = ASYMMETRIC.reference_offset
@@ -197,10 +196,8 @@ def test_gyro_odometry_runs_a_skid_steer_as_its_equivalent_drive():
             estimator.update(left, right, 0.0, 0.05)
         odometry.update_increments(left, right)
         np.testing.assert_allclose(gyro.pose.to_array(), odometry.pose.to_array(), atol=1e-12)
-        moved = offset_jacobian(drive.pose.theta, -offset)
-        np.testing.assert_allclose(
-            gyro.covariance, moved @ drive.covariance @ moved.T, rtol=1e-12, atol=1e-18
-        )
+        moved = ASYMMETRIC.covariance_from_reference(drive.pose.theta, drive.covariance)
+        np.testing.assert_allclose(gyro.covariance, moved, rtol=1e-12, atol=1e-18)
 
 
 @given(st.floats(-5, 5), st.floats(-5, 5), st.floats(-7, 7), st.floats(-3, 3), st.floats(-3, 3))
@@ -233,3 +230,35 @@ def test_the_reference_point_shift_is_one_rigid_motion_each_way(x, y, theta, vx,
     assert plain.to_reference(body) == body
     assert plain.twist_from_reference(twist) == twist
     assert plain.from_reference(rows) is rows
+
+
+@given(st.floats(-7, 7), st.floats(1e-4, 1.0), st.floats(-0.5, 0.5))
+def test_the_covariance_shift_is_the_pose_shifts_jacobian_each_way(theta, spread, correlation):
+    """``covariance_to_reference`` is ``J C J^T`` with ``J`` the derivative of
+    ``to_reference`` (checked against central differences), ``covariance_from_reference``
+    undoes it, arrays of headings move each covariance by its own, and a DiffDrive's is a
+    copy of what it was given."""
+    covariance = spread * np.array(
+        [[1.0, correlation, 0.1], [correlation, 2.0, -0.2], [0.1, -0.2, 0.5]]
+    )
+    pose, h = np.array([0.3, -0.2, theta]), 1e-6
+    numeric = np.column_stack(
+        [
+            (ASYMMETRIC.to_reference(pose + h * e) - ASYMMETRIC.to_reference(pose - h * e))
+            / (2 * h)
+            for e in np.eye(3)
+        ]
+    )
+    np.testing.assert_allclose(ASYMMETRIC.jacobian_to_reference(theta), numeric, atol=1e-8)
+    moved = ASYMMETRIC.covariance_to_reference(theta, covariance)
+    np.testing.assert_allclose(moved, numeric @ covariance @ numeric.T, rtol=1e-6, atol=1e-12)
+    back = ASYMMETRIC.covariance_from_reference(theta, moved)
+    np.testing.assert_allclose(back, covariance, rtol=1e-9, atol=1e-15)
+    many = ASYMMETRIC.covariance_to_reference([theta, -theta], np.stack([covariance] * 2))
+    np.testing.assert_allclose(many[0], moved, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(
+        many[1], ASYMMETRIC.covariance_to_reference(-theta, covariance), rtol=1e-12, atol=1e-15
+    )
+    plain = dd.DiffDrive(0.1, 0.5).covariance_from_reference(theta, covariance)
+    assert plain is not covariance
+    np.testing.assert_array_equal(plain, covariance)

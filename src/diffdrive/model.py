@@ -31,7 +31,7 @@ from diffdrive._step import wheel_move
 from diffdrive._validate import finite, length
 from diffdrive.types import Pose, Twist, TwistLike, WheelsLike, WheelVelocities
 
-__all__ = ["DiffDrive", "ReferencePoint", "Robot", "check_robot"]
+__all__ = ["DiffDrive", "ReferencePoint", "Robot", "check_robot", "geometry_of"]
 
 
 class ReferencePoint:
@@ -63,6 +63,43 @@ class ReferencePoint:
         """The body origin's twists for those of the equivalent drive's point: a rigid
         shift ``offset`` m to the right, so ``vx`` gains ``offset * omega``."""
         return _moved_twist(twists, self.reference_offset)
+
+    def jacobian_to_reference(self, theta: Any) -> np.ndarray:
+        """d(``to_reference(pose)``)/d(pose) at headings ``theta`` (rad, any shape):
+        ``(..., 3, 3)``."""
+        return _offset_jacobian(theta, self.reference_offset)
+
+    def jacobian_from_reference(self, theta: Any) -> np.ndarray:
+        """d(``from_reference(pose)``)/d(pose) at headings ``theta``: ``(..., 3, 3)``."""
+        return _offset_jacobian(theta, -self.reference_offset)
+
+    def covariance_to_reference(self, theta: Any, covariances: Any) -> np.ndarray:
+        """Body-origin pose covariances ``(..., 3, 3)`` at headings ``theta`` (rad), moved to
+        the equivalent drive's point (``J C J^T``; the heading is the same at both points)."""
+        return _moved_covariance(self.jacobian_to_reference, theta, covariances, self)
+
+    def covariance_from_reference(self, theta: Any, covariances: Any) -> np.ndarray:
+        """The equivalent drive's point's pose covariances ``(..., 3, 3)`` at headings
+        ``theta``, moved to the body origin."""
+        return _moved_covariance(self.jacobian_from_reference, theta, covariances, self)
+
+
+def _offset_jacobian(theta: Any, offset: float) -> np.ndarray:
+    """d(pose composed with (0, offset, 0))/d(pose) at headings ``theta``: ``(..., 3, 3)``."""
+    theta = np.asarray(theta, dtype=float)
+    jacobian = np.broadcast_to(np.eye(3), (*theta.shape, 3, 3)).copy()
+    jacobian[..., 0, 2] = -offset * np.cos(theta)
+    jacobian[..., 1, 2] = -offset * np.sin(theta)
+    return jacobian
+
+
+def _moved_covariance(jacobian, theta: Any, covariances: Any, point: ReferencePoint) -> np.ndarray:
+    """``covariances`` through ``jacobian(theta)``; a copy where the two points are one."""
+    matrix = np.array(covariances, dtype=float)
+    if not point.reference_offset:
+        return matrix
+    moved = jacobian(theta)
+    return moved @ matrix @ np.swapaxes(moved, -1, -2)
 
 
 def _moved_pose(poses: Any, offset: float) -> Any:
@@ -376,6 +413,22 @@ class Robot(Protocol):
         """Body twists ``(..., 3)`` at this model's reference point, at the equivalent drive's."""
         ...
 
+    def jacobian_to_reference(self, theta: Any) -> np.ndarray:
+        """d(``to_reference(pose)``)/d(pose) at headings ``theta``: ``(..., 3, 3)``."""
+        ...
+
+    def jacobian_from_reference(self, theta: Any) -> np.ndarray:
+        """d(``from_reference(pose)``)/d(pose) at headings ``theta``: ``(..., 3, 3)``."""
+        ...
+
+    def covariance_to_reference(self, theta: Any, covariances: Any) -> np.ndarray:
+        """Body pose covariances ``(..., 3, 3)`` at the equivalent drive's point."""
+        ...
+
+    def covariance_from_reference(self, theta: Any, covariances: Any) -> np.ndarray:
+        """The equivalent drive's point's pose covariances ``(..., 3, 3)`` at the body's."""
+        ...
+
     def with_geometry(
         self,
         left_wheel_radius: float,
@@ -410,3 +463,10 @@ def check_robot(robot: object, name: str = "robot") -> Robot:
             f"{name} must be a robot model (DiffDrive, SkidSteer), got {type(robot).__name__}"
         )
     return robot
+
+
+def geometry_of(robot: Robot) -> tuple[float, float, float, float]:
+    """``(left_wheel_radius, right_wheel_radius, track_width, axle_offset)`` (m) of the robot's
+    equivalent drive: the one geometry row the cores, kernels and fits take."""
+    drive = check_robot(robot).equivalent
+    return (drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width, drive.axle_offset)

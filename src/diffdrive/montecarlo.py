@@ -38,11 +38,11 @@ import numpy as np
 
 from diffdrive._arrays import components
 from diffdrive._validate import finite, whole
-from diffdrive.batch.kinematics import WHEELS, geometry_of
+from diffdrive.batch.kinematics import WHEELS
 from diffdrive.batch.rollout import accumulate, twists
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, geometry_of
 from diffdrive.sensor_noise import NONE as NO_NOISE
 from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike, draw_geometry, draw_travel
 

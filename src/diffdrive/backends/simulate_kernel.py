@@ -38,9 +38,8 @@ from typing import Any
 import numpy as np
 
 from diffdrive import _step
-from diffdrive.batch.kinematics import geometry_of
 from diffdrive.integrate import Method
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, geometry_of
 
 __all__ = [
     "cached",

@@ -13,11 +13,10 @@ from typing import Any
 from diffdrive._arrays import components, device, finite_positive_dt, leading_shape, namespace
 from diffdrive._step import wheel_move
 from diffdrive.batch.se2 import TWIST
-from diffdrive.model import Robot, check_robot
+from diffdrive.model import Robot, check_robot, geometry_of
 
 __all__ = [
     "advance_wheel_positions",
-    "geometry_of",
     "instantaneous_center",
     "to_twist",
     "to_wheel_velocities",
@@ -31,13 +30,6 @@ WHEELS = "left, right"
 
 def _wheels(xp: Any, value: object, name: str = "wheels") -> Any:
     return components(xp, value, name, WHEELS)
-
-
-def geometry_of(robot: Robot) -> tuple[float, float, float, float]:
-    """``(left_wheel_radius, right_wheel_radius, track_width, axle_offset)`` of the robot's
-    equivalent drive: the row ``wheel_map`` and the kernels take."""
-    drive = check_robot(robot).equivalent
-    return (drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width, drive.axle_offset)
 
 
 def wheel_map(geometry: Any, wheels: Any) -> Any:

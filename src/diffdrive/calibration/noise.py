@@ -57,9 +57,9 @@ from diffdrive.calibration.offline import calibrate, checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
 from diffdrive.estimation.standing import GyroFit, allan_deviation, identify_gyro
 from diffdrive.integrate import Method
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, Robot
 from diffdrive.montecarlo import noisy_angles
-from diffdrive.sensor_noise import WheelNoise
+from diffdrive.sensor_noise import NONE, WheelNoise
 from diffdrive.simulation import dead_reckon
 from diffdrive.types import Pose
 
@@ -76,6 +76,7 @@ __all__ = [
     "identify",
     "identify_gyro",
     "identify_what_it_can",
+    "identify_wheel_noise",
     "score",
 ]
 
@@ -120,15 +121,14 @@ _LABEL = (
 
 @dataclass(frozen=True, eq=False)
 class NoiseModel:
-    """``identify``'s result (see the module): each wheel's ``k_left``, ``k_right`` (m), the
-    ``geometry``'s relative covariance ``(3, 3)`` over (left radius, right radius, track) from
-    group to group, the reference's ``reference_sigma`` (m) and ``reference_heading_sigma``
-    (rad); the ``covariance`` ``(10, 10)`` of ``noise_fit.PARAMETERS``, the ``runs`` and
-    ``groups`` it came from and the ``terms`` fitted. ``NoiseModel.symmetric`` builds one by
-    hand."""
+    """``identify``'s result (see the module): the wheels' ``wheel_noise`` (a ``WheelNoise``;
+    a number ``k`` (m) or a pair is read as one), the ``geometry``'s relative covariance
+    ``(3, 3)`` over (left radius, right radius, track) from group to group, the reference's
+    ``reference_sigma`` (m) and ``reference_heading_sigma`` (rad); the ``covariance``
+    ``(10, 10)`` of ``noise_fit.PARAMETERS``, the ``runs`` and ``groups`` it came from and the
+    ``terms`` fitted. ``NoiseModel.symmetric`` builds one by hand."""
 
-    k_left: float = 0.0
-    k_right: float = 0.0
+    wheel_noise: WheelNoise = NONE
     geometry: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     reference_sigma: float = 0.0
     reference_heading_sigma: float = 0.0
@@ -140,7 +140,9 @@ class NoiseModel:
     def __post_init__(self) -> None:
         # A negative or infinite term would be squared or rooted into covariances that look
         # valid, or NaN ones, far from here.
-        for name in ("k_left", "k_right", "reference_sigma", "reference_heading_sigma"):
+        wheels = WheelNoise.coerce(self.wheel_noise, "noise model wheel_noise")
+        object.__setattr__(self, "wheel_noise", wheels)
+        for name in ("reference_sigma", "reference_heading_sigma"):
             if not finite(f"noise model {name}", getattr(self, name)) >= 0.0:
                 raise ValueError(f"noise model {name} must be >= 0, got {getattr(self, name)!r}")
         geometry = np.asarray(self.geometry, dtype=float)
@@ -172,7 +174,17 @@ class NoiseModel:
             if not finite(f"noise model {name}", value) >= 0.0:
                 raise ValueError(f"noise model {name} must be >= 0, got {value!r}")
         geometry = np.diag([radius_sigma**2, radius_sigma**2, track_sigma**2])
-        return cls(k, k, geometry, reference_sigma, reference_heading_sigma)
+        return cls(WheelNoise.symmetric(k), geometry, reference_sigma, reference_heading_sigma)
+
+    @property
+    def k_left(self) -> float:
+        """The left wheel's ``k`` (m): ``wheel_noise.left``, by the name of its term."""
+        return self.wheel_noise.left
+
+    @property
+    def k_right(self) -> float:
+        """The right wheel's ``k`` (m): ``wheel_noise.right``, by the name of its term."""
+        return self.wheel_noise.right
 
     @property
     def k(self) -> float:
@@ -335,9 +347,8 @@ def identify(
         theta = theta * scale
         covariance = covariance * np.outer(scale, scale)
     return NoiseModel(
-        float(theta[0]),
-        float(theta[1]),
-        noise_fit.geometry_of(theta),
+        WheelNoise(float(theta[0]), float(theta[1])),
+        noise_fit.geometry_covariance(theta),
         float(np.sqrt(theta[8])),
         float(np.sqrt(theta[9])),
         covariance,
@@ -362,6 +373,33 @@ def _held(theta: np.ndarray, held: dict[str, float]) -> np.ndarray:
     for name, value in held.items():
         out[list(where[name])] = value if name.startswith("k_") else value * value
     return out
+
+
+def identify_wheel_noise(
+    robot: Robot, increments: np.ndarray, truth: np.ndarray
+) -> tuple[WheelNoise | None, str]:
+    """Each wheel's ``k`` (m) from one log's wheel-angle ``increments`` ``(N-1, 2)`` rad
+    against its motion-capture ground truth ``(N, 3)`` (``identify`` of the two wheel terms,
+    the reference held at ``MOTION_CAPTURE``), and a line saying where it came from; None and
+    the reason where the log cannot identify them (a refusal, or a wheel at 0 m: its errors are
+    then not the wheels' random walk)."""
+    metres, radians = MOTION_CAPTURE
+    fixed = {"reference_sigma": metres, "reference_heading_sigma": radians}
+    try:
+        found = identify(robot.equivalent, [(increments, truth)], terms=TERMS[:2], fixed=fixed)
+    except ValueError as refused:
+        return None, f"the ground truth could not identify them ({refused})"
+    if found.k_left == 0.0 or found.k_right == 0.0:
+        return None, (
+            "identified on the ground truth, a wheel came out at 0 m (its errors are not the "
+            "wheels' random walk)"
+        )
+    errors = found.standard_errors()
+    return found.wheel_noise, (
+        f"identified on the log's ground truth, +-{errors['k_left']:.2g} and "
+        f"+-{errors['k_right']:.2g} m, the reference held at motion capture's "
+        f"{1000 * metres:g} mm and {math.degrees(radians):g} deg"
+    )
 
 
 def identify_what_it_can(robot: DiffDrive, runs, **options) -> tuple[NoiseModel, tuple[str, ...]]:
@@ -417,7 +455,7 @@ def covariances(
     increments = np.asarray(increments, dtype=float)
     start = np.asarray(start, dtype=float)
     poses = dead_reckon(robot, increments, start, method)
-    wheels = WheelNoise(model.k_left, model.k_right)
+    wheels = model.wheel_noise
     odometry = Odometry(robot, method, Pose(*start), wheel_noise=wheels)
     _, walk = odometry.update_arrays(
         "increments", increments[:, 0], increments[:, 1], covariance=True

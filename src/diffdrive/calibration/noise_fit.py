@@ -16,7 +16,7 @@ import numpy as np
 from diffdrive import batch
 from diffdrive.estimation.odometry import Odometry
 from diffdrive.integrate import Method
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, geometry_of
 from diffdrive.sensor_noise import WheelNoise
 from diffdrive.simulation import dead_reckon
 from diffdrive.types import Pose
@@ -38,7 +38,7 @@ GEOMETRY = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 _STEP = 1e-6  # relative: the geometry's finite differences
 
 
-def geometry_of(theta: np.ndarray) -> np.ndarray:
+def geometry_covariance(theta: np.ndarray) -> np.ndarray:
     """The geometry's relative covariance ``(3, 3)`` in ``theta``."""
     matrix = np.zeros((3, 3))
     for (row, column), value in zip(GEOMETRY, theta[2:8], strict=True):
@@ -78,7 +78,7 @@ def _run_terms(robot: DiffDrive, increments, truth, count: int, method: Method):
             rows = increments[a[w] : b[w]]
             odometry.update_arrays("increments", rows[:, 0], rows[:, 1])
             wheels[side, 3 * w : 3 * w + 3, 3 * w : 3 * w + 3] = odometry.covariance
-    base = np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
+    base = np.array(geometry_of(robot)[:3])
     jacobian = np.zeros((3 * windows, 3))
     for index in range(3):
         step = np.zeros(3)
@@ -183,7 +183,7 @@ def _feasible(theta: np.ndarray) -> np.ndarray:
     positive semi-definite (its negative eigenvalues cut to 0)."""
     out = theta.copy()
     out[[0, 1, 8, 9]] = np.maximum(out[[0, 1, 8, 9]], 0.0)
-    values, vectors = np.linalg.eigh(geometry_of(out))
+    values, vectors = np.linalg.eigh(geometry_covariance(out))
     if values[0] < 0.0:
         out = _with_geometry(out, (vectors * np.maximum(values, 0.0)) @ vectors.T)
     return out

@@ -54,7 +54,7 @@ from diffdrive._progress import progress_bar
 from diffdrive._validate import whole
 from diffdrive.integrate import Method, check_method
 from diffdrive.io.run import Run
-from diffdrive.model import Robot, check_robot
+from diffdrive.model import Robot, check_robot, geometry_of
 from diffdrive.simulation import dead_reckon, integrate_increments
 
 __all__ = [
@@ -656,7 +656,7 @@ def _bounds(nominal: Robot) -> tuple[list[float], list[float]]:
 
 
 def _parameters(robot: Robot) -> np.ndarray:
-    return np.array([robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width])
+    return np.array(geometry_of(robot)[:3])
 
 
 def _position_errors(robot, runs, integration: Method, heading_offset: float = 0.0):

@@ -61,7 +61,7 @@ from diffdrive.calibration.reference_model import (
 from diffdrive.calibration.reference_noise import UNDETERMINED, IdentifiedNoise, identify
 from diffdrive.estimation.imu import Gyro
 from diffdrive.integrate import Method
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, geometry_of
 from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
 
 __all__ = [
@@ -313,7 +313,7 @@ def calibrate_to_reference(
     spread = max(c[5] for c in checked)
     readings = np.concatenate([c[3] for c in checked])
     values = np.zeros(len(PARAMETERS))
-    values[:3] = robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width
+    values[:3] = geometry_of(robot)[:3]
     for name, value in (initial or {}).items():
         if name not in PARAMETERS:
             raise ValueError(f"initial names {name!r}, not one of {', '.join(PARAMETERS)}")

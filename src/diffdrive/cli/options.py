@@ -325,10 +325,15 @@ def wheel_noise(
     source = "a default where not given: --k-left, --k-right"
     truth = None if log is None else log.truth
     if None in given and truth is not None and robot is not None:
-        found, source = _identified_wheels(robot, increments, truth)
-        if found is not None:
-            k_left = found.k_left if args.k_left is None else k_left
-            k_right = found.k_right if args.k_right is None else k_right
+        from diffdrive.calibration.noise import identify_wheel_noise
+
+        found, why = identify_wheel_noise(robot, increments, truth)
+        if found is None:
+            source = f"the default: {why}"
+        else:
+            source = f"{why}; --k-left, --k-right to give them"
+            k_left = found.left if args.k_left is None else k_left
+            k_right = found.right if args.k_right is None else k_right
     noise = WheelNoise(k_left, k_right)
     if k_left == 0.0 and k_right == 0.0 and output_format(args) in ("mcap", "ros2"):
         raise ValueError(
@@ -342,32 +347,6 @@ def wheel_noise(
             f"the {'left' if args.k_left is not None else 'right'} as given, the other {source}"
         )
     return noise, f"\nwheel noise: k = {k_left:.3g} m left, {k_right:.3g} m right ({source})"
-
-
-def _identified_wheels(robot: Robot, increments, truth):
-    """Each wheel's ``k`` identified on the log against its ground truth, and where it came
-    from; ``None`` and the reason where the log cannot identify them."""
-    from diffdrive.calibration import noise
-
-    metres, radians = noise.MOTION_CAPTURE
-    fixed = {"reference_sigma": metres, "reference_heading_sigma": radians}
-    try:
-        found = noise.identify(
-            robot.equivalent, [(increments, truth)], terms=noise.TERMS[:2], fixed=fixed
-        )
-    except ValueError as refused:
-        return None, f"the default: the ground truth could not identify them ({refused})"
-    if found.k_left == 0.0 or found.k_right == 0.0:
-        return None, (
-            "the default: identified on the ground truth, a wheel came out at 0 m (its errors "
-            "are not the wheels' random walk)"
-        )
-    errors = found.standard_errors()
-    return found, (
-        f"identified on the log's ground truth, +-{errors['k_left']:.2g} and "
-        f"+-{errors['k_right']:.2g} m, the reference held at motion capture's "
-        f"{1000 * metres:g} mm and {math.degrees(radians):g} deg; --k-left, --k-right to give them"
-    )
 
 
 def example_trajectory(robot: Robot, dt: float = 0.01, method: Method = "exact"):

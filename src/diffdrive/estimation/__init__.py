@@ -41,7 +41,6 @@ _NAMES = {
             "PythonOdometry",
             "RefusedUpdateError",
             "odometry_of_run",
-            "offset_jacobian",
         ],
         "odometry",
     ),
@@ -94,7 +93,6 @@ __all__ = [
     "identify_standing",
     "measurements_of",
     "odometry_of_run",
-    "offset_jacobian",
     "rotation_from_rpy",
     "warm_up",
 ]
@@ -112,7 +110,6 @@ if TYPE_CHECKING:  # what the names are, for type checkers
         PythonOdometry,
         RefusedUpdateError,
         odometry_of_run,
-        offset_jacobian,
     )
     from diffdrive.estimation.settings import (
         Encoders,

@@ -47,9 +47,9 @@ from diffdrive.estimation import estimator_python
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.imu import mounting_yaw_row
 from diffdrive.estimation.measurements import Measurement, chi2_quantile
-from diffdrive.estimation.odometry import Odometry, offset_jacobian
+from diffdrive.estimation.odometry import Odometry
 from diffdrive.estimation.settings import OUTLIERS, EstimatorSettings
-from diffdrive.model import Robot, check_robot
+from diffdrive.model import Robot, check_robot, geometry_of
 from diffdrive.sensor_noise import GyroNoise
 from diffdrive.types import Pose
 
@@ -262,14 +262,14 @@ def start_state(
         1.0, np.abs(matrix).max()
     ):
         raise ValueError("initial_covariance must be symmetric positive semi-definite")
-    moved = offset_jacobian(start.theta, robot.reference_offset)
+    moved = robot.covariance_to_reference(start.theta, matrix)
     start = robot.to_reference(start)
     turn, distance, offset = settings.turn_scale, settings.distance, settings.offset
     x = np.array(
         [start.x, start.y, start.theta, settings.bias_start, turn.start, distance.start, 0, 0]
     )
     P = np.zeros((ekf.N, ekf.N))
-    P[:3, :3] = moved @ matrix @ moved.T
+    P[:3, :3] = moved
     fused = settings.heading == "fused"
     P[ekf.BIAS, ekf.BIAS] = settings.gyro.initial_bias_sigma**2 if fused else 0.0
     P[ekf.SCALE, ekf.SCALE] = turn.sigma * turn.sigma
@@ -283,17 +283,11 @@ def core_settings(
 ) -> CoreSettings:
     """What the estimator's core is built from: ``settings`` on ``robot``'s equivalent drive,
     from state ``x`` ``(8,)`` with covariance ``P`` ``(8, 8)``."""
-    drive = robot.equivalent
     gyro, gate, slip = settings.gyro, settings.gating, settings.slip
     arw, rrw = gyro.angle_random_walk, gyro.rate_random_walk
     probability = gate.probability
     return CoreSettings(
-        drive=(
-            drive.left_wheel_radius,
-            drive.right_wheel_radius,
-            drive.track_width,
-            drive.axle_offset,
-        ),
+        drive=geometry_of(robot),
         method=settings.method,
         heading=settings.heading,
         k=(settings.wheel_noise.left, settings.wheel_noise.right),
@@ -332,10 +326,7 @@ def body_covariances(states: np.ndarray, covariances: np.ndarray, robot: Robot) 
     """The body origin's pose covariances ``(..., 3, 3)`` from states ``(..., 8)`` and their
     covariances ``(..., 8, 8)`` (see ``body_poses``): the shift's Jacobian applied."""
     block = np.asarray(covariances, dtype=float)[..., :3, :3]
-    if not robot.reference_offset:
-        return block.copy()
-    moved = offset_jacobian(np.asarray(states)[..., 2], -robot.reference_offset)
-    return moved @ block @ np.swapaxes(moved, -1, -2)
+    return robot.covariance_from_reference(np.asarray(states)[..., 2], block)
 
 
 def _body_pose(x: Sequence[float] | np.ndarray, robot: Robot) -> Pose:

@@ -40,7 +40,7 @@ from diffdrive._step import wheel_move
 from diffdrive._validate import finite, floats, positive
 from diffdrive.encoders import check_counter_bits
 from diffdrive.integrate import METHODS, Method, check_method
-from diffdrive.model import Robot, check_robot
+from diffdrive.model import Robot, check_robot, geometry_of
 from diffdrive.types import Pose, Twist, WheelVelocities
 
 if TYPE_CHECKING:
@@ -54,7 +54,6 @@ __all__ = [
     "PythonOdometry",  # noqa: F822 (made on first use, by __getattr__)
     "RefusedUpdateError",
     "odometry_of_run",
-    "offset_jacobian",
 ]
 
 # The C core when it was built (pip builds it where a C compiler is found), else its
@@ -149,15 +148,9 @@ class _OdometryMethods(_Base):
         self.counter_bits = counter_bits
         # The core runs the equivalent drive, whose reference point lies ``_offset`` m left of
         # the body origin (a skid-steer robot's ICR midpoint); poses and covariances move back.
-        geometry = robot.equivalent
         self._offset = robot.reference_offset
         self.settings = OdometrySettings(
-            drive=(
-                geometry.left_wheel_radius,
-                geometry.right_wheel_radius,
-                geometry.track_width,
-                geometry.axle_offset,
-            ),
+            drive=geometry_of(robot),
             method_code=METHODS.index(method),
             rad_per_tick=rad_per_tick,
             max_wheel_speed=speed_limit,
@@ -190,10 +183,7 @@ class _OdometryMethods(_Base):
     def covariance(self) -> np.ndarray:
         """The pose covariance, 3x3 over ``(x, y, theta)``: m^2, m rad, rad^2."""
         covariance = np.array(self._covariance()).reshape(3, 3)
-        if not self._offset:
-            return covariance
-        moved = offset_jacobian(self._state()[2], -self._offset)
-        return moved @ covariance @ moved.T
+        return self.robot.covariance_from_reference(self._state()[2], covariance)
 
     @property
     def wheel_velocities(self) -> WheelVelocities:
@@ -231,8 +221,8 @@ class _OdometryMethods(_Base):
         if np.linalg.eigvalsh(matrix).min() < -1e-12 * max(1.0, np.abs(matrix).max()):
             raise ValueError("covariance must be positive semi-definite")
         if self._offset:  # to the equivalent drive's reference point
-            moved = offset_jacobian(pose.theta, self._offset)
-            pose, matrix = self.robot.to_reference(pose), moved @ matrix @ moved.T
+            matrix = self.robot.covariance_to_reference(pose.theta, matrix)
+            pose = self.robot.to_reference(pose)
         self._set_pose(pose.x, pose.y, pose.theta, tuple(matrix.ravel().tolist()))
 
     def update_arrays(
@@ -272,10 +262,9 @@ class _OdometryMethods(_Base):
         if refused is not None:
             raise RefusedUpdateError(*refused)
         if self._offset:
-            moved = offset_jacobian(poses[:, 2], -self._offset)
-            poses = self.robot.from_reference(poses)
             if covariances is not None:
-                covariances = moved @ covariances @ np.swapaxes(moved, -1, -2)
+                covariances = self.robot.covariance_from_reference(poses[:, 2], covariances)
+            poses = self.robot.from_reference(poses)
         return poses, covariances
 
     def jacobians(self, left: float, right: float) -> tuple[np.ndarray, np.ndarray]:
@@ -291,17 +280,9 @@ class _OdometryMethods(_Base):
         wheel_jacobian = np.array(by_wheels).reshape(3, 2)
         if self._offset:  # through the equivalent drive, and back
             theta = self._state()[2]
-            drive = self.robot.equivalent
-            turn = wheel_move(
-                drive.left_wheel_radius,
-                drive.right_wheel_radius,
-                drive.track_width,
-                drive.axle_offset,
-                left,
-                right,
-            )[2]
-            back = offset_jacobian(theta + turn, -self._offset)
-            pose_jacobian = back @ pose_jacobian @ offset_jacobian(theta, self._offset)
+            turn = wheel_move(*geometry_of(self.robot), left, right)[2]
+            back = self.robot.jacobian_from_reference(theta + turn)
+            pose_jacobian = back @ pose_jacobian @ self.robot.jacobian_to_reference(theta)
             wheel_jacobian = back @ wheel_jacobian
         return pose_jacobian, wheel_jacobian
 
@@ -374,13 +355,3 @@ def __getattr__(name: str) -> type:
     PythonOdometry.__module__, PythonOdometry.__qualname__ = __name__, "PythonOdometry"
     globals()["PythonOdometry"] = PythonOdometry
     return PythonOdometry
-
-
-def offset_jacobian(theta: object, offset: float) -> np.ndarray:
-    """d(pose composed with (0, offset, 0))/d(pose) at headings ``theta``: ``(..., 3, 3)``:
-    how a covariance moves between a model's body origin and its equivalent drive's point."""
-    theta = np.asarray(theta, dtype=float)
-    jacobian = np.broadcast_to(np.eye(3), (*theta.shape, 3, 3)).copy()
-    jacobian[..., 0, 2] = -offset * np.cos(theta)
-    jacobian[..., 1, 2] = -offset * np.sin(theta)
-    return jacobian

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from diffdrive.model import Robot
+from diffdrive.model import Robot, geometry_of
 from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike
 
 __all__ = ["TWIST_AXES", "interval_twists"]
@@ -59,8 +59,7 @@ def interval_twists(
         )
     count = len(times) - 1
     dt = np.diff(times)
-    drive = robot.equivalent
-    r_l, r_r, track = drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width
+    r_l, r_r, track, sideways = geometry_of(robot)
     left, right = r_l * increments[:, 0], r_r * increments[:, 1]
     forward, wheel_turn = 0.5 * (left + right), (right - left) / track
     inflation = _per_interval(noise_scale, 1.0, count, "noise_scale")
@@ -82,7 +81,7 @@ def interval_twists(
         var_turn = _per_interval(turn_variances, 0.0, count, "turn_variances")
         cov_forward_turn = np.zeros(count)
     # (forward, turn) -> (vx, vy, omega) at the body origin: linear, M / dt.
-    shift, sideways = robot.reference_offset, drive.axle_offset
+    shift = robot.reference_offset
     mixing = np.array([[1.0, shift], [0.0, sideways], [0.0, 1.0]])
     moves = np.column_stack([forward, turn])
     twists = moves @ mixing.T / dt[:, None]

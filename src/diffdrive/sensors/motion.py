@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
-from diffdrive.model import Robot
+from diffdrive.model import Robot, geometry_of
 from diffdrive.sensor_noise import draw_geometry
 
 __all__ = [
@@ -124,7 +124,6 @@ def robot_geometry(
     """Each robot's true geometry ``(N, 3)`` ``[r_left, r_right, track]`` (m): the equivalent
     drive's, biased, and drawn around that with relative standard deviations
     ``geometry_sigma`` (as ``monte_carlo``'s)."""
-    drive = robot.equivalent
-    nominal = np.array([drive.left_wheel_radius, drive.right_wheel_radius, drive.track_width])
+    nominal = np.array(geometry_of(robot)[:3])
     biased = nominal * (1.0 + np.array([*radius_bias, track_bias]))
     return draw_geometry(biased, np.asarray(geometry_sigma, dtype=float), robots, rng)
