@@ -71,7 +71,7 @@ def main() -> None:
         "diffdrive update_positions": ours(),
         "  with wheel noise": ours(wheel_noise=1e-4),
         "  with k and t": ours_timed,
-        "  on the pure-Python core (no C compiler)": ours(dd.estimation.PythonOdometry),
+        "  on the pure-Python core (no C compiler)": ours(dd.estimation.odometry._PythonOdometry),
     }
     try:
         from wpimath.geometry import Pose2d, Rotation2d

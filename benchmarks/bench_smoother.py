@@ -104,7 +104,7 @@ def main() -> None:
         small = log(args.twin_intervals, fixes)
         for smooth in (False, True):
             c = per_interval(*big, smooth, args.repeats)
-            whole.PoseEstimator = fusion.PythonPoseEstimator  # the twin, for this timing only
+            whole.PoseEstimator = fusion._PythonPoseEstimator  # the twin, for this timing only
             try:
                 twin = per_interval(*small, smooth, args.repeats)
             finally:

@@ -5,7 +5,7 @@ The wheel velocities are the joint angles' differences over each interval, betwe
 simulator's sample times (``io.sample_times``: 441 of the 2741 stamps are a 1 ms tick early),
 and, beside them, between the stamps as recorded; the commands are ``/cmd_vel``'s twists
 through the robot's inverse kinematics (radii and track from the ``increments``
-calibration), each held until the next. ``dynamics.cross_validate`` cuts the log into
+calibration), each held until the next. ``dynamics.cross_validate_response`` cuts the log into
 ``--folds`` blocks (5); each is held out in turn, the response identified on the rest, and
 the block predicted in 5 s segments, each started from its measured velocity, beside the
 instant kinematic response (the wheels at their command at once). The figure: a held-out
@@ -26,7 +26,7 @@ import numpy as np
 
 import diffdrive as dd
 from diffdrive import batch
-from diffdrive.dynamics import cross_validate
+from diffdrive.dynamics import cross_validate_response
 from diffdrive.io import ros
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
@@ -34,8 +34,8 @@ ROBOT = dd.DiffDrive(left_wheel_radius=0.03256, right_wheel_radius=0.03252, trac
 
 
 def held_out(bags: Path, restore: bool = True, folds: int = 5) -> dict:
-    """The response scored by ``dynamics.cross_validate``: the log cut into ``folds`` blocks,
-    each scored in 5 s segments by the response identified on the others; ``restore``: the
+    """The response scored by ``dynamics.cross_validate_response``: the log cut into ``folds``
+    blocks, each scored in 5 s segments by the response identified on the others; ``restore``: the
     wheel velocities over the simulator's sample times (``io.sample_times``), else over the
     stamps as recorded."""
     bag = bags / "turtlebot3_fuse.bag"
@@ -47,7 +47,7 @@ def held_out(bags: Path, restore: bool = True, folds: int = 5) -> dict:
     v, omega = commands.twists.T
     wheels = batch.to_wheel_velocities(ROBOT, np.column_stack([v, 0.0 * v, omega]))
     limits = (math.inf, 20.0, 40.0, 60.0, 80.0, 120.0)
-    found = cross_validate(
+    found = cross_validate_response(
         times, measured, commands.times, wheels, folds=folds, segment=5.0, accelerations=limits
     )
     scored = ~np.isnan(found.predicted)

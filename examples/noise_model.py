@@ -3,7 +3,7 @@ sessions), and how honest the covariance it predicts is on runs it never saw.
 
 For each experiment of ``../shared/data/optiodom-diffdrive``: the geometry calibrated (least
 squares) on the other nine experiments pooled and the noise model identified on them
-(``diffdrive.calibration.noise.cross_validate``): each wheel's random walk, and the geometry
+(``diffdrive.calibration.noise.cross_validate_noise``): each wheel's random walk, and the geometry
 as a random constant per experiment with its full 3x3 covariance, the motion capture held
 at its stated accuracy (``noise.MOTION_CAPTURE``) rather than fitted. Then, on this
 experiment's runs, the odometry with the calibrated geometry, the covariance the model
@@ -63,12 +63,12 @@ def passes(found) -> bool:
 
 
 def held_out(experiments, by_session: bool, draws: int = DRAWS, seed: int = 0) -> dict:
-    """Each experiment scored by ``noise.cross_validate`` over all the others (or all the
+    """Each experiment scored by ``noise.cross_validate_noise`` over all the others (or all the
     other sessions'), and the share of ``draws`` references its model draws itself that it
     passes."""
     groups = {name: runs for name, (_, runs) in experiments.items()}
     sessions = optiodom_sessions(groups) if by_session else None
-    scores = noise.cross_validate(optiodom_robot(), groups, sessions=sessions, fixed=STATED)
+    scores = noise.cross_validate_noise(optiodom_robot(), groups, sessions=sessions, fixed=STATED)
     rng = np.random.default_rng(seed)
     table = {}
     for experiment, (kind, runs) in experiments.items():

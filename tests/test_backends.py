@@ -25,11 +25,11 @@ from diffdrive.estimation import (
     EstimatorSettings,
     GyroOdometry,
     PoseEstimator,
-    PythonOdometry,
     estimate_trajectory,
     smoother,
 )
-from diffdrive.estimation.fusion import PythonPoseEstimator
+from diffdrive.estimation.fusion import _PythonPoseEstimator
+from diffdrive.estimation.odometry import _PythonOdometry
 from diffdrive.montecarlo import monte_carlo
 from optional import Library
 
@@ -214,13 +214,13 @@ BACKENDS = {
     "simulate numpy": (_simulate("numpy"), ("float32", "float64")),
     "simulate numba": (_simulate("numba"), ("float32", "float64")),
     "odometry (C)": (_odometry(dd.Odometry), ("float64",)),
-    "odometry (pure Python)": (_odometry(PythonOdometry), ("float64",)),
+    "odometry (pure Python)": (_odometry(_PythonOdometry), ("float64",)),
     "gyro filter, wheel heading": (_gyro("wheels"), ("float64",)),
     "gyro filter, gyro heading": (_gyro("gyro"), ("float64",)),
     "pose estimator (C), wheel heading": (_estimator(PoseEstimator), ("float64",)),
-    "pose estimator (pure Python), wheel heading": (_estimator(PythonPoseEstimator), ("float64",)),
+    "pose estimator (pure Python), wheel heading": (_estimator(_PythonPoseEstimator), ("float64",)),
     "whole log (C)": (_whole_log(PoseEstimator, False), ("float64",)),
-    "whole log (pure Python)": (_whole_log(PythonPoseEstimator, False), ("float64",)),
+    "whole log (pure Python)": (_whole_log(_PythonPoseEstimator, False), ("float64",)),
     "whole log smoothed (C)": (_whole_log(PoseEstimator, True), ("float64",)),
     "monte carlo (numba)": (_monte_carlo, ("float64",)),
     "rollout numpy": (_rollout(np.asarray), ("float32", "float64")),

@@ -9,7 +9,7 @@ import pytest
 import diffdrive as dd
 from diffdrive import distributed
 from diffdrive.calibration import calibrate
-from diffdrive.montecarlo import monte_carlo, plan
+from diffdrive.montecarlo import experiment, monte_carlo
 from diffdrive.simulation import dead_reckon
 
 pytestmark = pytest.mark.slow
@@ -55,7 +55,7 @@ def test_monte_carlo_on_two_workers_equals_one_process(client):
 
 
 def test_a_task_sends_back_statistics_not_paths():
-    setup = plan(ROBOT, WHEELS, DT, 3000, wheel_noise=(1e-4, 0.0), seed=1, chunk=500)
+    setup = experiment(ROBOT, WHEELS, DT, 3000, wheel_noise=(1e-4, 0.0), seed=1, chunk=500)
     final, moments = distributed._task(setup, 0, 3)  # three chunks, as a worker runs them
     assert final.shape == (1500, 3)  # one pose per robot
     assert moments.mean.shape == (301, 3)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import docs_pages
-from diffdrive.dynamics import VelocityResponse, cross_validate, identify_velocity_response
+from diffdrive.dynamics import VelocityResponse, cross_validate_response, identify_velocity_response
 from records import assert_as_recorded
 
 T = np.arange(0.0, 60.0, 0.02)
@@ -56,7 +56,7 @@ def test_cross_validation_scores_each_block_with_a_response_identified_without_i
     48 s), its held-out RMSE is the noise, and it predicts far better than the wheels at their
     commands at once; every held-out sample is scored once, and nothing else."""
     commands, measured = logged(0.05, seed=2)
-    found = cross_validate(T, measured, COMMAND_TIMES, commands, folds=5, segment=3.0)
+    found = cross_validate_response(T, measured, COMMAND_TIMES, commands, folds=5, segment=3.0)
     assert len(found.responses) == 5
     for response in found.responses:
         assert response.gain == pytest.approx(0.95, rel=0.02)
@@ -84,7 +84,7 @@ def test_cross_validation_scores_each_block_with_a_response_identified_without_i
 def test_cross_validation_refuses_folds_it_cannot_score(options, message):
     commands, measured = logged(0.05)
     with pytest.raises(ValueError, match=message):
-        cross_validate(T, measured, COMMAND_TIMES, commands, **options)
+        cross_validate_response(T, measured, COMMAND_TIMES, commands, **options)
 
 
 STEP_TIMES = np.linspace(0.0, 1.0, 101)

@@ -21,7 +21,7 @@ from diffdrive.estimation import (
 )
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.fixes import identify_fixes
-from diffdrive.estimation.fusion import PythonPoseEstimator
+from diffdrive.estimation.fusion import _PythonPoseEstimator
 from diffdrive.estimation.measurements import Measurement
 from diffdrive.sensors import AbsoluteModel, absolute_readings
 
@@ -169,7 +169,7 @@ def test_the_distance_scale_state_finds_the_wheels_scale_from_white_fixes():
     assert found == pytest.approx(0.97, rel=0.005)
 
 
-@pytest.mark.parametrize("core", [PoseEstimator, PythonPoseEstimator])
+@pytest.mark.parametrize("core", [PoseEstimator, _PythonPoseEstimator])
 def test_a_position_carries_the_offset_and_a_pose_does_not(core):
     """With the offset a state from 0 +- 1 m and the pose known to 1 mm, a position fix 0.5 m
     off moves the offset, not the pose; a pose measurement does not see the offset."""

@@ -437,7 +437,7 @@ def test_the_c_core_is_its_python_twin(steps, heading, scale):
     options = dict(initial_time=0.0, initial_covariance=np.eye(3) * 1e-4)
     pair = [
         kind(ROBOT, settings, **options)
-        for kind in (fusion.PoseEstimator, fusion.PythonPoseEstimator)
+        for kind in (fusion.PoseEstimator, fusion._PythonPoseEstimator)
     ]
     now = 0.0
     for left, right, dt, angle, seen in steps:

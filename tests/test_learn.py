@@ -45,7 +45,7 @@ def shown(markdown: str, test_id: str) -> float:
 
 
 def test_forward_lesson_shows_the_seed_002_and_003_numbers():
-    lesson = lessons.forward(0.05, 0.3, 4.0, 10.0)
+    lesson = lessons.forward_lesson(0.05, 0.3, 4.0, 10.0)
     assert lesson.rim_speeds == pytest.approx((0.2, 0.5))
     assert lesson.twist.vx == pytest.approx(0.35)
     assert lesson.twist.omega == pytest.approx(1.0)
@@ -74,7 +74,7 @@ def test_forward_lesson_shows_the_seed_002_and_003_numbers():
 def test_forward_lesson_names_straight_spinning_and_standing_still(
     left, right, radius_shown, words
 ):
-    lesson = lessons.forward(0.05, 0.3, left, right)
+    lesson = lessons.forward_lesson(0.05, 0.3, left, right)
     text = lesson.markdown()
     assert f'data-testid="dd-turning-radius">{radius_shown}<' in text
     assert words in text
@@ -85,7 +85,7 @@ def test_forward_lesson_names_straight_spinning_and_standing_still(
 
 
 def test_inverse_lesson_desaturates_keeping_the_curvature():
-    lesson = lessons.inverse(0.05, 0.3, 1.0, 2.0, limit=15.0)
+    lesson = lessons.inverse_lesson(0.05, 0.3, 1.0, 2.0, limit=15.0)
     assert lesson.wheels.to_array() == pytest.approx([14.0, 26.0])
     assert lesson.saturated
     scale = 15.0 / 26.0
@@ -98,10 +98,10 @@ def test_inverse_lesson_desaturates_keeping_the_curvature():
 
 
 def test_inverse_lesson_within_the_limit_and_keeping_omega():
-    within = lessons.inverse(0.05, 0.3, 0.5, 0.0, limit=15.0)
+    within = lessons.inverse_lesson(0.05, 0.3, 0.5, 0.0, limit=15.0)
     assert not within.saturated
     assert "goes out as it is" in within.markdown()
-    turn = lessons.inverse(0.05, 0.3, 1.0, 2.0, limit=15.0, keep="omega")
+    turn = lessons.inverse_lesson(0.05, 0.3, 1.0, 2.0, limit=15.0, keep="omega")
     assert turn.delivered.omega == pytest.approx(2.0)
     assert "bends the path" in turn.markdown()
 
@@ -110,7 +110,7 @@ def test_inverse_lesson_within_the_limit_and_keeping_omega():
 
 
 def test_modern_robotics_lesson_shows_the_pseudo_inverse_sliding_sideways():
-    lesson = lessons.modern_robotics(0.05, 0.3, 0.1, 4.0, 10.0)  # omega = 1, vx = 0.35
+    lesson = lessons.modern_robotics_lesson(0.05, 0.3, 0.1, 4.0, 10.0)  # omega = 1, vx = 0.35
     assert lesson.true_twist == pytest.approx([1.0, 0.35, 0.1])  # vy = D omega
     assert lesson.pinv_twist == pytest.approx([1.0, 0.35, 0.0])
     assert lesson.pinv_slip == pytest.approx([-0.1, -0.1])  # Q H+ u: both wheels slide
@@ -118,7 +118,7 @@ def test_modern_robotics_lesson_shows_the_pseudo_inverse_sliding_sideways():
     assert shown(text, "true-vy") == pytest.approx(0.1)
     assert shown(text, "pinv-slip") == pytest.approx(-0.1)
     assert _draws_a_figure("modern_robotics_picture", lesson)
-    on_axle = lessons.modern_robotics(0.05, 0.3, 0.0, 4.0, 10.0)
+    on_axle = lessons.modern_robotics_lesson(0.05, 0.3, 0.0, 4.0, 10.0)
     assert on_axle.pinv_twist == pytest.approx(on_axle.true_twist)
     assert on_axle.pinv_slip == pytest.approx([0.0, 0.0])
 
@@ -127,8 +127,8 @@ def test_modern_robotics_lesson_shows_the_pseudo_inverse_sliding_sideways():
 
 
 def test_integration_lesson_orders_of_the_three_methods():
-    coarse = lessons.integration(0.05, 0.3, 4.0, 10.0, duration=4.0, step=0.2)
-    fine = lessons.integration(0.05, 0.3, 4.0, 10.0, duration=4.0, step=0.1)
+    coarse = lessons.integration_lesson(0.05, 0.3, 4.0, 10.0, duration=4.0, step=0.2)
+    fine = lessons.integration_lesson(0.05, 0.3, 4.0, 10.0, duration=4.0, step=0.1)
     c, f = coarse.errors(), fine.errors()
     assert c["euler"] / f["euler"] == pytest.approx(2.0, rel=0.1)  # first order
     assert c["rk2"] / f["rk2"] == pytest.approx(4.0, rel=0.1)  # second order
@@ -143,7 +143,7 @@ def test_integration_lesson_orders_of_the_three_methods():
 
 
 def test_integration_rounds_the_step_to_whole_steps_and_says_so():
-    lesson = lessons.integration(0.05, 0.3, 4.0, 10.0, duration=1.0, step=0.3)
+    lesson = lessons.integration_lesson(0.05, 0.3, 4.0, 10.0, duration=1.0, step=0.3)
     assert len(lesson.paths["euler"]) == 4  # 3 steps of 1/3 s
     assert shown(lesson.markdown(), "step") == pytest.approx(1 / 3, rel=1e-5)
 

@@ -24,9 +24,9 @@ from diffdrive.control import (
     plan,
     read_map,
 )
+from diffdrive.control._mppi_arrays import ArrayCycle, drive_period, to_numpy
 from diffdrive.control.mppi import settings as mppi_settings
 from diffdrive.control.mppi import weighted_update
-from diffdrive.control.mppi_arrays import ArrayCycle, drive_period, to_numpy
 from diffdrive.dynamics import DriveModel, Feedforward
 from optional import Library
 

@@ -327,7 +327,7 @@ def test_cross_validation_holds_each_group_out():
     gave ANEES 1.16, 1.17, 1.12 and 91, 90, 93 % inside the 95 % ellipse). By session, a
     group's whole session is held out with it."""
     groups = {f"group {g}": flat(runs(5, seed=10 + g, per_group=5)[0]) for g in range(8)}
-    scores = noise.cross_validate(ROBOT, groups)
+    scores = noise.cross_validate_noise(ROBOT, groups)
     assert set(scores) == set(groups)
     for name, score in scores.items():
         assert score.model.runs == 35
@@ -339,15 +339,15 @@ def test_cross_validation_holds_each_group_out():
     assert 0.88 < np.mean(nees <= 7.815) < 0.98  # chi2(3)'s 95 % point
     four = {name: groups[name] for name in list(groups)[:4]}
     sessions = {"group 0": "a", "group 1": "a", "group 2": "b", "group 3": "c"}
-    by_session = noise.cross_validate(ROBOT, four, sessions=sessions)
+    by_session = noise.cross_validate_noise(ROBOT, four, sessions=sessions)
     assert by_session["group 0"].trained_on == ("group 2", "group 3")
     assert by_session["group 2"].trained_on == ("group 0", "group 1", "group 3")
     with pytest.raises(ValueError, match="needs 2 groups of runs or more, got 1"):
-        noise.cross_validate(ROBOT, {"only": groups["group 0"]})
+        noise.cross_validate_noise(ROBOT, {"only": groups["group 0"]})
     with pytest.raises(ValueError, match="sessions gives no session for group 'group 3'"):
-        noise.cross_validate(ROBOT, four, sessions={g: "a" for g in list(four)[:3]})
+        noise.cross_validate_noise(ROBOT, four, sessions={g: "a" for g in list(four)[:3]})
     with pytest.raises(ValueError, match=r"holding out 'group 0' \(session 'a'\) leaves 1"):
-        noise.cross_validate(ROBOT, four, sessions={**sessions, "group 2": "a"})
+        noise.cross_validate_noise(ROBOT, four, sessions={**sessions, "group 2": "a"})
 
 
 def test_diffdrive_odometry_identifies_the_wheels_noise_on_a_logs_ground_truth(tmp_path, capsys):

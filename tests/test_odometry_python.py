@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from diffdrive.estimation.odometry import PythonOdometry
+from diffdrive.estimation.odometry import _PythonOdometry
 from processes import run_bounded
 
 ROBOT = dd.DiffDrive(
@@ -79,7 +79,10 @@ def test_the_twin_follows_the_c_core_update_by_update(method, bits, sequence):
         "max_wheel_speed": 300.0,
         "velocity_window": 0.3,
     }
-    compiled, twin = dd.Odometry(ROBOT, method, **options), PythonOdometry(ROBOT, method, **options)
+    compiled, twin = (
+        dd.Odometry(ROBOT, method, **options),
+        _PythonOdometry(ROBOT, method, **options),
+    )
     clocks = [[0.0], [0.0]]
     for update in sequence:
         assert apply(twin, update, clocks[1]) == apply(compiled, update, clocks[0])
@@ -96,7 +99,7 @@ def test_whole_logs_agree_row_by_row_with_the_same_refusal():
     ticks = np.cumsum(rng.integers(0, 60, (500, 2)), axis=0) % 65536
     ticks[300] = [5, 5]  # a jump the speed limit refuses
     results = []
-    for kind in (dd.Odometry, PythonOdometry):
+    for kind in (dd.Odometry, _PythonOdometry):
         odometry = kind(ROBOT, ticks_per_revolution=4096, counter_bits=16, max_wheel_speed=50.0)
         with pytest.raises(dd.estimation.RefusedUpdateError) as refused:
             odometry.update_arrays("ticks", *ticks.T, times, covariance=True)

@@ -124,7 +124,7 @@ def test_writing_over_a_folder_names_the_folder(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("odometry", [dd.Odometry, dd.estimation.PythonOdometry])
+@pytest.mark.parametrize("odometry", [dd.Odometry, dd.estimation.odometry._PythonOdometry])
 def test_an_infinite_wheel_speed_is_refused_and_twist_still_reads(odometry):
     """A wheel turning 1e308 rad in 1e-300 s was accepted, and .twist raised until the
     velocity window moved on."""
@@ -214,7 +214,7 @@ def _estimator(core):
 
 
 @pytest.mark.parametrize(
-    "core", [dd.estimation.PoseEstimator, dd.estimation.fusion.PythonPoseEstimator]
+    "core", [dd.estimation.PoseEstimator, dd.estimation.fusion._PythonPoseEstimator]
 )
 @pytest.mark.parametrize(
     ("add", "message"),
@@ -244,7 +244,7 @@ def test_a_nan_or_singular_covariance_is_refused_by_both_cores(core, add, messag
 
 
 @pytest.mark.parametrize(
-    "core", [dd.estimation.PoseEstimator, dd.estimation.fusion.PythonPoseEstimator]
+    "core", [dd.estimation.PoseEstimator, dd.estimation.fusion._PythonPoseEstimator]
 )
 def test_a_queued_fix_with_a_huge_lever_arm_is_gated_out_and_the_estimator_goes_on(core):
     """The pure-Python core jammed for good: every later reading 'would overflow'."""

@@ -115,7 +115,7 @@ def test_the_c_whole_log_pass_is_its_python_twin(
     log = make_log(steps, seen)
     extra = dict(extra, gate=Gate(0.9, outliers))
     c = run_core(fusion.PoseEstimator, heading, scale, log, smooth, extra)
-    python = run_core(fusion.PythonPoseEstimator, heading, scale, log, smooth, extra)
+    python = run_core(fusion._PythonPoseEstimator, heading, scale, log, smooth, extra)
     if smooth:
         assert c.records is not None
         assert python.records is not None
@@ -205,7 +205,7 @@ def test_the_pipeline_is_the_same_on_both_cores(monkeypatch):
     fixes = truth[::50, :2] + rng.normal(size=(len(times[::50]), 2)) * 0.2
     measurements = measurements_of("position", times[::50], fixes, 0.2)
     results = []
-    for core in (fusion.PoseEstimator, fusion.PythonPoseEstimator):
+    for core in (fusion.PoseEstimator, fusion._PythonPoseEstimator):
         monkeypatch.setattr(whole, "PoseEstimator", core)
         results.append(
             estimate_trajectory(
@@ -265,8 +265,8 @@ def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
     import dataclasses
 
     from diffdrive.backends import _odometry
-    from diffdrive.estimation.estimator_python import EstimatorCore as PythonEstimatorCore
-    from diffdrive.estimation.odometry_python import OdometryCore as PythonOdometryCore
+    from diffdrive.estimation._estimator_python import EstimatorCore as PythonEstimatorCore
+    from diffdrive.estimation._odometry_python import OdometryCore as PythonOdometryCore
 
     estimator = fusion.PoseEstimator(
         ROBOT, EstimatorSettings(wheel_noise=(1e-4, 2e-4)), initial_pose=(1.0, 2.0, 0.3)

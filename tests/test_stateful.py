@@ -18,7 +18,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 import diffdrive as dd
 from diffdrive.calibration import OnlineCalibrator
 from diffdrive.estimation import Encoders, EstimatorSettings, PoseEstimator, Window
-from diffdrive.estimation.fusion import PythonPoseEstimator
+from diffdrive.estimation.fusion import _PythonPoseEstimator
 from diffdrive.estimation.gyro import GyroOdometry
 
 ROBOT = dd.DiffDrive(
@@ -264,7 +264,7 @@ class PoseEstimatorMachine(_PoseEstimatorMachine):
 
 
 class PythonPoseEstimatorMachine(_PoseEstimatorMachine):
-    KIND = PythonPoseEstimator
+    KIND = _PythonPoseEstimator
 
 
 TestOdometryMachine = SETTINGS(OdometryMachine).TestCase

@@ -32,7 +32,14 @@ import numpy as np
 
 from diffdrive._validate import whole
 from diffdrive.model import DiffDrive
-from diffdrive.montecarlo import Moments, MonteCarlo, Plan, checked_result, plan, run_chunks
+from diffdrive.montecarlo import (
+    Experiment,
+    Moments,
+    MonteCarlo,
+    checked_result,
+    experiment,
+    run_chunks,
+)
 
 __all__ = ["map_runs", "monte_carlo"]
 
@@ -48,7 +55,7 @@ def _one_thread() -> None:
         numba.set_num_threads(1)
 
 
-def _task(setup: Plan, first: int, stop: int) -> tuple[np.ndarray, Moments]:
+def _task(setup: Experiment, first: int, stop: int) -> tuple[np.ndarray, Moments]:
     """Chunks ``first:stop`` of a Monte Carlo, reduced on the worker."""
     _one_thread()
     return run_chunks(setup, range(first, stop))
@@ -109,7 +116,7 @@ def monte_carlo(
     each reducing a contiguous run of chunks; ``options`` are that function's (``wheel_noise``,
     ``geometry_sigma``, ``seed``, ``chunk``, ``backend``, ...). Give ``seed`` for results
     that can be repeated."""
-    setup = plan(robot, wheel_velocities, dt, robots, **options)
+    setup = experiment(robot, wheel_velocities, dt, robots, **options)
     if tasks is not None:
         tasks = whole("tasks", tasks, smallest=1)
     with _client(client) as active:

@@ -46,7 +46,15 @@ from diffdrive.model import DiffDrive, geometry_of
 from diffdrive.sensor_noise import NONE as NO_NOISE
 from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike, draw_geometry, draw_travel
 
-__all__ = ["Moments", "MonteCarlo", "Plan", "checked_result", "monte_carlo", "plan", "run_chunks"]
+__all__ = [
+    "Experiment",
+    "Moments",
+    "MonteCarlo",
+    "checked_result",
+    "experiment",
+    "monte_carlo",
+    "run_chunks",
+]
 
 Backend = Literal["auto", "numpy", "numba"]
 BACKENDS: tuple[Backend, ...] = ("auto", "numpy", "numba")
@@ -102,7 +110,7 @@ class MonteCarlo:
 
 
 @dataclass(frozen=True)
-class Plan:
+class Experiment:
     """A checked experiment, shared by every chunk (and sent to every Dask worker); ``seed`` is
     fixed here, drawn from the system when none was given, so that every chunk agrees."""
 
@@ -123,7 +131,7 @@ class Plan:
         return math.ceil(self.robots / self.chunk)
 
 
-def plan(
+def experiment(
     robot,
     wheel_velocities,
     dt,
@@ -136,7 +144,7 @@ def plan(
     seed=None,
     chunk=CHUNK,
     backend="auto",
-) -> Plan:
+) -> Experiment:
     """The experiment of ``monte_carlo``'s arguments, checked."""
     if not isinstance(robot, DiffDrive):
         raise TypeError(f"robot must be a DiffDrive, got {type(robot).__name__}")
@@ -172,7 +180,9 @@ def plan(
             "the wheels' travel (wheel_velocities times dt, summed over the history) overflows "
             "the floats: no pose could be computed"
         )
-    return Plan(robot, travel, start, k, sigma, method, seed, robots, chunk, _backend(backend))
+    return Experiment(
+        robot, travel, start, k, sigma, method, seed, robots, chunk, _backend(backend)
+    )
 
 
 def _seed(seed: object) -> int:
@@ -208,14 +218,14 @@ def _backend(backend: str) -> Literal["numpy", "numba"]:
     return "numba" if backend == "numba" or (backend == "auto" and installed) else "numpy"
 
 
-def _run_chunk(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
+def _run_chunk(setup: Experiment, index: int) -> tuple[np.ndarray, Moments]:
     """Final poses and per-step moments of chunk ``index``'s robots (an overflow gives
     non-finite values, which ``checked_result`` refuses, not warnings)."""
     with np.errstate(over="ignore", invalid="ignore"):
         return _chunk_of(setup, index)
 
 
-def _chunk_of(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
+def _chunk_of(setup: Experiment, index: int) -> tuple[np.ndarray, Moments]:
     # The same stream as child ``index`` of SeedSequence(seed).spawn(...), without the others.
     sequence = np.random.SeedSequence(setup.seed, spawn_key=(index,))
     count = min(setup.chunk, setup.robots - index * setup.chunk)
@@ -259,7 +269,7 @@ def _chunk_of(setup: Plan, index: int) -> tuple[np.ndarray, Moments]:
     return pose, Moments(count, np.concatenate(means), np.concatenate(m2s))
 
 
-def run_chunks(setup: Plan, indices: range, threads: int = 1) -> tuple[np.ndarray, Moments]:
+def run_chunks(setup: Experiment, indices: range, threads: int = 1) -> tuple[np.ndarray, Moments]:
     """Chunks ``indices`` on ``threads`` threads: their final poses, in chunk order, and
     their merged moments."""
     with ThreadPoolExecutor(max_workers=whole("threads", threads, smallest=1)) as pool:
@@ -291,7 +301,7 @@ def monte_carlo(
     """``robots`` noisy copies of ``robot`` driving ``wheel_velocities`` ``(T, 2)`` (rad/s),
     each held for ``dt`` s, from ``initial_pose``; see the module for the errors, the seeding
     and the backends. Returns the final poses and the per-step mean and covariance."""
-    setup = plan(
+    setup = experiment(
         robot,
         wheel_velocities,
         dt,

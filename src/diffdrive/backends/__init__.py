@@ -10,7 +10,7 @@
   ``diffdrive.Odometry`` and ``PoseEstimator``, built from ``settings``' values; their
   pure-Python twins, for installations without a C compiler and as the reference the tests
   hold the C to, sit beside the classes they back in ``diffdrive.estimation``
-  (``odometry_python``, ``estimator_python``), as they are written on its filter's maths.
+  (``_odometry_python``, ``_estimator_python``), as they are written on its filter's maths.
 
 ``tests/test_backends.py`` holds every one of them to one table of cases. The numba modules
 import numba, so nothing imports them until a caller asks for that backend (and ``simulate``'s

@@ -7,8 +7,8 @@
 - ``gyro_track``: ``track_from_gyro``, the track width from a gyro, without a pose reference;
 - ``reference``: ``calibrate_to_reference``, the wheels, a sensor's mount and clock and a
   gyro's terms from ordinary driving against a reference that is not ground truth (a
-  camera's poses, GPS positions), on ``reference_model``'s residuals, with the noise found
-  from the log by ``reference_noise``;
+  camera's poses, GPS positions), on ``_reference_model``'s residuals, with the noise found
+  from the log by ``_reference_noise``;
 - ``noise``: the odometry's noise model fitted to runs against a reference (``identify``,
   ``covariances``), and the gyro's noise from its Allan deviation (``identify_gyro``, from
   ``estimation.standing``).

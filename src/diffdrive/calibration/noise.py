@@ -25,14 +25,14 @@ window the error is small and linear in the terms, whatever happened before, and
 - the reference's part comes from its noise at both ends of the window: shared by neighbours.
 
 So a group's stacked window errors are Gaussian with a covariance linear in ten parameters
-(``noise_fit.PARAMETERS``: the two ``k``, the geometry's six entries, the reference's two
+(``_noise_fit.PARAMETERS``: the two ``k``, the geometry's six entries, the reference's two
 variances), groups independent. Fisher scoring on the likelihood, the geometry kept positive
 semi-definite, gives them and their covariance (the inverse information). A term that the
 runs cannot identify, by itself or apart from the others, is refused by name. A reference of
 stated accuracy (motion capture: ``MOTION_CAPTURE``) is held at it (``fixed``): fitted, its
 terms would take the odometry's own errors.
 
-Held out (``cross_validate``): the whole procedure scored on groups of runs it did not see,
+Held out (``cross_validate_noise``): the whole procedure scored on groups of runs it did not see,
 each group (or each group's whole session) in turn calibrated and identified on the others.
 
 Prediction (``covariances``): the pose covariance along a run that the model implies, as the
@@ -52,7 +52,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from diffdrive._validate import finite, rng_of, whole
-from diffdrive.calibration import noise_fit
+from diffdrive.calibration import _noise_fit
 from diffdrive.calibration.offline import calibrate, checked_runs, run_names
 from diffdrive.estimation.odometry import Odometry
 from diffdrive.estimation.standing import GyroFit, allan_deviation, identify_gyro
@@ -71,7 +71,7 @@ __all__ = [
     "NoiseModel",
     "allan_deviation",
     "covariances",
-    "cross_validate",
+    "cross_validate_noise",
     "draw_reference",
     "identify",
     "identify_gyro",
@@ -91,7 +91,7 @@ TERMS = (
 # The accuracy of a motion-capture reference, (m, rad): 1 mm and 0.1 degree, above a
 # motion-capture room's sub-millimetre (OptiOdom's ground truth has mm-level jitter).
 MOTION_CAPTURE = (0.001, math.radians(0.1))
-# Which term owns each of noise_fit.PARAMETERS (a pair of the geometry is fitted when both of
+# Which term owns each of _noise_fit.PARAMETERS (a pair of the geometry is fitted when both of
 # its terms are), and how a refusal names it.
 _OWNER = (
     ("k_left",),
@@ -125,7 +125,7 @@ class NoiseModel:
     a number ``k`` (m) or a pair is read as one), the ``geometry``'s relative covariance
     ``(3, 3)`` over (left radius, right radius, track) from group to group, the reference's
     ``reference_sigma`` (m) and ``reference_heading_sigma`` (rad); the ``covariance``
-    ``(10, 10)`` of ``noise_fit.PARAMETERS``, the ``runs`` and ``groups`` it came from and the
+    ``(10, 10)`` of ``_noise_fit.PARAMETERS``, the ``runs`` and ``groups`` it came from and the
     ``terms`` fitted. ``NoiseModel.symmetric`` builds one by hand."""
 
     wheel_noise: WheelNoise = NONE
@@ -217,14 +217,14 @@ class NoiseModel:
 
     @property
     def theta(self) -> np.ndarray:
-        """``noise_fit.PARAMETERS``: the two ``k``, the geometry's six entries, the
+        """``_noise_fit.PARAMETERS``: the two ``k``, the geometry's six entries, the
         reference's two variances ``(10,)``."""
         g = self.geometry
         return np.array(
             [
                 self.k_left,
                 self.k_right,
-                *(g[row, column] for row, column in noise_fit.GEOMETRY),
+                *(g[row, column] for row, column in _noise_fit.GEOMETRY),
                 self.reference_sigma**2,
                 self.reference_heading_sigma**2,
             ]
@@ -329,12 +329,12 @@ def identify(
     fitted = _fitted(terms)
     data, at = [], 0
     for group in groups:
-        data.append(noise_fit.group_terms(robot, flat[at : at + len(group)], windows, method))
+        data.append(_noise_fit.group_terms(robot, flat[at : at + len(group)], windows, method))
         at += len(group)
-    theta = noise_fit.start(data, fitted)
+    theta = _noise_fit.start(data, fitted)
     theta = _held(theta, held)
-    theta = noise_fit.fit(data, theta, fitted, iterations)
-    information = noise_fit.fisher(data, theta, fitted)
+    theta = _noise_fit.fit(data, theta, fitted, iterations)
+    information = _noise_fit.fisher(data, theta, fitted)
     _refuse_the_unidentified(information, fitted)
     covariance = np.zeros((10, 10))
     active = np.ix_(fitted, fitted)
@@ -348,7 +348,7 @@ def identify(
         covariance = covariance * np.outer(scale, scale)
     return NoiseModel(
         WheelNoise(float(theta[0]), float(theta[1])),
-        noise_fit.geometry_covariance(theta),
+        _noise_fit.geometry_covariance(theta),
         float(np.sqrt(theta[8])),
         float(np.sqrt(theta[9])),
         covariance,
@@ -514,7 +514,7 @@ def draw_reference(
 
 @dataclass(frozen=True, eq=False)
 class HeldOut:
-    """One group's score in ``cross_validate``: the ``robot`` calibrated and the ``model``
+    """One group's score in ``cross_validate_noise``: the ``robot`` calibrated and the ``model``
     fitted without it (and the ``left_out`` terms its training runs could not identify), the
     groups it was trained on, and the consistency of its predicted covariance on the group's
     runs (``evaluation.Consistency``, all poses but the starts)."""
@@ -526,7 +526,7 @@ class HeldOut:
     consistency: object
 
 
-def cross_validate(
+def cross_validate_noise(
     nominal: DiffDrive,
     groups: dict,
     *,
@@ -543,7 +543,7 @@ def cross_validate(
     ``sessions`` (``{name: session}`` for every group), every group of the held-out group's
     session is held out with it: by session. ``{name: HeldOut}``."""
     if len(groups) < 2:
-        raise ValueError(f"cross_validate needs 2 groups of runs or more, got {len(groups)}")
+        raise ValueError(f"cross_validate_noise needs 2 groups of runs or more, got {len(groups)}")
     if sessions is not None:
         missing = [name for name in groups if name not in sessions]
         if missing:

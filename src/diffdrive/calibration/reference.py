@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from diffdrive._validate import finite, whole
-from diffdrive.calibration.reference_model import (
+from diffdrive.calibration._reference_model import (
     NOISES,
     PARAMETERS,
     RELATIVE,
@@ -58,7 +58,7 @@ from diffdrive.calibration.reference_model import (
     antenna_positions,
     fit,
 )
-from diffdrive.calibration.reference_noise import UNDETERMINED, IdentifiedNoise, identify
+from diffdrive.calibration._reference_noise import UNDETERMINED, IdentifiedNoise, identify
 from diffdrive.estimation.imu import Gyro
 from diffdrive.integrate import Method
 from diffdrive.model import DiffDrive, geometry_of
@@ -272,7 +272,7 @@ def calibrate_to_reference(
     of poses calibrate together: ``times``, ``increments``, ``stamps``, ``reference`` (and
     ``gyro``) as lists, one item a run, the parameters shared. ``identify_noise``: True, or
     some of ``NOISES``, finds the wheels', the gyro's and the reference's noise from the log
-    itself (``reference_noise``), the figures given its start and the others held; the
+    itself (``_reference_noise``), the figures given its start and the others held; the
     result's ``noise``."""
     runs = _runs_of(times, increments, stamps, reference, gyro)
     # Several runs need a stretch each and the readings of one log between them.

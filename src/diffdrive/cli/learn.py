@@ -21,7 +21,7 @@ def run_learn(args: argparse.Namespace) -> int:
         print(f"diffdrive learn: error: {reason}", file=sys.stderr)
         return 1
     if args.export is not None:
-        learn.export(args.export)
+        learn.export_page(args.export)
         print(f"wrote {args.export}: a static snapshot (it loads marimo's scripts from a CDN)")
         return 0
     return learn.serve(args.port, browser=not args.no_browser)

@@ -12,7 +12,7 @@
 - ``follow``: ``follow``, closed-loop simulation of a batch of robots; ``delay_margin``;
 - ``rollouts``: many candidate command sequences through a delay and acceleration limits;
 - ``mppi``: ``MPPI``, a tracker that samples them (model predictive path integral control),
-  with its ``MPPICosts``; ``mppi_arrays`` runs its cycle in an array library;
+  with its ``MPPICosts``; ``_mppi_arrays`` runs its cycle in an array library;
 - ``obstacles``: ``Obstacles``, a clearance field from circles, an occupancy grid or a ROS map
   (``read_map``); ``guide``: a plan made to clear them; ``courses``: ``cluttered_corridor``, a
   random course to test a controller on.

@@ -42,7 +42,7 @@ jitter); its first twist is sent, and shifted one period it warm starts the next
 
 Backends: ``"numba"`` runs the whole cycle (sampling, rollouts, costs, update) as one
 compiled pass over every core (``backends.numba_mppi``); ``"numpy"``, ``"jax"`` and
-``"torch"`` run it in that library (``control.mppi_arrays``), on its device; ``"auto"``:
+``"torch"`` run it in that library (``control._mppi_arrays``), on its device; ``"auto"``:
 numba where it is installed.
 """
 
@@ -57,8 +57,8 @@ import numpy as np
 from diffdrive import batch
 from diffdrive._validate import check_samples, floats, nonnegative, positive, rng_of, whole
 from diffdrive.backends.settings import MPPISettings
+from diffdrive.control._mppi_arrays import ArrayCycle, drive_period
 from diffdrive.control.guide import guide
-from diffdrive.control.mppi_arrays import ArrayCycle, drive_period
 from diffdrive.control.obstacles import Obstacles
 from diffdrive.control.planning import Plan
 from diffdrive.dynamics.drive import DriveModel

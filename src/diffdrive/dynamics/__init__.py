@@ -6,7 +6,7 @@
 - ``response``: ``identify_velocity_response``, a velocity-commanded drive's pure delay,
   first-order time constant, gain and acceleration limit, fitted to a log of commands and
   measured wheel velocities; ``VelocityResponse.predict`` drives the model with commands;
-  ``cross_validate`` scores it on held-out time against the instant kinematic response.
+  ``cross_validate_response`` scores it on held-out time against the instant kinematic response.
 
 - ``voltage``: ``identify_voltage_response``, a voltage-driven wheel's kS, kV and kA (SysId's
   regression) with the measurement's delay found from the data; ``identify_drivetrain``, the
@@ -25,7 +25,7 @@ from diffdrive.dynamics.identify import DriveIdentification, identify_drive
 from diffdrive.dynamics.response import (
     HeldOutResponse,
     VelocityResponse,
-    cross_validate,
+    cross_validate_response,
     identify_velocity_response,
 )
 from diffdrive.dynamics.voltage import (
@@ -44,7 +44,7 @@ __all__ = [
     "HeldOutResponse",
     "VelocityResponse",
     "VoltageResponse",
-    "cross_validate",
+    "cross_validate_response",
     "identify_drive",
     "identify_drivetrain",
     "identify_velocity_response",

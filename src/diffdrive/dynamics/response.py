@@ -35,7 +35,7 @@ from diffdrive.dynamics.lag import decay
 __all__ = [
     "HeldOutResponse",
     "VelocityResponse",
-    "cross_validate",
+    "cross_validate_response",
     "held_commands",
     "identify_velocity_response",
     "simulate_response",
@@ -285,8 +285,8 @@ def _identify(stretches, command_times, commands, max_delay, accelerations) -> V
 
 @dataclass(frozen=True, eq=False)
 class HeldOutResponse:
-    """``cross_validate``'s result. Per fold: the ``responses`` identified without it, and the
-    held-out RMSE (rad/s) of their predictions, ``rmse``, and of the instant kinematic
+    """``cross_validate_response``'s result. Per fold: the ``responses`` identified without it,
+    and the held-out RMSE (rad/s) of their predictions, ``rmse``, and of the instant kinematic
     response (the wheels at their commands at once), ``instant``. Pooled over every scored
     sample: ``pooled`` and ``pooled_instant``. ``predicted`` and ``at_once`` ``(N, W)``: what
     was scored at each sample (NaN where nothing was)."""
@@ -305,7 +305,7 @@ class HeldOutResponse:
         return self.pooled / self.pooled_instant
 
 
-def cross_validate(
+def cross_validate_response(
     times: object,
     measured: object,
     command_times: object,

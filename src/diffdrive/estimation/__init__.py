@@ -38,7 +38,6 @@ _NAMES = {
             "COMPILED",
             "UPDATE_KINDS",
             "Odometry",
-            "PythonOdometry",
             "RefusedUpdateError",
             "odometry_of_run",
         ],
@@ -80,7 +79,6 @@ __all__ = [
     "Odometry",
     "PoseEstimator",
     "Prior",
-    "PythonOdometry",
     "RefusedUpdateError",
     "SlipTest",
     "StandingFit",
@@ -107,7 +105,6 @@ if TYPE_CHECKING:  # what the names are, for type checkers
         COMPILED,
         UPDATE_KINDS,
         Odometry,
-        PythonOdometry,
         RefusedUpdateError,
         odometry_of_run,
     )

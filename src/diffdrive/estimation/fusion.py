@@ -27,7 +27,7 @@ inside the history.
 Cores. The readings, the history and the replay, and ``estimate_trajectory``'s pass over a
 whole log (``_run_log``), are in C (``backends/_estimator.c``, built with Odometry's core)
 where a C compiler was found, else in their pure-Python twin
-(``estimation/estimator_python.py``, also ``PythonPoseEstimator``); ``COMPILED`` says which.
+(``estimation/estimator_python.py``, also ``_PythonPoseEstimator``); ``COMPILED`` says which.
 Both run ``diffdrive.estimation.filter``'s maths, the C one mirroring it; the tests hold the
 two to each other.
 """
@@ -43,7 +43,7 @@ import numpy as np
 
 from diffdrive._validate import finite
 from diffdrive.backends.settings import HEADINGS, CoreSettings
-from diffdrive.estimation import estimator_python
+from diffdrive.estimation import _estimator_python
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.imu import mounting_yaw_row
 from diffdrive.estimation.measurements import Measurement, chi2_quantile
@@ -53,7 +53,7 @@ from diffdrive.model import Robot, check_robot, geometry_of
 from diffdrive.sensor_noise import GyroNoise
 from diffdrive.types import Pose
 
-__all__ = ["COMPILED", "HEADINGS", "OUTLIERS", "GyroNoise", "PoseEstimator", "PythonPoseEstimator"]
+__all__ = ["COMPILED", "HEADINGS", "OUTLIERS", "GyroNoise", "PoseEstimator"]
 
 
 # The C core beside Odometry's when it was built, else its pure-Python twin (as Odometry's);
@@ -63,11 +63,11 @@ try:
         raise ImportError("DIFFDRIVE_PURE_PYTHON=1")
     from diffdrive.backends._odometry import EstimatorCore as _Core
 except ImportError:
-    _Core = estimator_python.EstimatorCore  # type: ignore[assignment, misc]
-COMPILED: bool = _Core is not estimator_python.EstimatorCore
+    _Core = _estimator_python.EstimatorCore  # type: ignore[assignment, misc]
+COMPILED: bool = _Core is not _estimator_python.EstimatorCore
 
 if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
-    _Base = estimator_python.EstimatorCore
+    _Base = _estimator_python.EstimatorCore
 else:
     _Base = object
 
@@ -243,7 +243,7 @@ class PoseEstimator(_EstimatorMethods, _Core):
     __doc__ = _EstimatorMethods.__doc__
 
 
-class PythonPoseEstimator(_EstimatorMethods, estimator_python.EstimatorCore):
+class _PythonPoseEstimator(_EstimatorMethods, _estimator_python.EstimatorCore):
     """``PoseEstimator`` on the pure-Python core, whether or not the C core was built: the
     same results, slower: the reference the tests hold the C core to."""
 

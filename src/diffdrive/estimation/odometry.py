@@ -51,13 +51,12 @@ __all__ = [
     "COMPILED",
     "UPDATE_KINDS",
     "Odometry",
-    "PythonOdometry",  # noqa: F822 (made on first use, by __getattr__)
     "RefusedUpdateError",
     "odometry_of_run",
 ]
 
 # The C core when it was built (pip builds it where a C compiler is found), else its
-# pure-Python twin (imported only then, or for PythonOdometry); DIFFDRIVE_PURE_PYTHON=1 asks
+# pure-Python twin (imported only then, or for _PythonOdometry); DIFFDRIVE_PURE_PYTHON=1 asks
 # for the twin anyway.
 try:
     if os.environ.get("DIFFDRIVE_PURE_PYTHON") == "1":
@@ -66,7 +65,7 @@ try:
 
     COMPILED: bool = True
 except ImportError:
-    from diffdrive.estimation.odometry_python import OdometryCore as _Core  # type: ignore[assignment]
+    from diffdrive.estimation._odometry_python import OdometryCore as _Core  # type: ignore[assignment]
 
     COMPILED = False
 
@@ -92,7 +91,7 @@ UPDATE_OF_RUN: dict[str, UpdateKind] = {
 
 
 if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
-    from diffdrive.estimation.odometry_python import OdometryCore as _Base
+    from diffdrive.estimation._odometry_python import OdometryCore as _Base
 else:
     _Base = object
 
@@ -343,15 +342,15 @@ class Odometry(_OdometryMethods, _Core):
 
 
 def __getattr__(name: str) -> type:
-    """``PythonOdometry``, made when first reached: the twin's module loads only then."""
-    if name != "PythonOdometry":
+    """``_PythonOdometry``, made when first reached: the twin's module loads only then."""
+    if name != "_PythonOdometry":
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    from diffdrive.estimation.odometry_python import OdometryCore as PythonCore
+    from diffdrive.estimation._odometry_python import OdometryCore as PythonCore
 
-    class PythonOdometry(_OdometryMethods, PythonCore):
+    class _PythonOdometry(_OdometryMethods, PythonCore):
         """``Odometry`` on the pure-Python core, whether or not the C core was built: the
         same results, slower (for tests, and where a C compiler never ran)."""
 
-    PythonOdometry.__module__, PythonOdometry.__qualname__ = __name__, "PythonOdometry"
-    globals()["PythonOdometry"] = PythonOdometry
-    return PythonOdometry
+    _PythonOdometry.__module__, _PythonOdometry.__qualname__ = __name__, "_PythonOdometry"
+    globals()["_PythonOdometry"] = _PythonOdometry
+    return _PythonOdometry

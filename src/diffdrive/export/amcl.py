@@ -45,11 +45,11 @@ import numpy as np
 from diffdrive import batch
 from diffdrive._stats import nonnegative_least_squares
 
-__all__ = ["AlphaFit", "Motion", "match_alphas", "reference_motions", "sampler_terms"]
+__all__ = ["AlphaFit", "ReferenceMotion", "match_alphas", "reference_motions", "sampler_terms"]
 
 
 @dataclass(frozen=True, eq=False)
-class Motion:
+class ReferenceMotion:
     """A reference motion: its ``name``, the wheel-angle ``increments`` ``(S, 2)`` rad that
     drive it (for the noise model), the odometry ``poses`` ``(K, 3)`` at each scan, and
     whether it turns in place (``spin``: its x and y are matched as their sum)."""
@@ -137,7 +137,7 @@ def sampler_terms(poses: np.ndarray) -> np.ndarray:
     return terms
 
 
-def reference_motions(robot, at) -> list[Motion]:
+def reference_motions(robot, at) -> list[ReferenceMotion]:
     """The three motions the alphas are matched on, at ``at``'s speed, turn rate and scan
     rate (see the module): each driven by its wheels' increments in 100 even steps, and its
     odometry at every scan and at its end. ``robot``: the (equivalent) differential drive."""
@@ -159,7 +159,7 @@ def reference_motions(robot, at) -> list[Motion]:
         increments = np.tile([left / 100, right / 100], (100, 1))
         scans = np.unique(np.append(np.arange(0.0, duration, 1.0 / at.scan_rate), duration))
         poses = batch.exp(np.tile(twist, (len(scans), 1)), scans)
-        made.append(Motion(name, increments, poses, spin=v == 0.0))
+        made.append(ReferenceMotion(name, increments, poses, spin=v == 0.0))
     return made
 
 
@@ -186,7 +186,7 @@ def _minimax(rows: np.ndarray, rounds: int = 100) -> np.ndarray:
     return found
 
 
-def match_alphas(motions: list[Motion], model_covariances: np.ndarray, at) -> AlphaFit:
+def match_alphas(motions: list[ReferenceMotion], model_covariances: np.ndarray, at) -> AlphaFit:
     """The alphas whose sampler covariance (``sampler_terms`` at the update points of each
     motion) best matches ``model_covariances`` ``(3, 3, 3)`` (the noise model's after each
     motion), term by term relative to its own size: the least largest miss."""

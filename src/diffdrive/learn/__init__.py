@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["PAGE", "export", "missing_extra", "serve", "serve_command"]
+__all__ = ["PAGE", "export_page", "missing_extra", "serve", "serve_command"]
 
 PAGE = Path(__file__).with_name("page.py")
 
@@ -79,7 +79,7 @@ def serve(port: int | None = None, browser: bool = True) -> int:
             return 0
 
 
-def export(path: Path) -> None:
+def export_page(path: Path) -> None:
     """Write the page, run once with its default values, as one static HTML file.
 
     The file is a snapshot for a course website: its controls do not recompute, and when

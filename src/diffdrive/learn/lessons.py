@@ -34,10 +34,10 @@ __all__ = [
     "check_answer",
     "fmt",
     "fmt_id",
-    "forward",
-    "integration",
-    "inverse",
-    "modern_robotics",
+    "forward_lesson",
+    "integration_lesson",
+    "inverse_lesson",
+    "modern_robotics_lesson",
 ]
 
 # The half-track symbols of the notes, with the seeds that use each.
@@ -149,7 +149,9 @@ def _turning_words(twist: Twist) -> str:
     return f"The robot turns {side}."
 
 
-def forward(wheel_radius: float, track_width: float, left: float, right: float) -> ForwardLesson:
+def forward_lesson(
+    wheel_radius: float, track_width: float, left: float, right: float
+) -> ForwardLesson:
     """Section 1: radius ``r`` (m), full ``track_width`` (m), wheel speeds (rad/s)."""
     robot = DiffDrive(wheel_radius, track_width)
     wheels = WheelVelocities(left, right)
@@ -226,7 +228,7 @@ def _kept_words(asked: Twist, got: Twist, keep: Keep) -> str:
     return text + f". Keeping {keep} instead bends the path: the robot leaves the asked circle."
 
 
-def inverse(
+def inverse_lesson(
     wheel_radius: float,
     track_width: float,
     v: float,
@@ -317,7 +319,7 @@ class ModernRoboticsLesson:
         )
 
 
-def modern_robotics(
+def modern_robotics_lesson(
     wheel_radius: float, track_width: float, axle_offset: float, left: float, right: float
 ) -> ModernRoboticsLesson:
     """Section 3: the reference point ``axle_offset`` m ahead of the axle."""
@@ -404,7 +406,7 @@ def _end_error(robot: DiffDrive, twist: Twist, duration: float, n: int, method: 
     return math.hypot(last[0] - end.x, last[1] - end.y)
 
 
-def integration(
+def integration_lesson(
     wheel_radius: float,
     track_width: float,
     left: float,

@@ -72,7 +72,7 @@ def _(mo):
 
 @app.cell
 def _(drawings, left, lessons, mo, radius, right, track):
-    forward = lessons.forward(radius.value, track.value, left.value, right.value)
+    forward = lessons.forward_lesson(radius.value, track.value, left.value, right.value)
     mo.hstack(
         [mo.md(forward.markdown()), drawings.forward_picture(forward)], widths=[1, 1], align="start"
     )
@@ -106,7 +106,7 @@ def _(mo):
 
 @app.cell
 def _(drawings, keep, lessons, limit, mo, radius, speed, track, turn):
-    inverse = lessons.inverse(
+    inverse = lessons.inverse_lesson(
         radius.value, track.value, speed.value, turn.value, limit.value, keep.value
     )
     mo.vstack([mo.md(inverse.markdown()), drawings.inverse_picture(inverse)])
@@ -137,7 +137,7 @@ def _(mo):
 
 @app.cell
 def _(drawings, left, lessons, mo, offset, radius, right, track):
-    modern = lessons.modern_robotics(
+    modern = lessons.modern_robotics_lesson(
         radius.value, track.value, offset.value, left.value, right.value
     )
     mo.hstack(
@@ -172,7 +172,7 @@ def _(mo):
 
 @app.cell
 def _(drawings, duration, left, lessons, mo, radius, right, step, track):
-    integration = lessons.integration(
+    integration = lessons.integration_lesson(
         radius.value, track.value, left.value, right.value, duration.value, step.value
     )
     mo.vstack([mo.md(integration.markdown()), drawings.integration_picture(integration)])

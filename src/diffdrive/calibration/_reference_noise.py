@@ -1,7 +1,7 @@
 """The noise of a calibration against a reference, identified from its own log: the wheels'
 random-walk constant, the gyro's angle random walk and the reference's position and heading
 noise, each a term of the residuals' covariance that is linear in its variance
-(``reference_model.components``).
+(``_reference_model.components``).
 
 Restricted maximum likelihood (REML, Patterson and Thompson 1971) over the terms' scale
 factors, by Fisher scoring: the likelihood of the residuals once the calibrated parameters are
@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from diffdrive.calibration.reference_model import NOISES, Fit, Log, Part, Runs, fit
+from diffdrive.calibration._reference_model import NOISES, Fit, Log, Part, Runs, fit
 from diffdrive.sensor_noise import WheelNoise
 
 UNDETERMINED = 0.5  # a variance's relative standard error past which the log does not set it
