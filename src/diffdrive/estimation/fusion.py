@@ -73,15 +73,7 @@ else:
 
 
 class _EstimatorMethods(_Base):
-    """Wheels, gyro and absolute measurements in one extended Kalman filter (see the module).
-
-    ``robot``: any model (its equivalent drive runs the filter; poses and covariances are
-    the body origin's). ``settings``: an ``EstimatorSettings`` (the heading's source, the
-    sensors' noise, the estimated states and their priors, the gate, the slip test, the
-    window, the integration, the mounting and the encoders; default ``EstimatorSettings()``).
-    ``initial_pose`` and ``initial_covariance`` (3x3): the start; ``initial_time`` (s) its
-    time, else the first ticks or positions reading's.
-    """
+    """PoseEstimator's methods, on whichever core it has (see ``PoseEstimator``)."""
 
     def __init__(
         self,
@@ -240,7 +232,15 @@ class _EstimatorMethods(_Base):
 
 
 class PoseEstimator(_EstimatorMethods, _Core):
-    __doc__ = _EstimatorMethods.__doc__
+    """Wheels, gyro and absolute measurements in one extended Kalman filter (see the module).
+
+    ``robot``: any model (its equivalent drive runs the filter; poses and covariances are
+    the body origin's). ``settings``: an ``EstimatorSettings`` (the heading's source, the
+    sensors' noise, the estimated states and their priors, the gate, the slip test, the
+    window, the integration, the mounting and the encoders; default ``EstimatorSettings()``).
+    ``initial_pose`` and ``initial_covariance`` (3x3): the start; ``initial_time`` (s) its
+    time, else the first ticks or positions reading's.
+    """
 
 
 class _PythonPoseEstimator(_EstimatorMethods, _estimator_python.EstimatorCore):

@@ -97,17 +97,7 @@ else:
 
 
 class _OdometryMethods(_Base):
-    """Dead reckoning from wheel encoders, one update at a time.
-
-    ``robot`` gives the geometry; ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"``;
-    ``initial_pose`` is where it starts (default the origin). ``ticks_per_revolution`` (counts
-    per wheel revolution) is needed for ``update_ticks``; ``counter_bits`` (2 to 64) is the
-    width of the encoder counters, None for counters that never roll over.
-    ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``wheel_noise`` is the covariance
-    model's (a ``WheelNoise``, a number ``k`` (m) for both wheels or a pair; None, the
-    default: ``diffdrive.sensor_noise.DEFAULT``); ``initial_covariance`` is 3x3 (default zero);
-    ``velocity_window`` (s) is the span over which ``twist`` averages.
-    """
+    """Odometry's methods, on whichever core it has (see ``Odometry``)."""
 
     def __init__(
         self,
@@ -338,7 +328,17 @@ def odometry_of_run(
 
 
 class Odometry(_OdometryMethods, _Core):
-    __doc__ = _OdometryMethods.__doc__
+    """Dead reckoning from wheel encoders, one update at a time.
+
+    ``robot`` gives the geometry; ``method`` is ``"euler"``, ``"rk2"`` or ``"exact"``;
+    ``initial_pose`` is where it starts (default the origin). ``ticks_per_revolution`` (counts
+    per wheel revolution) is needed for ``update_ticks``; ``counter_bits`` (2 to 64) is the
+    width of the encoder counters, None for counters that never roll over.
+    ``max_wheel_speed`` (rad/s, default none) refuses jumps; ``wheel_noise`` is the covariance
+    model's (a ``WheelNoise``, a number ``k`` (m) for both wheels or a pair; None, the
+    default: ``diffdrive.sensor_noise.DEFAULT``); ``initial_covariance`` is 3x3 (default zero);
+    ``velocity_window`` (s) is the span over which ``twist`` averages.
+    """
 
 
 def __getattr__(name: str) -> type:
