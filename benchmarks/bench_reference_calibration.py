@@ -84,18 +84,18 @@ GPS_TARGETS = {
 }
 
 
-def _calibrate(robot, data, gps: bool, **options):
+def _calibrate(robot, data, gps: bool, settings: reference.ReferenceSettings | None = None):
     if gps:
         times, increments, gyro, stamps, positions = data
         return reference.calibrate_to_reference(
             robot, times, increments, stamps, positions, sigma=scenario.GPS_SIGMA, gyro=gyro,
             gyro_noise=GyroNoise(angle_random_walk=scenario.GYRO_ARW), wheel_noise=scenario.K,
-            **options,
+            settings=settings,
         )  # fmt: skip
     times, increments, stamps, poses = data
     return reference.calibrate_to_reference(
         robot, times, increments, stamps, poses, sigma=scenario.CAMERA, wheel_noise=scenario.K,
-        **options,
+        settings=settings,
     )  # fmt: skip
 
 
@@ -108,7 +108,8 @@ def one_seed(seed: int, gps: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     at_truth = {name: value for name, value in truth.items() if name not in GEOMETRY}
     if gps:
         at_truth["heading"] = found.value("heading")
-    bound = _calibrate(scenario.TRUE, data, gps, initial=at_truth, iterations=1)
+    at_truth_once = reference.ReferenceSettings(initial=at_truth, iterations=1)
+    bound = _calibrate(scenario.TRUE, data, gps, at_truth_once)
     names = list(truth)
     size = np.array([truth[n] if n in GEOMETRY else 1.0 for n in names])
     errors = np.array([found.value(n) - truth[n] for n in names]) / size
@@ -152,14 +153,14 @@ NOISE_TRUTH = {
 }
 
 
-def _identified(data, **options):
+def _identified(data):
     """The camera-and-gyro calibration with every noise figure found from the log, started
     from figures off by 2-10 times."""
     times, increments, stamps, poses, gyro = data
     return reference.calibrate_to_reference(
         scenario.NOMINAL, times, increments, stamps, poses, sigma=(0.04, 0.04, 0.035),
         wheel_noise=1e-4, gyro=gyro, gyro_noise=GyroNoise(angle_random_walk=1e-2),
-        identify_noise=True, **options,
+        settings=reference.ReferenceSettings(identify_noise=True),
     )  # fmt: skip
 
 

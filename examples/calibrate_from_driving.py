@@ -21,7 +21,12 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.calibration.reference import UndeterminedError, calibrate_to_reference, estimable
+from diffdrive.calibration.reference import (
+    ReferenceSettings,
+    UndeterminedError,
+    calibrate_to_reference,
+    estimable,
+)
 from diffdrive.estimation import EstimatorSettings, Gyro, estimate_trajectory
 from diffdrive.estimation.standing import warm_up
 from diffdrive.sensor_noise import DEFAULT
@@ -47,9 +52,8 @@ def calibrated(data: dict):
     estimate, left_out = estimable(poses=False, gyro=True), []
     while True:
         try:
-            found = calibrate_to_reference(
-                *args, **common, **start, estimate=estimate, identify_noise=NOISE
-            )
+            settings = ReferenceSettings(estimate=estimate, identify_noise=NOISE)
+            found = calibrate_to_reference(*args, **common, **start, settings=settings)
             return found, standing, left_out
         except UndeterminedError as refused:
             left_out.append(f"left out {', '.join(refused.parameters)}: {refused}")

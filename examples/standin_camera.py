@@ -30,7 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.calibration import CalibrationError, calibrate, calibrate_to_reference
+from diffdrive.calibration import (
+    CalibrationError,
+    ReferenceSettings,
+    calibrate,
+    calibrate_to_reference,
+)
 from diffdrive.evaluation import run_errors
 from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
 from diffdrive.simulation import dead_reckon
@@ -70,7 +75,7 @@ def standin(runs: list, rng: np.random.Generator):
         [stamps for stamps, _ in seen],
         [poses for _, poses in seen],
         sigma=tuple(2 * np.array(CAMERA)),
-        identify_noise=True,
+        settings=ReferenceSettings(identify_noise=True),
     )
 
 

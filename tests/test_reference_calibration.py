@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import reference_drive as scenario
 from diffdrive import batch, sensors
-from diffdrive.calibration import calibrate_to_reference
+from diffdrive.calibration import ReferenceSettings, calibrate_to_reference
 from diffdrive.calibration.reference import UndeterminedError
 from diffdrive.sensor_noise import GyroNoise
 
@@ -118,7 +118,7 @@ def test_the_noise_is_identified_from_the_log_from_figures_far_off():
     found = calibrate_to_reference(
         scenario.NOMINAL, times, increments, stamps, poses, sigma=(0.04, 0.04, 0.035),
         wheel_noise=1e-4, gyro=rates, gyro_noise=GyroNoise(angle_random_walk=1e-2),
-        identify_noise=True,
+        settings=ReferenceSettings(identify_noise=True),
     )  # fmt: skip
     assert found.noise is not None
     truth = {
@@ -156,7 +156,11 @@ def test_a_log_the_identified_noise_does_not_describe_is_flagged(camera_drive, m
         return logs, replace(result, chi2=reference.MISFIT + 0.5), noise
 
     times, increments, stamps, poses = camera_drive
-    options = dict(sigma=scenario.CAMERA, wheel_noise=scenario.K, identify_noise=("reference",))
+    options = dict(
+        sigma=scenario.CAMERA,
+        wheel_noise=scenario.K,
+        settings=ReferenceSettings(identify_noise=("reference",)),
+    )
     fits = calibrate_to_reference(scenario.NOMINAL, times, increments, stamps, poses, **options)
     assert not any("do not describe" in line for line in fits.report)
     monkeypatch.setattr(reference, "identify", misfit)
@@ -173,7 +177,8 @@ def test_gps_noise_is_identified_and_a_term_the_drive_cannot_split_is_named():
     times, increments, gyro, stamps, positions = scenario.gps_drive(2)
     found = calibrate_to_reference(
         scenario.NOMINAL, times, increments, stamps, positions, sigma=1.0, gyro=gyro,
-        gyro_noise=GyroNoise(angle_random_walk=1e-2), wheel_noise=1e-4, identify_noise=True,
+        gyro_noise=GyroNoise(angle_random_walk=1e-2), wheel_noise=1e-4,
+        settings=ReferenceSettings(identify_noise=True),
     )  # fmt: skip
     assert found.noise is not None
     noise, spread = found.noise.values, found.noise.standard_errors
@@ -187,7 +192,7 @@ def test_gps_noise_is_identified_and_a_term_the_drive_cannot_split_is_named():
     held = calibrate_to_reference(
         scenario.NOMINAL, times, increments, stamps, positions, sigma=1.0, gyro=gyro,
         gyro_noise=GyroNoise(angle_random_walk=scenario.GYRO_ARW), wheel_noise=1e-4,
-        identify_noise=("wheels", "reference"),
+        settings=ReferenceSettings(identify_noise=("wheels", "reference")),
     )  # fmt: skip
     assert held.noise is not None
     assert set(held.noise.values) == {"wheels", "reference"}
@@ -208,15 +213,18 @@ def test_a_drive_that_never_turns_is_refused_naming_what_it_cannot_show():
     with pytest.raises(ValueError, match=r"does not determine left_radius") as caught:
         calibrate_to_reference(
             scenario.NOMINAL, times, increments, stamps, poses, sigma=scenario.CAMERA,
-            wheel_noise=scenario.K, estimate=("left_radius", "right_radius", "track"),
-            initial=held,
+            wheel_noise=scenario.K,
+            settings=ReferenceSettings(("left_radius", "right_radius", "track"), held),
         )  # fmt: skip
     assert re.search(r"sees least is of left_radius, right_radius.*and turn", str(caught.value))
     found = calibrate_to_reference(
         scenario.NOMINAL, times, increments, stamps, poses, sigma=scenario.CAMERA,
-        wheel_noise=scenario.K, estimate=("left_radius", "right_radius", "lever_y", "offset"),
-        initial={"track": scenario.TRUE.track_width, "lever_x": scenario.MOUNT[0],
-                 "yaw": scenario.MOUNT[2]},
+        wheel_noise=scenario.K,
+        settings=ReferenceSettings(
+            ("left_radius", "right_radius", "lever_y", "offset"),
+            {"track": scenario.TRUE.track_width, "lever_x": scenario.MOUNT[0],
+             "yaw": scenario.MOUNT[2]},
+        ),
     )  # fmt: skip
     assert found.estimated == ("left_radius", "right_radius", "lever_y", "offset")
 
@@ -270,8 +278,13 @@ def test_settings_that_do_not_fit_the_reference_are_refused(
     if options.get("gyro") == "a gyro":
         options = {**options, "gyro": scenario.camera_and_gyro(3, seconds=30.0)[4]}
     reference = poses[:, :2] if positions else poses
-    with pytest.raises(ValueError, match=message):
-        calibrate_to_reference(scenario.NOMINAL, times, increments, stamps, reference, **options)
+    names = ("estimate", "initial", "identify_noise")
+    fit = {name: options.pop(name) for name in names if name in options}
+    with pytest.raises(ValueError, match=message):  # from the settings, or the calibration
+        calibrate_to_reference(
+            scenario.NOMINAL, times, increments, stamps, reference,
+            settings=ReferenceSettings(**fit), **options,
+        )  # fmt: skip
 
 
 def test_an_absolute_sensor_measures_its_own_pose_on_its_own_clock():

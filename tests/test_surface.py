@@ -78,3 +78,15 @@ def test_the_twins_and_the_fits_internals_are_private():
     for module in public_modules():
         exported = getattr(module, "__all__", ())
         assert not [name for name in exported if name.startswith(("Python", "_"))], module
+
+
+def test_the_entry_points_take_at_most_ten_parameters_and_no_unchecked_keywords():
+    """Where a face needs more, its settings go into a value (``EstimatorSettings``,
+    ``ReferenceSettings``)."""
+    from diffdrive.calibration import calibrate_to_reference
+    from diffdrive.estimation import PoseEstimator, estimate_trajectory, gyro_odometry
+
+    for face in (calibrate_to_reference, PoseEstimator, estimate_trajectory, gyro_odometry):
+        parameters = inspect.signature(face).parameters.values()
+        assert len(parameters) <= 10, face
+        assert not any(p.kind is p.VAR_KEYWORD for p in parameters), face

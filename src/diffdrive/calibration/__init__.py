@@ -34,7 +34,13 @@ from diffdrive.calibration.offline import (
     run_names,
 )
 from diffdrive.calibration.online import OnlineCalibrator
-from diffdrive.calibration.reference import ReferenceCalibration, calibrate_to_reference
+from diffdrive.calibration.reference import (
+    ReferenceCalibration,
+    ReferenceSettings,
+    UndeterminedError,
+    calibrate_to_reference,
+    estimable,
+)
 
 __all__ = [
     "CALIBRATION_METHODS",
@@ -52,11 +58,14 @@ __all__ = [
     "MethodOptions",
     "OnlineCalibrator",
     "ReferenceCalibration",
+    "ReferenceSettings",
     "UMBmark",
+    "UndeterminedError",
     "calibrate",
     "calibrate_to_reference",
     "checked_runs",
     "cross_validate",
+    "estimable",
     "noise",
     "run_names",
     "track_from_gyro",

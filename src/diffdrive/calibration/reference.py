@@ -60,7 +60,7 @@ from diffdrive.calibration._reference_model import (
 )
 from diffdrive.calibration._reference_noise import UNDETERMINED, IdentifiedNoise, identify
 from diffdrive.estimation.imu import Gyro
-from diffdrive.integrate import Method
+from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive, geometry_of
 from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
 
@@ -70,6 +70,7 @@ __all__ = [
     "PARAMETERS",
     "UNITS",
     "ReferenceCalibration",
+    "ReferenceSettings",
     "UndeterminedError",
     "calibrate_to_reference",
     "estimable",
@@ -243,6 +244,44 @@ def estimable(poses: bool, gyro: bool) -> tuple[str, ...]:
     return tuple(names)
 
 
+@dataclass(frozen=True)
+class ReferenceSettings:
+    """How ``calibrate_to_reference`` fits: the parameters it ``estimate``s (names of
+    ``PARAMETERS``; None, the default: all the reference can show, see the module), the
+    ``initial`` values of the others (the robot's geometry, 0 elsewhere, by default), the
+    odometry's integration ``method``, at most ``iterations`` Gauss-Newton steps, and
+    ``identify_noise``: True, or some of ``NOISES``, finds the wheels', the gyro's and the
+    reference's noise from the log itself (``_reference_noise``), the figures given its start
+    and the others held (False, the default: as given)."""
+
+    estimate: tuple[str, ...] | None = None
+    initial: dict[str, float] | None = None
+    method: Method = "exact"
+    iterations: int = 30
+    identify_noise: bool | tuple[str, ...] = False
+
+    def __post_init__(self) -> None:
+        if self.estimate is not None:
+            if isinstance(self.estimate, str) or not all(
+                isinstance(name, str) for name in self.estimate
+            ):
+                raise TypeError(
+                    f"ReferenceSettings.estimate must be names of PARAMETERS, got {self.estimate!r}"
+                )
+            object.__setattr__(self, "estimate", tuple(self.estimate))
+        for name, value in (self.initial or {}).items():
+            if name not in PARAMETERS:
+                raise ValueError(
+                    f"ReferenceSettings.initial names {name!r}, not one of {', '.join(PARAMETERS)}"
+                )
+            finite(f"ReferenceSettings.initial {name}", value)
+        check_method(self.method)
+        object.__setattr__(
+            self, "iterations", whole("ReferenceSettings.iterations", self.iterations, 1)
+        )
+        _noise_terms(self.identify_noise)
+
+
 def calibrate_to_reference(
     robot: DiffDrive,
     times: object,
@@ -254,26 +293,25 @@ def calibrate_to_reference(
     gyro: Gyro | list[Gyro] | None = None,
     gyro_noise: GyroNoise | None = None,
     wheel_noise: object = DEFAULT,
-    estimate: tuple[str, ...] | None = None,
-    initial: dict[str, float] | None = None,
-    method: Method = "exact",
-    iterations: int = 30,
-    identify_noise: bool | tuple[str, ...] = False,
+    settings: ReferenceSettings | None = None,
 ) -> ReferenceCalibration:
     """``robot`` calibrated against a reference: wheel-angle ``increments`` ``(T, 2)`` rad over
     ``times`` ``(T+1,)`` s; the reference's readings stamped ``stamps`` ``(K,)`` s on its own
     clock, poses ``(K, 3)`` (its sensor's ``x, y, theta``) with noise ``sigma`` (m, m, rad),
     or positions ``(K, 2)`` (or headings NaN) with noise ``sigma`` (m); a ``gyro`` (on its own
-    clock) with ``gyro_noise``'s angle random walk. ``estimate`` names the parameters fitted
-    (default: all the reference can show, see the module); the others stay at ``initial``
-    (the robot's geometry, 0 elsewhere). ``ValueError`` for a log no fit can use, and
-    ``UndeterminedError`` (a ``ValueError``) for parameters the drive did not determine, naming
-    them and the drive that would. Several runs
-    of poses calibrate together: ``times``, ``increments``, ``stamps``, ``reference`` (and
-    ``gyro``) as lists, one item a run, the parameters shared. ``identify_noise``: True, or
-    some of ``NOISES``, finds the wheels', the gyro's and the reference's noise from the log
-    itself (``_reference_noise``), the figures given its start and the others held; the
-    result's ``noise``."""
+    clock) with ``gyro_noise``'s angle random walk; the wheels' ``wheel_noise``. ``settings``:
+    what is fitted and how (``ReferenceSettings``; by default every parameter the reference can
+    show, from the robot's geometry, the noise as given). ``ValueError`` for a log no fit can
+    use, and ``UndeterminedError`` (a ``ValueError``) for parameters the drive did not
+    determine, naming them and the drive that would. Several runs of poses calibrate together:
+    ``times``, ``increments``, ``stamps``, ``reference`` (and ``gyro``) as lists, one item a
+    run, the parameters shared. With ``settings.identify_noise``, the result's ``noise``."""
+    if settings is None:
+        settings = ReferenceSettings()
+    elif not isinstance(settings, ReferenceSettings):
+        raise TypeError(f"settings must be a ReferenceSettings, got {type(settings).__name__}")
+    estimate, initial, method = settings.estimate, settings.initial, settings.method
+    iterations, identify_noise = settings.iterations, settings.identify_noise
     runs = _runs_of(times, increments, stamps, reference, gyro)
     # Several runs need a stretch each and the readings of one log between them.
     least = LEAST_READINGS if len(runs) == 1 else 2
@@ -315,13 +353,10 @@ def calibrate_to_reference(
     values = np.zeros(len(PARAMETERS))
     values[:3] = geometry_of(robot)[:3]
     for name, value in (initial or {}).items():
-        if name not in PARAMETERS:
-            raise ValueError(f"initial names {name!r}, not one of {', '.join(PARAMETERS)}")
-        values[PARAMETERS.index(name)] = finite(f"initial {name}", value)
+        values[PARAMETERS.index(name)] = float(value)
     if not poses and "heading" not in (initial or {}):
         values[PARAMETERS.index("heading")] = _heading_of(logs[0], values)
     fitted = np.array([name in estimate for name in PARAMETERS])
-    iterations = whole("iterations", iterations, 1)
     noise = None
     terms = _noise_terms(identify_noise)
     if terms:

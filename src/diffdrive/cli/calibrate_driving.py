@@ -17,6 +17,7 @@ import numpy as np
 
 from diffdrive.calibration.reference import (
     PARAMETERS,
+    ReferenceSettings,
     UndeterminedError,
     calibrate_to_reference,
     estimable,
@@ -126,8 +127,7 @@ def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> 
             gyro=gyro,
             gyro_noise=gyro_noise,
             wheel_noise=wheels,
-            estimate=estimate,
-            identify_noise=unknown,
+            settings=ReferenceSettings(estimate=estimate, identify_noise=unknown),
         )
     except UndeterminedError as refused:
         raise UndeterminedError(
