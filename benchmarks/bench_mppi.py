@@ -41,6 +41,7 @@ import diffdrive as dd
 from bench_planning import random_waypoints  # benchmarks/bench_planning.py
 from diffdrive.control import (
     MPPI,
+    FollowSettings,
     LTVUnicycle,
     PathLimits,
     Predictive,
@@ -125,7 +126,8 @@ def corridor_run(seed: int, kind: str) -> dict[str, object]:
         tracker = MPPI(drive=DRIVE, obstacles=course.obstacles, footprint=FOOTPRINT, seed=seed,
                        around=kind == "MPPI")  # fmt: skip
         reference = straight
-    result = follow(reference, tracker, dt=DT, drive=DRIVE, settle=0.5 * straight.duration)
+    settle = FollowSettings(settle=0.5 * straight.duration)
+    result = follow(reference, tracker, dt=DT, drive=DRIVE, settings=settle)
     poses = result.poses[0]
     reached = np.flatnonzero(np.hypot(*(poses[:, :2] - course.goal[:2]).T) < 0.1)
     ratio = (

@@ -19,7 +19,15 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.control import LTVUnicycle, PathLimits, Predictive, follow, limit_ratios, plan
+from diffdrive.control import (
+    FollowSettings,
+    LTVUnicycle,
+    PathLimits,
+    Predictive,
+    follow,
+    limit_ratios,
+    plan,
+)
 from diffdrive.dynamics import Feedforward
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
@@ -39,7 +47,11 @@ def run():
     planned = plan(WAYPOINTS, ROBOT, LIMITS)
     tracker = Predictive(LTVUnicycle(), delay=DELAY, dt=0.02, lag=LAG)
     followed = follow(
-        planned, tracker, delay=DELAY, lag=LAG, wheel_noise=(NOISE, NOISE), robots=ROBOTS, seed=1
+        planned,
+        tracker,
+        delay=DELAY,
+        lag=LAG,
+        settings=FollowSettings(robots=ROBOTS, wheel_noise=(NOISE, NOISE), seed=1),
     )
     return planned, followed
 

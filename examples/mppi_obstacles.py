@@ -19,7 +19,15 @@ from pathlib import Path
 import numpy as np
 
 import diffdrive as dd
-from diffdrive.control import MPPI, PathLimits, cluttered_corridor, follow, guide, plan
+from diffdrive.control import (
+    MPPI,
+    FollowSettings,
+    PathLimits,
+    cluttered_corridor,
+    follow,
+    guide,
+    plan,
+)
 from diffdrive.dynamics import DriveModel
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
@@ -50,7 +58,8 @@ def run(seed: int):
     straight = plan([course.start, course.goal], ROBOT, LIMITS)
     tracker = MPPI(drive=DRIVE, obstacles=course.obstacles, footprint=FOOTPRINT, seed=seed)
     recording = Recording(tracker)
-    result = follow(straight, recording, dt=DT, drive=DRIVE, settle=0.5 * straight.duration)
+    settle = FollowSettings(settle=0.5 * straight.duration)
+    result = follow(straight, recording, dt=DT, drive=DRIVE, settings=settle)
     return course, straight, guide(straight, course.obstacles, FOOTPRINT), result, recording
 
 

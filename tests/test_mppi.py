@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 import diffdrive as dd
 from diffdrive.control import (
     MPPI,
+    FollowSettings,
     MPPICosts,
     Obstacles,
     PathLimits,
@@ -214,7 +215,9 @@ def test_it_goes_around_the_clutter_of_a_corridor_without_touching(seed):
     assert course.touches(path.poses, FOOTPRINT).any()  # the plan alone would collide
     drive = DriveModel(delay=0.1, time_constant=0.1)
     tracker = MPPI(drive=drive, obstacles=course.obstacles, footprint=FOOTPRINT, seed=seed)
-    result = follow(path, tracker, dt=0.05, drive=drive, settle=0.5 * path.duration)
+    result = follow(
+        path, tracker, dt=0.05, drive=drive, settings=FollowSettings(settle=0.5 * path.duration)
+    )
     assert not course.touches(result.poses[0], FOOTPRINT).any()
     reached = np.flatnonzero(np.hypot(*(result.poses[0, :, :2] - course.goal[:2]).T) < 0.1)
     assert len(reached)

@@ -375,16 +375,24 @@ def test_integers_fractions_numpy_scalars_and_lists_of_rows():
     limits = dd.control.PathLimits(max_velocity=np.float32(1.5))  # a NumPy scalar: a number
     assert limits.max_velocity == 1.5
     planned = dd.control.plan([[0, 0], [1, 0], [1, 1]], ROBOT, limits)  # a list of rows
-    follow = dd.control.follow(planned, dd.control.Ramsete(), robots=np.int64(2))
+    fleet = dd.control.FollowSettings(robots=np.int64(2))
+    follow = dd.control.follow(planned, dd.control.Ramsete(), settings=fleet)
     assert follow.poses.shape[0] == 2
     model = noise.NoiseModel.symmetric(1e-4, 0.0, 0.0, 0.0, 0.0)
     drawn = noise.draw_reference(ROBOT, increments, np.zeros(3), model, 5)  # an int seed
     again = noise.draw_reference(ROBOT, increments, np.zeros(3), model, 5)
     np.testing.assert_array_equal(drawn, again)
     with pytest.raises(ValueError, match=r"start must be one pose \(x, y, theta\) or one per"):
-        dd.control.follow(planned, dd.control.Ramsete(), start=[0, 0])
+        dd.control.follow(
+            planned, dd.control.Ramsete(), settings=dd.control.FollowSettings(start=[0, 0])
+        )
     with pytest.raises(ValueError, match=r"delay must be one number or one per robot \(3\)"):
-        dd.control.follow(planned, dd.control.Ramsete(), delay=[0, 0.02], robots=3)
+        dd.control.follow(
+            planned,
+            dd.control.Ramsete(),
+            delay=[0, 0.02],
+            settings=dd.control.FollowSettings(robots=3),
+        )
 
 
 def test_huge_poses_give_finite_measures():

@@ -82,11 +82,13 @@ def test_the_twins_and_the_fits_internals_are_private():
 
 def test_the_entry_points_take_at_most_ten_parameters_and_no_unchecked_keywords():
     """Where a face needs more, its settings go into a value (``EstimatorSettings``,
-    ``ReferenceSettings``)."""
+    ``ReferenceSettings``, ``FollowSettings``)."""
     from diffdrive.calibration import calibrate_to_reference
+    from diffdrive.control import follow
     from diffdrive.estimation import PoseEstimator, estimate_trajectory, gyro_odometry
 
-    for face in (calibrate_to_reference, PoseEstimator, estimate_trajectory, gyro_odometry):
+    faces = (calibrate_to_reference, follow, PoseEstimator, estimate_trajectory, gyro_odometry)
+    for face in faces:
         parameters = inspect.signature(face).parameters.values()
         assert len(parameters) <= 10, face
         assert not any(p.kind is p.VAR_KEYWORD for p in parameters), face

@@ -10,6 +10,7 @@ import pytest
 
 import diffdrive as dd
 from diffdrive.control import (
+    FollowSettings,
     Limiter,
     Limits,
     LTVUnicycle,
@@ -86,9 +87,8 @@ def test_ltv_gains_are_the_riccati_solution() -> None:
 def test_every_tracker_follows_without_delay(tracker) -> None:
     """Each tracker with its defaults (made in the test: LTVUnicycle's Riccati solves take
     almost a second, not to be spent at collection)."""
-    errors = follow(
-        short(), tracker(), start=short().poses[0] + [0.0, 0.05, 0.0], settle=2.0
-    ).errors()
+    start = short().poses[0] + [0.0, 0.05, 0.0]
+    errors = follow(short(), tracker(), settings=FollowSettings(start=start, settle=2.0)).errors()
     # Starting 5 cm off, each comes back and stays on the path.
     assert np.abs(errors.cross_track[:, -50:]).max() < 0.02
     assert np.abs(errors.heading[:, -50:]).max() < 0.1
@@ -120,8 +120,9 @@ def test_delay_margins_by_simulation() -> None:
 @pytest.mark.slow
 def test_a_batch_with_noisy_odometry_and_a_limiter() -> None:
     limiter = Limiter.for_wheels(Limits(max_velocity=12.0, max_acceleration=15.0))
-    result = follow(short(), Ramsete(), robots=8, wheel_noise=(1e-4, 1e-4), seed=3, limiter=limiter)
-    again = follow(short(), Ramsete(), robots=8, wheel_noise=(1e-4, 1e-4), seed=3, limiter=limiter)
+    fleet = FollowSettings(robots=8, wheel_noise=(1e-4, 1e-4), seed=3)
+    result = follow(short(), Ramsete(), limiter=limiter, settings=fleet)
+    again = follow(short(), Ramsete(), limiter=limiter, settings=fleet)
     assert np.array_equal(result.poses, again.poses)
     assert np.abs(result.commands).max() <= 12.0 + 1e-9
     assert np.abs(np.diff(result.commands, axis=1)).max() <= 15.0 * 0.02 + 1e-9
@@ -188,7 +189,7 @@ def test_a_delay_between_periods_is_refused_not_rounded() -> None:
 
 def test_a_batch_that_would_fill_the_memory_is_refused() -> None:
     with pytest.raises(ValueError, match="fewer robots, or a larger dt"):
-        follow(short(), Ramsete(), robots=10**6)
+        follow(short(), Ramsete(), settings=FollowSettings(robots=10**6))
 
 
 def test_follow_drives_a_drive_model() -> None:

@@ -19,6 +19,7 @@ from diffdrive.cli.options import (
 from diffdrive.cli.options import write_output as write_poses
 from diffdrive.control import (
     MPPI,
+    FollowSettings,
     LTVUnicycle,
     Obstacles,
     PathLimits,
@@ -204,9 +205,7 @@ def run_follow(args: argparse.Namespace) -> int:
         delay=args.delay,
         lag=args.lag,
         drive=drive,
-        wheel_noise=noise,
-        robots=args.robots,
-        seed=args.seed,
+        settings=FollowSettings(robots=args.robots, wheel_noise=noise, seed=args.seed),
     )
     errors = run.errors()
     known = args.delay if args.predict or args.tracker == "mppi" else 0.0

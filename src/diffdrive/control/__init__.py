@@ -25,7 +25,7 @@ from diffdrive._lazy import attach
 # Each name loads its module on first use.
 _NAMES = {
     **dict.fromkeys(["KEEP", "desaturate"], "commands"),
-    **dict.fromkeys(["FollowResult", "delay_margin", "follow"], "follow"),
+    **dict.fromkeys(["FollowResult", "FollowSettings", "delay_margin", "follow"], "follow"),
     **dict.fromkeys(["Limiter", "Limits"], "limiter"),
     **dict.fromkeys(["OpenLoopOdometry", "drive_commands"], "open_loop"),
     **dict.fromkeys(["from_segments", "from_waypoints"], "path"),
@@ -43,6 +43,7 @@ __all__ = [
     "MPPI",
     "Course",
     "FollowResult",
+    "FollowSettings",
     "LTVUnicycle",
     "Limiter",
     "Limits",
@@ -72,7 +73,7 @@ __all__ = [
 if TYPE_CHECKING:  # what the names are, for type checkers
     from diffdrive.control.commands import KEEP, desaturate
     from diffdrive.control.courses import Course, cluttered_corridor
-    from diffdrive.control.follow import FollowResult, delay_margin, follow
+    from diffdrive.control.follow import FollowResult, FollowSettings, delay_margin, follow
     from diffdrive.control.guide import guide
     from diffdrive.control.limiter import Limiter, Limits
     from diffdrive.control.mppi import MPPI, MPPICosts

@@ -22,17 +22,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._validate import check_samples, floats, positive, rng_of, whole
+from diffdrive._validate import check_samples, finite, floats, positive, rng_of, whole
 from diffdrive.control.limiter import Limiter
 from diffdrive.control.planning import Plan
 from diffdrive.control.tracking import Tracker
 from diffdrive.dynamics.drive import DriveModel
 from diffdrive.evaluation import PathErrors, path_errors
-from diffdrive.integrate import Method
+from diffdrive.integrate import Method, check_method
 from diffdrive.sensor_noise import NONE as NO_NOISE
 from diffdrive.sensor_noise import WheelNoise, WheelNoiseLike, draw_travel
 
-__all__ = ["FollowResult", "delay_margin", "follow"]
+__all__ = ["FollowResult", "FollowSettings", "delay_margin", "follow"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,6 +84,32 @@ def _start_poses(start: object, plan: Plan, robots: int) -> np.ndarray:
     return np.broadcast_to(poses, (robots, 3))
 
 
+@dataclass(frozen=True, eq=False)
+class FollowSettings:
+    """How ``follow`` simulates: how many ``robots``, their ``start`` poses ``(3,)`` or
+    ``(robots, 3)`` (None: the plan's first), ``settle`` s simulated after the plan ends, the
+    odometry's ``wheel_noise`` (a ``WheelNoise``, m; none by default), the ``seed`` of its
+    draws and the integration ``method``. Each is checked when made."""
+
+    robots: int = 1
+    start: object = None
+    settle: float = 1.0
+    wheel_noise: WheelNoiseLike = NO_NOISE
+    seed: int | None = None
+    method: Method = "exact"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "robots", whole("FollowSettings.robots", self.robots, 1))
+        settle = finite("FollowSettings.settle", self.settle)
+        if settle < 0.0:
+            raise ValueError(f"FollowSettings.settle must be >= 0 s, got {self.settle!r}")
+        object.__setattr__(self, "settle", settle)
+        noise = WheelNoise.coerce(self.wheel_noise, "FollowSettings.wheel_noise")
+        object.__setattr__(self, "wheel_noise", noise)
+        rng_of(self.seed)  # a seed, or the refusal that names what is wrong
+        check_method(self.method)
+
+
 def follow(
     plan: Plan,
     tracker: Tracker,
@@ -93,27 +119,27 @@ def follow(
     lag: float = 0.0,
     drive: DriveModel | None = None,
     limiter: Limiter | None = None,
-    wheel_noise: WheelNoiseLike = NO_NOISE,
-    robots: int = 1,
-    start: object = None,
-    settle: float = 1.0,
-    seed: int | None = None,
-    method: Method = "exact",
+    settings: FollowSettings | None = None,
 ) -> FollowResult:
-    """Simulate ``robots`` robots following ``plan`` with ``tracker`` (see the module).
+    """Simulate robots following ``plan`` with ``tracker`` (see the module).
 
     ``delay``: s, one or one per robot, each a whole number of periods; ``lag``: the wheels'
     time constant (s; 0 for none); ``drive``: the wheels' response instead (its delay, unless
     ``delay`` is given, a whole number of periods; not with ``lag``); ``limiter``: a wheel
     ``Limiter`` (rad/s), its limits applied to every robot (``Limiter.batched``), from rest;
-    ``wheel_noise``: the odometry's (a ``WheelNoise``, m; none by default); ``start``: the
-    start poses ``(3,)`` or ``(N, 3)`` (default the plan's); ``settle``: s simulated after the
-    plan ends.
+    ``settings``: how many robots, from where, for how long after the plan, with what
+    odometry noise (``FollowSettings``; default one noise-free robot from the plan's start,
+    1 s after it).
     """
+    if settings is None:
+        settings = FollowSettings()
+    elif not isinstance(settings, FollowSettings):
+        raise TypeError(f"settings must be a FollowSettings, got {type(settings).__name__}")
+    robots, start, settle = settings.robots, settings.start, settings.settle
+    seed, method = settings.seed, settings.method
     if not isinstance(plan, Plan):
         raise TypeError(f"plan must be a Plan, got {type(plan).__name__}")
     dt = positive("dt", dt)
-    robots = whole("robots", robots, 1)
     lag = float(_per_robot("lag", lag, 1)[0])
     if drive is not None:
         if not isinstance(drive, DriveModel):
@@ -124,9 +150,8 @@ def follow(
             delay = drive.delay
     model = DriveModel(time_constant=lag) if drive is None else drive
     delays = _per_robot("delay", delay, robots)
-    noise = WheelNoise.coerce(wheel_noise)
-    if not (math.isfinite(settle) and settle >= 0.0):
-        raise ValueError(f"settle must be finite and >= 0, got {settle!r}")
+    noise = settings.wheel_noise
+    assert isinstance(noise, WheelNoise)  # coerced when the settings were made
     robot = plan.robot
     lags = np.rint(delays / dt).astype(int)
     off = np.flatnonzero(np.abs(delays / dt - lags) > 1e-9)
@@ -196,7 +221,15 @@ def delay_margin(
     the wheels' response instead of ``lag`` (its own delay left out: the delays tried are
     these)."""
     delays = known + dt * np.arange(round(max_delay / dt) + 1)
-    result = follow(plan, tracker, dt=dt, delay=delays, lag=lag, drive=drive, robots=len(delays))
+    result = follow(
+        plan,
+        tracker,
+        dt=dt,
+        delay=delays,
+        lag=lag,
+        drive=drive,
+        settings=FollowSettings(robots=len(delays)),
+    )
     errors = result.errors()
     with np.errstate(invalid="ignore"):
         fine = np.all(np.abs(errors.cross_track) <= bound, axis=1) & np.all(
