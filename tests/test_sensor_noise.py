@@ -10,7 +10,7 @@ import pytest
 
 import diffdrive as dd
 from diffdrive import sensor_noise
-from diffdrive.control import follow
+from diffdrive.control import FollowSettings
 from diffdrive.estimation import EstimatorSettings, GyroOdometry, PoseEstimator, estimate_trajectory
 from diffdrive.estimation.odometry import odometry_of_run
 from diffdrive.montecarlo import monte_carlo
@@ -61,8 +61,8 @@ def test_every_estimator_assumes_the_one_default_and_every_simulator_none():
     assert GyroOdometry(dd.DiffDrive(0.05, 0.3)).settings.wheel_noise is DEFAULT
     assert dd.Odometry(dd.DiffDrive(0.05, 0.3)).wheel_noise is DEFAULT
     assert "wheel_noise" not in inspect.signature(estimate_trajectory).parameters  # its settings
-    for simulator in (monte_carlo, follow):
-        assert _default(simulator) is NONE, simulator
+    assert _default(monte_carlo) is NONE
+    assert FollowSettings().wheel_noise is NONE  # follow's simulated fleet
     assert EncoderModel().wheel_noise == NONE
 
 

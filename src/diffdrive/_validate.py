@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import TypeVar
 
 import numpy as np
 
@@ -119,6 +120,8 @@ def geodetic_point(name: str, value: object) -> tuple[float, float, float]:
     return lat, lon, height
 
 
+T = TypeVar("T")
+
 MOST_SAMPLES = 10_000_000  # samples of one path, rows of one plan, steps of one simulation
 
 
@@ -129,3 +132,14 @@ def check_samples(count: float, what: str, advice: str) -> None:
         raise ValueError(
             f"{what} would take {count:.3g} samples (at most {MOST_SAMPLES:,}): {advice}"
         )
+
+
+def settings_of(value: object, kind: type[T]) -> T:
+    """``value`` if it is a ``kind`` (a settings value), ``kind()`` (its defaults) for None;
+    ``TypeError`` naming ``settings`` and what it got otherwise."""
+    if value is None:
+        return kind()
+    if not isinstance(value, kind):
+        article = "an" if kind.__name__[0] in "AEIOU" else "a"
+        raise TypeError(f"settings must be {article} {kind.__name__}, got {type(value).__name__}")
+    return value

@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from diffdrive._validate import finite, whole
+from diffdrive._validate import finite, settings_of, whole
 from diffdrive.calibration._reference_model import (
     NOISES,
     PARAMETERS,
@@ -306,10 +306,7 @@ def calibrate_to_reference(
     determine, naming them and the drive that would. Several runs of poses calibrate together:
     ``times``, ``increments``, ``stamps``, ``reference`` (and ``gyro``) as lists, one item a
     run, the parameters shared. With ``settings.identify_noise``, the result's ``noise``."""
-    if settings is None:
-        settings = ReferenceSettings()
-    elif not isinstance(settings, ReferenceSettings):
-        raise TypeError(f"settings must be a ReferenceSettings, got {type(settings).__name__}")
+    settings = settings_of(settings, ReferenceSettings)
     estimate, initial, method = settings.estimate, settings.initial, settings.method
     iterations, identify_noise = settings.iterations, settings.identify_noise
     runs = _runs_of(times, increments, stamps, reference, gyro)

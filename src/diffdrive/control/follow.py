@@ -22,7 +22,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._validate import check_samples, finite, floats, positive, rng_of, whole
+from diffdrive._validate import (
+    check_samples,
+    finite,
+    floats,
+    positive,
+    rng_of,
+    settings_of,
+    whole,
+)
 from diffdrive.control.limiter import Limiter
 from diffdrive.control.planning import Plan
 from diffdrive.control.tracking import Tracker
@@ -131,10 +139,7 @@ def follow(
     odometry noise (``FollowSettings``; default one noise-free robot from the plan's start,
     1 s after it).
     """
-    if settings is None:
-        settings = FollowSettings()
-    elif not isinstance(settings, FollowSettings):
-        raise TypeError(f"settings must be a FollowSettings, got {type(settings).__name__}")
+    settings = settings_of(settings, FollowSettings)
     robots, start, settle = settings.robots, settings.start, settings.settle
     seed, method = settings.seed, settings.method
     if not isinstance(plan, Plan):

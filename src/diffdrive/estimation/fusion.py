@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from diffdrive._validate import finite
+from diffdrive._validate import finite, settings_of
 from diffdrive.backends.settings import HEADINGS, CoreSettings
 from diffdrive.estimation import _estimator_python
 from diffdrive.estimation import filter as ekf
@@ -85,7 +85,7 @@ class _EstimatorMethods(_Base):
         initial_time: float | None = None,
     ) -> None:
         check_robot(robot)
-        settings = EstimatorSettings.of(settings)
+        settings = settings_of(settings, EstimatorSettings)
         self.robot, self.settings, self.heading = robot, settings, settings.heading
         encoders = settings.encoders
         wheels = Odometry(

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import positive
+from diffdrive._validate import positive, settings_of
 from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
 from diffdrive.estimation.imu import Gyro, rotation_from_rpy
 from diffdrive.estimation.settings import EstimatorSettings
@@ -113,7 +113,7 @@ def gyro_odometry(
     interval."""
     if not isinstance(gyro, Gyro):
         raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
-    settings = EstimatorSettings.of(settings)
+    settings = settings_of(settings, EstimatorSettings)
     times, increments, turned, commanded = checked_log(times, increments, gyro, commanded)
     assert turned is not None  # a gyro was given
     if (

@@ -276,16 +276,6 @@ class EstimatorSettings:
             rows = tuple(tuple(float(v) for v in row) for row in rotation)
             object.__setattr__(self, "mounting", rows)
 
-    @classmethod
-    def of(cls, value: object) -> EstimatorSettings:
-        """``value`` if it is an ``EstimatorSettings``, the default for None; ``TypeError``
-        naming ``settings`` otherwise."""
-        if value is None:
-            return cls()
-        if not isinstance(value, cls):
-            raise TypeError(f"settings must be an EstimatorSettings, got {type(value).__name__}")
-        return value
-
     # What a streaming estimator takes where a whole log would identify (see the module).
 
     @property

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import increasing
+from diffdrive._validate import increasing, settings_of
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.episodes import steady_episodes
 from diffdrive.estimation.fixes import IDENTIFIED_GATE, identify_fixes
@@ -150,7 +150,7 @@ def estimate_trajectory(
     them, and the gate is ``1 - 1e-9`` with outliers inflated (a receiver's jumps are
     heavier-tailed than a Gaussian); it needs ``fixes.LEAST_FIXES`` fixes or more.
     ``Estimate.settings`` says what was used."""
-    settings = EstimatorSettings.of(settings)
+    settings = settings_of(settings, EstimatorSettings)
     whole = settings.whole_log
     if settings.heading != "wheels" and gyro is None:
         raise ValueError(f"heading {settings.heading!r} needs a gyro")
