@@ -41,8 +41,10 @@ import diffdrive as dd
 from bench_planning import random_waypoints  # benchmarks/bench_planning.py
 from diffdrive.control import (
     MPPI,
+    Avoidance,
     FollowSettings,
     LTVUnicycle,
+    MPPISampling,
     PathLimits,
     Predictive,
     PurePursuit,
@@ -68,8 +70,12 @@ def cycle_times(repeats: int, libraries: list[str]) -> None:
         for backend in libraries:
             if backend in ("torch", "jax") and samples > 2048:
                 continue
-            tracker = MPPI(samples=samples, horizon=100, drive=DRIVE, obstacles=course.obstacles,
-                           footprint=FOOTPRINT, backend=backend, seed=0)  # fmt: skip
+            tracker = MPPI(
+                drive=DRIVE,
+                backend=backend,
+                sampling=MPPISampling(samples=samples, horizon=100, seed=0),
+                avoid=Avoidance(course.obstacles, footprint=FOOTPRINT),
+            )
             pose = np.array([[0.0, 0.0, 0.0]])
             tracker.command(path, 0.0, pose)  # compiles, makes the guide
             count = repeats if backend == "numba" else min(repeats, 3)
@@ -84,7 +90,9 @@ def cycle_times(repeats: int, libraries: list[str]) -> None:
 def trackers(wheels: float | None) -> dict[str, object]:
     """Each tracker's maker; ``wheels``: MPPI's wheel limit (rad/s; None: the plan's)."""
     return {
-        "MPPI (delay and lag known)": lambda: MPPI(drive=DRIVE, max_wheel_velocity=wheels, seed=1),
+        "MPPI (delay and lag known)": lambda: MPPI(
+            drive=DRIVE, max_wheel_velocity=wheels, sampling=MPPISampling(seed=1)
+        ),
         "Ramsete": Ramsete,
         "LTVUnicycle": lambda: LTVUnicycle(dt=DT),
         "PurePursuit": PurePursuit,
@@ -123,8 +131,11 @@ def corridor_run(seed: int, kind: str) -> dict[str, object]:
         tracker = Predictive(Ramsete(), DELAY, DT, LAG)
         reference = guide(straight, course.obstacles, FOOTPRINT)
     else:
-        tracker = MPPI(drive=DRIVE, obstacles=course.obstacles, footprint=FOOTPRINT, seed=seed,
-                       around=kind == "MPPI")  # fmt: skip
+        tracker = MPPI(
+            drive=DRIVE,
+            sampling=MPPISampling(seed=seed),
+            avoid=Avoidance(course.obstacles, footprint=FOOTPRINT, around=kind == "MPPI"),
+        )
         reference = straight
     settle = FollowSettings(settle=0.5 * straight.duration)
     result = follow(reference, tracker, dt=DT, drive=DRIVE, settings=settle)

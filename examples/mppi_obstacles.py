@@ -21,7 +21,9 @@ import numpy as np
 import diffdrive as dd
 from diffdrive.control import (
     MPPI,
+    Avoidance,
     FollowSettings,
+    MPPISampling,
     PathLimits,
     cluttered_corridor,
     follow,
@@ -56,7 +58,11 @@ class Recording:
 def run(seed: int):
     course = cluttered_corridor(np.random.default_rng(seed), footprint=FOOTPRINT)
     straight = plan([course.start, course.goal], ROBOT, LIMITS)
-    tracker = MPPI(drive=DRIVE, obstacles=course.obstacles, footprint=FOOTPRINT, seed=seed)
+    tracker = MPPI(
+        drive=DRIVE,
+        sampling=MPPISampling(seed=seed),
+        avoid=Avoidance(course.obstacles, footprint=FOOTPRINT),
+    )
     recording = Recording(tracker)
     settle = FollowSettings(settle=0.5 * straight.duration)
     result = follow(straight, recording, dt=DT, drive=DRIVE, settings=settle)

@@ -15,8 +15,10 @@ from hypothesis import strategies as st
 import diffdrive as dd
 from diffdrive.control import (
     MPPI,
+    Avoidance,
     FollowSettings,
     MPPICosts,
+    MPPISampling,
     Obstacles,
     PathLimits,
     cluttered_corridor,
@@ -81,7 +83,9 @@ def _q(drive: DriveModel | None = None, **costs: float):
     path = plan([course.start, course.goal], ROBOT, limits)
     weights = MPPICosts(goal=1.0, progress=3.0, **costs)
     drive = drive or DriveModel(delay=0.1, time_constant=0.1, max_acceleration=30.0)
-    tracker = MPPI(drive=drive, obstacles=course.obstacles, footprint=FOOTPRINT, costs=weights)
+    tracker = MPPI(
+        drive=drive, costs=weights, avoid=Avoidance(course.obstacles, footprint=FOOTPRINT)
+    )
     return mppi_settings(tracker, path), path, course
 
 
@@ -197,7 +201,9 @@ def test_it_follows_a_plan_through_a_known_delay_and_lag_within_the_wheels_limit
     limits = PathLimits(max_velocity=1.0, max_acceleration=1.0, max_wheel_velocity=10.0)
     path = plan([(0, 0, 0), (3, 1, 0.5), (5, 3, 1.5)], ROBOT, limits)
     drive = DriveModel(delay=0.1, time_constant=0.1)
-    tracker = MPPI(drive=drive, max_wheel_velocity=12.0, backend=backend, seed=1)
+    tracker = MPPI(
+        drive=drive, max_wheel_velocity=12.0, backend=backend, sampling=MPPISampling(seed=1)
+    )
     result = follow(path, tracker, dt=0.05, drive=drive)
     cross = np.abs(result.errors().cross_track)
     assert cross.mean() < 0.010
@@ -214,7 +220,11 @@ def test_it_goes_around_the_clutter_of_a_corridor_without_touching(seed):
     path = plan([course.start, course.goal], ROBOT, LIMITS)
     assert course.touches(path.poses, FOOTPRINT).any()  # the plan alone would collide
     drive = DriveModel(delay=0.1, time_constant=0.1)
-    tracker = MPPI(drive=drive, obstacles=course.obstacles, footprint=FOOTPRINT, seed=seed)
+    tracker = MPPI(
+        drive=drive,
+        sampling=MPPISampling(seed=seed),
+        avoid=Avoidance(course.obstacles, footprint=FOOTPRINT),
+    )
     result = follow(
         path, tracker, dt=0.05, drive=drive, settings=FollowSettings(settle=0.5 * path.duration)
     )
@@ -226,7 +236,7 @@ def test_it_goes_around_the_clutter_of_a_corridor_without_touching(seed):
 
 def test_a_batch_of_robots_each_gets_its_own_sequence_and_the_count_is_kept() -> None:
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, PathLimits(max_velocity=1, max_acceleration=1))
-    tracker = MPPI(horizon=10, seed=0)
+    tracker = MPPI(sampling=MPPISampling(horizon=10, seed=0))
     poses = np.array([[0.0, 0.0, 0.0], [0.0, 0.3, 0.0]])
     turns = np.array([tracker.command(path, 0.05 * k, poses)[:, 1] for k in range(10)])
     assert turns.shape == (10, 2)
@@ -242,7 +252,7 @@ def test_an_array_library_runs_the_controller(library):
     """On an array library's own generator: a few cycles steer a robot left of the path back."""
     LIBRARIES[library].module()
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, PathLimits(max_velocity=1, max_acceleration=1))
-    tracker = MPPI(horizon=10, samples=256, backend=library, seed=0)
+    tracker = MPPI(backend=library, sampling=MPPISampling(horizon=10, samples=256, seed=0))
     turns = [tracker.command(path, 0.05 * k, np.array([[0.0, 0.3, 0.0]]))[0, 1] for k in range(6)]
     assert np.all(np.isfinite(turns))
     assert np.mean(turns) < -0.1
@@ -332,25 +342,33 @@ def test_a_map_missing_what_it_needs_is_refused_by_name(tmp_path, meta, message)
         (lambda: MPPICosts(cross_track=-1.0), "cost weight cross_track must be >= 0"),
         (lambda: MPPICosts(rate=math.nan), "cost weight rate must be finite"),
         (lambda: MPPICosts(collision=math.inf), "cost weight collision must be finite"),
-        (lambda: MPPI(samples=0), "samples must be"),
+        (lambda: MPPI(sampling=MPPISampling(samples=0)), "samples must be"),
         (lambda: MPPI(delay=0.07, dt=0.05), "delay must be a whole number of dt"),
-        (lambda: MPPI(sigma=(0.1, 0.0)), "sigma must be"),
-        (lambda: MPPI(samples=10**6, horizon=10**4), "MPPI's samples x horizon"),
+        (lambda: MPPI(sampling=MPPISampling(sigma=(0.1, 0.0))), "sigma must be"),
+        (
+            lambda: MPPI(sampling=MPPISampling(samples=10**6, horizon=10**4)),
+            "MPPI's samples x horizon",
+        ),
         (lambda: MPPI(backend="cupy"), "backend must be one of"),
-        (lambda: MPPI(footprint=-0.1), "footprint must be >= 0"),
+        (
+            lambda: Avoidance(Obstacles(np.ones((3, 3)), (0.0, 0.0), 0.1), footprint=-0.1),
+            r"Avoidance\.footprint must be >= 0",
+        ),
+        (lambda: MPPI(avoid="map.yaml"), "avoid must be an Avoidance, got str"),
+        (lambda: MPPI(sampling={"samples": 10}), "settings must be an MPPISampling, got dict"),
         (lambda: Obstacles(np.zeros((3, 3)), (0.0,), 0.1), "origin must be a finite"),
         (lambda: Obstacles(np.zeros((3, 3)), (0.0, 0.0), 0.0), "resolution must be"),
     ],
 )
 def test_bad_settings_are_refused_by_name(make, message):
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises((ValueError, TypeError), match=message):
         make()
 
 
 def test_a_start_inside_an_obstacle_is_refused_and_the_controller_is_unchanged():
     path = plan([(0, 0, 0), (4, 0, 0)], ROBOT, LIMITS)
     obstacles = Obstacles.from_circles([(0.3, -1.8)], [0.2])
-    tracker = MPPI(obstacles=obstacles, footprint=FOOTPRINT, seed=0)
+    tracker = MPPI(sampling=MPPISampling(seed=0), avoid=Avoidance(obstacles, footprint=FOOTPRINT))
     with pytest.raises(ValueError, match=r"robot 1 starts inside an obstacle: at \(0\.100"):
         tracker.command(path, 0.0, np.array([[0.0, 0.5, 0.0], [0.1, -2.0, 0.0]]))
     assert tracker._mean.shape == (0, 30, 2)  # nothing was started (30 steps among obstacles)
@@ -364,8 +382,12 @@ def test_nav2_parameters_carry_what_corresponds():
 
     from diffdrive.export.nav2_mppi import nav2_mppi_parameters, render_nav2_mppi
 
-    tracker = MPPI(samples=2000, horizon=50, dt=0.04, sigma=(0.2, 0.5), delay=0.08,
-                   max_wheel_acceleration=30.0)  # fmt: skip
+    tracker = MPPI(
+        dt=0.04,
+        delay=0.08,
+        max_wheel_acceleration=30.0,
+        sampling=MPPISampling(samples=2000, horizon=50, sigma=(0.2, 0.5)),
+    )
     limits = PathLimits(max_wheel_velocity=12.0)
     figures = nav2_mppi_parameters(tracker, ROBOT, limits)
     assert (figures["batch_size"], figures["time_steps"], figures["model_dt"]) == (2000, 52, 0.04)
@@ -384,11 +406,11 @@ def test_nav2_parameters_carry_what_corresponds():
 
 def test_sampled_shows_candidates_and_leaves_the_controller_as_it_was():
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, LIMITS)
-    tracker = MPPI(horizon=10, seed=3)
+    tracker = MPPI(sampling=MPPISampling(horizon=10, seed=3))
     with pytest.raises(ValueError, match="call command first"):
         tracker.sampled(path, np.zeros(3))
     tracker.command(path, 0.0, np.zeros((1, 3)))
-    twin = MPPI(horizon=10, seed=3)
+    twin = MPPI(sampling=MPPISampling(horizon=10, seed=3))
     twin.command(path, 0.0, np.zeros((1, 3)))
     candidates = tracker.sampled(path, np.zeros(3), count=5)
     assert candidates.shape == (5, 10, 2)
@@ -399,8 +421,8 @@ def test_sampled_shows_candidates_and_leaves_the_controller_as_it_was():
 def test_without_the_guide_the_plan_is_followed_as_given():
     course = cluttered_corridor(np.random.default_rng(1), footprint=FOOTPRINT)
     path = plan([course.start, course.goal], ROBOT, LIMITS)
-    guided = MPPI(obstacles=course.obstacles, footprint=FOOTPRINT)
-    plain = MPPI(obstacles=course.obstacles, footprint=FOOTPRINT, around=False)
+    guided = MPPI(avoid=Avoidance(course.obstacles, footprint=FOOTPRINT))
+    plain = MPPI(avoid=Avoidance(course.obstacles, footprint=FOOTPRINT, around=False))
     assert plain._guided(path) is path
     assert guided._guided(path) is not path
     assert guided._guided(path) is guided._guided(path)  # made once

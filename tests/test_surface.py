@@ -82,12 +82,19 @@ def test_the_twins_and_the_fits_internals_are_private():
 
 def test_the_entry_points_take_at_most_ten_parameters_and_no_unchecked_keywords():
     """Where a face needs more, its settings go into a value (``EstimatorSettings``,
-    ``ReferenceSettings``, ``FollowSettings``)."""
+    ``ReferenceSettings``, ``FollowSettings``, ``MPPISampling`` and ``Avoidance``)."""
     from diffdrive.calibration import calibrate_to_reference
-    from diffdrive.control import follow
+    from diffdrive.control import MPPI, follow
     from diffdrive.estimation import PoseEstimator, estimate_trajectory, gyro_odometry
 
-    faces = (calibrate_to_reference, follow, PoseEstimator, estimate_trajectory, gyro_odometry)
+    faces = (
+        calibrate_to_reference,
+        follow,
+        MPPI,
+        PoseEstimator,
+        estimate_trajectory,
+        gyro_odometry,
+    )
     for face in faces:
         parameters = inspect.signature(face).parameters.values()
         assert len(parameters) <= 10, face

@@ -140,6 +140,8 @@ def settings_of(value: object, kind: type[T]) -> T:
     if value is None:
         return kind()
     if not isinstance(value, kind):
-        article = "an" if kind.__name__[0] in "AEIOU" else "a"
-        raise TypeError(f"settings must be {article} {kind.__name__}, got {type(value).__name__}")
+        name = kind.__name__  # "an" before a vowel's sound: an EstimatorSettings, an MPPI...
+        spelt = name[:2].isupper() and name[0] in "FHLMNRSX"
+        article = "an" if name[0] in "AEIOU" or spelt else "a"
+        raise TypeError(f"settings must be {article} {name}, got {type(value).__name__}")
     return value

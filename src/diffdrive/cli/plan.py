@@ -19,8 +19,10 @@ from diffdrive.cli.options import (
 from diffdrive.cli.options import write_output as write_poses
 from diffdrive.control import (
     MPPI,
+    Avoidance,
     FollowSettings,
     LTVUnicycle,
+    MPPISampling,
     Obstacles,
     PathLimits,
     Predictive,
@@ -129,9 +131,10 @@ def _tracker(args: argparse.Namespace, drive: DriveModel | None, obstacles: Obst
         if args.predict:
             raise ValueError("--predict: mppi rolls its samples out through --delay and the lag")
         known = drive or DriveModel(time_constant=args.lag)
+        avoid = None if obstacles is None else Avoidance(obstacles, args.footprint or 0.0)
         return MPPI(
-            dt=args.dt, drive=known, delay=args.delay or known.delay, obstacles=obstacles,
-            footprint=args.footprint or 0.0, seed=args.seed,
+            dt=args.dt, drive=known, delay=args.delay or known.delay, avoid=avoid,
+            sampling=MPPISampling(seed=args.seed),
         )  # fmt: skip
     if obstacles is not None:
         raise ValueError("--map: only --tracker mppi steers around obstacles")

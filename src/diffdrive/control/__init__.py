@@ -12,7 +12,8 @@
 - ``follow``: ``follow``, closed-loop simulation of a batch of robots; ``delay_margin``;
 - ``rollouts``: many candidate command sequences through a delay and acceleration limits;
 - ``mppi``: ``MPPI``, a tracker that samples them (model predictive path integral control),
-  with its ``MPPICosts``; ``_mppi_arrays`` runs its cycle in an array library;
+  with its ``MPPICosts``, ``MPPISampling`` and ``Avoidance``; ``_mppi_arrays`` runs its
+  cycle in an array library;
 - ``obstacles``: ``Obstacles``, a clearance field from circles, an occupancy grid or a ROS map
   (``read_map``); ``guide``: a plan made to clear them; ``courses``: ``cluttered_corridor``, a
   random course to test a controller on.
@@ -31,7 +32,7 @@ _NAMES = {
     **dict.fromkeys(["from_segments", "from_waypoints"], "path"),
     **dict.fromkeys(["PathLimits", "Plan", "limit_ratios", "plan"], "planning"),
     "rollouts": "rollouts",
-    **dict.fromkeys(["MPPI", "MPPICosts"], "mppi"),
+    **dict.fromkeys(["MPPI", "Avoidance", "MPPICosts", "MPPISampling"], "mppi"),
     **dict.fromkeys(["Obstacles", "read_map"], "obstacles"),
     "guide": "guide",
     **dict.fromkeys(["Course", "cluttered_corridor"], "courses"),
@@ -41,6 +42,7 @@ __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
     "KEEP",
     "MPPI",
+    "Avoidance",
     "Course",
     "FollowResult",
     "FollowSettings",
@@ -48,6 +50,7 @@ __all__ = [
     "Limiter",
     "Limits",
     "MPPICosts",
+    "MPPISampling",
     "Obstacles",
     "OpenLoopOdometry",
     "PathLimits",
@@ -76,7 +79,7 @@ if TYPE_CHECKING:  # what the names are, for type checkers
     from diffdrive.control.follow import FollowResult, FollowSettings, delay_margin, follow
     from diffdrive.control.guide import guide
     from diffdrive.control.limiter import Limiter, Limits
-    from diffdrive.control.mppi import MPPI, MPPICosts
+    from diffdrive.control.mppi import MPPI, Avoidance, MPPICosts, MPPISampling
     from diffdrive.control.obstacles import Obstacles, read_map
     from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
     from diffdrive.control.path import from_segments, from_waypoints

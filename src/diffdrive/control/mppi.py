@@ -55,7 +55,15 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from diffdrive import batch
-from diffdrive._validate import check_samples, floats, nonnegative, positive, rng_of, whole
+from diffdrive._validate import (
+    check_samples,
+    floats,
+    nonnegative,
+    positive,
+    rng_of,
+    settings_of,
+    whole,
+)
 from diffdrive.backends.settings import MPPISettings
 from diffdrive.control._mppi_arrays import ArrayCycle, drive_period
 from diffdrive.control.guide import guide
@@ -63,7 +71,7 @@ from diffdrive.control.obstacles import Obstacles
 from diffdrive.control.planning import Plan
 from diffdrive.dynamics.drive import DriveModel
 
-__all__ = ["MPPI", "MPPICosts", "weighted_update"]
+__all__ = ["MPPI", "Avoidance", "MPPICosts", "MPPISampling", "weighted_update"]
 
 BACKENDS = ("auto", "numba", "numpy", "jax", "torch")
 LANES = 16  # the compiled cycle's block of candidates (numba_mppi.LANES)
@@ -101,55 +109,101 @@ def weighted_update(
     return np.tensordot(weights, perturbations, axes=1), weights
 
 
+@dataclass(frozen=True, eq=False)
+class MPPISampling:
+    """How MPPI samples: ``samples`` candidates of ``horizon`` steps a cycle (None: 20 steps,
+    30 among obstacles: on the benchmark's cluttered corridors 20 steps left 4 runs of 150
+    stalled or late, 30 left 1, while on an open plan 30 steps track worse, 2.8 against 1.3 mm
+    behind a delay and lag), the perturbations' standard deviations ``sigma`` ``(v m/s, omega
+    rad/s)``, the update's ``temperature``, the mean sequence's moving average over
+    ``smoothing`` steps, and the ``seed`` of the draws. Each is checked when made."""
+
+    samples: int = 1024
+    horizon: int | None = None
+    sigma: tuple[float, float] = (0.15, 0.4)
+    temperature: float = 0.05
+    smoothing: int = 5
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "samples", whole("MPPISampling.samples", self.samples, 1))
+        if self.horizon is not None:
+            object.__setattr__(self, "horizon", whole("MPPISampling.horizon", self.horizon, 1))
+        sigma = floats("MPPISampling.sigma", self.sigma)
+        if sigma.shape != (2,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
+            raise ValueError(
+                f"MPPISampling.sigma must be (v, omega) standard deviations > 0, got {self.sigma!r}"
+            )
+        object.__setattr__(self, "sigma", (float(sigma[0]), float(sigma[1])))
+        temperature = positive("MPPISampling.temperature", self.temperature)
+        object.__setattr__(self, "temperature", temperature)
+        object.__setattr__(self, "smoothing", whole("MPPISampling.smoothing", self.smoothing, 1))
+        rng_of(self.seed)  # a seed, or the refusal that names what is wrong
+
+
+@dataclass(frozen=True, eq=False)
+class Avoidance:
+    """What MPPI steers clear of: the ``obstacles`` (an ``Obstacles`` clearance grid), the
+    robot's ``footprint`` (m, its radius) and an ``inflation`` (m) the clearance cost keeps
+    beyond it; ``around``: follow ``guide``'s plan around them (False: the plan as given, the
+    obstacle costs alone steering)."""
+
+    obstacles: Obstacles
+    footprint: float = 0.0
+    inflation: float = 0.3
+    around: bool = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.obstacles, Obstacles):
+            raise TypeError(
+                f"Avoidance.obstacles must be Obstacles, got {type(self.obstacles).__name__}"
+            )
+        footprint = nonnegative("Avoidance.footprint", self.footprint)
+        object.__setattr__(self, "footprint", footprint)
+        object.__setattr__(self, "inflation", nonnegative("Avoidance.inflation", self.inflation))
+        if not isinstance(self.around, bool | np.bool_):
+            raise TypeError(f"Avoidance.around must be True or False, got {self.around!r}")
+
+
 class MPPI:
     """A sampling tracker (see the module).
 
-    ``samples`` candidates of ``horizon`` steps a cycle (None: 20 steps, 30 among obstacles:
-    on the benchmark's cluttered corridors 20 steps left 4 runs of 150 stalled or late, 30
-    left 1, while on an open plan 30 steps track worse, 2.8 against 1.3 mm behind a delay
-    and lag).
-    ``dt`` (s): its period and step; ``drive``: the wheels' response it rolls out (a
-    ``DriveModel``; None: the wheels take each command at once); ``delay`` (s, whole periods;
-    None: the drive's): the commands in flight it accounts for; ``max_wheel_velocity``
-    (rad/s) and ``max_wheel_acceleration`` (rad/s^2): the limits its costs watch (None: the
-    plan's); ``obstacles``, ``footprint`` (m, the robot's radius) and ``inflation`` (m);
-    ``lead`` (s): how far the plan's time may run ahead of the robot's place on it;
-    ``around``: among obstacles, follow ``guide``'s plan (False: the plan as given, the
-    obstacle costs alone steering around); ``backend``: see the module; ``seed``: the
-    sampling's.
+    ``dt`` (s): its period and step; ``costs``: the cost terms' weights (``MPPICosts``);
+    ``drive``: the wheels' response it rolls out (a ``DriveModel``; None: the wheels take each
+    command at once); ``delay`` (s, whole periods; None: the drive's): the commands in flight
+    it accounts for; ``max_wheel_velocity`` (rad/s) and ``max_wheel_acceleration`` (rad/s^2):
+    the limits its costs watch (None: the plan's); ``lead`` (s): how far the plan's time may
+    run ahead of the robot's place on it; ``backend``: see the module; ``sampling``: how it
+    samples (``MPPISampling``); ``avoid``: the obstacles it steers clear of (``Avoidance``;
+    None: none).
     """
 
     def __init__(
         self,
         *,
-        samples: int = 1024,
-        horizon: int | None = None,
         dt: float = 0.05,
-        sigma: tuple[float, float] = (0.15, 0.4),
-        temperature: float = 0.05,
-        smoothing: int = 5,
         costs: MPPICosts | None = None,
         drive: DriveModel | None = None,
         delay: float | None = None,
         max_wheel_velocity: float | None = None,
         max_wheel_acceleration: float | None = None,
-        obstacles: Obstacles | None = None,
-        footprint: float = 0.0,
-        inflation: float = 0.3,
         lead: float = 1.0,
-        around: bool = True,
         backend: str = "auto",
-        seed: int | None = None,
+        sampling: MPPISampling | None = None,
+        avoid: Avoidance | None = None,
     ) -> None:
-        if horizon is None:  # among obstacles, a longer look: see the class
-            horizon = 20 if obstacles is None else 30
-        self.samples, self.horizon = whole("samples", samples, 1), whole("horizon", horizon, 1)
+        sampling = settings_of(sampling, MPPISampling)
+        if avoid is not None and not isinstance(avoid, Avoidance):
+            raise TypeError(f"avoid must be an Avoidance, got {type(avoid).__name__}")
+        self.sampling, self.avoid = sampling, avoid
+        horizon = sampling.horizon
+        if horizon is None:  # among obstacles, a longer look: see MPPISampling
+            horizon = 20 if avoid is None else 30
+        self.samples, self.horizon = sampling.samples, horizon
         check_samples(self.samples * self.horizon, "MPPI's samples x horizon", "fewer samples")
-        self.dt, self.temperature = positive("dt", dt), positive("temperature", temperature)
-        self.smoothing = whole("smoothing", smoothing, 1)
-        self.sigma = floats("sigma", sigma)
-        if self.sigma.shape != (2,) or not np.all(np.isfinite(self.sigma) & (self.sigma > 0)):
-            raise ValueError(f"sigma must be (v, omega) standard deviations > 0, got {sigma!r}")
+        self.dt, self.temperature = positive("dt", dt), sampling.temperature
+        self.smoothing = sampling.smoothing
+        self.sigma = np.array(sampling.sigma)
         self.costs = MPPICosts() if costs is None else costs
         if not isinstance(self.costs, MPPICosts):
             raise TypeError(f"costs must be MPPICosts, got {type(self.costs).__name__}")
@@ -163,13 +217,12 @@ class MPPI:
         self.delay_steps = round(steps)
         self.max_wheel_velocity = _limit("max_wheel_velocity", max_wheel_velocity)
         self.max_wheel_acceleration = _limit("max_wheel_acceleration", max_wheel_acceleration)
-        if obstacles is not None and not isinstance(obstacles, Obstacles):
-            raise TypeError(f"obstacles must be Obstacles, got {type(obstacles).__name__}")
-        self.obstacles = obstacles
-        self.footprint = nonnegative("footprint", footprint)
-        self.inflation = nonnegative("inflation", inflation)
+        # Without obstacles nothing reads the footprint, inflation or guide.
+        self.obstacles = None if avoid is None else avoid.obstacles
+        self.footprint = 0.0 if avoid is None else avoid.footprint
+        self.inflation = 0.0 if avoid is None else avoid.inflation
+        self.around = avoid is not None and bool(avoid.around)
         self.lead = positive("lead", lead)
-        self.around = bool(around)
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
         if backend == "auto":
@@ -177,7 +230,7 @@ class MPPI:
         if backend == "numba" and not importlib.util.find_spec("numba"):
             raise ValueError("backend numba: numba is not installed (pip install diffdrive[fast])")
         self.backend = backend
-        self._seed = seed
+        self._seed = sampling.seed
         self._settings: tuple[Plan, MPPISettings] | None = None
         self._guide: tuple[Plan, Plan] | None = None
         self.reset()
