@@ -104,9 +104,20 @@ def scan(poses):
 
 @numba.njit(cache=True, parallel=True)
 def read_encoders(
-    poses, offset, unwrapped, factor, geometry, k, normals, noisy, scale, counts, bits, signed,
+    poses,
+    offset,
+    unwrapped,
+    factor,
+    geometry,
+    k,
+    normals,
+    noisy,
+    scale,
+    counts,
+    bits,
+    signed,
     out,
-):  # fmt: skip
+):
     """Fill ``out`` ``(n, T+1, 2)`` with robot ``i``'s readings along trajectory ``i`` of
     ``poses`` ``(n, T+1, 3)`` (or ``(1, T+1, 3)``, shared): ``factor`` ``(2, T)`` each
     wheel's slip factor, ``geometry`` ``(n, 3)`` ``[r_left, r_right, track]``, ``k`` ``(2,)``

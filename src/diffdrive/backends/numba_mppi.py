@@ -173,9 +173,11 @@ def _move(x, y, c, s, vx, vy, cos_h, sin_h, sinc, dt):
     ca, sa = c * cos_h - s * sin_h, s * cos_h + c * sin_h
     fx, fy = sinc * vx * dt, sinc * vy * dt
     return (
-        x + ca * fx - sa * fy, y + sa * fx + ca * fy, ca * cos_h - sa * sin_h,
+        x + ca * fx - sa * fy,
+        y + sa * fx + ca * fy,
+        ca * cos_h - sa * sin_h,
         sa * cos_h + ca * sin_h,
-    )  # fmt: skip
+    )
 
 
 @numba.njit(cache=True, inline="always")
@@ -279,9 +281,17 @@ def _block(first, mean, q, state, reference, grid, seed, draw, noise, costs):
             effort = q.effort * (vx * vx + omega * omega)
             effort += q.rate * ((vx - pv) * (vx - pv) + (omega - pw) * (omega - pw))
             x, y, c, s = _move(
-                st[_X, j], st[_Y, j], st[_C, j], st[_S, j], vx, vy, work[_CH, j],
-                work[_SH, j], work[_SINC, j], q.dt,
-            )  # fmt: skip
+                st[_X, j],
+                st[_Y, j],
+                st[_C, j],
+                st[_S, j],
+                vx,
+                vy,
+                work[_CH, j],
+                work[_SH, j],
+                work[_SINC, j],
+                q.dt,
+            )
             dx, dy = x - rx, y - ry
             along, cross = dx * rc + dy * rs, dy * rc - dx * rs
             tracking = q.cross_track * cross * cross + q.along_track * along * along

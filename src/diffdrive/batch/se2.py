@@ -161,16 +161,21 @@ def relative_jacobians(poses: object, references: object) -> tuple[Any, Any]:
     dx, dy = p[..., 0] - r[..., 0], p[..., 1] - r[..., 1]
     zero, one = xp.zeros_like(c), xp.ones_like(c)
     at_pose = xp.stack(
-        [xp.stack([c, s, zero], axis=-1), xp.stack([-s, c, zero], axis=-1),
-         xp.stack([zero, zero, one], axis=-1)],
+        [
+            xp.stack([c, s, zero], axis=-1),
+            xp.stack([-s, c, zero], axis=-1),
+            xp.stack([zero, zero, one], axis=-1),
+        ],
         axis=-2,
-    )  # fmt: skip
+    )
     at_reference = xp.stack(
-        [xp.stack([-c, -s, -s * dx + c * dy], axis=-1),
-         xp.stack([s, -c, -c * dx - s * dy], axis=-1),
-         xp.stack([zero, zero, -one], axis=-1)],
+        [
+            xp.stack([-c, -s, -s * dx + c * dy], axis=-1),
+            xp.stack([s, -c, -c * dx - s * dy], axis=-1),
+            xp.stack([zero, zero, -one], axis=-1),
+        ],
         axis=-2,
-    )  # fmt: skip
+    )
     return at_reference, at_pose
 
 

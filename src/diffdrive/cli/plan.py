@@ -133,9 +133,12 @@ def _tracker(args: argparse.Namespace, drive: DriveModel | None, obstacles: Obst
         known = drive or DriveModel(time_constant=args.lag)
         avoid = None if obstacles is None else Avoidance(obstacles, args.footprint or 0.0)
         return MPPI(
-            dt=args.dt, drive=known, delay=args.delay or known.delay, avoid=avoid,
+            dt=args.dt,
+            drive=known,
+            delay=args.delay or known.delay,
+            avoid=avoid,
             sampling=MPPISampling(seed=args.seed),
-        )  # fmt: skip
+        )
     if obstacles is not None:
         raise ValueError("--map: only --tracker mppi steers around obstacles")
     tracker = {"ramsete": Ramsete, "ltv": LTVUnicycle, "pure-pursuit": PurePursuit}[args.tracker]

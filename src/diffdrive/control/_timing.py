@@ -320,7 +320,13 @@ def _compiled() -> dict[str, Callable[..., Any]]:
     # The small ones inlined into their callers: each is called several times a state.
     for name in ("_narrow", "bounds", "cap", "_feasible"):
         module[name] = numba.njit(cache=True, inline="always")(module[name])
-    for name in ("speed_limit", "_segment_outside", "_settle", "_passes", "_outside",
-                 "lower_where_outside"):  # fmt: skip
+    for name in (
+        "speed_limit",
+        "_segment_outside",
+        "_settle",
+        "_passes",
+        "_outside",
+        "lower_where_outside",
+    ):
         module[name] = jit(module[name])
     return {"parameterise": jit(parameterise), "lower_where_outside": module["lower_where_outside"]}

@@ -57,8 +57,9 @@ def guide(
     travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poses[:, :2], axis=0).T))])
     ways: dict[tuple[int, int], np.ndarray] = {}
     for spacing in (math.inf, 1.0, 0.5, 0.25):
-        waypoints = _waypoints(obstacles, poses, blocked, travelled, ways, spacing,
-                               (footprint, inflation, margin))  # fmt: skip
+        waypoints = _waypoints(
+            obstacles, poses, blocked, travelled, ways, spacing, (footprint, inflation, margin)
+        )
         made = plan(waypoints, reference.robot, reference.limits)
         gaps = obstacles.clearance_at(made.poses[:, :2])
         if gaps.min() >= footprint:
@@ -181,8 +182,9 @@ def _way_around(
     source, target = node(start), node(goal)
     for end, name in ((source, "the stretch's start"), (target, "its end")):
         if not allowed.flat[end]:
-            raise ValueError(f"no way around the obstacles: {name} is within {footprint} m + "
-                             f"{margin} m of one")  # fmt: skip
+            raise ValueError(
+                f"no way around the obstacles: {name} is within {footprint} m + {margin} m of one"
+            )
     _, previous = dijkstra(graph, directed=False, indices=source, return_predecessors=True)
     if previous[target] < 0:
         raise ValueError(
@@ -193,8 +195,9 @@ def _way_around(
     while nodes[-1] != source:
         nodes.append(int(previous[nodes[-1]]))
     ij = np.array(nodes[::-1])
-    points = np.column_stack([obstacles.origin[0] + res * (ij % cols),
-                              obstacles.origin[1] + res * (ij // cols)])  # fmt: skip
+    points = np.column_stack(
+        [obstacles.origin[0] + res * (ij % cols), obstacles.origin[1] + res * (ij // cols)]
+    )
     points[0], points[-1] = start, goal
     return _straightened(obstacles, points, grid.flat[ij], footprint + inflation)
 

@@ -288,8 +288,9 @@ class MPPI:
         same candidates each call), apart from the controller's own sampling, which it leaves
         as it was; after at least one ``command``."""
         if not len(self._mean):
-            raise ValueError("sampled shows the candidates of a running controller: call "
-                             "command first")  # fmt: skip
+            raise ValueError(
+                "sampled shows the candidates of a running controller: call command first"
+            )
         plan = self._guided(plan)
         q = self._settings_for(plan)
         arrays = ArrayCycle("numpy", robot)
@@ -297,8 +298,17 @@ class MPPI:
         start = floats("pose", pose)
         steps: list = []
         reference = np.tile([*start[:2], 1.0, 0.0], (self.horizon, 1))
-        arrays.costs(q, self._mean[robot], noise, start, self._wheels[robot], self._sent[robot],
-                     reference, None, positions=steps)  # fmt: skip
+        arrays.costs(
+            q,
+            self._mean[robot],
+            noise,
+            start,
+            self._wheels[robot],
+            self._sent[robot],
+            reference,
+            None,
+            positions=steps,
+        )
         return np.stack([np.stack(xy, axis=-1) for xy in steps], axis=1)
 
     def _step(self, q, n: int, pose: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -313,18 +323,27 @@ class MPPI:
             state = numba_mppi.in_flight(pose, self._wheels[n], self._sent[n], q)
             seed = np.uint64(self._rng.integers(0, 2**63))
             numba_mppi.cycle(
-                self._mean[n], q, state, reference, np.zeros((2, 2)) if grid is None else grid,
-                seed, True, noise, costs,
-            )  # fmt: skip
+                self._mean[n],
+                q,
+                state,
+                reference,
+                np.zeros((2, 2)) if grid is None else grid,
+                seed,
+                True,
+                noise,
+                costs,
+            )
             step = np.empty((self.horizon, 2))
-            numba_mppi.update(costs[: self.samples], noise[:, :, : self.samples],
-                              self.temperature, step)  # fmt: skip
+            numba_mppi.update(
+                costs[: self.samples], noise[:, :, : self.samples], self.temperature, step
+            )
             return step
         arrays = self._arrays
         assert arrays is not None  # made by reset for every backend but numba
         noise = arrays.draw((self.horizon, 2, self.samples), self.sigma)
-        costs = arrays.costs(q, self._mean[n], noise, pose, self._wheels[n], self._sent[n],
-                             reference, grid)  # fmt: skip
+        costs = arrays.costs(
+            q, self._mean[n], noise, pose, self._wheels[n], self._sent[n], reference, grid
+        )
         return arrays.update(costs, noise, self.temperature)[0]
 
     def _check_start(self, poses: np.ndarray) -> None:
@@ -375,29 +394,52 @@ def settings(mppi: MPPI, plan: Plan):
     w, obstacles = mppi.costs, mppi.obstacles
     return MPPISettings(
         dt=dt,
-        a00=to_wheels[0, 0], a01=to_wheels[1, 0], a10=to_wheels[0, 1], a11=to_wheels[1, 1],
-        b00=to_body[0, 0], b01=to_body[1, 0], b10=to_body[0, 1], b11=to_body[1, 1],
-        b20=to_body[0, 2], b21=to_body[1, 2],
-        gain=gain, decay=decay, lag_mean=tau / dt * (1.0 - decay), wheel_step=step,
-        cross_track=w.cross_track, along_track=w.along_track, heading=w.heading,
-        effort=w.effort, rate=w.rate,
+        a00=to_wheels[0, 0],
+        a01=to_wheels[1, 0],
+        a10=to_wheels[0, 1],
+        a11=to_wheels[1, 1],
+        b00=to_body[0, 0],
+        b01=to_body[1, 0],
+        b10=to_body[0, 1],
+        b11=to_body[1, 1],
+        b20=to_body[0, 2],
+        b21=to_body[1, 2],
+        gain=gain,
+        decay=decay,
+        lag_mean=tau / dt * (1.0 - decay),
+        wheel_step=step,
+        cross_track=w.cross_track,
+        along_track=w.along_track,
+        heading=w.heading,
+        effort=w.effort,
+        rate=w.rate,
         wheel_limit=w.wheel_limit,
         max_wheel_velocity=_first(mppi.max_wheel_velocity, limits.max_wheel_velocity),
         acceleration_limit=w.acceleration_limit,
         max_wheel_acceleration=_first(mppi.max_wheel_acceleration, limits.max_wheel_acceleration),
         voltage_limit=w.voltage_limit if limits.max_voltage is not None else 0.0,
         max_voltage=_first(limits.max_voltage),
-        ks_left=volts[0][0], kv_left=volts[0][1], ka_left=volts[0][2],
-        ks_right=volts[1][0], kv_right=volts[1][1], ka_right=volts[1][2],
-        collision=w.collision, clearance=w.clearance,
-        footprint=mppi.footprint, inflation=mppi.inflation,
+        ks_left=volts[0][0],
+        kv_left=volts[0][1],
+        ka_left=volts[0][2],
+        ks_right=volts[1][0],
+        kv_right=volts[1][1],
+        ka_right=volts[1][2],
+        collision=w.collision,
+        clearance=w.clearance,
+        footprint=mppi.footprint,
+        inflation=mppi.inflation,
         origin_x=obstacles.origin[0] if obstacles else 0.0,
         origin_y=obstacles.origin[1] if obstacles else 0.0,
         resolution=obstacles.resolution if obstacles else 1.0,
         has_map=1.0 if obstacles else 0.0,
-        goal=w.goal, progress=w.progress, goal_x=plan.poses[-1, 0], goal_y=plan.poses[-1, 1],
-        sigma_v=mppi.sigma[0], sigma_omega=mppi.sigma[1],
-    )  # fmt: skip
+        goal=w.goal,
+        progress=w.progress,
+        goal_x=plan.poses[-1, 0],
+        goal_y=plan.poses[-1, 1],
+        sigma_v=mppi.sigma[0],
+        sigma_omega=mppi.sigma[1],
+    )
 
 
 def _first(*limits: float | None) -> float:

@@ -100,8 +100,9 @@ class Obstacles:
 
         cells = np.asarray(occupied)
         if cells.ndim != 2 or cells.dtype != bool:
-            raise ValueError(f"occupied must be a boolean grid (H, W), got {cells.dtype} "
-                             f"{cells.shape}")  # fmt: skip
+            raise ValueError(
+                f"occupied must be a boolean grid (H, W), got {cells.dtype} {cells.shape}"
+            )
         resolution = positive("resolution", resolution)
         if not cells.any():
             field = np.full(cells.shape, resolution * float(sum(cells.shape)))
@@ -144,14 +145,17 @@ def read_map(path: str | Path) -> Obstacles:
         raise ValueError(f"{path}: a map.yaml holds keys (image, resolution, origin, ...)")
     for key in ("image", "resolution", "origin"):
         if key not in meta:
-            raise ValueError(f"{path}: the map's {key} is missing (image, resolution and "
-                             "origin are required)")  # fmt: skip
+            raise ValueError(
+                f"{path}: the map's {key} is missing (image, resolution and origin are required)"
+            )
     origin = meta["origin"]
     if not (isinstance(origin, list) and len(origin) in (2, 3)):
         raise ValueError(f"{path}: origin must be [x, y, yaw], got {origin!r}")
     if len(origin) == 3 and float(origin[2]) != 0.0:
-        raise ValueError(f"{path}: origin yaw {origin[2]} is not 0: a rotated map is not read "
-                         "(map servers do not rotate the image either)")  # fmt: skip
+        raise ValueError(
+            f"{path}: origin yaw {origin[2]} is not 0: a rotated map is not read "
+            "(map servers do not rotate the image either)"
+        )
     mode = meta.get("mode", "trinary")
     if mode not in ("trinary", "scale"):
         raise ValueError(f"{path}: mode {mode!r} is not read (trinary or scale)")

@@ -135,9 +135,15 @@ class DriveModel:
         first = start.reshape(-1)
         if self.feedforward is None:
             out = simulate_response(
-                t, stamps, channels, self.delay, first, self.gain, self.time_constant,
+                t,
+                stamps,
+                channels,
+                self.delay,
+                first,
+                self.gain,
+                self.time_constant,
                 self.max_acceleration,
-            )  # fmt: skip
+            )
         else:
             out = self._voltage_driven(t, stamps, channels, first)
         return np.moveaxis(out.reshape(len(t), -1, 2), 0, 1).reshape((*batch, len(t), 2))

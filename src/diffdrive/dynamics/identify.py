@@ -42,8 +42,11 @@ class DriveIdentification:
             ):
                 gains = channel.feedforward
                 sections[name] = {
-                    "ks": gains.ks, "kv": gains.kv, "ka": gains.ka, "delay": channel.delay,
-                }  # fmt: skip
+                    "ks": gains.ks,
+                    "kv": gains.kv,
+                    "ka": gains.ka,
+                    "delay": channel.delay,
+                }
         if self.response is not None:
             found = self.response
             sections["response"] = {

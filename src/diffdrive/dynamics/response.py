@@ -63,9 +63,15 @@ class VelocityResponse:
         at ``times[0]``."""
         times = np.asarray(times, dtype=float)
         return simulate_response(
-            times, command_times, commands, self.delay, np.asarray(initial, float), self.gain,
-            self.time_constant, self.acceleration,
-        )  # fmt: skip
+            times,
+            command_times,
+            commands,
+            self.delay,
+            np.asarray(initial, float),
+            self.gain,
+            self.time_constant,
+            self.acceleration,
+        )
 
 
 def held_commands(command_times, commands, at) -> np.ndarray:
@@ -136,14 +142,20 @@ def _fit(stretches, command, start, acceleration, iterations=30):
             [
                 (
                     simulate_response(
-                        times, command_times, commands, delay, measured[0], p[0],
-                        math.exp(p[1]), acceleration,
+                        times,
+                        command_times,
+                        commands,
+                        delay,
+                        measured[0],
+                        p[0],
+                        math.exp(p[1]),
+                        acceleration,
                     )
                     - measured
                 ).ravel()
                 for times, measured in stretches
             ]
-        )  # fmt: skip
+        )
 
     current = residual(params)
     for _ in range(iterations):

@@ -148,8 +148,13 @@ def start_in_frame(
             heading = first.value[2]
             c, s = math.cos(heading), math.sin(heading)
             arm_x, arm_y = first.lever_arm[0], first.lever_arm[1]
-            body = np.array([first.value[0] - c * arm_x + s * arm_y,
-                             first.value[1] - s * arm_x - c * arm_y, heading])  # fmt: skip
+            body = np.array(
+                [
+                    first.value[0] - c * arm_x + s * arm_y,
+                    first.value[1] - s * arm_x - c * arm_y,
+                    heading,
+                ]
+            )
             moved = batch.compose(body, batch.inverse(path[0]))
     else:
         fitted = align(flat, seen)

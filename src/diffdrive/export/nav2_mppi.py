@@ -51,8 +51,10 @@ def nav2_mppi_parameters(mppi: MPPI, robot: Robot, limits: PathLimits | None = N
     radius = 0.5 * (drive.left_wheel_radius + drive.right_wheel_radius)
     wheel = _first(mppi.max_wheel_velocity, _of(limits, "max_wheel_velocity"))
     if wheel is None:
-        raise ValueError("Nav2's vx_max and wz_max need a wheel limit: give the controller's "
-                         "max_wheel_velocity or the plan's")  # fmt: skip
+        raise ValueError(
+            "Nav2's vx_max and wz_max need a wheel limit: give the controller's "
+            "max_wheel_velocity or the plan's"
+        )
     vx = min(radius * wheel, _of(limits, "max_velocity") or math.inf)
     turn = _of(limits, "max_angular_velocity") or math.inf
     wz = min(2.0 * radius * wheel / drive.track_width, turn)
@@ -75,8 +77,14 @@ def nav2_mppi_parameters(mppi: MPPI, robot: Robot, limits: PathLimits | None = N
         figures["ax_max"] = radius * acceleration
         figures["ax_min"] = -radius * acceleration
         figures["az_max"] = 2.0 * radius * acceleration / drive.track_width
-    critics = ["ConstraintCritic", "GoalCritic", "GoalAngleCritic", "PathAlignCritic",
-               "PathFollowCritic", "PathAngleCritic"]  # fmt: skip
+    critics = [
+        "ConstraintCritic",
+        "GoalCritic",
+        "GoalAngleCritic",
+        "PathAlignCritic",
+        "PathFollowCritic",
+        "PathAngleCritic",
+    ]
     if mppi.obstacles is not None:
         critics.insert(1, "ObstaclesCritic")
         figures["ObstaclesCritic"] = {
@@ -92,8 +100,10 @@ def nav2_mppi_parameters(mppi: MPPI, robot: Robot, limits: PathLimits | None = N
 def render_nav2_mppi(mppi: MPPI, robot: Robot, limits: PathLimits | None = None) -> str:
     """The parameter file's text (``controller_server: ros__parameters: FollowPath: ...``)."""
     figures = nav2_mppi_parameters(mppi, robot, limits)
-    lines = ["# Nav2 MPPI controller parameters from diffdrive's MPPI (diffdrive.export."
-             "nav2_mppi says how each is derived)"]  # fmt: skip
+    lines = [
+        "# Nav2 MPPI controller parameters from diffdrive's MPPI (diffdrive.export."
+        "nav2_mppi says how each is derived)"
+    ]
     lines += [f"# {note}" for note in _NOT_CARRIED]
     if mppi.obstacles is not None:
         lines.append(f"# give the local costmap robot_radius: {yaml_value(mppi.footprint)} (m)")

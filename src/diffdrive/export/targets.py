@@ -43,8 +43,23 @@ __all__ = ["TARGETS", "DriveConstants", "Reference", "parameters"]
 TARGETS = ("ros2", "robot_localization", "amcl", "wpilib")
 UNKNOWN, KNOWN_ZERO = 1e6, 1e-9
 # robot_localization's documented default process noise diagonal (ekf.yaml).
-_RL_DEFAULT = (0.05, 0.05, 0.06, 0.03, 0.03, 0.06, 0.025, 0.025, 0.04, 0.01, 0.01, 0.02, 0.01,
-               0.01, 0.015)  # fmt: skip
+_RL_DEFAULT = (
+    0.05,
+    0.05,
+    0.06,
+    0.03,
+    0.03,
+    0.06,
+    0.025,
+    0.025,
+    0.04,
+    0.01,
+    0.01,
+    0.02,
+    0.01,
+    0.01,
+    0.015,
+)
 
 
 @dataclass(frozen=True)
@@ -176,10 +191,15 @@ def _ros2(robot, nominal, model, at, wheel_names) -> dict[str, object]:
         "right_wheel_radius_multiplier": robot.right_wheel_radius / base,
         "velocity_rolling_window_size": at.window,
         "pose_covariance_diagonal": [
-            straight[0, 0], straight[1, 1], UNKNOWN, UNKNOWN, UNKNOWN, straight[2, 2]
+            straight[0, 0],
+            straight[1, 1],
+            UNKNOWN,
+            UNKNOWN,
+            UNKNOWN,
+            straight[2, 2],
         ],
         "twist_covariance_diagonal": [var_v, KNOWN_ZERO, UNKNOWN, UNKNOWN, UNKNOWN, var_w],
-    }  # fmt: skip
+    }
 
 
 def _speed_share(model: NoiseModel) -> float:

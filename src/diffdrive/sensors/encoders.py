@@ -219,9 +219,20 @@ def _read_compiled(robot, poses, factor, geometry, model, rng, scale, readings) 
     def run(kernel, rows: slice, normals: np.ndarray) -> None:
         own = poses[rows] if len(poses) > 1 else poses  # one shared trajectory serves all
         overflow = kernel(
-            own, robot.reference_offset, turned, factor, geometry[rows], noise.k, normals,
-            bool(noise), scale, counts, bits, model.signed, readings[rows],
-        )  # fmt: skip
+            own,
+            robot.reference_offset,
+            turned,
+            factor,
+            geometry[rows],
+            noise.k,
+            normals,
+            bool(noise),
+            scale,
+            counts,
+            bits,
+            model.signed,
+            readings[rows],
+        )
         if overflow.any():
             raise ValueError(_TOO_MANY_COUNTS)
 
