@@ -430,15 +430,17 @@ def test_the_core_is_built_from_the_settings_as_given(heading, k, start, sigma, 
 
 
 def test_a_streaming_estimator_starts_from_a_whole_logs_identified_settings():
-    """``Estimate.used`` is the settings the pass ran with, what the log gave filled in: the
-    gyro's noise and bias from its standing stretch."""
+    """``Estimate.used`` is the settings the pass ran with, what the log gave filled in (the
+    gyro's noise and bias from its standing stretch), with the caller's window: a streaming
+    estimator started from it keeps 2 s of history, not the whole log, and ends where the
+    whole log's filter does."""
     t, inc, gyro, *_ = log(5, R2)
     estimate = estimate_trajectory(R2, t, inc, gyro=gyro, smooth=False)
     used = estimate.used
     assert used is not None
     assert used.gyro_noise is not None
     assert used.bias == pytest.approx(0.01, abs=1e-3)
-    assert used.window == Window(math.inf, 0.0)
+    assert used.window == Window()  # the caller's, not the pass's whole-log one: bounded
     streaming = PoseEstimator(R2, used, initial_time=0.0)
     turned = np.diff(gyro.angles(t))
     for k in range(len(inc)):

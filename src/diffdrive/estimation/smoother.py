@@ -55,8 +55,9 @@ class Estimate:
     (``filter.SmootherRecords``), else None; ``settings``: what the gyro's noise and bias
     were, and the fixes' with ``WholeLog(fixes="identified")``, and where from (given, or
     identified from the log's standing stretches and from the fixes themselves); ``used``: the
-    ``EstimatorSettings`` the pass ran with, what the log identified filled in (a streaming
-    ``PoseEstimator`` can start from it)."""
+    ``EstimatorSettings`` the pass ran with, what the log identified filled in, and the
+    ``window`` as given (the pass's own keeps the whole log): a streaming ``PoseEstimator``
+    starts from it with a bounded history."""
 
     times: np.ndarray
     poses: np.ndarray
@@ -171,6 +172,7 @@ def estimate_trajectory(
             )
     if whole.records and not smooth:
         raise ValueError("records are the smoother's, made on its pass back: give smooth=True")
+    window = settings.window  # the streaming estimator's, given back in ``used``
     settings = settings.replace(window=Window(math.inf, 0.0))  # the whole log, no waiting
     settings, lines = _gyro_settings(times, increments, turned, gyro, settings)
     _check_log(times, increments, turned, settings.encoders.max_wheel_speed)
@@ -219,7 +221,7 @@ def estimate_trajectory(
         run.records,
         lines,
         run.log_dets,
-        settings,
+        settings.replace(window=window),
     )
 
 
