@@ -1,0 +1,244 @@
+/* Odometry from wheel readings (see diffdrive/odometry.h): check, step, covariance. */
+#include <string.h>
+#include "real_math.h"
+
+#include "diffdrive/odometry.h"
+#include "step.h"
+
+/* Add term to the sum, carrying the rounding error in comp (Neumaier's variant of Kahan's). */
+static void add(dd_sum *s, dd_real term) {
+    dd_real t = s->sum + term;
+    s->comp += dd_fabs(s->sum) >= dd_fabs(term) ? (s->sum - t) + term : (term - t) + s->sum;
+    s->sum = t;
+}
+
+static dd_real value(dd_sum s) { return s.sum + s.comp; }
+
+/* The heading the step's sines and cosines take. In double, sum + comp: libm reduces a large
+ * angle exactly. In float, sum + comp rounds to float before libm sees it, and an hour of
+ * turning puts theta at hundreds of rad where a float's step is 1e-5 rad: the sum is reduced
+ * by whole turns first (Cody and Waite's three-part 2 pi, each k * part exact for |k| < 2^12),
+ * so the angle keeps a float's precision near 0 whatever the turns before. */
+static dd_real heading(dd_sum theta) {
+#ifdef DD_SINGLE
+    const float A = 6.28125f, B = 1.93119049e-3f, C = 2.77912382e-8f; /* A + B + C = 2 pi */
+    float k = nearbyintf(theta.sum * 0.159154943f);
+    return ((theta.sum - k * A) - k * B) - k * C + theta.comp;
+#else
+    return value(theta);
+#endif
+}
+
+typedef struct {
+    dd_real dx, dy, dtheta; /* the pose's world-frame move */
+    dd_real travel;         /* how far the reference point moved, m */
+    dd_real jac_pose[9];    /* d(new pose)/d(pose), row-major 3x3 */
+    dd_real jac_wheels[6];  /* d(new pose)/d(wheel-angle increments), 3x2 */
+} Step;
+
+/* One step from wheel-angle increments (rad) at heading theta, with its Jacobians: the move's
+ * taken through each wheel's arc (d forward = 1/2, d turn = -+1/track per metre). */
+static void step(const dd_odometry_config *c, dd_real theta, dd_real dl, dd_real dr, Step *s) {
+    const dd_drive *d = &c->drive;
+    dd_real left = d->r_left * dl, right = d->r_right * dr;
+    dd_real turn = (right - left) / d->track, forward = 0.5 * (left + right);
+    dd_real weight = c->method == DD_EULER ? 0.0 : 0.5;
+    dd_real bf[2], bt[2];
+    dd_move_jacobians(forward, d->offset, turn, weight, c->method == DD_EXACT, theta, &s->dx,
+                      &s->dy, bf, bt);
+    s->dtheta = turn;
+    s->travel = dd_hypot(forward, d->offset * turn);
+    const dd_real jp[9] = {1.0, 0.0, -s->dy, 0.0, 1.0, s->dx, 0.0, 0.0, 1.0};
+    memcpy(s->jac_pose, jp, sizeof jp);
+    const dd_real dturn[2] = {-1.0 / d->track, 1.0 / d->track};
+    const dd_real radius[2] = {d->r_left, d->r_right};
+    for (int w = 0; w < 2; ++w) {
+        s->jac_wheels[w] = radius[w] * (0.5 * bf[0] + dturn[w] * bt[0]);
+        s->jac_wheels[2 + w] = radius[w] * (0.5 * bf[1] + dturn[w] * bt[1]);
+        s->jac_wheels[4 + w] = radius[w] * dturn[w];
+    }
+}
+
+/* cov <- J cov J^T + W diag(q) W^T, with J 3x3 and W 3x2. */
+static void propagate(dd_real cov[9], const dd_real J[9], const dd_real W[6], const dd_real q[2]) {
+    dd_real JC[9], out[9];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            JC[3 * i + j] = J[3 * i] * cov[j] + J[3 * i + 1] * cov[3 + j] + J[3 * i + 2] * cov[6 + j];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            out[3 * i + j] = JC[3 * i] * J[3 * j] + JC[3 * i + 1] * J[3 * j + 1] +
+                             JC[3 * i + 2] * J[3 * j + 2] + W[2 * i] * q[0] * W[2 * j] +
+                             W[2 * i + 1] * q[1] * W[2 * j + 1];
+    memcpy(cov, out, sizeof out);
+}
+
+/* Refuse a reading that cannot be right; dt is the time since the last one, NaN if unknown. */
+static dd_status check(const dd_odometry *o, dd_real dl, dd_real dr, const double *t, double dt) {
+    if (!isfinite(dl) || !isfinite(dr)) return DD_NOT_FINITE;
+    if (t == 0) return DD_OK;
+    if (!isfinite(*t)) return DD_NOT_FINITE;
+    if (dt < 0) return DD_TIME_BACKWARDS;
+    if (dt == 0 && (dl != 0.0 || dr != 0.0)) return DD_TIME_STILL;
+    dd_real fastest = dd_fmax(dd_fabs(dl), dd_fabs(dr));
+    if (dt > 0 && (!isfinite(fastest / (dd_real)dt) ||
+                     fastest > o->config.max_wheel_speed * (dd_real)dt))
+        return DD_TOO_FAST;
+    return DD_OK;
+}
+
+/* Checked, then applied: the next state is made whole before any of it is kept. */
+static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, const double *t) {
+    dd_status status = check(o, dl, dr, t, t ? *t - o->time : (double)NAN);
+    if (status != DD_OK) return status;
+    const dd_drive *d = &o->config.drive;
+    Step s;
+    step(&o->config, heading(o->theta), dl, dr, &s);
+    const dd_real q[2] = {o->config.k_left * dd_fabs(d->r_left * dl) / (d->r_left * d->r_left),
+                          o->config.k_right * dd_fabs(d->r_right * dr) / (d->r_right * d->r_right)};
+    dd_real cov[9];
+    memcpy(cov, o->cov, sizeof cov);
+    propagate(cov, s.jac_pose, s.jac_wheels, q);
+    dd_sum x = o->x, y = o->y, theta = o->theta, distance = o->distance;
+    add(&x, s.dx);
+    add(&y, s.dy);
+    add(&theta, s.dtheta);
+    add(&distance, s.travel);
+    dd_real arc_left = o->arc_left + d->r_left * dl, arc_right = o->arc_right + d->r_right * dr;
+    if (!isfinite(value(x)) || !isfinite(value(y)) || !isfinite(value(theta)) ||
+        !isfinite(value(distance)) || !isfinite(arc_left) || !isfinite(arc_right))
+        return DD_OVERFLOW_POSE;
+    for (int i = 0; i < 9; ++i)
+        if (!isfinite(cov[i])) return DD_OVERFLOW_COVARIANCE;
+    o->x = x, o->y = y, o->theta = theta, o->distance = distance;
+    memcpy(o->cov, cov, sizeof cov);
+    o->arc_left = arc_left, o->arc_right = arc_right;
+    o->time = t ? *t : (double)NAN; /* without a stamp the clock is lost until the next one */
+    return DD_OK;
+}
+
+/* A first reading only sets the reference: its time starts the clock. */
+static dd_status start(dd_odometry *o, const double *t) {
+    if (t == 0) return DD_OK;
+    dd_status status = check(o, 0.0, 0.0, t, *t - o->time);
+    if (status == DD_OK) o->time = *t;
+    return status;
+}
+
+dd_status dd_odometry_init(dd_odometry *o, const dd_odometry_config *config) {
+    if (o == 0 || config == 0) return DD_NULL;
+    const dd_odometry_config *c = config;
+    if (dd_drive_check(&c->drive) != DD_OK || c->method < DD_EULER || c->method > DD_EXACT ||
+        !(c->rad_per_tick >= 0.0) || !isfinite(c->rad_per_tick) || c->counter_bits < 0 ||
+        c->counter_bits > 64 || !(c->max_wheel_speed > 0.0) || !(c->k_left >= 0.0) ||
+        !(c->k_right >= 0.0) || !isfinite(c->k_left) || !isfinite(c->k_right))
+        return DD_BAD_SETTING;
+    memset(o, 0, sizeof *o);
+    o->config = *config;
+    o->time = (double)NAN;
+    return DD_OK;
+}
+
+dd_status dd_tick_change(int bits, int64_t before, int64_t after, int64_t *change) {
+    if (bits == 0) {
+        if ((after >= 0 && before < 0 && after > INT64_MAX + before) ||
+            (after < 0 && before > 0 && after < INT64_MIN + before))
+            return DD_COUNTER_RANGE;
+        *change = after - before;
+        return DD_OK;
+    }
+    uint64_t step = (uint64_t)after - (uint64_t)before;
+    if (bits < 64) {
+        uint64_t modulus = (uint64_t)1 << bits;
+        step &= modulus - 1;
+        *change = step >= modulus / 2 ? (int64_t)step - (int64_t)modulus : (int64_t)step;
+    } else {
+        *change = (int64_t)step;
+    }
+    return DD_OK;
+}
+
+/* A reading fits a counter of `bits` bits read signed or unsigned: -2^(bits-1) to 2^bits - 1
+ * (64 bits: any int64_t, an unsigned reading past 2^63 kept as its bit pattern). */
+static int fits(int bits, int64_t reading) {
+    if (bits == 0 || bits == 64) return 1;
+    return reading >= -((int64_t)1 << (bits - 1)) && reading <= (int64_t)(((uint64_t)1 << bits) - 1);
+}
+
+dd_status dd_odometry_ticks(dd_odometry *o, const double *t, int64_t left, int64_t right) {
+    if (o == 0) return DD_NULL;
+    if (o->config.rad_per_tick == 0.0) return DD_NO_TICKS;
+    int bits = o->config.counter_bits;
+    if (!fits(bits, left) || !fits(bits, right)) return DD_COUNTER_RANGE;
+    dd_status status;
+    if (!o->have_ticks) {
+        status = start(o, t);
+    } else {
+        int64_t change_left, change_right;
+        status = dd_tick_change(bits, o->ticks_left, left, &change_left);
+        if (status == DD_OK) status = dd_tick_change(bits, o->ticks_right, right, &change_right);
+        if (status == DD_OK)
+            status = update(o, (dd_real)change_left * o->config.rad_per_tick,
+                            (dd_real)change_right * o->config.rad_per_tick, t);
+    }
+    if (status == DD_OK) {
+        o->have_ticks = 1;
+        o->ticks_left = left;
+        o->ticks_right = right;
+    }
+    return status;
+}
+
+dd_status dd_odometry_positions(dd_odometry *o, const double *t, dd_real left, dd_real right) {
+    if (o == 0) return DD_NULL;
+    if (!isfinite(left) || !isfinite(right)) return DD_NOT_FINITE;
+    dd_status status = o->have_positions
+                           ? update(o, left - o->position_left, right - o->position_right, t)
+                           : start(o, t);
+    if (status == DD_OK) {
+        o->have_positions = 1;
+        o->position_left = left;
+        o->position_right = right;
+    }
+    return status;
+}
+
+dd_status dd_odometry_increments(dd_odometry *o, const double *t, dd_real left, dd_real right) {
+    if (o == 0) return DD_NULL;
+    return update(o, left, right, t);
+}
+
+dd_status dd_odometry_velocities(dd_odometry *o, dd_real left, dd_real right, double dt) {
+    if (o == 0) return DD_NULL;
+    if (!isfinite(left) || !isfinite(right) || !isfinite(dt)) return DD_NOT_FINITE;
+    if (!(dt > 0)) return DD_BAD_DT;
+    double begin = isnan(o->time) ? 0 : o->time, end = begin + dt;
+    double time = o->time;
+    o->time = begin; /* the clock starts at 0 s; put back if the update is refused */
+    dd_status status = update(o, left * (dd_real)dt, right * (dd_real)dt, &end);
+    if (status != DD_OK) o->time = time;
+    return status;
+}
+
+void dd_odometry_pose(const dd_odometry *o, dd_real pose[3]) {
+    pose[0] = value(o->x);
+    pose[1] = value(o->y);
+    pose[2] = value(o->theta);
+}
+
+dd_real dd_odometry_distance(const dd_odometry *o) { return value(o->distance); }
+
+void dd_odometry_set_pose(dd_odometry *o, const dd_real pose[3], const dd_real cov[9]) {
+    const dd_sum zero = {0.0, 0.0};
+    o->x = o->y = o->theta = o->distance = zero;
+    o->x.sum = pose[0], o->y.sum = pose[1], o->theta.sum = pose[2];
+    memcpy(o->cov, cov, sizeof o->cov);
+}
+
+void dd_odometry_jacobians(const dd_odometry *o, dd_real left, dd_real right, dd_real jac_pose[9],
+                           dd_real jac_wheels[6]) {
+    Step s;
+    step(&o->config, heading(o->theta), left, right, &s);
+    memcpy(jac_pose, s.jac_pose, sizeof s.jac_pose);
+    memcpy(jac_wheels, s.jac_wheels, sizeof s.jac_wheels);
+}

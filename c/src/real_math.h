@@ -1,0 +1,30 @@
+/* libm's functions for dd_real, private to the library: the float ones in a single-precision
+ * build (newlib has no complex long double functions, so <tgmath.h> is not an option). */
+#ifndef DIFFDRIVE_REAL_MATH_H
+#define DIFFDRIVE_REAL_MATH_H
+
+#include <math.h>
+
+#ifdef DD_SINGLE
+#define dd_sin sinf
+#define dd_cos cosf
+#define dd_fabs fabsf
+#define dd_hypot hypotf
+#define dd_fmax fmaxf
+#define dd_fmin fminf
+#define dd_sqrt sqrtf
+#define dd_log logf
+#define dd_remainder remainderf
+#else
+#define dd_sin sin
+#define dd_cos cos
+#define dd_fabs fabs
+#define dd_hypot hypot
+#define dd_fmax fmax
+#define dd_fmin fmin
+#define dd_sqrt sqrt
+#define dd_log log
+#define dd_remainder remainder
+#endif
+
+#endif
