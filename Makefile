@@ -4,9 +4,9 @@
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
-SOURCES := pyproject.toml setup.py src/diffdrive/backends/_odometry.c \
-	src/diffdrive/backends/_estimator.c src/diffdrive/backends/_odometry.h \
-	src/diffdrive/backends/_module.c
+# The extension's sources: a change to any of them rebuilds it on the next job.
+SOURCES := pyproject.toml setup.py $(wildcard src/diffdrive/backends/*.[ch]) \
+	$(wildcard c/src/*.[ch]) $(wildcard c/include/diffdrive/*.h)
 
 .PHONY: demo test docs bench clean
 

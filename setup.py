@@ -9,8 +9,12 @@ its pure-Python twins (``estimation/odometry_python.py``, ``estimation/estimator
 ``COMPILED`` in ``diffdrive.estimation.odometry`` and ``.fusion`` says which).
 """
 
+from glob import glob
+
 from setuptools import Extension, setup
 
+# The binding (src/diffdrive/backends/) over the freestanding C core (c/): the same sources the
+# firmware builds, compiled here in double precision.
 CORE = Extension(
     "diffdrive.backends._odometry",
     [
@@ -18,8 +22,14 @@ CORE = Extension(
         "src/diffdrive/backends/_odometry.c",
         "src/diffdrive/backends/_estimator.c",
         "src/diffdrive/backends/_partition.c",
+        *sorted(glob("c/src/*.c")),
     ],
-    depends=["src/diffdrive/backends/_odometry.h"],
+    include_dirs=["c/include", "c/src"],
+    depends=[
+        "src/diffdrive/backends/_odometry.h",
+        *glob("c/include/diffdrive/*.h"),
+        *glob("c/src/*.h"),
+    ],
     optional=True,
 )
 setup(ext_modules=[CORE])

@@ -87,9 +87,10 @@ static dd_status check(const dd_odometry *o, dd_real dl, dd_real dr, const doubl
     return DD_OK;
 }
 
-/* Checked, then applied: the next state is made whole before any of it is kept. */
-static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, const double *t) {
-    dd_status status = check(o, dl, dr, t, t ? *t - o->time : (double)NAN);
+/* Checked, then applied: the next state is made whole before any of it is kept. dt: the time
+ * since the last reading (NaN: unknown). */
+static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, const double *t, double dt) {
+    dd_status status = check(o, dl, dr, t, dt);
     if (status != DD_OK) return status;
     const dd_drive *d = &o->config.drive;
     Step s;
@@ -116,6 +117,9 @@ static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, const double *t)
     o->time = t ? *t : (double)NAN; /* without a stamp the clock is lost until the next one */
     return DD_OK;
 }
+
+/* The time since the last reading, NaN while unknown or without a stamp. */
+static double since(const dd_odometry *o, const double *t) { return t ? *t - o->time : (double)NAN; }
 
 /* A first reading only sets the reference: its time starts the clock. */
 static dd_status start(dd_odometry *o, const double *t) {
@@ -179,7 +183,7 @@ dd_status dd_odometry_ticks(dd_odometry *o, const double *t, int64_t left, int64
         if (status == DD_OK) status = dd_tick_change(bits, o->ticks_right, right, &change_right);
         if (status == DD_OK)
             status = update(o, (dd_real)change_left * o->config.rad_per_tick,
-                            (dd_real)change_right * o->config.rad_per_tick, t);
+                            (dd_real)change_right * o->config.rad_per_tick, t, since(o, t));
     }
     if (status == DD_OK) {
         o->have_ticks = 1;
@@ -193,7 +197,8 @@ dd_status dd_odometry_positions(dd_odometry *o, const double *t, dd_real left, d
     if (o == 0) return DD_NULL;
     if (!isfinite(left) || !isfinite(right)) return DD_NOT_FINITE;
     dd_status status = o->have_positions
-                           ? update(o, left - o->position_left, right - o->position_right, t)
+                           ? update(o, left - o->position_left, right - o->position_right, t,
+                                    since(o, t))
                            : start(o, t);
     if (status == DD_OK) {
         o->have_positions = 1;
@@ -205,19 +210,15 @@ dd_status dd_odometry_positions(dd_odometry *o, const double *t, dd_real left, d
 
 dd_status dd_odometry_increments(dd_odometry *o, const double *t, dd_real left, dd_real right) {
     if (o == 0) return DD_NULL;
-    return update(o, left, right, t);
+    return update(o, left, right, t, since(o, t));
 }
 
 dd_status dd_odometry_velocities(dd_odometry *o, dd_real left, dd_real right, double dt) {
     if (o == 0) return DD_NULL;
     if (!isfinite(left) || !isfinite(right) || !isfinite(dt)) return DD_NOT_FINITE;
     if (!(dt > 0)) return DD_BAD_DT;
-    double begin = isnan(o->time) ? 0 : o->time, end = begin + dt;
-    double time = o->time;
-    o->time = begin; /* the clock starts at 0 s; put back if the update is refused */
-    dd_status status = update(o, left * (dd_real)dt, right * (dd_real)dt, &end);
-    if (status != DD_OK) o->time = time;
-    return status;
+    double end = (isnan(o->time) ? 0 : o->time) + dt; /* without a clock, one starts at 0 s */
+    return update(o, left * (dd_real)dt, right * (dd_real)dt, &end, dt);
 }
 
 void dd_odometry_pose(const dd_odometry *o, dd_real pose[3]) {

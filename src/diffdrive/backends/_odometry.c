@@ -1,17 +1,8 @@
-/* The state and the update of diffdrive.Odometry, in C so that one update costs well under a
- * microsecond (the Python class diffdrive.odometry.Odometry derives from OdometryCore).
- *
- * One update is the step of diffdrive/_step.py, mirrored here: wheel-angle increments (rad)
- * -> wheel arcs (m) -> forward travel, sideways travel (axle offset) and turn -> the pose moved
- * along the start heading (euler) or the mid-step heading (rk2, exact; exact scales by the
- * chord factor sinc(turn/2)), and the covariance moved with the same step's Jacobians. Every check runs before any state changes,
- * so a refused update leaves the object exactly as it was.
- *
- * Uncertainty (Siegwart, Nourbakhsh and Scaramuzza, "Introduction to Autonomous Mobile
- * Robots", 2nd ed., 2011, sec. 5.2.4, eq. 5.9): the travel of each wheel in one update has a
- * variance proportional to its absolute value, var(ds_l) = k_left |ds_l|, var(ds_r) =
- * k_right |ds_r|, independent. k scales the variance, not the standard deviation, so the
- * covariance after a path does not depend on how finely the updates slice it.
+/* diffdrive.Odometry's core for Python: the C library's odometry (c/src/odometry.c, the same
+ * source the firmware builds) in a Python type, with what only Python needs around it: the
+ * arguments parsed and refused by name, the library's status codes turned into messages that
+ * give the values, and the velocity window (a growing buffer, so it stays out of the
+ * allocation-free library).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -20,8 +11,7 @@
 #include <string.h>
 
 #include "_odometry.h"
-
-enum { EULER = 0, RK2 = 1, EXACT = 2 };
+#include "diffdrive/odometry.h"
 
 typedef struct {
     double t, left, right; /* time (s) and cumulative wheel arcs (m) */
@@ -29,26 +19,9 @@ typedef struct {
 
 typedef struct {
     PyObject_HEAD
-    /* configuration */
-    double r_left, r_right, track, offset; /* m */
-    int method;
-    double rad_per_tick;    /* 0: no ticks_per_revolution given */
-    int counter_bits;       /* 0: counters that do not roll over */
-    double max_wheel_speed; /* rad/s; infinity: no limit */
-    double k_left, k_right; /* m: wheel-travel variance per metre travelled */
-    double window;          /* s, for the velocity estimate */
-    /* state: each of x, y, theta, distance is sum + compensation (Neumaier), so that a long
-     * run of small updates does not drift from a compensated batch sum */
-    double x, y, theta, distance;
-    double x_comp, y_comp, theta_comp, distance_comp;
-    double cov[9];
-    double time; /* s of the last update; NaN when unknown */
-    int have_ticks;
-    long long ticks_left, ticks_right;
-    int have_positions;
-    double position_left, position_right;
-    double arc_left, arc_right; /* m travelled by each wheel, for the velocity window */
-    Sample *samples;            /* ring buffer of (t, arcs) inside the velocity window */
+    dd_odometry od;
+    double window;   /* s, for the velocity estimate */
+    Sample *samples; /* ring buffer of (t, arcs) inside the velocity window */
     Py_ssize_t first, count, capacity;
 } Core;
 
@@ -68,61 +41,6 @@ static Num num(double v) {
         PyMem_Free(repr);
     }
     return n;
-}
-
-/* -- the maths of one step ------------------------------------------------------------- */
-
-typedef struct {
-    double dx, dy, dtheta; /* world-frame move of the pose */
-    double travel;         /* how far the reference point moved, m */
-    double jac_pose[9];    /* d(new pose)/d(pose), row-major 3x3 */
-    double jac_wheels[6];  /* d(new pose)/d(wheel-angle increments [left, right]), 3x2 */
-} Step;
-
-/* One step from wheel-angle increments (rad) at heading theta, with its Jacobians: the move's
- * (the header's dd_move_jacobians, the estimator's too) taken through each wheel's arc
- * (d forward = 1/2, d turn = -+1/track per metre), as odometry_python's step. */
-static void step(const Core *c, double theta, double dphi_left, double dphi_right, Step *s) {
-    double left = c->r_left * dphi_left, right = c->r_right * dphi_right;
-    double turn = (right - left) / c->track, forward = 0.5 * (left + right);
-    double weight = c->method == EULER ? 0.0 : 0.5; /* direction: theta + weight * turn */
-    double bf[2], bt[2];
-    dd_move_jacobians(forward, c->offset, turn, weight, c->method == EXACT, theta, &s->dx, &s->dy,
-                      bf, bt);
-    s->dtheta = turn;
-    s->travel = hypot(forward, c->offset * turn);
-    double jp[9] = {1.0, 0.0, -s->dy, 0.0, 1.0, s->dx, 0.0, 0.0, 1.0};
-    memcpy(s->jac_pose, jp, sizeof jp);
-    double dturn[2] = {-1.0 / c->track, 1.0 / c->track};
-    double radius[2] = {c->r_left, c->r_right};
-    for (int w = 0; w < 2; ++w) {
-        s->jac_wheels[w] = radius[w] * (0.5 * bf[0] + dturn[w] * bt[0]);
-        s->jac_wheels[2 + w] = radius[w] * (0.5 * bf[1] + dturn[w] * bt[1]);
-        s->jac_wheels[4 + w] = radius[w] * dturn[w];
-    }
-}
-
-/* cov <- J cov J^T + W diag(q) W^T, with J 3x3 and W 3x2. */
-static void propagate(double cov[9], const double J[9], const double W[6], const double q[2]) {
-    double JC[9], out[9];
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            JC[3 * i + j] = J[3 * i] * cov[j] + J[3 * i + 1] * cov[3 + j] + J[3 * i + 2] * cov[6 + j];
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            out[3 * i + j] = JC[3 * i] * J[3 * j] + JC[3 * i + 1] * J[3 * j + 1] +
-                             JC[3 * i + 2] * J[3 * j + 2] + W[2 * i] * q[0] * W[2 * j] +
-                             W[2 * i + 1] * q[1] * W[2 * j + 1];
-    memcpy(cov, out, sizeof out);
-}
-
-/* -- compensated sums -------------------------------------------------------------------- */
-
-/* Add term to the sum, carrying the rounding error in comp (Neumaier's variant of Kahan's). */
-static void add(double *sum, double *comp, double term) {
-    double t = *sum + term;
-    *comp += fabs(*sum) >= fabs(term) ? (*sum - t) + term : (term - t) + *sum;
-    *sum = t;
 }
 
 /* -- the velocity window ----------------------------------------------------------------- */
@@ -148,9 +66,9 @@ static int ensure_room(Core *c, Py_ssize_t n) {
     return 0;
 }
 
-/* Append (t, arcs now); there must be room. Samples older than needed leave. */
-static void push_sample(Core *c, double t) {
-    Sample sample = {t, c->arc_left, c->arc_right};
+/* Append (t, the wheels' arcs then); there must be room. Samples older than needed leave. */
+static void push_sample(Core *c, double t, double left, double right) {
+    Sample sample = {t, left, right};
     Py_ssize_t last = (c->first + c->count - 1) % c->capacity;
     Py_ssize_t before = (last - 1 + c->capacity) % c->capacity;
     if (c->count > 0 && c->samples[last].t == t) { /* the same instant: nothing moved */
@@ -170,118 +88,72 @@ static void push_sample(Core *c, double t) {
     }
 }
 
-/* -- one update, checked first ------------------------------------------------------------ */
+/* -- one update: the library's, its refusal put in words ------------------------------------ */
 
-/* Refuse an update that cannot be right; dt is the time since the last update, NaN if unknown. */
-static int check_update(const Core *c, const char *name, double dl, double dr, int has_t, double t,
-                        double dt) {
-    if (!isfinite(dl) || !isfinite(dr)) {
-        PyErr_Format(PyExc_ValueError, "%s: the wheel increments must be finite, got left %s, "
-                     "right %s", name, num(dl).text, num(dr).text);
-        return -1;
-    }
-    if (has_t && !isfinite(t)) {
-        PyErr_Format(PyExc_ValueError, "%s: the clock would pass the largest finite time: "
-                     "%s s after %s s", name, num(t).text, num(c->time).text);
-        return -1;
-    }
-    if (has_t && dt < 0.0) {
+/* The library refused a reading with status: raise the ValueError that names it and its
+ * values (dl, dr: the increments, rad; t: the reading's time, has_t: whether it has one; dt:
+ * the time since the last reading). */
+static void refuse(const Core *c, const char *name, dd_status status, double dl, double dr,
+                   int has_t, double t, double dt) {
+    double before = c->od.time;
+    double worst = fabs(dl) > fabs(dr) ? dl : dr;
+    switch (status) {
+    case DD_NOT_FINITE:
+        if (!isfinite(dl) || !isfinite(dr))
+            PyErr_Format(PyExc_ValueError, "%s: the wheel increments must be finite, got left "
+                         "%s, right %s", name, num(dl).text, num(dr).text);
+        else
+            PyErr_Format(PyExc_ValueError, "%s: the clock would pass the largest finite time: "
+                         "%s s after %s s", name, num(t).text, num(before).text);
+        return;
+    case DD_TIME_BACKWARDS:
         PyErr_Format(PyExc_ValueError, "%s: time went backwards: t = %s s after %s s", name,
-                     num(t).text, num(c->time).text);
-        return -1;
-    }
-    if (has_t && dt == 0.0 && (dl != 0.0 || dr != 0.0)) {
+                     num(t).text, num(before).text);
+        return;
+    case DD_TIME_STILL:
         PyErr_Format(PyExc_ValueError, "%s: time stands still at t = %s s while the wheels "
                      "moved: no velocity", name, num(t).text);
-        return -1;
-    }
-    if (dt > 0.0 && !isfinite(fmax(fabs(dl), fabs(dr)) / dt)) {
-        double worst = fabs(dl) > fabs(dr) ? dl : dr;
-        PyErr_Format(PyExc_ValueError, "%s: a wheel turned %s rad in %s s, a speed past the "
-                     "largest float: a glitch, or a time stamp in the wrong unit", name,
-                     num(worst).text, num(dt).text);
-        return -1;
-    }
-    if (dt > 0.0 && fmax(fabs(dl), fabs(dr)) > c->max_wheel_speed * dt) {
-        double worst = fabs(dl) > fabs(dr) ? dl : dr;
-        PyErr_Format(PyExc_ValueError, "%s: a wheel turned %s rad in %s s, %s rad/s, over "
-                     "max_wheel_speed %s rad/s: a glitch, or a counter roll-over with the wrong "
-                     "counter_bits", name, num(worst).text, num(dt).text,
-                     num(fabs(worst) / dt).text, num(c->max_wheel_speed).text);
-        return -1;
-    }
-    return 0;
-}
-
-/* The state an update leads to, computed before anything changes. */
-typedef struct {
-    double x, y, theta, distance, x_comp, y_comp, theta_comp, distance_comp;
-    double cov[9], arc_left, arc_right;
-} Next;
-
-/* Compute the next state; refuse one that is not finite (an overflow of huge increments), so
- * that an accepted update never leaves a pose, covariance or distance that cannot be read. */
-static int next_state(const Core *c, const char *name, double dl, double dr, Next *n) {
-    Step s;
-    step(c, c->theta + c->theta_comp, dl, dr, &s);
-    double q[2] = {c->k_left * fabs(c->r_left * dl) / (c->r_left * c->r_left),
-                   c->k_right * fabs(c->r_right * dr) / (c->r_right * c->r_right)};
-    memcpy(n->cov, c->cov, sizeof n->cov);
-    propagate(n->cov, s.jac_pose, s.jac_wheels, q);
-    double left = c->r_left * dl, right = c->r_right * dr;
-    n->x = c->x, n->x_comp = c->x_comp;
-    n->y = c->y, n->y_comp = c->y_comp;
-    n->theta = c->theta, n->theta_comp = c->theta_comp;
-    n->distance = c->distance, n->distance_comp = c->distance_comp;
-    add(&n->x, &n->x_comp, s.dx);
-    add(&n->y, &n->y_comp, s.dy);
-    add(&n->theta, &n->theta_comp, s.dtheta);
-    add(&n->distance, &n->distance_comp, s.travel);
-    n->arc_left = c->arc_left + left;
-    n->arc_right = c->arc_right + right;
-    int finite = isfinite(n->x + n->x_comp) && isfinite(n->y + n->y_comp) &&
-                 isfinite(n->theta + n->theta_comp) && isfinite(n->distance + n->distance_comp) &&
-                 isfinite(n->arc_left) && isfinite(n->arc_right);
-    const char *what = "pose, distance or wheel travel";
-    for (int i = 0; finite && i < 9; ++i) {
-        finite = isfinite(n->cov[i]);
-        what = "covariance";
-    }
-    if (!finite) {
+        return;
+    case DD_TOO_FAST:
+        if (!isfinite(fabs(worst) / dt))
+            PyErr_Format(PyExc_ValueError, "%s: a wheel turned %s rad in %s s, a speed past "
+                         "the largest float: a glitch, or a time stamp in the wrong unit", name,
+                         num(worst).text, num(dt).text);
+        else
+            PyErr_Format(PyExc_ValueError, "%s: a wheel turned %s rad in %s s, %s rad/s, over "
+                         "max_wheel_speed %s rad/s: a glitch, or a counter roll-over with the "
+                         "wrong counter_bits", name, num(worst).text, num(dt).text,
+                         num(fabs(worst) / dt).text, num(c->od.config.max_wheel_speed).text);
+        return;
+    case DD_OVERFLOW_POSE:
+    case DD_OVERFLOW_COVARIANCE:
         PyErr_Format(PyExc_ValueError, "%s: increments of %s and %s rad would make the %s "
                      "overflow (not finite); refused, nothing changed", name, num(dl).text,
-                     num(dr).text, what);
-        return -1;
+                     num(dr).text, status == DD_OVERFLOW_POSE ? "pose, distance or wheel travel"
+                                                              : "covariance");
+        return;
+    default:
+        PyErr_Format(PyExc_ValueError, "%s: %s", name, dd_status_text(status));
     }
-    return 0;
 }
 
-/* Move to the next state and the velocity window; cannot fail (room is ensured). */
-static void commit(Core *c, const Next *n, int has_t, double t) {
-    c->x = n->x, c->x_comp = n->x_comp;
-    c->y = n->y, c->y_comp = n->y_comp;
-    c->theta = n->theta, c->theta_comp = n->theta_comp;
-    c->distance = n->distance, c->distance_comp = n->distance_comp;
-    memcpy(c->cov, n->cov, sizeof c->cov);
-    c->arc_left = n->arc_left;
-    c->arc_right = n->arc_right;
-    if (has_t) {
-        c->time = t;
-        push_sample(c, t);
-    } else {
-        c->time = NAN; /* the clock is lost until the next time stamp */
-        c->count = 0;
-    }
+/* After the library took a reading: the velocity window follows the clock (room ensured). */
+static void follow_clock(Core *c, int has_t) {
+    if (has_t)
+        push_sample(c, c->od.time, c->od.arc_left, c->od.arc_right);
+    else
+        c->count = 0; /* the clock is lost until the next time stamp */
 }
 
 /* An update from increments with an optional time stamp: checked, then applied. */
 static int update(Core *c, const char *name, double dl, double dr, int has_t, double t) {
-    double dt = has_t ? t - c->time : NAN; /* NaN too while the clock is unknown */
-    Next n;
-    if (check_update(c, name, dl, dr, has_t, t, dt) < 0 || next_state(c, name, dl, dr, &n) < 0 ||
-        (has_t && ensure_room(c, 1) < 0))
+    if (has_t && ensure_room(c, 1) < 0) return -1;
+    dd_status status = dd_odometry_increments(&c->od, has_t ? &t : NULL, dl, dr);
+    if (status != DD_OK) {
+        refuse(c, name, status, dl, dr, has_t, t, t - c->od.time);
         return -1;
-    commit(c, &n, has_t, t);
+    }
+    follow_clock(c, has_t);
     return 0;
 }
 
@@ -373,17 +245,6 @@ static PyObject *update_increments(Core *c, PyObject *const *args, Py_ssize_t na
     Py_RETURN_NONE;
 }
 
-/* A first reading only sets the reference: its time starts the clock and the window. */
-static PyObject *start_reference(Core *c, const char *name, int has_t, double t) {
-    if (has_t) {
-        if (check_update(c, name, 0.0, 0.0, 1, t, t - c->time) < 0 || ensure_room(c, 1) < 0)
-            return NULL;
-        c->time = t;
-        push_sample(c, t);
-    }
-    Py_RETURN_NONE;
-}
-
 static PyObject *update_positions(Core *c, PyObject *const *args, Py_ssize_t nargs,
                                   PyObject *kwnames) {
     static const char *name = "update_positions";
@@ -392,21 +253,19 @@ static PyObject *update_positions(Core *c, PyObject *const *args, Py_ssize_t nar
     int has_t;
     if (parse_update(name, "t", args, nargs, kwnames, &lo, &ro, &to) < 0 ||
         parse_double(lo, name, "left", &left) < 0 ||
-        parse_double(ro, name, "right", &right) < 0 || parse_time(name, to, &has_t, &t) < 0)
+        parse_double(ro, name, "right", &right) < 0 || parse_time(name, to, &has_t, &t) < 0 ||
+        (has_t && ensure_room(c, 1) < 0))
         return NULL;
-    if (!c->have_positions) {
-        PyObject *done = start_reference(c, name, has_t, t);
-        if (done != NULL) {
-            c->have_positions = 1;
-            c->position_left = left;
-            c->position_right = right;
-        }
-        return done;
+    /* the increments the library takes, for a refusal's message (0 for the reference) */
+    double dl = c->od.have_positions ? left - c->od.position_left : 0.0;
+    double dr = c->od.have_positions ? right - c->od.position_right : 0.0;
+    int reference = !c->od.have_positions;
+    dd_status status = dd_odometry_positions(&c->od, has_t ? &t : NULL, left, right);
+    if (status != DD_OK) {
+        refuse(c, name, status, dl, dr, has_t, t, t - c->od.time);
+        return NULL;
     }
-    double dl = left - c->position_left, dr = right - c->position_right;
-    if (update(c, name, dl, dr, has_t, t) < 0) return NULL;
-    c->position_left = left;
-    c->position_right = right;
+    if (has_t || !reference) follow_clock(c, has_t);
     Py_RETURN_NONE;
 }
 
@@ -464,62 +323,41 @@ static int parse_ticks(PyObject *obj, const char *field, int bits, long long *ou
     return 0;
 }
 
-/* The change from an old to a new counter reading, through at most one roll-over. */
-static int tick_change(const Core *c, long long before, long long after, const char *field,
-                       long long *out) {
-    if (c->counter_bits == 0) {
-        if (__builtin_sub_overflow(after, before, out)) {
-            PyErr_Format(PyExc_ValueError, "update_ticks: %s changed by more than 2^63 counts",
-                         field);
-            return -1;
-        }
-        return 0;
-    }
-    uint64_t change = (uint64_t)after - (uint64_t)before;
-    if (c->counter_bits < 64) {
-        uint64_t modulus = 1ULL << c->counter_bits;
-        change &= modulus - 1;
-        *out = change >= modulus / 2 ? (long long)change - (long long)modulus : (long long)change;
-    } else {
-        *out = (long long)change;
-    }
-    return 0;
-}
-
 static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
                               PyObject *kwnames) {
     static const char *name = "update_ticks";
     PyObject *lo, *ro, *to;
-    long long left, right, change_left, change_right;
+    long long left, right;
     double t = NAN;
-    int has_t;
-    if (c->rad_per_tick == 0.0) {
+    int has_t, bits = c->od.config.counter_bits;
+    if (c->od.config.rad_per_tick == 0.0) {
         PyErr_SetString(PyExc_ValueError, "update_ticks needs ticks_per_revolution, which this "
                         "Odometry was made without");
         return NULL;
     }
     if (parse_update(name, "t", args, nargs, kwnames, &lo, &ro, &to) < 0 ||
-        parse_ticks(lo, "left", c->counter_bits, &left) < 0 ||
-        parse_ticks(ro, "right", c->counter_bits, &right) < 0 ||
-        parse_time(name, to, &has_t, &t) < 0)
+        parse_ticks(lo, "left", bits, &left) < 0 || parse_ticks(ro, "right", bits, &right) < 0 ||
+        parse_time(name, to, &has_t, &t) < 0 || (has_t && ensure_room(c, 1) < 0))
         return NULL;
-    if (!c->have_ticks) {
-        PyObject *done = start_reference(c, name, has_t, t);
-        if (done != NULL) {
-            c->have_ticks = 1;
-            c->ticks_left = left;
-            c->ticks_right = right;
-        }
-        return done;
+    int64_t change[2] = {0, 0};
+    if (c->od.have_ticks) {
+        const long long readings[2][2] = {{c->od.ticks_left, left}, {c->od.ticks_right, right}};
+        const char *sides[2] = {"left", "right"};
+        for (int w = 0; w < 2; ++w)
+            if (dd_tick_change(bits, readings[w][0], readings[w][1], &change[w]) != DD_OK) {
+                PyErr_Format(PyExc_ValueError, "update_ticks: %s changed by more than 2^63 "
+                             "counts", sides[w]);
+                return NULL;
+            }
     }
-    if (tick_change(c, c->ticks_left, left, "left", &change_left) < 0 ||
-        tick_change(c, c->ticks_right, right, "right", &change_right) < 0)
+    int reference = !c->od.have_ticks;
+    dd_status status = dd_odometry_ticks(&c->od, has_t ? &t : NULL, left, right);
+    if (status != DD_OK) {
+        refuse(c, name, status, (double)change[0] * c->od.config.rad_per_tick,
+               (double)change[1] * c->od.config.rad_per_tick, has_t, t, t - c->od.time);
         return NULL;
-    double dl = (double)change_left * c->rad_per_tick;
-    double dr = (double)change_right * c->rad_per_tick;
-    if (update(c, name, dl, dr, has_t, t) < 0) return NULL;
-    c->ticks_left = left;
-    c->ticks_right = right;
+    }
+    if (has_t || !reference) follow_clock(c, has_t);
     Py_RETURN_NONE;
 }
 
@@ -540,66 +378,55 @@ static PyObject *update_velocities(Core *c, PyObject *const *args, Py_ssize_t na
         PyErr_Format(PyExc_ValueError, "%s: dt must be > 0, got %R", name, dto);
         return NULL;
     }
-    /* Without a clock, one starts at 0 s with these velocities. */
-    double start = isnan(c->time) ? 0.0 : c->time, dl = left * dt, dr = right * dt;
-    Next n;
-    if (check_update(c, name, dl, dr, 1, start + dt, dt) < 0 ||
-        next_state(c, name, dl, dr, &n) < 0 || ensure_room(c, 2) < 0)
+    if (ensure_room(c, 2) < 0) return NULL;
+    int started = !isnan(c->od.time);
+    double start = started ? c->od.time : 0.0, arcs[2] = {c->od.arc_left, c->od.arc_right};
+    dd_status status = dd_odometry_velocities(&c->od, left, right, dt);
+    if (status != DD_OK) {
+        Core clocked = *c; /* the message reads the clock the update would have started */
+        clocked.od.time = start;
+        refuse(&clocked, name, status, left * dt, right * dt, 1, start + dt, dt);
         return NULL;
-    if (isnan(c->time)) {
-        c->time = 0.0;
-        push_sample(c, 0.0);
     }
-    commit(c, &n, 1, start + dt);
+    if (!started) push_sample(c, 0.0, arcs[0], arcs[1]); /* without a clock, one starts at 0 s */
+    follow_clock(c, 1);
     Py_RETURN_NONE;
 }
 
 /* -- what the Python class reads and sets --------------------------------------------------- */
 
 static PyObject *get_state(Core *c, PyObject *unused) {
-    return Py_BuildValue("(ddddd)", c->x + c->x_comp, c->y + c->y_comp, c->theta + c->theta_comp,
-                         c->distance + c->distance_comp, c->time);
+    double pose[3];
+    dd_odometry_pose(&c->od, pose);
+    return Py_BuildValue("(ddddd)", pose[0], pose[1], pose[2], dd_odometry_distance(&c->od),
+                         c->od.time);
 }
 
 static PyObject *get_covariance(Core *c, PyObject *unused) {
-    return Py_BuildValue("(ddddddddd)", c->cov[0], c->cov[1], c->cov[2], c->cov[3], c->cov[4],
-                         c->cov[5], c->cov[6], c->cov[7], c->cov[8]);
+    const double *P = c->od.cov;
+    return Py_BuildValue("(ddddddddd)", P[0], P[1], P[2], P[3], P[4], P[5], P[6], P[7], P[8]);
 }
 
 /* Each wheel's travel (m) since the object was made: what an estimator built on this one takes
  * as the wheels' increments, every check of the update already passed. */
 static PyObject *get_arcs(Core *c, PyObject *unused) {
-    return Py_BuildValue("(dd)", c->arc_left, c->arc_right);
+    return Py_BuildValue("(dd)", c->od.arc_left, c->od.arc_right);
 }
 
 /* What one update can change, so that an estimator built on this core can take a reading
- * back when its own step refuses it: the state, the references, and the velocity window's
- * bounds and newest sample (an update appends or replaces one sample and drops from the
- * front, so the samples it does not touch are still in place). */
+ * back when its own step refuses it: the library's state, and the velocity window's bounds
+ * and newest sample (an update appends or replaces one sample and drops from the front, so
+ * the samples it does not touch are still in place). */
 typedef struct {
-    double x, y, theta, distance, x_comp, y_comp, theta_comp, distance_comp;
-    double cov[9];
-    double time;
-    int have_ticks, have_positions;
-    long long ticks_left, ticks_right;
-    double position_left, position_right, arc_left, arc_right;
+    dd_odometry od;
     Py_ssize_t first, count, capacity;
     Sample last;
 } Snapshot;
 
 static PyObject *snapshot(Core *c, PyObject *unused) {
-    Snapshot s = {c->x, c->y, c->theta, c->distance, c->x_comp, c->y_comp, c->theta_comp,
-                  c->distance_comp};
-    memcpy(s.cov, c->cov, sizeof s.cov);
-    s.time = c->time;
-    s.have_ticks = c->have_ticks;
-    s.have_positions = c->have_positions;
-    s.ticks_left = c->ticks_left;
-    s.ticks_right = c->ticks_right;
-    s.position_left = c->position_left;
-    s.position_right = c->position_right;
-    s.arc_left = c->arc_left;
-    s.arc_right = c->arc_right;
+    Snapshot s;
+    memset(&s, 0, sizeof s);
+    s.od = c->od;
     s.first = c->first;
     s.count = c->count;
     s.capacity = c->capacity;
@@ -614,15 +441,7 @@ static PyObject *restore(Core *c, PyObject *arg) {
     }
     Snapshot s;
     memcpy(&s, PyBytes_AS_STRING(arg), sizeof s);
-    c->x = s.x, c->y = s.y, c->theta = s.theta, c->distance = s.distance;
-    c->x_comp = s.x_comp, c->y_comp = s.y_comp, c->theta_comp = s.theta_comp;
-    c->distance_comp = s.distance_comp;
-    memcpy(c->cov, s.cov, sizeof s.cov);
-    c->time = s.time;
-    c->have_ticks = s.have_ticks, c->have_positions = s.have_positions;
-    c->ticks_left = s.ticks_left, c->ticks_right = s.ticks_right;
-    c->position_left = s.position_left, c->position_right = s.position_right;
-    c->arc_left = s.arc_left, c->arc_right = s.arc_right;
+    c->od = s.od;
     /* A grown buffer holds the samples in order from index 0. */
     c->first = s.capacity == c->capacity ? s.first : 0;
     c->count = s.count;
@@ -635,27 +454,23 @@ static PyObject *get_window_velocities(Core *c, PyObject *unused) {
     if (c->count < 2) Py_RETURN_NONE;
     Sample a = c->samples[c->first], b = c->samples[(c->first + c->count - 1) % c->capacity];
     double span = b.t - a.t;
-    return Py_BuildValue("(ddd)", (b.left - a.left) / span / c->r_left,
-                         (b.right - a.right) / span / c->r_right, span);
+    return Py_BuildValue("(ddd)", (b.left - a.left) / span / c->od.config.drive.r_left,
+                         (b.right - a.right) / span / c->od.config.drive.r_right, span);
 }
 
 static PyObject *set_pose(Core *c, PyObject *args) {
-    double cov[9];
-    if (!PyArg_ParseTuple(args, "ddd(ddddddddd)", &c->x, &c->y, &c->theta, &cov[0], &cov[1],
+    double pose[3], cov[9];
+    if (!PyArg_ParseTuple(args, "ddd(ddddddddd)", &pose[0], &pose[1], &pose[2], &cov[0], &cov[1],
                           &cov[2], &cov[3], &cov[4], &cov[5], &cov[6], &cov[7], &cov[8]))
         return NULL;
-    memcpy(c->cov, cov, sizeof cov);
-    c->distance = 0.0;
-    c->x_comp = c->y_comp = c->theta_comp = c->distance_comp = 0.0;
+    dd_odometry_set_pose(&c->od, pose, cov);
     Py_RETURN_NONE;
 }
 
 static PyObject *jacobians(Core *c, PyObject *args) {
-    double dl, dr;
+    double dl, dr, p[9], w[6];
     if (!PyArg_ParseTuple(args, "dd", &dl, &dr)) return NULL;
-    Step s;
-    step(c, c->theta + c->theta_comp, dl, dr, &s);
-    double *p = s.jac_pose, *w = s.jac_wheels;
+    dd_odometry_jacobians(&c->od, dl, dr, p, w);
     return Py_BuildValue("((ddddddddd)(dddddd))", p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7],
                          p[8], w[0], w[1], w[2], w[3], w[4], w[5]);
 }
@@ -664,24 +479,23 @@ static PyObject *jacobians(Core *c, PyObject *args) {
  * too), read by name; at the origin: Odometry's reset puts the core at its start. */
 static int core_init(Core *c, PyObject *args, PyObject *kwargs) {
     PyObject *s;
-    double drive[4], k[2];
+    double drive[4], k[2], rad_per_tick, max_wheel_speed;
+    int method, bits;
     if (!PyArg_ParseTuple(args, "O", &s)) return -1;
     if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
-        attribute_int(s, "method_code", &c->method) < 0 ||
-        attribute_double(s, "rad_per_tick", &c->rad_per_tick) < 0 ||
-        attribute_double(s, "max_wheel_speed", &c->max_wheel_speed) < 0 ||
-        attribute_int(s, "counter_bits", &c->counter_bits) < 0 ||
+        attribute_int(s, "method_code", &method) < 0 ||
+        attribute_double(s, "rad_per_tick", &rad_per_tick) < 0 ||
+        attribute_double(s, "max_wheel_speed", &max_wheel_speed) < 0 ||
+        attribute_int(s, "counter_bits", &bits) < 0 ||
         attribute_double(s, "velocity_window", &c->window) < 0)
         return -1;
-    c->r_left = drive[0], c->r_right = drive[1], c->track = drive[2], c->offset = drive[3];
-    c->k_left = k[0], c->k_right = k[1];
-    c->x = c->y = c->theta = 0.0;
-    c->distance = 0.0;
-    c->x_comp = c->y_comp = c->theta_comp = c->distance_comp = 0.0;
-    memset(c->cov, 0, sizeof c->cov);
-    c->time = NAN;
-    c->have_ticks = c->have_positions = 0;
-    c->arc_left = c->arc_right = 0.0;
+    const dd_odometry_config config = {{drive[0], drive[1], drive[2], drive[3]}, method,
+                                       rad_per_tick, bits, max_wheel_speed, k[0], k[1]};
+    dd_status status = dd_odometry_init(&c->od, &config);
+    if (status != DD_OK) {
+        PyErr_Format(PyExc_ValueError, "OdometryCore: %s", dd_status_text(status));
+        return -1;
+    }
     c->count = c->first = 0;
     return 0;
 }
@@ -747,10 +561,8 @@ static PyObject *run_log(Core *c, PyObject *args) {
             goto done;
         }
         Py_DECREF(done);
-        out[3 * k] = c->x + c->x_comp;
-        out[3 * k + 1] = c->y + c->y_comp;
-        out[3 * k + 2] = c->theta + c->theta_comp;
-        if (out_cov) memcpy(out_cov + 9 * k, c->cov, sizeof c->cov);
+        dd_odometry_pose(&c->od, out + 3 * k);
+        if (out_cov) memcpy(out_cov + 9 * k, c->od.cov, sizeof c->od.cov);
     }
     result = Py_NewRef(Py_None);
 done:
@@ -810,11 +622,11 @@ PyObject *odometry_update(PyObject *core, int kind, PyObject *const *args, Py_ss
     }
 }
 
-double odometry_time(PyObject *core) { return ((Core *)core)->time; }
+double odometry_time(PyObject *core) { return ((Core *)core)->od.time; }
 
 void odometry_arcs(PyObject *core, double arcs[2]) {
-    arcs[0] = ((Core *)core)->arc_left;
-    arcs[1] = ((Core *)core)->arc_right;
+    arcs[0] = ((Core *)core)->od.arc_left;
+    arcs[1] = ((Core *)core)->od.arc_right;
 }
 
 PyObject *odometry_snapshot(PyObject *core) { return snapshot((Core *)core, NULL); }

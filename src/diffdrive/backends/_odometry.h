@@ -1,8 +1,8 @@
 /* What the sources of diffdrive.backends._odometry share: _odometry.c (Odometry's wheel
  * readings and step) lends _estimator.c (PoseEstimator's filter) its readings, checks and
  * sinc; _module.c's init adds both types. */
-#ifndef DIFFDRIVE_ODOMETRY_H
-#define DIFFDRIVE_ODOMETRY_H
+#ifndef DIFFDRIVE_BINDING_H
+#define DIFFDRIVE_BINDING_H
 
 #include <Python.h>
 #include <math.h>
