@@ -5,7 +5,11 @@
 
 #include <math.h>
 
+/* DD_TINY: a positive number near the smallest normal one; DD_ROUNDING2: the square of a few
+ * units of rounding, for convergence tests on squared sums. */
 #ifdef DD_SINGLE
+#define DD_TINY 1e-37f
+#define DD_ROUNDING2 1e-13f
 #define dd_sin sinf
 #define dd_cos cosf
 #define dd_fabs fabsf
@@ -16,6 +20,8 @@
 #define dd_log logf
 #define dd_remainder remainderf
 #else
+#define DD_TINY 1e-300
+#define DD_ROUNDING2 1e-32
 #define dd_sin sin
 #define dd_cos cos
 #define dd_fabs fabs

@@ -1,7 +1,8 @@
-/* The state, history and updates of diffdrive.estimation.PoseEstimator, in C so that a wheel
- * and gyro update costs about a microsecond and a late measurement a few: the compiled twin
- * of estimation/estimator_python.py, which it mirrors step for step (the tests hold the two
- * together), on the maths of diffdrive/estimation/filter.py.
+/* diffdrive.estimation.PoseEstimator's core for Python: the C library's filter step
+ * (c/src/filter.c, the same source the firmware builds) with the history and the Python
+ * objects around it, so that a wheel and gyro update costs about a microsecond and a late
+ * measurement a few. The compiled twin of estimation/_estimator_python.py, which it mirrors
+ * step for step (the tests hold the two together).
  *
  * The wheels are read by an OdometryCore kept alongside (_odometry.c): its checks refuse a
  * reading before anything changes, and its snapshot takes a reading back when the filter's
@@ -12,8 +13,8 @@
  *
  * A whole log (_run_log, estimate_trajectory's pass) runs without the history: forward
  * interval by interval, then, for the smoother, back, each interval run again from its
- * filtered start with the smoother's record of each step (advance_record: filter.advance's
- * joint, in full) and the Rauch-Tung-Striebel correction applied through it.
+ * filtered start with the smoother's record of each step (the filter step's own, see
+ * dd_filter_predict) and the Rauch-Tung-Striebel correction applied through it.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -21,34 +22,24 @@
 #include <string.h>
 
 #include "_odometry.h"
+#include "diffdrive/filter.h"
 
-#define N 8
-#define NN 64
-enum { BIAS = 3, SCALE = 4, DISTANCE = 5, OFFSET = 6 };
-enum { WHEELS = 0, GYRO = 1, FUSED = 2 };
-enum { POSE = 0, POSITION = 1, HEADING = 2 };
+#define N DD_STATES
+#define NN (DD_STATES * DD_STATES)
+enum { WHEELS = DD_FROM_WHEELS, GYRO = DD_FROM_GYRO, FUSED = DD_FROM_BOTH };
+enum { POSE = DD_POSE, POSITION = DD_POSITION, HEADING = DD_HEADING };
 static const char *KIND_NAMES[3] = {"pose", "position", "heading"};
 static const int KIND_RANK[3] = {1, 2, 0}; /* "heading" < "pose" < "position", as Python's */
 static const char *UPDATES[4] = {"update_ticks", "update_positions", "update_increments",
                                  "update_velocities"};
 #define SLIP_COMMAND_THRESHOLD 13.82
 
-typedef struct {
-    double t;
-    int kind, size;
-    double value[3], cov[9], lever[2];
-    int ok;
-    double score, log_det; /* the squared Mahalanobis distance; log det of its covariance */
-} Meas;
+typedef dd_measurement Meas;
 
-/* One wheel interval: its data and slip test, and in the history the state at its start: x in
- * full, P packed (the carried states' block, row by row, n x n: see pack). */
-typedef struct {
-    double t0, t1, dl, dr, g;
-    int forced, slip;
-    double score;
-    double x[N], P[NN];
-} Interval;
+typedef dd_interval Interval;
+typedef dd_filter_record Step;
+/* _run_log copies Steps into a caller's rows of filter.RECORD_WIDTH float64 */
+_Static_assert(sizeof(Step) == (2 * N + 3 * NN) * sizeof(double), "a Step is 208 doubles");
 
 /* An interval's data, its state left unset (filled where it is kept in the history). */
 static void interval_of(Interval *iv, double t0, double t1, double dl, double dr, double g,
@@ -57,29 +48,11 @@ static void interval_of(Interval *iv, double t0, double t1, double dl, double dr
     iv->forced = forced, iv->slip = 0, iv->score = 0.0;
 }
 
-/* The smoother's record of one step (filter.Step): the state before it given the data to its
- * end, the state after it (before any absolute measurement), and the gain C. */
-typedef struct {
-    double before[N], before_cov[NN], after[N], after_cov[NN], gain[NN];
-} Step;
-/* _run_log copies Steps into a caller's rows of filter.RECORD_WIDTH float64 */
-_Static_assert(sizeof(Step) == (2 * N + 3 * NN) * sizeof(double), "a Step is 208 doubles");
-
-/* Where run_interval records the smoother's steps (NULL: it keeps none). */
-typedef struct {
-    Step *steps;
-    Py_ssize_t count;
-} Record;
-
 typedef struct {
     PyObject_HEAD
     PyObject *wheels;
-    /* configuration */
-    double r_l, r_r, track, axle, weight;
-    int chord, heading, est_bias, est_scale, est_distance, est_offset, inflate;
-    double k_l, k_r, arw2, rrw2, offset_rate2, slip_thr, slip_infl, command_sigma;
-    double k_per_r_l, k_per_r_r; /* k / r of each wheel: its angle noise's variance per rad */
-    double gate[4], offset, history, ahead, mount[3];
+    dd_filter f; /* the filter's settings, the C library's */
+    double command_sigma, history, ahead, mount[3];
     /* state */
     double x[N], P[NN];
     Interval *iv;
@@ -94,549 +67,7 @@ typedef struct {
     double slip_score, command_score;
 } Est;
 
-/* Inlined wherever called: advance_n then has a constant n in each of its callers. */
-#if defined(__GNUC__) || defined(__clang__)
-#define ALWAYS_INLINE inline __attribute__((always_inline))
-#else
-#define ALWAYS_INLINE inline
-#endif
-
-/* -- the maths of filter.py ------------------------------------------------------------- */
-
-static double wrap(double a) {
-    double w = remainder(a, 2.0 * M_PI);
-    return w <= -M_PI ? w + 2.0 * M_PI : w;
-}
-
-static double slip_score(const Est *e, const double *x, const double *P, double dl, double dr,
-                         double g, double dt) {
-    double wheel_turn = (e->r_r * dr - e->r_l * dl) / e->track, scale = x[SCALE];
-    double spread = e->k_l * fabs(e->r_l * dl) + e->k_r * fabs(e->r_r * dr);
-    double innovation = scale * wheel_turn - (g - x[BIAS] * dt);
-    double variance = scale * scale * spread / (e->track * e->track) + e->arw2 * dt +
-                      dt * dt * P[BIAS * N + BIAS] + wheel_turn * wheel_turn * P[SCALE * N + SCALE] +
-                      1e-18;
-    return innovation * innovation / variance;
-}
-
-/* One step's move and its linearisation, as filter.advance builds them: the wheels' turn,
- * the turn, the move (dx, dy), the noises' variances (left, right wheel angle; gyro), and the
- * nonzero blocks of F - I (A: rows 0 to 2, columns 2 to 5: the heading, the bias, the turn
- * and the distance scale) and of G (rows 0 to 2). */
-typedef struct {
-    double wheel_turn, turn, dx, dy, noise[3], A[3][4], G[3][3];
-} Move;
-
-static ALWAYS_INLINE void
-move_terms(const Est *e, const double *x, double dl, double dr, double g, double dt, int slip,
-           Move *m) {
-    double left = e->r_l * dl, right = e->r_r * dr;
-    double travelled = 0.5 * (left + right), scale = x[SCALE], distance = x[DISTANCE];
-    double forward = distance * travelled;
-    double inflation = slip ? e->slip_infl : 1.0;
-    m->wheel_turn = (right - left) / e->track;
-    /* k |r dl| / r^2 = (k / r) |dl|: the radii are positive (checked in __init__) */
-    m->noise[0] = inflation * e->k_per_r_l * fabs(dl);
-    m->noise[1] = inflation * e->k_per_r_r * fabs(dr);
-    m->noise[2] = e->heading != WHEELS ? e->arw2 * dt : 0.0;
-    double bnf[3] = {0.5 * distance * e->r_l, 0.5 * distance * e->r_r, 0.0}, bnt[3],
-           bst[N] = {0};
-    if (e->heading == WHEELS) {
-        m->turn = scale * m->wheel_turn;
-        bnt[0] = -scale * e->r_l / e->track;
-        bnt[1] = scale * e->r_r / e->track;
-        bnt[2] = 0.0;
-        bst[SCALE] = m->wheel_turn;
-    } else {
-        m->turn = g - x[BIAS] * dt;
-        bnt[0] = bnt[1] = 0.0;
-        bnt[2] = 1.0;
-        bst[BIAS] = -dt;
-    }
-    double bf[2], bt[2];
-    dd_move_jacobians(forward, e->axle, m->turn, e->weight, e->chord, x[2], &m->dx, &m->dy, bf,
-                      bt);
-    const double columns[3][4] = {
-        {-m->dy, bt[0] * bst[BIAS], bt[0] * bst[SCALE], bf[0] * travelled},
-        {m->dx, bt[1] * bst[BIAS], bt[1] * bst[SCALE], bf[1] * travelled},
-        {0.0, bst[BIAS], bst[SCALE], 0.0}};
-    memcpy(m->A, columns, sizeof columns);
-    for (int i = 0; i < 3; ++i) {
-        m->G[0][i] = bf[0] * bnf[i] + bt[0] * bnt[i];
-        m->G[1][i] = bf[1] * bnf[i] + bt[1] * bnt[i];
-        m->G[2][i] = bnt[i];
-    }
-}
-
-/* filter.advance without the smoother's record, in place on x and P, for the first n states
- * (3: the pose; 4: and the bias; 5: and the turn scale; 6: and the distance scale; 8: and the
- * fixes' offset). The states that are not estimated have
- * zero rows and columns in P and keep them, untouched. Always inlined into advance with n a
- * constant, so every loop has fixed bounds the compiler unrolls. */
-static ALWAYS_INLINE void
-advance_n(const Est *e, double *x, double *P, double dl, double dr, double g, double dt, int slip,
-          const int n) {
-    Move mv;
-    move_terms(e, x, dl, dr, g, dt, slip, &mv);
-    const double wheel_turn = mv.wheel_turn, turn = mv.turn, dx = mv.dx, dy = mv.dy;
-    const double *noise = mv.noise, scale = x[SCALE];
-    /* A = F - I is zero but for columns 2 to 5 of rows 0 to 2, and G is zero below row 2:
-     * FP = P + A P and moved = FP F^T + G Q G^T over those entries only (a column of A past n
-     * meets a zero row of P: it adds an exact zero). */
-    double (*A)[4] = mv.A, (*G)[3] = mv.G, GQ[3][3];
-    for (int i = 0; i < 3; ++i)
-        for (int k = 0; k < 3; ++k) GQ[i][k] = G[i][k] * noise[k];
-    double after[N];
-    memcpy(after, x, sizeof after);
-    after[0] += dx;
-    after[1] += dy;
-    after[2] += turn;
-    double FP[NN], moved[NN];
-    /* the block the steps below read: the first n states, and the heading's to the distance
-     * scale's columns and rows, which A and h4 multiply (zero when not carried); element by
-     * element, n being a constant here */
-    enum { READ = DISTANCE + 1 };
-    for (int i = 0; i < (n > READ ? n : READ); ++i)
-        for (int j = 0; j < (n > READ ? n : READ); ++j) FP[i * N + j] = P[i * N + j];
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < n; ++j)
-            FP[i * N + j] += A[i][0] * P[2 * N + j] + A[i][1] * P[3 * N + j] +
-                             A[i][2] * P[4 * N + j] + A[i][3] * P[5 * N + j];
-    /* moved is symmetric: its upper triangle, mirrored */
-    for (int i = 0; i < n; ++i)
-        for (int j = i; j < n; ++j) {
-            double sum = FP[i * N + j];
-            if (j < 3) {
-                sum += FP[i * N + 2] * A[j][0] + FP[i * N + 3] * A[j][1] +
-                       FP[i * N + 4] * A[j][2] + FP[i * N + 5] * A[j][3];
-                if (i < 3) sum += GQ[i][0] * G[j][0] + GQ[i][1] * G[j][1] + GQ[i][2] * G[j][2];
-            }
-            moved[i * N + j] = moved[j * N + i] = sum;
-        }
-    if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
-    if (n > OFFSET && e->est_offset) {
-        moved[OFFSET * N + OFFSET] += e->offset_rate2 * dt;
-        moved[(OFFSET + 1) * N + OFFSET + 1] += e->offset_rate2 * dt;
-    }
-    if (!(e->heading == FUSED && !slip)) {
-        memcpy(x, after, sizeof after);
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j) P[i * N + j] = moved[i * N + j];
-        return;
-    }
-    /* The wheels measure the turn over the scale, less their own noise. On the joint of
-     * (state after, state before, noises), [[moved, FP, GQ], [FP^T, P, 0], [GQ^T, 0, Q]], with
-     * H = (h_after, h_before, h_noise): its spread along H, block by block. h_after is zero
-     * but at the heading and the scale, h_before but at the heading. */
-    const double h2 = 1.0 / scale, h4 = e->est_scale ? -turn / (scale * scale) : 0.0;
-    const double hn[3] = {e->r_l / e->track, -e->r_r / e->track, 0.0};
-    double spread[N] = {0}, before[N] = {0}, s = 0.0;
-    for (int i = 0; i < n; ++i) {
-        double sum = moved[i * N + 2] * h2 - FP[i * N + 2] * h2;
-        if (n >= 5) sum += moved[i * N + 4] * h4; /* moved is only filled up to n */
-        if (i < 3) sum += GQ[i][0] * hn[0] + GQ[i][1] * hn[1];
-        spread[i] = sum;
-        before[i] = FP[2 * N + i] * h2 + FP[4 * N + i] * h4 - P[i * N + 2] * h2;
-    }
-    s = h2 * spread[2] + h4 * spread[4] - h2 * before[2];
-    for (int k = 0; k < 2; ++k)
-        s += hn[k] * (noise[k] * hn[k] + GQ[2][k] * h2);
-    s += 1e-18;
-    /* one division: the gains spread / s (moved is exactly symmetric, so Po is too) */
-    double innovation = wheel_turn - turn * h2, inverse = 1.0 / s, gains[N];
-    for (int i = 0; i < N; ++i) {
-        gains[i] = spread[i] * inverse;
-        x[i] = after[i] + gains[i] * innovation;
-    }
-    for (int i = 0; i < n; ++i)
-        for (int j = i; j < n; ++j)
-            P[i * N + j] = P[j * N + i] = moved[i * N + j] - gains[i] * spread[j];
-}
-
-/* How many leading states advance and advance_record carry: the ones past it are neither
- * estimated nor touched (zero rows and columns in P). */
-static int carried(const Est *e) {
-    return e->est_offset ? 8 : e->est_distance ? 6 : e->est_scale ? 5 : e->est_bias ? 4 : 3;
-}
-
-static void advance(const Est *e, double *x, double *P, double dl, double dr, double g, double dt,
-                    int slip) {
-    switch (carried(e)) { /* each with its own constant n */
-    case 8: advance_n(e, x, P, dl, dr, g, dt, slip, 8); break;
-    case 6: advance_n(e, x, P, dl, dr, g, dt, slip, 6); break;
-    case 5: advance_n(e, x, P, dl, dr, g, dt, slip, 5); break;
-    case 4: advance_n(e, x, P, dl, dr, g, dt, slip, 4); break;
-    default: advance_n(e, x, P, dl, dr, g, dt, slip, 3);
-    }
-}
-
-/* The eigenvalues w and eigenvectors V (columns, row-major) of a symmetric m x m matrix A
- * (m <= N), by cyclic Jacobi rotations: to rounding, as numpy.linalg.eigh. */
-static void symmetric_eigen(const double *A, int m, double *w, double *V) {
-    double a[NN];
-    memcpy(a, A, sizeof(double) * m * m);
-    for (int i = 0; i < m; ++i)
-        for (int j = 0; j < m; ++j) V[i * m + j] = i == j ? 1.0 : 0.0;
-    for (int sweep = 0; sweep < 60; ++sweep) {
-        double off = 0.0, scale = 0.0;
-        for (int i = 0; i < m; ++i)
-            for (int j = 0; j < m; ++j) {
-                if (i != j) off += a[i * m + j] * a[i * m + j];
-                scale += a[i * m + j] * a[i * m + j];
-            }
-        if (off <= 1e-300 || off <= 1e-32 * scale) break;
-        for (int p = 0; p < m - 1; ++p)
-            for (int q = p + 1; q < m; ++q) {
-                double apq = a[p * m + q];
-                if (apq == 0.0) continue;
-                double theta = 0.5 * (a[q * m + q] - a[p * m + p]) / apq;
-                double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
-                double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
-                for (int k = 0; k < m; ++k) { /* columns p and q of a */
-                    double akp = a[k * m + p], akq = a[k * m + q];
-                    a[k * m + p] = c * akp - s * akq;
-                    a[k * m + q] = s * akp + c * akq;
-                }
-                for (int k = 0; k < m; ++k) { /* rows p and q */
-                    double apk = a[p * m + k], aqk = a[q * m + k];
-                    a[p * m + k] = c * apk - s * aqk;
-                    a[q * m + k] = s * apk + c * aqk;
-                }
-                for (int k = 0; k < m; ++k) {
-                    double vkp = V[k * m + p], vkq = V[k * m + q];
-                    V[k * m + p] = c * vkp - s * vkq;
-                    V[k * m + q] = s * vkp + c * vkq;
-                }
-            }
-    }
-    for (int i = 0; i < m; ++i) w[i] = a[i * m + i];
-}
-
-/* The inverse of a symmetric m x m matrix A with a unit diagonal (m <= N) by Cholesky, when
- * every eigenvalue is surely above pinv's cut (1e-12 of the largest): the smallest is at
- * least 1 / trace(A^-1), the largest at most trace(A) = m. 0 (nothing promised) otherwise. */
-static int well_conditioned_inverse(const double *A, int m, double *inverse) {
-    double L[NN] = {0};
-    for (int i = 0; i < m; ++i)
-        for (int j = 0; j <= i; ++j) {
-            double sum = A[i * m + j];
-            for (int q = 0; q < j; ++q) sum -= L[i * m + q] * L[j * m + q];
-            if (i == j) {
-                if (!(sum > 0.0)) return 0;
-                L[i * m + i] = sqrt(sum);
-            } else {
-                L[i * m + j] = sum / L[j * m + j];
-            }
-        }
-    double Li[NN] = {0}; /* L^-1, lower */
-    for (int i = 0; i < m; ++i) {
-        Li[i * m + i] = 1.0 / L[i * m + i];
-        for (int j = 0; j < i; ++j) {
-            double sum = 0.0;
-            for (int q = j; q < i; ++q) sum += L[i * m + q] * Li[q * m + j];
-            Li[i * m + j] = -sum / L[i * m + i];
-        }
-    }
-    double trace = 0.0;
-    for (int i = 0; i < m; ++i)
-        for (int j = i; j < m; ++j) {
-            double sum = 0.0; /* (L^-T L^-1)_ij over the rows below both */
-            for (int q = j; q < m; ++q) sum += Li[q * m + i] * Li[q * m + j];
-            inverse[i * m + j] = inverse[j * m + i] = sum;
-            if (i == j) trace += sum;
-        }
-    return isfinite(trace) && 1.0 / trace > 1e-9 * m;
-}
-
-/* filter._solve_right: cross @ pinv(covariance) over the estimated states, the covariance
- * scaled to unit variances first (pinv as numpy's, hermitian, rcond 1e-12). */
-static void solve_right(const Est *e, const double *cross, const double *cov, double *gain) {
-    int active[N], m = 0;
-    active[m++] = 0;
-    active[m++] = 1;
-    active[m++] = 2;
-    if (e->est_bias && e->heading == FUSED) active[m++] = BIAS;
-    if (e->est_scale) active[m++] = SCALE;
-    if (e->est_distance) active[m++] = DISTANCE;
-    if (e->est_offset) {
-        active[m++] = OFFSET;
-        active[m++] = OFFSET + 1;
-    }
-    double block[NN], sigma[N], w[N], V[NN], inverse[NN];
-    for (int i = 0; i < m; ++i) {
-        double d = cov[active[i] * N + active[i]];
-        sigma[i] = d > 0.0 ? sqrt(d) : 0.0;
-        if (sigma[i] == 0.0) sigma[i] = 1.0;
-    }
-    for (int i = 0; i < m; ++i)
-        for (int j = 0; j < m; ++j)
-            block[i * m + j] = cov[active[i] * N + active[j]] / (sigma[i] * sigma[j]);
-    if (well_conditioned_inverse(block, m, inverse)) { /* pinv is the inverse: by Cholesky */
-        for (int i = 0; i < m; ++i)
-            for (int j = 0; j < m; ++j) inverse[i * m + j] /= sigma[i] * sigma[j];
-    } else {
-        symmetric_eigen(block, m, w, V);
-        double largest = 0.0;
-        for (int i = 0; i < m; ++i) largest = fmax(largest, fabs(w[i]));
-        for (int i = 0; i < m; ++i)
-            for (int j = 0; j < m; ++j) {
-                double sum = 0.0;
-                for (int q = 0; q < m; ++q)
-                    if (fabs(w[q]) > 1e-12 * largest) sum += V[i * m + q] * V[j * m + q] / w[q];
-                inverse[i * m + j] = sum / (sigma[i] * sigma[j]);
-            }
-    }
-    memset(gain, 0, sizeof(double) * NN);
-    for (int i = 0; i < m; ++i)
-        for (int j = 0; j < m; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < m; ++q) sum += cross[active[i] * N + active[q]] * inverse[q * m + j];
-            gain[active[i] * N + active[j]] = sum;
-        }
-}
-
-/* filter.advance's smoother record of one step from x, P (the joint of the state after, the
- * state before and the noises, the wheels' turn measured in it with a fused heading): the
- * same maths as advance_n, written out in full over the first n = carried(e) states (the
- * record's other entries: zero, and the state's own values before and after). */
-static void advance_record(const Est *e, const double *x, const double *P, double dl, double dr,
-                           double g, double dt, int slip, Step *out) {
-    enum { JMAX = 2 * N + 3 };
-    const int n = carried(e), J = 2 * n + 3;
-    Move mv;
-    move_terms(e, x, dl, dr, g, dt, slip, &mv);
-    const double wheel_turn = mv.wheel_turn, turn = mv.turn, dx = mv.dx, dy = mv.dy;
-    const double *noise = mv.noise, scale = x[SCALE];
-    double F[NN] = {0}, G[N * 3] = {0}; /* in full: I + A, and G with its zero rows */
-    for (int i = 0; i < n; ++i) F[i * N + i] = 1.0;
-    for (int i = 0; i < 3; ++i) {
-        for (int c = 0; c < 4 && 2 + c < n; ++c) F[i * N + 2 + c] += mv.A[i][c];
-        for (int c = 0; c < 3; ++c) G[i * 3 + c] = mv.G[i][c];
-    }
-    double FP[NN], moved[NN], GQ[N * 3];
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < n; ++q) sum += F[i * N + q] * P[q * N + j];
-            FP[i * N + j] = sum;
-        }
-    for (int i = 0; i < n; ++i)
-        for (int k = 0; k < 3; ++k) GQ[i * 3 + k] = G[i * 3 + k] * noise[k];
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < n; ++q) sum += FP[i * N + q] * F[j * N + q];
-            for (int k = 0; k < 3; ++k) sum += GQ[i * 3 + k] * G[j * 3 + k];
-            moved[i * N + j] = sum;
-        }
-    if (e->est_bias && e->heading == FUSED) moved[BIAS * N + BIAS] += e->rrw2 * dt;
-    if (e->est_offset) {
-        moved[OFFSET * N + OFFSET] += e->offset_rate2 * dt;
-        moved[(OFFSET + 1) * N + OFFSET + 1] += e->offset_rate2 * dt;
-    }
-    double joint[JMAX * JMAX];
-    double mean[JMAX] = {0};
-    memset(joint, 0, sizeof(double) * J * J);
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            joint[i * J + j] = moved[i * N + j];
-            joint[i * J + n + j] = FP[i * N + j];
-            joint[(n + j) * J + i] = FP[i * N + j];
-            joint[(n + i) * J + n + j] = P[i * N + j];
-        }
-    for (int i = 0; i < n; ++i)
-        for (int k = 0; k < 3; ++k) joint[i * J + 2 * n + k] = joint[(2 * n + k) * J + i] = GQ[i * 3 + k];
-    for (int k = 0; k < 3; ++k) joint[(2 * n + k) * J + 2 * n + k] = noise[k];
-    for (int i = 0; i < n; ++i) {
-        mean[i] = x[i];
-        mean[n + i] = x[i];
-    }
-    mean[0] += dx;
-    mean[1] += dy;
-    mean[2] += turn;
-    if (e->heading == FUSED && !slip) {
-        double H[JMAX] = {0}, spread[JMAX], s = 0.0;
-        H[2] = 1.0 / scale;
-        H[n + 2] = -1.0 / scale;
-        if (n > SCALE) H[SCALE] = -turn / (scale * scale);
-        H[2 * n] = e->r_l / e->track;
-        H[2 * n + 1] = -e->r_r / e->track;
-        for (int i = 0; i < J; ++i) {
-            double sum = 0.0;
-            for (int q = 0; q < J; ++q) sum += joint[i * J + q] * H[q];
-            spread[i] = sum;
-        }
-        for (int i = 0; i < J; ++i) s += H[i] * spread[i];
-        s += 1e-18;
-        double innovation = wheel_turn - turn / scale;
-        for (int i = 0; i < J; ++i) mean[i] += spread[i] / s * innovation;
-        for (int i = 0; i < J; ++i)
-            for (int j = 0; j < J; ++j) joint[i * J + j] -= spread[i] / s * spread[j];
-    }
-    double cross[NN];
-    memset(out, 0, sizeof *out);
-    memset(cross, 0, sizeof cross);
-    for (int i = 0; i < N; ++i) /* the states not carried: where they are, before and after */
-        out->before[i] = out->after[i] = x[i];
-    for (int i = 0; i < n; ++i) {
-        out->before[i] = mean[n + i];
-        out->after[i] = mean[i];
-        for (int j = 0; j < n; ++j) {
-            out->before_cov[i * N + j] =
-                0.5 * (joint[(n + i) * J + n + j] + joint[(n + j) * J + n + i]);
-            out->after_cov[i * N + j] = 0.5 * (joint[i * J + j] + joint[j * J + i]);
-            cross[i * N + j] = 0.5 * (joint[(n + i) * J + j] + joint[j * J + n + i]);
-        }
-    }
-    solve_right(e, cross, out->after_cov, out->gain);
-}
-
-/* Cholesky of a k x k (k <= 3) matrix into L (lower); -1 unless positive definite. */
-static int cholesky(const double *A, int k, double *L) {
-    memset(L, 0, sizeof(double) * k * k);
-    for (int i = 0; i < k; ++i)
-        for (int j = 0; j <= i; ++j) {
-            double sum = A[i * k + j];
-            for (int m = 0; m < j; ++m) sum -= L[i * k + m] * L[j * k + m];
-            if (i == j) {
-                if (!(sum > 0.0)) return -1;
-                L[i * k + i] = sqrt(sum);
-            } else {
-                L[i * k + j] = sum / L[j * k + j];
-            }
-        }
-    return 0;
-}
-
-/* Solve L L^T y = b in place (b of k values). */
-static void cholesky_solve(const double *L, int k, double *b) {
-    for (int i = 0; i < k; ++i) {
-        for (int m = 0; m < i; ++m) b[i] -= L[i * k + m] * b[m];
-        b[i] /= L[i * k + i];
-    }
-    for (int i = k - 1; i >= 0; --i) {
-        for (int m = i + 1; m < k; ++m) b[i] -= L[m * k + i] * b[m];
-        b[i] /= L[i * k + i];
-    }
-}
-
-/* filter.absolute_update: x, P (in and out, unchanged if the gate refuses); ok, score and the
- * log determinant of the innovation's covariance (NULL: not wanted). */
-static void absolute_update(const Est *e, double *x, double *P, const Meas *m, int *ok,
-                            double *score, double *log_det) {
-    /* the states past carried(e) have zero rows and columns in P: left out */
-    const int k = m->size, n = carried(e);
-    double H[3 * N] = {0}, innovation[3];
-    if (m->kind == HEADING) {
-        H[2] = 1.0;
-        innovation[0] = wrap(m->value[0] - x[2]);
-    } else {
-        double ax = m->lever[0], ay = m->lever[1] - e->offset, c = cos(x[2]), s = sin(x[2]);
-        H[0 * N + 0] = H[1 * N + 1] = 1.0;
-        H[0 * N + 2] = -s * ax - c * ay;
-        H[1 * N + 2] = c * ax - s * ay;
-        innovation[0] = m->value[0] - (x[0] + c * ax - s * ay);
-        innovation[1] = m->value[1] - (x[1] + s * ax + c * ay);
-        if (e->est_offset && m->kind == POSITION) { /* the fix carries the offset */
-            H[0 * N + OFFSET] = H[1 * N + OFFSET + 1] = 1.0;
-            innovation[0] -= x[OFFSET];
-            innovation[1] -= x[OFFSET + 1];
-        }
-        if (k == 3) {
-            H[2 * N + 2] = 1.0;
-            innovation[2] = wrap(m->value[2] - x[2]);
-        }
-    }
-    double HP[3 * N], S[9] = {0}, L[9];
-    for (int i = 0; i < k; ++i)
-        for (int j = 0; j < n; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < n; ++q) sum += H[i * N + q] * P[q * N + j];
-            HP[i * N + j] = sum;
-        }
-    for (int i = 0; i < k; ++i)
-        for (int j = 0; j < k; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < n; ++q) sum += HP[i * N + q] * H[j * N + q];
-            S[i * k + j] = sum + m->cov[i * k + j];
-        }
-    *ok = 0;
-    if (cholesky(S, k, L) < 0) {
-        *score = INFINITY;
-        if (log_det != NULL) *log_det = NAN;
-        return;
-    }
-    if (log_det != NULL) {
-        *log_det = 0.0;
-        for (int i = 0; i < k; ++i) *log_det += 2.0 * log(L[i * k + i]);
-    }
-    double white[3];
-    for (int i = 0; i < k; ++i) {
-        double sum = innovation[i];
-        for (int q = 0; q < i; ++q) sum -= L[i * k + q] * white[q];
-        white[i] = sum / L[i * k + i];
-    }
-    double d2 = 0.0;
-    for (int i = 0; i < k; ++i) d2 += white[i] * white[i];
-    *score = d2;
-    /* past the gate: refused, or (inflate) taken with its covariance R grown to R + (a - 1) S,
-     * which makes S a S with a = d2 / gate: its score then lies on the gate */
-    double grow = 1.0, R[9];
-    if (d2 > e->gate[k]) {
-        if (!e->inflate) return;
-        grow = d2 / e->gate[k];
-    }
-    for (int i = 0; i < k * k; ++i) R[i] = m->cov[i] + (grow - 1.0) * S[i];
-    /* gain = (S^-1 H P)^T / a, N x k */
-    double gain[N * 3];
-    for (int j = 0; j < n; ++j) {
-        double column[3];
-        for (int i = 0; i < k; ++i) column[i] = HP[i * N + j];
-        cholesky_solve(L, k, column);
-        for (int i = 0; i < k; ++i) gain[j * 3 + i] = column[i] / grow;
-    }
-    double keep[NN], KP[NN], out[NN];
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            double sum = i == j ? 1.0 : 0.0;
-            for (int q = 0; q < k; ++q) sum -= gain[i * 3 + q] * H[q * N + j];
-            keep[i * N + j] = sum;
-        }
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < n; ++q) sum += keep[i * N + q] * P[q * N + j];
-            KP[i * N + j] = sum;
-        }
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < n; ++q) sum += KP[i * N + q] * keep[j * N + q];
-            double noisy = 0.0;
-            for (int a = 0; a < k; ++a)
-                for (int b = 0; b < k; ++b)
-                    noisy += gain[i * 3 + a] * R[a * k + b] * gain[j * 3 + b];
-            out[i * N + j] = sum + noisy;
-        }
-    for (int i = 0; i < n; ++i) {
-        double sum = 0.0;
-        for (int q = 0; q < k; ++q) sum += gain[i * 3 + q] * innovation[q];
-        x[i] += sum;
-    }
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) P[i * N + j] = 0.5 * (out[i * N + j] + out[j * N + i]);
-    *ok = 1;
-}
-
 /* -- the history ------------------------------------------------------------------------ */
-
-static int finite_state(const double *x, const double *P) {
-    for (int i = 0; i < N; ++i)
-        if (!isfinite(x[i])) return 0;
-    for (int i = 0; i < NN; ++i)
-        if (!isfinite(P[i])) return 0;
-    return 1;
-}
 
 /* Measurement.order: -1, 0 or 1 as a sorts before, with or after b. */
 static int order(const Meas *a, const Meas *b) {
@@ -669,64 +100,16 @@ static void slice_of(const Est *e, Py_ssize_t i, Py_ssize_t *lo, Py_ssize_t *hi)
     *hi = first_after(e, e->iv[i].t1, 0);
 }
 
-/* Run interval iv over the measurements m[0..nm) (sorted), to its end (record: the slip test
- * and the outcomes kept) or to stop (recording nothing): x, P hold its start state (iv->x,
- * iv->P) on the way in, the state at the end on the way out. */
-static void run_interval(const Est *e, Interval *iv, Meas *m, Py_ssize_t nm, int record,
-                         double stop, double *x, double *P, Record *steps) {
-    double duration = iv->t1 - iv->t0;
-    if (record) {
-        if (isnan(iv->g)) {
-            iv->slip = iv->forced;
-            iv->score = 0.0;
-        } else {
-            iv->score = slip_score(e, x, P, iv->dl, iv->dr, iv->g, duration);
-            iv->slip = iv->score > e->slip_thr || iv->forced;
-        }
-    }
-    double end = record ? iv->t1 : stop, done = 0.0, t = iv->t0;
-    Py_ssize_t j = 0;
-    for (;;) {
-        double cut = (j < nm && m[j].t <= end) ? m[j].t : end;
-        /* at the end, the share is 1 (what the division gives there too, exactly) */
-        double share = cut == iv->t1 || !(duration > 0.0) ? 1.0 : (cut - iv->t0) / duration;
-        double part = share - done;
-        if (cut > t && steps != NULL) { /* the smoother's record: its state after is x's */
-            Step *step = &steps->steps[steps->count++];
-            advance_record(e, x, P, part * iv->dl, part * iv->dr, part * iv->g, cut - t,
-                           iv->slip, step);
-            memcpy(x, step->after, sizeof step->after);
-            memcpy(P, step->after_cov, sizeof step->after_cov);
-        } else if (cut > t) {
-            advance(e, x, P, part * iv->dl, part * iv->dr, part * iv->g, cut - t, iv->slip);
-        }
-        done = share;
-        t = cut;
-        while (j < nm && m[j].t <= cut) {
-            int ok;
-            double score, log_det;
-            absolute_update(e, x, P, &m[j], &ok, &score, &log_det);
-            if (record) {
-                m[j].ok = ok;
-                m[j].score = score;
-                m[j].log_det = log_det;
-            }
-            ++j;
-        }
-        if (cut >= end) break;
-    }
-}
-
 /* P's block of the carried states, n x n row by row, into packed: what the history keeps. */
 static void pack(const Est *e, double *packed, const double *P) {
-    const int n = carried(e);
+    const int n = e->f.carried;
     for (int i = 0; i < n; ++i) /* element by element: memcpy's setup would cost more here */
         for (int j = 0; j < n; ++j) packed[i * n + j] = P[i * N + j];
 }
 
 /* P in full from its packed block, zero elsewhere (the states not carried). */
 static void unpack(const Est *e, double *P, const double *packed) {
-    const int n = carried(e);
+    const int n = e->f.carried;
     for (int i = 0; i < N; ++i)
         for (int j = 0; j < N; ++j) P[i * N + j] = i < n && j < n ? packed[i * n + j] : 0.0;
 }
@@ -744,7 +127,7 @@ static void replay(Est *e, Py_ssize_t k, double *x, double *P) {
             lo = hi;
             while (hi < e->ms0 + e->nms && e->ms[hi].t <= e->iv[i].t1) ++hi;
         }
-        run_interval(e, &e->iv[i], e->ms + lo, hi - lo, 1, 0.0, x, P, NULL);
+        dd_filter_interval(&e->f, &e->iv[i], e->ms + lo, hi - lo, 1, 0.0, x, P, NULL, NULL);
     }
 }
 
@@ -778,7 +161,7 @@ static void trim(Est *e) {
         Py_ssize_t lo, hi;
         slice_of(e, e->iv0, &lo, &hi);
         for (Py_ssize_t j = e->ms0; j < hi; ++j) {
-            if (e->ms[j].ok)
+            if (e->ms[j].accepted)
                 e->settled_ok++;
             else
                 e->settled_bad++;
@@ -992,10 +375,10 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
     int have_angle = given[3] != NULL && given[3] != Py_None;
     double angle = 0.0;
     if (have_angle && finite_number(given[3], "gyro_angle", &angle) < 0) return NULL;
-    if (have_previous && !have_angle && !have_rate && e->heading != WHEELS) {
+    if (have_previous && !have_angle && !have_rate && e->f.config.heading != WHEELS) {
         PyErr_Format(PyExc_ValueError,
                      "%s: heading '%s' needs gyro_angle or gyro_rate with every wheel reading",
-                     name, e->heading == GYRO ? "gyro" : "fused");
+                     name, e->f.config.heading == GYRO ? "gyro" : "fused");
         return NULL;
     }
     int have_wanted = given[5] != NULL && given[5] != Py_None;
@@ -1021,7 +404,7 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
     }
     double dt = now - previous;
     odometry_arcs(e->wheels, after);
-    double dl = (after[0] - before[0]) / e->r_l, dr = (after[1] - before[1]) / e->r_r;
+    double dl = (after[0] - before[0]) / e->f.config.drive.r_left, dr = (after[1] - before[1]) / e->f.config.drive.r_right;
     double g = NAN;
     if (have_angle)
         g = angle;
@@ -1062,8 +445,8 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
     double x[N], P[NN];
     memcpy(x, e->x, sizeof x);
     memcpy(P, e->P, sizeof P);
-    run_interval(e, iv, tail, due, 1, 0.0, x, P, NULL);
-    if (!finite_state(x, P)) {
+    dd_filter_interval(&e->f, iv, tail, due, 1, 0.0, x, P, NULL, NULL);
+    if (!dd_filter_finite(x, P)) {
         int restored = odometry_restore(e->wheels, saved);
         Py_DECREF(saved);
         if (restored < 0) return NULL;
@@ -1137,12 +520,11 @@ static PyObject *add_measurement(Est *e, Meas *m) {
     if (e->niv == 0 || m->t < start) {
         if (m->t == now && e->niv == 0) { /* at the start itself */
             double x[N], P[NN];
-            int ok;
-            double score;
             memcpy(x, e->x, sizeof x);
             memcpy(P, e->P, sizeof P);
-            absolute_update(e, x, P, m, &ok, &score, NULL);
-            if (!finite_state(x, P)) {
+            dd_filter_correct(&e->f, x, P, m);
+            int ok = m->accepted;
+            if (!dd_filter_finite(x, P)) {
                 PyErr_Format(PyExc_ValueError,
                              "%s measurement at t = %R s: it would overflow the state; refused",
                              KIND_NAMES[m->kind], t);
@@ -1185,7 +567,7 @@ static PyObject *add_measurement(Est *e, Meas *m) {
     e->nms++;
     double x[N], P[NN];
     replay(e, k, x, P);
-    if (!finite_state(x, P)) {
+    if (!dd_filter_finite(x, P)) {
         /* The history as it was: without the measurement, the same replay gives back, to the
          * bit, the states and outcomes it had (nothing else changed). */
         memmove(e->ms + at, e->ms + at + 1, (e->ms0 + e->nms - at - 1) * sizeof(Meas));
@@ -1198,7 +580,7 @@ static PyObject *add_measurement(Est *e, Meas *m) {
     } else {
         memcpy(e->x, x, sizeof x);
         memcpy(e->P, P, sizeof P);
-        result = PyBool_FromLong(e->ms[at].ok);
+        result = PyBool_FromLong(e->ms[at].accepted);
     }
 done:
     Py_DECREF(t);
@@ -1253,7 +635,7 @@ static PyObject *add_fast(Est *e, PyObject *const *args, Py_ssize_t nargs) {
                 if (fabs(m.cov[i * k + j] - m.cov[j * k + i]) > 1e-9 * fabs(m.cov[j * k + i]))
                     Py_RETURN_NONE;
         double L[9];
-        if (cholesky(m.cov, k, L) < 0) Py_RETURN_NONE;
+        if (dd_cholesky(m.cov, k, L) != DD_OK) Py_RETURN_NONE;
         /* measurements.SINGULAR: a pivot at rounding's size is a singular matrix. */
         for (int i = 0; i < k; ++i)
             if (!(L[i * k + i] * L[i * k + i] > 1e-12 * m.cov[i * k + i])) Py_RETURN_NONE;
@@ -1344,7 +726,7 @@ static PyObject *covariance_now(Est *e, PyObject *unused) { return tuple_of(e->P
 static PyObject *counts(Est *e, PyObject *unused) {
     long long ok = e->settled_ok, bad = e->settled_bad;
     for (Py_ssize_t j = e->ms0; j < e->ms0 + e->nms; ++j) {
-        if (e->ms[j].ok)
+        if (e->ms[j].accepted)
             ++ok;
         else
             ++bad;
@@ -1381,7 +763,7 @@ static PyObject *pose_at(Est *e, PyObject *arg) {
         Interval copy = e->iv[lo];
         memcpy(x, copy.x, sizeof x);
         unpack(e, P, copy.P);
-        run_interval(e, &copy, e->ms + a, b - a, 0, t, x, P, NULL);
+        dd_filter_interval(&e->f, &copy, e->ms + a, b - a, 0, t, x, P, NULL, NULL);
     }
     return Py_BuildValue("(NN)", tuple_of(x, N), tuple_of(P, NN));
 }
@@ -1392,41 +774,41 @@ static PyObject *pose_at(Est *e, PyObject *arg) {
  * read by name: the drive, method and heading codes, noises, flags, gates and the start. */
 static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
     PyObject *wheels, *s;
-    int method;
     if (!PyArg_ParseTuple(args, "OO", &wheels, &s)) return -1;
     if (!odometry_check(wheels)) {
         PyErr_SetString(PyExc_TypeError, "EstimatorCore reads its wheels through an OdometryCore");
         return -1;
     }
     double drive[4], k[2];
+    dd_filter_config c;
     if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
-        attribute_double(s, "arw2", &e->arw2) < 0 || attribute_double(s, "rrw2", &e->rrw2) < 0 ||
-        attribute_double(s, "offset_rate2", &e->offset_rate2) < 0 ||
-        attribute_double(s, "slip_threshold", &e->slip_thr) < 0 ||
-        attribute_double(s, "slip_inflation", &e->slip_infl) < 0 ||
+        attribute_double(s, "arw2", &c.arw2) < 0 || attribute_double(s, "rrw2", &c.rrw2) < 0 ||
+        attribute_double(s, "offset_rate2", &c.offset_rate2) < 0 ||
+        attribute_double(s, "slip_threshold", &c.slip_threshold) < 0 ||
+        attribute_double(s, "slip_inflation", &c.slip_inflation) < 0 ||
         attribute_double(s, "command_sigma", &e->command_sigma) < 0 ||
-        attribute_into(s, "gates", e->gate + 1, 3) < 0 ||
-        attribute_double(s, "offset", &e->offset) < 0 ||
+        attribute_into(s, "gates", c.gates, 3) < 0 ||
+        attribute_double(s, "offset", &c.reference_offset) < 0 ||
         attribute_double(s, "history", &e->history) < 0 ||
         attribute_double(s, "ahead", &e->ahead) < 0 ||
         attribute_into(s, "mounting", e->mount, 3) < 0 ||
         attribute_into(s, "state", e->x, N) < 0 ||
         attribute_into(s, "covariance", e->P, NN) < 0 ||
-        attribute_int(s, "method_code", &method) < 0 ||
-        attribute_int(s, "heading_code", &e->heading) < 0 ||
-        attribute_int(s, "estimate_bias", &e->est_bias) < 0 ||
-        attribute_int(s, "estimate_scale", &e->est_scale) < 0 ||
-        attribute_int(s, "estimate_distance", &e->est_distance) < 0 ||
-        attribute_int(s, "estimate_offset", &e->est_offset) < 0 ||
-        attribute_int(s, "inflate", &e->inflate) < 0)
+        attribute_int(s, "method_code", &c.method) < 0 ||
+        attribute_int(s, "heading_code", &c.heading) < 0 ||
+        attribute_int(s, "estimate_bias", &c.estimate_bias) < 0 ||
+        attribute_int(s, "estimate_scale", &c.estimate_scale) < 0 ||
+        attribute_int(s, "estimate_distance", &c.estimate_distance) < 0 ||
+        attribute_int(s, "estimate_offset", &c.estimate_offset) < 0 ||
+        attribute_int(s, "inflate", &c.inflate) < 0)
         return -1;
-    e->r_l = drive[0], e->r_r = drive[1], e->track = drive[2], e->axle = drive[3];
-    e->k_l = k[0], e->k_r = k[1];
-    /* METHODS: euler, rk2, exact (_step.METHOD_FLAGS) */
-    e->k_per_r_l = e->k_l / e->r_l; /* the Python class has checked the radii are > 0 */
-    e->k_per_r_r = e->k_r / e->r_r;
-    e->weight = method == 0 ? 0.0 : 0.5;
-    e->chord = method == 2;
+    c.drive = (dd_drive){drive[0], drive[1], drive[2], drive[3]};
+    c.k_left = k[0], c.k_right = k[1];
+    dd_status status = dd_filter_init(&e->f, &c);
+    if (status != DD_OK) {
+        PyErr_Format(PyExc_ValueError, "EstimatorCore: %s", dd_status_text(status));
+        return -1;
+    }
     Py_XSETREF(e->wheels, Py_NewRef(wheels));
     e->iv0 = e->niv = e->ms0 = e->nms = e->npend = 0;
     e->settled_ok = e->settled_bad = 0;
@@ -1457,34 +839,6 @@ static int doubles_view(PyObject *obj, Py_buffer *view, Py_ssize_t n, int writab
         return -1;
     }
     return 0;
-}
-
-/* The RTS step backwards through one record: x, P smoothed after it in, before it out. */
-static void smooth_step(const Step *s, double *x, double *P) {
-    double dx[N], G[NN], GD[NN];
-    for (int i = 0; i < N; ++i) dx[i] = x[i] - s->after[i];
-    for (int i = 0; i < N; ++i) {
-        double sum = s->before[i];
-        for (int q = 0; q < N; ++q) sum += s->gain[i * N + q] * dx[q];
-        x[i] = sum;
-    }
-    for (int i = 0; i < NN; ++i) G[i] = P[i] - s->after_cov[i];
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) {
-            double sum = 0.0;
-            for (int q = 0; q < N; ++q) sum += s->gain[i * N + q] * G[q * N + j];
-            GD[i * N + j] = sum;
-        }
-    for (int i = 0; i < N; ++i)
-        for (int j = i; j < N; ++j) {
-            double a = 0.0, b = 0.0;
-            for (int q = 0; q < N; ++q) {
-                a += GD[i * N + q] * s->gain[j * N + q];
-                b += GD[j * N + q] * s->gain[i * N + q];
-            }
-            P[i * N + j] = P[j * N + i] =
-                0.5 * ((s->before_cov[i * N + j] + a) + (s->before_cov[j * N + i] + b));
-        }
 }
 
 enum { LOG_TIMES, LOG_LEFT, LOG_RIGHT, LOG_GYRO, LOG_FORCED, LOG_MT, LOG_MKIND, LOG_MVALUE,
@@ -1597,8 +951,8 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
     Py_ssize_t j = 0, failed = -1;
     Py_BEGIN_ALLOW_THREADS;
     for (; j < nm && ms[j].t == t[0]; ++j) /* at the start itself */
-        absolute_update(e, x, P, &ms[j], &ms[j].ok, &ms[j].score, &ms[j].log_det);
-    if (!finite_state(x, P)) failed = -2;
+        dd_filter_correct(&e->f, x, P, &ms[j]);
+    if (!dd_filter_finite(x, P)) failed = -2;
     memcpy(states, x, sizeof x);
     memcpy(covs, P, sizeof P);
     slips[0] = scores[0] = 0.0;
@@ -1607,15 +961,15 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         interval_of(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0);
         Py_ssize_t lo = j;
         while (j < nm && ms[j].t <= t[k]) ++j;
-        run_interval(e, &iv, ms + lo, j - lo, 1, 0.0, x, P, NULL);
-        if (!finite_state(x, P)) failed = k - 1;
+        dd_filter_interval(&e->f, &iv, ms + lo, j - lo, 1, 0.0, x, P, NULL, NULL);
+        if (!dd_filter_finite(x, P)) failed = k - 1;
         memcpy(states + N * k, x, sizeof x);
         memcpy(covs + NN * k, P, sizeof P);
         slips[k] = iv.slip;
         scores[k] = iv.score;
     }
     for (Py_ssize_t q = 0; q < nm && failed == -1; ++q) {
-        accepted[q] = ms[q].ok;
+        accepted[q] = ms[q].accepted;
         distances[q] = ms[q].score;
         log_dets[q] = ms[q].log_det;
     }
@@ -1634,14 +988,13 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
             double fx[N], fP[NN];
             memcpy(fx, states + N * (k - 1), sizeof fx);
             memcpy(fP, covs + NN * (k - 1), sizeof fP);
-            Record record = {steps, 0};
-            run_interval(e, &iv, ms + lo, hi - lo, 1, 0.0, fx, fP, &record);
+            long count;
+            dd_filter_interval(&e->f, &iv, ms + lo, hi - lo, 1, 0.0, fx, fP, steps, &count);
             if (keep) { /* backwards, so this interval's rows go before the later ones' */
-                write -= record.count;
-                if (write >= 0)
-                    memcpy((Step *)records.buf + write, steps, record.count * sizeof(Step));
+                write -= count;
+                if (write >= 0) memcpy((Step *)records.buf + write, steps, count * sizeof(Step));
             }
-            for (Py_ssize_t s = record.count - 1; s >= 0; --s) smooth_step(&steps[s], x, P);
+            for (long s = count - 1; s >= 0; --s) dd_filter_smooth(&steps[s], x, P);
             memcpy(states + N * (k - 1), x, sizeof x);
             memcpy(covs + NN * (k - 1), P, sizeof P);
             hi = lo;
