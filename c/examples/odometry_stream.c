@@ -45,7 +45,7 @@ int main(int argc, char **argv) {
     const dd_odometry_config config = {
         .drive = {(dd_real)r_left, (dd_real)r_right, (dd_real)track, 0.0},
         .method = DD_EXACT,
-        .rad_per_tick = (dd_real)(6.283185307179586 / ticks_per_revolution),
+        .ticks_per_revolution = (dd_real)ticks_per_revolution,
         .counter_bits = bits,
         .max_wheel_speed = (dd_real)INFINITY,
         .k_left = (dd_real)k_left,

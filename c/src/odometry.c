@@ -5,13 +5,6 @@
 #include "diffdrive/odometry.h"
 #include "step.h"
 
-/* Add term to the sum, carrying the rounding error in comp (Neumaier's variant of Kahan's). */
-static void add(dd_sum *s, dd_real term) {
-    dd_real t = s->sum + term;
-    s->comp += dd_fabs(s->sum) >= dd_fabs(term) ? (s->sum - t) + term : (term - t) + s->sum;
-    s->sum = t;
-}
-
 static dd_real value(dd_sum s) { return s.sum + s.comp; }
 
 /* The heading the step's sines and cosines take. In double, sum + comp: libm reduces a large
@@ -21,7 +14,8 @@ static dd_real value(dd_sum s) { return s.sum + s.comp; }
  * so the angle keeps a float's precision near 0 whatever the turns before. */
 static dd_real heading(dd_sum theta) {
 #ifdef DD_SINGLE
-    const float A = 6.28125f, B = 1.93119049e-3f, C = 2.77912382e-8f; /* A + B + C = 2 pi */
+    /* A and B have 12 significant bits each, C is 2 pi - A - B to a float's precision */
+    const float A = 6.28125f, B = 1.9354820251464844e-3f, C = -1.7484555314695172e-7f;
     float k = nearbyintf(theta.sum * 0.159154943f);
     return ((theta.sum - k * A) - k * B) - k * C + theta.comp;
 #else
@@ -29,8 +23,52 @@ static dd_real heading(dd_sum theta) {
 #endif
 }
 
+/* The low parts of a step's travel and turn. A float build's readings take few values (a
+ * tick count changes by a few dozen counts a reading), so the rounding of r * dl, of the
+ * wheels' sum and difference and of the turn's division repeats the same way reading after
+ * reading: a bias, not noise, which the compensated sums alone cannot remove (2 mm an hour at
+ * 100 Hz in a float build). So a float build carries each of these as a value and its
+ * rounding error, found exactly by the FPU's fused multiply-add (the Cortex-M4F has one) and
+ * Knuth's TwoSum, and adds the errors' effect on the move to the sums' compensation. A
+ * double's rounding is 2^29 times smaller: the double build leaves them out (they are 0 and
+ * the compiler drops them). */
+#ifdef DD_SINGLE
+#define LOW_PARTS 1
+#else
+#define LOW_PARTS 0
+#endif
+
+/* The rounding error of p = a * b, exactly. */
+static dd_real product_error(dd_real a, dd_real b, dd_real p) {
+    return LOW_PARTS ? dd_fma(a, b, -p) : 0;
+}
+
+/* The rounding error of s = a + b, exactly (Knuth's TwoSum). */
+static dd_real sum_error(dd_real a, dd_real b, dd_real s) {
+    if (!LOW_PARTS) return 0;
+    dd_real bb = s - a;
+    return (a - (s - bb)) + (b - bb);
+}
+
+/* Add term to the sum, carrying the rounding error in comp (Neumaier's variant of Kahan's).
+ * A float build then renormalises, so that comp stays below half a unit of sum: the pair is a
+ * "double-float" of 48 bits. Without that, comp itself grows (a heading of 3,000 rad after an
+ * hour of circling keeps only 5 bits of a 0.008 rad step in sum, the rest in comp) and its
+ * own rounding drifts the heading by 4e-4 rad an hour. */
+static void add(dd_sum *s, dd_real term) {
+    dd_real t = s->sum + term;
+    s->comp += dd_fabs(s->sum) >= dd_fabs(term) ? (s->sum - t) + term : (term - t) + s->sum;
+    s->sum = t;
+    if (LOW_PARTS) { /* Fast2Sum: |sum| >= |comp| */
+        t = s->sum + s->comp;
+        s->comp -= t - s->sum;
+        s->sum = t;
+    }
+}
+
 typedef struct {
     dd_real dx, dy, dtheta; /* the pose's world-frame move */
+    dd_real dx_low, dy_low, dtheta_low; /* the move's low parts (float builds) */
     dd_real travel;         /* how far the reference point moved, m */
     dd_real jac_pose[9];    /* d(new pose)/d(pose), row-major 3x3 */
     dd_real jac_wheels[6];  /* d(new pose)/d(wheel-angle increments), 3x2 */
@@ -38,15 +76,28 @@ typedef struct {
 
 /* One step from wheel-angle increments (rad) at heading theta, with its Jacobians: the move's
  * taken through each wheel's arc (d forward = 1/2, d turn = -+1/track per metre). */
-static void step(const dd_odometry_config *c, dd_real theta, dd_real dl, dd_real dr, Step *s) {
+static void step(const dd_odometry_config *c, dd_real theta, dd_real dl, dd_real dr,
+                 dd_real dl_low, dd_real dr_low, Step *s) {
     const dd_drive *d = &c->drive;
     dd_real left = d->r_left * dl, right = d->r_right * dr;
     dd_real turn = (right - left) / d->track, forward = 0.5 * (left + right);
+    dd_real forward_low = 0, turn_low = 0;
+    if (LOW_PARTS) {
+        dd_real left_low = product_error(d->r_left, dl, left) + d->r_left * dl_low;
+        dd_real right_low = product_error(d->r_right, dr, right) + d->r_right * dr_low;
+        dd_real sum = left + right, difference = right - left;
+        forward_low = 0.5 * (sum_error(left, right, sum) + left_low + right_low);
+        dd_real difference_low = sum_error(right, -left, difference) + right_low - left_low;
+        turn_low = (dd_fma(-turn, d->track, difference) + difference_low) / d->track;
+    }
     dd_real weight = c->method == DD_EULER ? 0.0 : 0.5;
     dd_real bf[2], bt[2];
     dd_move_jacobians(forward, d->offset, turn, weight, c->method == DD_EXACT, theta, &s->dx,
                       &s->dy, bf, bt);
     s->dtheta = turn;
+    s->dx_low = bf[0] * forward_low + bt[0] * turn_low; /* the move's first order in them */
+    s->dy_low = bf[1] * forward_low + bt[1] * turn_low;
+    s->dtheta_low = turn_low;
     s->travel = dd_hypot(forward, d->offset * turn);
     const dd_real jp[9] = {1.0, 0.0, -s->dy, 0.0, 1.0, s->dx, 0.0, 0.0, 1.0};
     memcpy(s->jac_pose, jp, sizeof jp);
@@ -89,12 +140,13 @@ static dd_status check(const dd_odometry *o, dd_real dl, dd_real dr, const doubl
 
 /* Checked, then applied: the next state is made whole before any of it is kept. dt: the time
  * since the last reading (NaN: unknown). */
-static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, const double *t, double dt) {
+static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, dd_real dl_low, dd_real dr_low,
+                        const double *t, double dt) {
     dd_status status = check(o, dl, dr, t, dt);
     if (status != DD_OK) return status;
     const dd_drive *d = &o->config.drive;
     Step s;
-    step(&o->config, heading(o->theta), dl, dr, &s);
+    step(&o->config, heading(o->theta), dl, dr, dl_low, dr_low, &s);
     const dd_real q[2] = {o->config.k_left * dd_fabs(d->r_left * dl) / (d->r_left * d->r_left),
                           o->config.k_right * dd_fabs(d->r_right * dr) / (d->r_right * d->r_right)};
     dd_real cov[9];
@@ -104,6 +156,11 @@ static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, const double *t,
     add(&x, s.dx);
     add(&y, s.dy);
     add(&theta, s.dtheta);
+    if (LOW_PARTS) {
+        x.comp += s.dx_low;
+        y.comp += s.dy_low;
+        theta.comp += s.dtheta_low;
+    }
     add(&distance, s.travel);
     dd_real arc_left = o->arc_left + d->r_left * dl, arc_right = o->arc_right + d->r_right * dr;
     if (!isfinite(value(x)) || !isfinite(value(y)) || !isfinite(value(theta)) ||
@@ -133,13 +190,23 @@ dd_status dd_odometry_init(dd_odometry *o, const dd_odometry_config *config) {
     if (o == 0 || config == 0) return DD_NULL;
     const dd_odometry_config *c = config;
     if (dd_drive_check(&c->drive) != DD_OK || c->method < DD_EULER || c->method > DD_EXACT ||
-        !(c->rad_per_tick >= 0.0) || !isfinite(c->rad_per_tick) || c->counter_bits < 0 ||
+        !(c->ticks_per_revolution >= 0.0) || !isfinite(c->ticks_per_revolution) ||
+        c->counter_bits < 0 ||
         c->counter_bits > 64 || !(c->max_wheel_speed > 0.0) || !(c->k_left >= 0.0) ||
         !(c->k_right >= 0.0) || !isfinite(c->k_left) || !isfinite(c->k_right))
         return DD_BAD_SETTING;
     memset(o, 0, sizeof *o);
     o->config = *config;
     o->time = (double)NAN;
+    if (c->ticks_per_revolution > 0.0) {
+        /* 2 pi as a float and its rounding error: a float build's rad_per_tick to 48 bits */
+        const dd_real pi2 = 6.283185307179586, pi2_low = LOW_PARTS ? -1.7484555314695172e-7 : 0;
+        o->rad_per_tick = pi2 / c->ticks_per_revolution;
+        if (!isfinite(o->rad_per_tick)) return DD_BAD_SETTING;
+        if (LOW_PARTS)
+            o->rad_per_tick_low = (dd_fma(-o->rad_per_tick, c->ticks_per_revolution, pi2) + pi2_low) /
+                                  c->ticks_per_revolution;
+    }
     return DD_OK;
 }
 
@@ -171,7 +238,7 @@ static int fits(int bits, int64_t reading) {
 
 dd_status dd_odometry_ticks(dd_odometry *o, const double *t, int64_t left, int64_t right) {
     if (o == 0) return DD_NULL;
-    if (o->config.rad_per_tick == 0.0) return DD_NO_TICKS;
+    if (o->config.ticks_per_revolution == 0.0) return DD_NO_TICKS;
     int bits = o->config.counter_bits;
     if (!fits(bits, left) || !fits(bits, right)) return DD_COUNTER_RANGE;
     dd_status status;
@@ -181,9 +248,14 @@ dd_status dd_odometry_ticks(dd_odometry *o, const double *t, int64_t left, int64
         int64_t change_left, change_right;
         status = dd_tick_change(bits, o->ticks_left, left, &change_left);
         if (status == DD_OK) status = dd_tick_change(bits, o->ticks_right, right, &change_right);
-        if (status == DD_OK)
-            status = update(o, (dd_real)change_left * o->config.rad_per_tick,
-                            (dd_real)change_right * o->config.rad_per_tick, t, since(o, t));
+        if (status == DD_OK) {
+            const dd_real rad = o->rad_per_tick, low = o->rad_per_tick_low;
+            dd_real counts_left = (dd_real)change_left, counts_right = (dd_real)change_right;
+            dd_real dl = counts_left * rad, dr = counts_right * rad;
+            status = update(o, dl, dr, product_error(counts_left, rad, dl) + counts_left * low,
+                            product_error(counts_right, rad, dr) + counts_right * low, t,
+                            since(o, t));
+        }
     }
     if (status == DD_OK) {
         o->have_ticks = 1;
@@ -197,8 +269,8 @@ dd_status dd_odometry_positions(dd_odometry *o, const double *t, dd_real left, d
     if (o == 0) return DD_NULL;
     if (!isfinite(left) || !isfinite(right)) return DD_NOT_FINITE;
     dd_status status = o->have_positions
-                           ? update(o, left - o->position_left, right - o->position_right, t,
-                                    since(o, t))
+                           ? update(o, left - o->position_left, right - o->position_right, 0,
+                                    0, t, since(o, t))
                            : start(o, t);
     if (status == DD_OK) {
         o->have_positions = 1;
@@ -210,7 +282,7 @@ dd_status dd_odometry_positions(dd_odometry *o, const double *t, dd_real left, d
 
 dd_status dd_odometry_increments(dd_odometry *o, const double *t, dd_real left, dd_real right) {
     if (o == 0) return DD_NULL;
-    return update(o, left, right, t, since(o, t));
+    return update(o, left, right, 0, 0, t, since(o, t));
 }
 
 dd_status dd_odometry_velocities(dd_odometry *o, dd_real left, dd_real right, double dt) {
@@ -218,7 +290,7 @@ dd_status dd_odometry_velocities(dd_odometry *o, dd_real left, dd_real right, do
     if (!isfinite(left) || !isfinite(right) || !isfinite(dt)) return DD_NOT_FINITE;
     if (!(dt > 0)) return DD_BAD_DT;
     double end = (isnan(o->time) ? 0 : o->time) + dt; /* without a clock, one starts at 0 s */
-    return update(o, left * (dd_real)dt, right * (dd_real)dt, &end, dt);
+    return update(o, left * (dd_real)dt, right * (dd_real)dt, 0, 0, &end, dt);
 }
 
 void dd_odometry_pose(const dd_odometry *o, dd_real pose[3]) {
@@ -239,7 +311,7 @@ void dd_odometry_set_pose(dd_odometry *o, const dd_real pose[3], const dd_real c
 void dd_odometry_jacobians(const dd_odometry *o, dd_real left, dd_real right, dd_real jac_pose[9],
                            dd_real jac_wheels[6]) {
     Step s;
-    step(&o->config, heading(o->theta), left, right, &s);
+    step(&o->config, heading(o->theta), left, right, 0, 0, &s);
     memcpy(jac_pose, s.jac_pose, sizeof s.jac_pose);
     memcpy(jac_wheels, s.jac_wheels, sizeof s.jac_wheels);
 }

@@ -10,6 +10,7 @@
 #ifdef DD_SINGLE
 #define DD_TINY 1e-37f
 #define DD_ROUNDING2 1e-13f
+#define dd_fma fmaf
 #define dd_sin sinf
 #define dd_cos cosf
 #define dd_fabs fabsf
@@ -22,6 +23,7 @@
 #else
 #define DD_TINY 1e-300
 #define DD_ROUNDING2 1e-32
+#define dd_fma fma
 #define dd_sin sin
 #define dd_cos cos
 #define dd_fabs fabs

@@ -27,7 +27,7 @@ enum { DD_EULER = 0, DD_RK2 = 1, DD_EXACT = 2 };
 typedef struct {
     dd_drive drive;
     int method;              /* DD_EULER, DD_RK2 or DD_EXACT */
-    dd_real rad_per_tick;    /* 2 pi / counts per revolution; 0: the counts are not known */
+    dd_real ticks_per_revolution; /* counts per wheel revolution; 0: not known (no ticks) */
     int counter_bits;        /* 1 to 64 for counters that roll over; 0: counters that do not */
     dd_real max_wheel_speed; /* rad/s, > 0; INFINITY for no limit */
     dd_real k_left, k_right; /* m: each wheel's travel variance per metre travelled, >= 0 */
@@ -40,6 +40,8 @@ typedef struct {
 
 typedef struct {
     dd_odometry_config config;
+    dd_real rad_per_tick, rad_per_tick_low; /* 2 pi / ticks_per_revolution, and (float
+                                               builds) its rounding error */
     dd_sum x, y, theta, distance; /* m, m, rad (not wrapped), m along the path */
     dd_real cov[9];               /* of (x, y, theta), row-major */
     double time;                  /* s of the last reading; NaN while unknown */
@@ -56,7 +58,8 @@ dd_status dd_odometry_init(dd_odometry *odometry, const dd_odometry_config *conf
 /* Readings, each at time *t (s; t NULL: no time stamp, which stops the clock until the next
  * stamped reading). The first ticks or positions reading only sets the reference.
  * Refused, with nothing changed: DD_NOT_FINITE, DD_TIME_BACKWARDS, DD_TIME_STILL,
- * DD_TOO_FAST, DD_OVERFLOW_POSE, DD_OVERFLOW_COVARIANCE; for ticks also DD_NO_TICKS and
+ * DD_TOO_FAST, DD_OVERFLOW_POSE, DD_OVERFLOW_COVARIANCE; for ticks also DD_NO_TICKS (no
+ * ticks_per_revolution) and
  * DD_COUNTER_RANGE (a reading outside -2^(bits-1) .. 2^bits - 1). A counter of `bits` bits
  * changes by at most 2^(bits-1) counts between readings: more is read as a roll-over the
  * other way, which the speed limit then catches. */

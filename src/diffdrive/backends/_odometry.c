@@ -330,7 +330,7 @@ static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
     long long left, right;
     double t = NAN;
     int has_t, bits = c->od.config.counter_bits;
-    if (c->od.config.rad_per_tick == 0.0) {
+    if (c->od.config.ticks_per_revolution == 0.0) {
         PyErr_SetString(PyExc_ValueError, "update_ticks needs ticks_per_revolution, which this "
                         "Odometry was made without");
         return NULL;
@@ -353,8 +353,8 @@ static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
     int reference = !c->od.have_ticks;
     dd_status status = dd_odometry_ticks(&c->od, has_t ? &t : NULL, left, right);
     if (status != DD_OK) {
-        refuse(c, name, status, (double)change[0] * c->od.config.rad_per_tick,
-               (double)change[1] * c->od.config.rad_per_tick, has_t, t, t - c->od.time);
+        refuse(c, name, status, (double)change[0] * c->od.rad_per_tick,
+               (double)change[1] * c->od.rad_per_tick, has_t, t, t - c->od.time);
         return NULL;
     }
     if (has_t || !reference) follow_clock(c, has_t);
@@ -479,18 +479,18 @@ static PyObject *jacobians(Core *c, PyObject *args) {
  * too), read by name; at the origin: Odometry's reset puts the core at its start. */
 static int core_init(Core *c, PyObject *args, PyObject *kwargs) {
     PyObject *s;
-    double drive[4], k[2], rad_per_tick, max_wheel_speed;
+    double drive[4], k[2], ticks_per_revolution, max_wheel_speed;
     int method, bits;
     if (!PyArg_ParseTuple(args, "O", &s)) return -1;
     if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
         attribute_int(s, "method_code", &method) < 0 ||
-        attribute_double(s, "rad_per_tick", &rad_per_tick) < 0 ||
+        attribute_double(s, "ticks_per_revolution", &ticks_per_revolution) < 0 ||
         attribute_double(s, "max_wheel_speed", &max_wheel_speed) < 0 ||
         attribute_int(s, "counter_bits", &bits) < 0 ||
         attribute_double(s, "velocity_window", &c->window) < 0)
         return -1;
     const dd_odometry_config config = {{drive[0], drive[1], drive[2], drive[3]}, method,
-                                       rad_per_tick, bits, max_wheel_speed, k[0], k[1]};
+                                       ticks_per_revolution, bits, max_wheel_speed, k[0], k[1]};
     dd_status status = dd_odometry_init(&c->od, &config);
     if (status != DD_OK) {
         PyErr_Format(PyExc_ValueError, "OdometryCore: %s", dd_status_text(status));

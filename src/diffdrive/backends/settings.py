@@ -33,13 +33,13 @@ BIAS, SCALE, DISTANCE, OFFSET = 3, 4, 5, 6
 class OdometrySettings:
     """Everything an odometry core is built from, the C core and its twin alike: the
     equivalent drive ``(r_left, r_right, track, axle_offset)`` (m), the method's index in
-    ``METHODS``, ``rad_per_tick`` (0 when the counts per revolution are not known),
+    ``METHODS``, ``ticks_per_revolution`` (0 when not known),
     ``max_wheel_speed`` (rad/s; inf for no limit), ``counter_bits`` (0: counters that never
     roll over), the wheel noise ``k`` ``(left, right)`` (m) and ``velocity_window`` (s)."""
 
     drive: tuple[float, float, float, float]
     method_code: int
-    rad_per_tick: float
+    ticks_per_revolution: float
     max_wheel_speed: float
     counter_bits: int
     k: tuple[float, float]

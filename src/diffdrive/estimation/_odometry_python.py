@@ -103,7 +103,8 @@ class OdometryCore:
     def __init__(self, settings: OdometrySettings) -> None:
         self._r_left, self._r_right, self._track, self._axle = settings.drive
         self._weight, self._chord = method_flags(METHODS[settings.method_code])
-        self._rad_per_tick = settings.rad_per_tick
+        counts = settings.ticks_per_revolution
+        self._rad_per_tick = 2.0 * math.pi / counts if counts else 0.0
         self._max_wheel_speed = settings.max_wheel_speed
         self._counter_bits = settings.counter_bits
         self._k_left, self._k_right = settings.k

@@ -115,10 +115,10 @@ class _OdometryMethods(_Base):
         check_robot(robot)
         check_method(method)
         counter_bits = check_counter_bits(counter_bits)
-        rad_per_tick = 0.0
+        counts = 0.0
         if ticks_per_revolution is not None:
-            rad_per_tick = 2.0 * math.pi / positive("ticks_per_revolution", ticks_per_revolution)
-            if not math.isfinite(rad_per_tick):
+            counts = positive("ticks_per_revolution", ticks_per_revolution)
+            if not math.isfinite(2.0 * math.pi / counts):
                 raise ValueError(
                     f"ticks_per_revolution must give a finite angle per count, got "
                     f"{ticks_per_revolution!r}"
@@ -141,7 +141,7 @@ class _OdometryMethods(_Base):
         self.settings = OdometrySettings(
             drive=geometry_of(robot),
             method_code=METHODS.index(method),
-            rad_per_tick=rad_per_tick,
+            ticks_per_revolution=counts,
             max_wheel_speed=speed_limit,
             counter_bits=counter_bits or 0,
             k=(self.wheel_noise.left, self.wheel_noise.right),
