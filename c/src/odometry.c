@@ -16,7 +16,9 @@ static dd_real heading(dd_sum theta) {
 #ifdef DD_SINGLE
     /* A and B have 12 significant bits each, C is 2 pi - A - B to a float's precision */
     const float A = 6.28125f, B = 1.9354820251464844e-3f, C = -1.7484555314695172e-7f;
-    float k = nearbyintf(theta.sum * 0.159154943f);
+    /* the nearest whole number of turns: adding and taking off 1.5 * 2^23 rounds to it
+     * (exactly, below 2^22 turns), without libm's nearbyintf */
+    float k = (theta.sum * 0.159154943f + 12582912.0f) - 12582912.0f;
     return ((theta.sum - k * A) - k * B) - k * C + theta.comp;
 #else
     return value(theta);
@@ -39,12 +41,12 @@ static dd_real heading(dd_sum theta) {
 #endif
 
 /* The rounding error of p = a * b, exactly. */
-static dd_real product_error(dd_real a, dd_real b, dd_real p) {
+DD_INLINE dd_real product_error(dd_real a, dd_real b, dd_real p) {
     return LOW_PARTS ? dd_fma(a, b, -p) : 0;
 }
 
 /* The rounding error of s = a + b, exactly (Knuth's TwoSum). */
-static dd_real sum_error(dd_real a, dd_real b, dd_real s) {
+DD_INLINE dd_real sum_error(dd_real a, dd_real b, dd_real s) {
     if (!LOW_PARTS) return 0;
     dd_real bb = s - a;
     return (a - (s - bb)) + (b - bb);
@@ -55,7 +57,7 @@ static dd_real sum_error(dd_real a, dd_real b, dd_real s) {
  * "double-float" of 48 bits. Without that, comp itself grows (a heading of 3,000 rad after an
  * hour of circling keeps only 5 bits of a 0.008 rad step in sum, the rest in comp) and its
  * own rounding drifts the heading by 4e-4 rad an hour. */
-static void add(dd_sum *s, dd_real term) {
+DD_INLINE void add(dd_sum *s, dd_real term) {
     dd_real t = s->sum + term;
     s->comp += dd_fabs(s->sum) >= dd_fabs(term) ? (s->sum - t) + term : (term - t) + s->sum;
     s->sum = t;
@@ -70,8 +72,8 @@ typedef struct {
     dd_real dx, dy, dtheta; /* the pose's world-frame move */
     dd_real dx_low, dy_low, dtheta_low; /* the move's low parts (float builds) */
     dd_real travel;         /* how far the reference point moved, m */
-    dd_real jac_pose[9];    /* d(new pose)/d(pose), row-major 3x3 */
-    dd_real jac_wheels[6];  /* d(new pose)/d(wheel-angle increments), 3x2 */
+    dd_real jac_wheels[6];  /* d(new pose)/d(wheel-angle increments), 3x2 (and d(new pose)/
+                               d(pose) is the identity but for its last column, -dy, dx, 1) */
 } Step;
 
 /* One step from wheel-angle increments (rad) at heading theta, with its Jacobians: the move's
@@ -98,9 +100,8 @@ static void step(const dd_odometry_config *c, dd_real theta, dd_real dl, dd_real
     s->dx_low = bf[0] * forward_low + bt[0] * turn_low; /* the move's first order in them */
     s->dy_low = bf[1] * forward_low + bt[1] * turn_low;
     s->dtheta_low = turn_low;
-    s->travel = dd_hypot(forward, d->offset * turn);
-    const dd_real jp[9] = {1.0, 0.0, -s->dy, 0.0, 1.0, s->dx, 0.0, 0.0, 1.0};
-    memcpy(s->jac_pose, jp, sizeof jp);
+    /* hypot(forward, 0) is |forward|, exactly: the common case without libm's call */
+    s->travel = d->offset == 0.0 ? dd_fabs(forward) : dd_hypot(forward, d->offset * turn);
     const dd_real dturn[2] = {-1.0 / d->track, 1.0 / d->track};
     const dd_real radius[2] = {d->r_left, d->r_right};
     for (int w = 0; w < 2; ++w) {
@@ -110,30 +111,65 @@ static void step(const dd_odometry_config *c, dd_real theta, dd_real dl, dd_real
     }
 }
 
-/* cov <- J cov J^T + W diag(q) W^T, with J 3x3 and W 3x2. */
-static void propagate(dd_real cov[9], const dd_real J[9], const dd_real W[6], const dd_real q[2]) {
-    dd_real JC[9], out[9];
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            JC[3 * i + j] = J[3 * i] * cov[j] + J[3 * i + 1] * cov[3 + j] + J[3 * i + 2] * cov[6 + j];
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            out[3 * i + j] = JC[3 * i] * J[3 * j] + JC[3 * i + 1] * J[3 * j + 1] +
-                             JC[3 * i + 2] * J[3 * j + 2] + W[2 * i] * q[0] * W[2 * j] +
-                             W[2 * i + 1] * q[1] * W[2 * j + 1];
-    memcpy(cov, out, sizeof out);
+/* out <- J cov J^T + W diag(q) W^T, with W 3x2 and J = d(pose after)/d(pose), the identity
+ * but for its last column (a, b, 1) = (-dy, dx, 1): written out, without J's zeros and ones,
+ * whose terms are exact, so each entry is what the full product gives, to the bit (the
+ * Python twin's), in a third of the operations. */
+static void propagate(const dd_real c[9], dd_real dx, dd_real dy, const dd_real W[6],
+                      const dd_real q[2], dd_real out[9]) {
+    const dd_real a = -dy, b = dx;
+    /* J c: rows 0 and 1 plus a and b times row 2 */
+    const dd_real r0[3] = {c[0] + a * c[6], c[1] + a * c[7], c[2] + a * c[8]};
+    const dd_real r1[3] = {c[3] + b * c[6], c[4] + b * c[7], c[5] + b * c[8]};
+    const dd_real *r2 = c + 6;
+    /* W diag(q), row by row */
+    const dd_real n[6] = {W[0] * q[0], W[1] * q[1], W[2] * q[0], W[3] * q[1], W[4] * q[0],
+                          W[5] * q[1]};
+#define NOISE(i, j) + n[2 * (i)] * W[2 * (j)] + n[2 * (i) + 1] * W[2 * (j) + 1]
+    /* (J c) J^T: columns 0 and 1 plus a and b times column 2 */
+    out[0] = r0[0] + r0[2] * a NOISE(0, 0);
+    out[1] = r0[1] + r0[2] * b NOISE(0, 1);
+    out[2] = r0[2] NOISE(0, 2);
+    out[3] = r1[0] + r1[2] * a NOISE(1, 0);
+    out[4] = r1[1] + r1[2] * b NOISE(1, 1);
+    out[5] = r1[2] NOISE(1, 2);
+    out[6] = r2[0] + r2[2] * a NOISE(2, 0);
+    out[7] = r2[1] + r2[2] * b NOISE(2, 1);
+    out[8] = r2[2] NOISE(2, 2);
+#undef NOISE
+}
+
+/* A time's sign and size by its bits, which a float build reads without a double unit (the
+ * comparisons of doubles are library calls there). */
+DD_INLINE uint64_t bits_of(double t) {
+    uint64_t bits;
+    memcpy(&bits, &t, sizeof bits);
+    return bits;
+}
+#define MAGNITUDE(bits) ((bits) & ~((uint64_t)1 << 63)) /* |t|'s bits */
+#define INFINITE ((uint64_t)0x7FF << 52)                /* +inf's bits; past them: NaN */
+
+/* 1 unless all nine are finite: v - v is 0 for a finite v and NaN otherwise, so one test
+ * covers them (a loop would cost a microcontroller more than the test). */
+DD_INLINE int not_finite(dd_real a, dd_real b, dd_real c, dd_real d, dd_real e, dd_real f,
+                         dd_real g, dd_real h, dd_real i) {
+    return ((a - a) + (b - b) + (c - c)) + ((d - d) + (e - e) + (f - f)) +
+               ((g - g) + (h - h) + (i - i)) !=
+           0.0;
 }
 
 /* Refuse a reading that cannot be right; dt is the time since the last one, NaN if unknown. */
 static dd_status check(const dd_odometry *o, dd_real dl, dd_real dr, const double *t, double dt) {
-    if (!isfinite(dl) || !isfinite(dr)) return DD_NOT_FINITE;
+    if (not_finite(dl, dr, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)) return DD_NOT_FINITE;
     if (t == 0) return DD_OK;
-    if (!isfinite(*t)) return DD_NOT_FINITE;
-    if (dt < 0) return DD_TIME_BACKWARDS;
-    if (dt == 0 && (dl != 0.0 || dr != 0.0)) return DD_TIME_STILL;
-    dd_real fastest = dd_fmax(dd_fabs(dl), dd_fabs(dr));
-    if (dt > 0 && (!isfinite(fastest / (dd_real)dt) ||
-                     fastest > o->config.max_wheel_speed * (dd_real)dt))
+    if (MAGNITUDE(bits_of(*t)) >= INFINITE) return DD_NOT_FINITE;
+    const uint64_t since = bits_of(dt), size = MAGNITUDE(since);
+    if (size > INFINITE) return DD_OK; /* NaN: the time since the last reading is not known */
+    if (size == 0) return dl != 0.0 || dr != 0.0 ? DD_TIME_STILL : DD_OK;
+    if (since >> 63) return DD_TIME_BACKWARDS;
+    /* a float build's speed check in float: 1e-7 of a limit does not matter */
+    dd_real fastest = dd_fabs(dl) > dd_fabs(dr) ? dd_fabs(dl) : dd_fabs(dr), step = (dd_real)dt;
+    if (!isfinite(fastest / step) || fastest > o->config.max_wheel_speed * step)
         return DD_TOO_FAST;
     return DD_OK;
 }
@@ -150,8 +186,7 @@ static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, dd_real dl_low, 
     const dd_real q[2] = {o->config.k_left * dd_fabs(d->r_left * dl) / (d->r_left * d->r_left),
                           o->config.k_right * dd_fabs(d->r_right * dr) / (d->r_right * d->r_right)};
     dd_real cov[9];
-    memcpy(cov, o->cov, sizeof cov);
-    propagate(cov, s.jac_pose, s.jac_wheels, q);
+    propagate(o->cov, s.dx, s.dy, s.jac_wheels, q, cov);
     dd_sum x = o->x, y = o->y, theta = o->theta, distance = o->distance;
     add(&x, s.dx);
     add(&y, s.dy);
@@ -163,13 +198,13 @@ static dd_status update(dd_odometry *o, dd_real dl, dd_real dr, dd_real dl_low, 
     }
     add(&distance, s.travel);
     dd_real arc_left = o->arc_left + d->r_left * dl, arc_right = o->arc_right + d->r_right * dr;
-    if (!isfinite(value(x)) || !isfinite(value(y)) || !isfinite(value(theta)) ||
-        !isfinite(value(distance)) || !isfinite(arc_left) || !isfinite(arc_right))
+    if (not_finite(value(x), value(y), value(theta), value(distance), arc_left, arc_right, 0.0,
+                   0.0, 0.0))
         return DD_OVERFLOW_POSE;
-    for (int i = 0; i < 9; ++i)
-        if (!isfinite(cov[i])) return DD_OVERFLOW_COVARIANCE;
+    if (not_finite(cov[0], cov[1], cov[2], cov[3], cov[4], cov[5], cov[6], cov[7], cov[8]))
+        return DD_OVERFLOW_COVARIANCE;
     o->x = x, o->y = y, o->theta = theta, o->distance = distance;
-    memcpy(o->cov, cov, sizeof cov);
+    for (int i = 0; i < 9; ++i) o->cov[i] = cov[i];
     o->arc_left = arc_left, o->arc_right = arc_right;
     o->time = t ? *t : (double)NAN; /* without a stamp the clock is lost until the next one */
     return DD_OK;
@@ -216,15 +251,24 @@ dd_status dd_tick_change(int bits, int64_t before, int64_t after, int64_t *chang
             (after < 0 && before > 0 && after < INT64_MIN + before))
             return DD_COUNTER_RANGE;
         *change = after - before;
-        return DD_OK;
-    }
-    uint64_t step = (uint64_t)after - (uint64_t)before;
-    if (bits < 64) {
-        uint64_t modulus = (uint64_t)1 << bits;
-        step &= modulus - 1;
-        *change = step >= modulus / 2 ? (int64_t)step - (int64_t)modulus : (int64_t)step;
+    } else if (bits <= 32) { /* in 32 bits, where a microcontroller's counters are */
+        uint32_t step = (uint32_t)after - (uint32_t)before;
+        if (bits < 32) {
+            uint32_t modulus = (uint32_t)1 << bits;
+            step &= modulus - 1;
+            *change = step >= modulus / 2 ? (int64_t)step - (int64_t)modulus : (int64_t)step;
+        } else {
+            *change = (int32_t)step;
+        }
     } else {
-        *change = (int64_t)step;
+        uint64_t step = (uint64_t)after - (uint64_t)before;
+        if (bits < 64) {
+            uint64_t modulus = (uint64_t)1 << bits;
+            step &= modulus - 1;
+            *change = step >= modulus / 2 ? (int64_t)step - (int64_t)modulus : (int64_t)step;
+        } else {
+            *change = (int64_t)step;
+        }
     }
     return DD_OK;
 }
@@ -234,6 +278,12 @@ dd_status dd_tick_change(int bits, int64_t before, int64_t after, int64_t *chang
 static int fits(int bits, int64_t reading) {
     if (bits == 0 || bits == 64) return 1;
     return reading >= -((int64_t)1 << (bits - 1)) && reading <= (int64_t)(((uint64_t)1 << bits) - 1);
+}
+
+/* A counter change as a dd_real: through 32 bits where it fits, which a single-precision FPU
+ * converts in one instruction (64 bits take a library call). */
+static dd_real counts(int64_t change) {
+    return change >= INT32_MIN && change <= INT32_MAX ? (dd_real)(int32_t)change : (dd_real)change;
 }
 
 dd_status dd_odometry_ticks(dd_odometry *o, const double *t, int64_t left, int64_t right) {
@@ -250,7 +300,7 @@ dd_status dd_odometry_ticks(dd_odometry *o, const double *t, int64_t left, int64
         if (status == DD_OK) status = dd_tick_change(bits, o->ticks_right, right, &change_right);
         if (status == DD_OK) {
             const dd_real rad = o->rad_per_tick, low = o->rad_per_tick_low;
-            dd_real counts_left = (dd_real)change_left, counts_right = (dd_real)change_right;
+            dd_real counts_left = counts(change_left), counts_right = counts(change_right);
             dd_real dl = counts_left * rad, dr = counts_right * rad;
             status = update(o, dl, dr, product_error(counts_left, rad, dl) + counts_left * low,
                             product_error(counts_right, rad, dr) + counts_right * low, t,
@@ -312,6 +362,7 @@ void dd_odometry_jacobians(const dd_odometry *o, dd_real left, dd_real right, dd
                            dd_real jac_wheels[6]) {
     Step s;
     step(&o->config, heading(o->theta), left, right, 0, 0, &s);
-    memcpy(jac_pose, s.jac_pose, sizeof s.jac_pose);
+    const dd_real pose[9] = {1.0, 0.0, -s.dy, 0.0, 1.0, s.dx, 0.0, 0.0, 1.0};
+    memcpy(jac_pose, pose, sizeof pose);
     memcpy(jac_wheels, s.jac_wheels, sizeof s.jac_wheels);
 }

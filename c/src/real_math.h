@@ -5,6 +5,13 @@
 
 #include <math.h>
 
+/* Inlined even where the compiler optimises for size: small helpers on the hot path. */
+#if defined(__GNUC__) || defined(__clang__)
+#define DD_INLINE static inline __attribute__((always_inline))
+#else
+#define DD_INLINE static inline
+#endif
+
 /* DD_TINY: a positive number near the smallest normal one; DD_ROUNDING2: the square of a few
  * units of rounding, for convergence tests on squared sums. */
 #ifdef DD_SINGLE
@@ -14,7 +21,9 @@
 #define dd_sin sinf
 #define dd_cos cosf
 #define dd_fabs fabsf
-#define dd_hypot hypotf
+/* newlib's hypotf guards against overflow at 700 instructions a call; a float build's steps
+ * are far below 1e19 m, where a*a would overflow, and the FPU has a square root */
+#define dd_hypot(a, b) sqrtf((a) * (a) + (b) * (b))
 #define dd_fmax fmaxf
 #define dd_fmin fminf
 #define dd_sqrt sqrtf
