@@ -2,7 +2,8 @@
  * core's test harness and its example.
  *
  * FILE's first line: `robot r_left r_right track ticks_per_revolution counter_bits k_left
- * k_right` (m, m, m, counts, bits, m, m); then one line `t left_ticks right_ticks` a reading
+ * k_right [max_wheel_speed]` (m, m, m, counts, bits, m, m, rad/s; without the last, no speed
+ * limit); then one line `t left_ticks right_ticks` a reading
  * (s, counts). For each reading after the first, standard output gets one line
  * `t x y theta P_xx P_xy P_xt P_yy P_yt P_tt` (s, m, m, rad, and the pose's covariance). A
  * reading the core refuses gets one line `refused line N: WHY` on standard error, and the
@@ -33,13 +34,14 @@ int main(int argc, char **argv) {
         return 2;
     }
     char line[256];
-    double r_left, r_right, track, ticks_per_revolution, k_left, k_right;
-    int bits;
-    if (fgets(line, sizeof line, in) == NULL ||
-        sscanf(line, "robot %lf %lf %lf %lf %d %lf %lf", &r_left, &r_right, &track,
-               &ticks_per_revolution, &bits, &k_left, &k_right) != 7) {
+    double r_left, r_right, track, ticks_per_revolution, k_left, k_right, fastest = INFINITY;
+    int bits, fields = 0;
+    if (fgets(line, sizeof line, in) != NULL)
+        fields = sscanf(line, "robot %lf %lf %lf %lf %d %lf %lf %lf", &r_left, &r_right, &track,
+                        &ticks_per_revolution, &bits, &k_left, &k_right, &fastest);
+    if (fields != 7 && fields != 8) {
         fprintf(stderr, "odometry_stream: line 1 must be `robot r_left r_right track "
-                        "ticks_per_revolution counter_bits k_left k_right`\n");
+                        "ticks_per_revolution counter_bits k_left k_right [max_wheel_speed]`\n");
         return 2;
     }
     const dd_odometry_config config = {
@@ -47,7 +49,7 @@ int main(int argc, char **argv) {
         .method = DD_EXACT,
         .ticks_per_revolution = (dd_real)ticks_per_revolution,
         .counter_bits = bits,
-        .max_wheel_speed = (dd_real)INFINITY,
+        .max_wheel_speed = (dd_real)fastest,
         .k_left = (dd_real)k_left,
         .k_right = (dd_real)k_right,
     };
@@ -69,7 +71,8 @@ int main(int argc, char **argv) {
         }
         status = dd_odometry_ticks(&odometry, &t, (int64_t)left, (int64_t)right);
         if (status != DD_OK) {
-            fprintf(stderr, "refused line %ld: %s\n", number, dd_status_text(status));
+            fprintf(stderr, "refused line %ld (t = %.17g s, ticks %lld %lld): %s\n", number, t,
+                    left, right, dd_status_text(status));
             continue;
         }
         if (readings++ == 0) continue; /* the first sets the reference */
