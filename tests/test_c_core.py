@@ -11,6 +11,7 @@ from __future__ import annotations
 import ctypes
 import math
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +21,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import diffdrive as dd
-from firmware import build, qemu, require_cross, status_codes
+from firmware import C, build, qemu, require_cross, status_codes
 from processes import run_bounded
 
 
@@ -430,3 +431,142 @@ def test_the_c_limiter_follows_the_python_one_step_by_step(library, steps):
         given_target = None if target is None else (ctypes.c_double * 2)(*target)
         assert library.dd_limiter_step(state, given_target, dt, out) == 0
         np.testing.assert_allclose(list(out), want, rtol=1e-12, atol=1e-12)
+
+
+# -- the header diffdrive export writes, read by the compiler that builds the firmware --------
+
+READ_BACK = r"""
+#include <stdio.h>
+#include "diffdrive_robot.h"
+
+int main(void) {
+    dd_odometry odometry;
+    dd_filter filter;
+    if (dd_odometry_init(&odometry, &diffdrive_odometry) != DD_OK) return 1;
+    if (dd_filter_init(&filter, &diffdrive_filter) != DD_OK) return 2;
+    const dd_odometry_config *c = &diffdrive_odometry;
+    printf("%.17g %.17g %.17g %.17g %.17g %d %.17g %.17g\n", (double)c->drive.r_left,
+           (double)c->drive.r_right, (double)c->drive.track, (double)c->drive.offset,
+           (double)c->ticks_per_revolution, c->counter_bits, (double)c->k_left,
+           (double)c->k_right);
+    long long left = 65000, right = 65100; /* 16-bit counters about to roll over */
+    for (int k = 0; k <= 100; ++k) {
+        double t = 0.02 * k;
+        if (dd_odometry_ticks(&odometry, &t, (left + 40 * k) % 65536, (right + 47 * k) % 65536)
+            != DD_OK)
+            return 3;
+    }
+    dd_real pose[3];
+    dd_odometry_pose(&odometry, pose);
+    printf("%.17g %.17g %.17g\n", (double)pose[0], (double)pose[1], (double)pose[2]);
+    return 0;
+}
+"""
+
+
+@pytest.mark.slow
+def test_the_exported_header_builds_the_firmwares_odometry(host, tmp_path):
+    exported = run_bounded(
+        [
+            sys.executable,
+            "-m",
+            "diffdrive",
+            "export",
+            "--to",
+            "c-header",
+            "-o",
+            "diffdrive_robot.h",
+            "-q",
+            "--left-wheel-radius",
+            "0.0331",
+            "--right-wheel-radius",
+            "0.0329",
+            "--track-width",
+            "0.161",
+            "--ticks-per-revolution",
+            "4096",
+            "--counter-bits",
+            "16",
+            "--k",
+            "2e-4",
+        ],
+        cwd=tmp_path,
+    )
+    assert exported.returncode == 0, exported.stderr
+    (tmp_path / "read.c").write_text(READ_BACK)
+    include = ["-I", str(tmp_path), "-I", str(C / "include")]
+    compiled = run_bounded(
+        [
+            "cc",
+            "-std=c99",
+            "-Wall",
+            "-Werror",
+            *include,
+            "read.c",
+            str(host / "libdiffdrive.a"),
+            "-lm",
+            "-o",
+            "read",
+        ],
+        cwd=tmp_path,
+    )
+    assert compiled.returncode == 0, compiled.stderr
+    done = run_bounded(["./read"], cwd=tmp_path)
+    assert done.returncode == 0, done.stdout
+    settings, pose = (np.array(line.split(), dtype=float) for line in done.stdout.splitlines())
+    np.testing.assert_array_equal(settings, [0.0331, 0.0329, 0.161, 0.0, 4096, 16, 2e-4, 2e-4])
+    robot = dd.DiffDrive(left_wheel_radius=0.0331, right_wheel_radius=0.0329, track_width=0.161)
+    odometry = dd.Odometry(robot, "exact", ticks_per_revolution=4096, counter_bits=16)
+    for k in range(101):
+        odometry.update_ticks((65000 + 40 * k) % 65536, (65100 + 47 * k) % 65536, 0.02 * k)
+    np.testing.assert_array_equal(pose, odometry.pose.to_array())
+
+
+@pytest.mark.slow
+def test_the_exported_header_builds_for_a_cortex_m4(cortex, tmp_path):
+    exported = run_bounded(
+        [
+            sys.executable,
+            "-m",
+            "diffdrive",
+            "export",
+            "--to",
+            "c-header",
+            "-o",
+            "diffdrive_robot.h",
+            "-q",
+            "--wheel-radius",
+            "0.033",
+            "--track-width",
+            "0.16",
+            "--ticks-per-revolution",
+            "1440",
+            "--counter-bits",
+            "32",
+            "--k",
+            "1e-4",
+        ],
+        cwd=tmp_path,
+    )
+    assert exported.returncode == 0, exported.stderr
+    (tmp_path / "read.c").write_text(READ_BACK.replace("printf", "(void)printf"))
+    flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-DDD_SINGLE"]
+    compiled = run_bounded(
+        [
+            "arm-none-eabi-gcc",
+            *flags,
+            "-std=c99",
+            "-Wall",
+            "-Werror",
+            "-c",
+            "-I",
+            str(tmp_path),
+            "-I",
+            str(C / "include"),
+            "read.c",
+            "-o",
+            "read.o",
+        ],
+        cwd=tmp_path,
+    )
+    assert compiled.returncode == 0, compiled.stderr

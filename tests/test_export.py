@@ -4,6 +4,7 @@ derivation, and calibrate-then-export from logs."""
 
 import re
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ import diffdrive as dd
 from diffdrive import export, sensors
 from diffdrive.calibration import noise
 from diffdrive.cli import main
+from diffdrive.estimation.settings import Encoders
 
 yaml = pytest.importorskip("yaml")
 
@@ -66,6 +68,16 @@ WHEELS = ("left_wheel_joint", "right_wheel_joint")
 DRIVE = export.DriveConstants(1.1, 2.9, 0.4, 3.3, 0.6)
 
 
+def c_members(struct: str) -> set[str]:
+    """The member names of one of the C core's configuration structs, read from its header."""
+    headers = Path(__file__).resolve().parents[1] / "c" / "include" / "diffdrive"
+    text = "".join(path.read_text() for path in headers.glob("*.h"))
+    body = re.search(r"typedef struct \{(.*?)\} " + struct + ";", text, re.S)
+    assert body is not None, struct
+    declarations = re.sub(r"/\*.*?\*/", "", body.group(1), flags=re.S)
+    return set(re.findall(r"(\w+)(?:\[\d+\])?\s*[,;]", declarations))
+
+
 def wpilib_schema():
     import json
 
@@ -78,10 +90,19 @@ def test_each_file_has_the_structure_its_consumer_reads(target, tmp_path):
     parameter one the node documents and of its declared type (ros2 param load refuses a
     float for an int); WPILib's JSON against its schema."""
     path = tmp_path / f"{target}.file"
-    options = {"wheel_names": WHEELS} if target == "ros2" else {}
+    options: dict[str, object] = {"wheel_names": WHEELS} if target == "ros2" else {}
     if target == "wpilib":
         options["drive"] = DRIVE
+    if target == "c-header":
+        options["encoders"] = Encoders(ticks_per_revolution=4096, counter_bits=16)
     figures = export.export(target, CALIBRATED, NOMINAL, MODEL, path, **options)
+    if target == "c-header":  # compiled and run in test_c_core; here its fields are the C's
+        text = path.read_text()
+        for kind, name in (("odometry", "dd_odometry_config"), ("filter", "dd_filter_config")):
+            fields = re.findall(r"\.(\w+) = ", text.split(f"diffdrive_{kind} = ")[1].split("};")[0])
+            assert fields == list(figures[kind])
+            assert set(fields) <= c_members(name), fields
+        return
     if target == "wpilib":
         import json
 

@@ -23,6 +23,7 @@ from diffdrive.cli.options import (
     refuse_unused,
     robot_from,
 )
+from diffdrive.estimation.settings import Encoders
 from diffdrive.export import (
     FILES,
     MIN_INSIDE_95,
@@ -89,9 +90,19 @@ def run_export(args: argparse.Namespace) -> int:
         )
     if args.to == "wpilib" and drive is None:
         notes.append("no drive identification given (--drive): no kS, kV, kA")
+    encoders = _encoders(args, ticks, notes)
     output = args.output or Path(FILES[args.to])
     figures = export(
-        args.to, robot, nominal, model, output, at, notes, wheel_names=wheel_names, drive=drive
+        args.to,
+        robot,
+        nominal,
+        model,
+        output,
+        at,
+        notes,
+        wheel_names=wheel_names,
+        drive=drive,
+        encoders=encoders,
     )
     for reason in held:  # said even with -q: the file is known to be off
         print(f"diffdrive export: warning: written though {reason}", file=sys.stderr)
@@ -104,7 +115,7 @@ def run_export(args: argparse.Namespace) -> int:
             f"track sigma {model.track_sigma:.4g}, reference {1000 * model.reference_sigma:.3g} mm "
             f"and {math.degrees(model.reference_heading_sigma):.3g} deg"
         )
-        for name, value in figures.items():
+        for name, value in _flat(figures):
             if isinstance(value, list) and len(value) > 6:
                 value = f"{len(value)} values"
             elif isinstance(value, list):
@@ -169,6 +180,39 @@ def _wheel_names(args) -> tuple[str, str] | None:
             "in the robot's URDF, as a bag's /joint_states names them)"
         )
     return args.left_joint, args.right_joint
+
+
+def _flat(figures: dict[str, object]):
+    """(name, value) of each figure, a group's (the C header's structs) as group.name."""
+    for name, value in figures.items():
+        if isinstance(value, dict):
+            yield from ((f"{name}.{field}", item) for field, item in value.items())
+        else:
+            yield name, value
+
+
+def _encoders(args, ticks: float | None, notes: list[str]) -> Encoders | None:
+    """The firmware's encoders (c-header): counts per revolution and the counters' width,
+    which the C core needs to turn readings into angles, refused by name when not given."""
+    if args.to != "c-header":
+        return None
+    if ticks is None:
+        raise ValueError(
+            "export --to c-header writes the encoders' counts per wheel revolution, which the "
+            "firmware turns ticks into angles with: give --ticks-per-revolution N (or "
+            "ticks_per_revolution in the robot file)"
+        )
+    if args.counter_bits is None:
+        raise ValueError(
+            "export --to c-header writes the width of the encoder counters, which tells a "
+            "roll-over from a jump: give --counter-bits B (16 on many motor drivers, 32 on a "
+            "microcontroller's timer, 64 for a count that never rolls over)"
+        )
+    notes.append(
+        "max_wheel_speed not known here: INFINITY, no reading refused for its speed (set it "
+        "to the motors' top speed, rad/s, to catch a glitch or a misread roll-over)"
+    )
+    return Encoders(ticks_per_revolution=ticks, counter_bits=args.counter_bits)
 
 
 def _drive(args) -> DriveConstants | None:
@@ -236,6 +280,8 @@ EPILOGS = {
   diffdrive export --to amcl --robot robot.toml --k 1e-4 --radius-sigma 0.002
   diffdrive identify sysid.csv --robot robot.toml -o drive.toml
   diffdrive export --to wpilib --robot robot.toml --drive drive.toml run1.csv run2.csv
+  diffdrive export --to c-header --robot robot.toml --ticks-per-revolution 4096 \\
+      --counter-bits 16 run1.csv run2.csv
 
 The noise model is identified on the runs given (ground truth as the reference, its own
 accuracy held at --reference-sigma: by default motion capture's, 1 mm and 0.1 deg, for tables;
@@ -251,7 +297,7 @@ def add_to(command: Command, parents: Parents) -> None:
     ex = command(
         "export",
         "the calibrated robot, its noise model and its drive as ROS 2, robot_localization, "
-        "AMCL or WPILib files",
+        "AMCL or WPILib files, or a C header for the C core in the robot's firmware",
         [parents.robot_required, parents.logs],
         run_export,
         EPILOGS["export"],

@@ -1,7 +1,8 @@
 """The calibrated robot, its noise model and its drive as the files other stacks take:
 ros2_controllers' ``diff_drive_controller`` (``"ros2"``), robot_localization's process noise
 (``"robot_localization"``), Nav2 AMCL's alphas (``"amcl"``) and WPILib's drivetrain constants
-(``"wpilib"``, JSON). ``targets`` derives the figures (how each is derived is there and in the
+(``"wpilib"``, JSON), and the C core's configuration for a robot's firmware (``"c-header"``).
+``targets`` derives the figures (how each is derived is there and in the
 file), ``amcl`` holds Nav2's sampler, ``files`` writes them. ``nav2_mppi`` writes an ``MPPI``
 controller's settings as Nav2's MPPI controller reads them.
 
@@ -17,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from diffdrive.calibration.noise import NoiseModel
+from diffdrive.estimation.settings import Encoders
 from diffdrive.export.files import FILES, NODES, WPILIB_SCHEMA, render, write
 from diffdrive.export.targets import TARGETS, DriveConstants, Reference, amcl_fit, parameters
 from diffdrive.model import DiffDrive
@@ -70,10 +72,13 @@ def export(
     *,
     wheel_names: tuple[str, str] | None = None,
     drive: DriveConstants | None = None,
+    encoders: Encoders | None = None,
 ) -> dict[str, object]:
     """Write ``target``'s file to ``path`` (whole or not at all) and return its figures
     (``parameters``; the ``notes`` go at its top)."""
     at = Reference() if at is None else at
-    figures = parameters(target, robot, nominal, model, at, wheel_names=wheel_names, drive=drive)
+    figures = parameters(
+        target, robot, nominal, model, at, wheel_names=wheel_names, drive=drive, encoders=encoders
+    )
     write(path, render(target, figures, at, list(notes)))
     return figures

@@ -1,9 +1,11 @@
 """Each target's file: ROS 2 parameter files (YAML) for the ROS targets, a JSON document for
-WPILib (``WPILIB_SCHEMA`` is its JSON schema), written whole or not at all."""
+WPILib (``WPILIB_SCHEMA`` is its JSON schema), a C header for the C core's firmware, written
+whole or not at all."""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from diffdrive.atomic import atomic_write
@@ -22,6 +24,7 @@ FILES = {
     "robot_localization": "ekf.yaml",
     "amcl": "amcl.yaml",
     "wpilib": "drivetrain.json",
+    "c-header": "diffdrive_robot.h",
 }
 WPILIB_SCHEMA = Path(__file__).with_name("wpilib.schema.json")
 # What each WPILib figure is, in the file itself (JSON has no comments).
@@ -45,6 +48,32 @@ _SETTINGS = {
     "with each laser scan at {at.scan_rate:g} Hz, driving at {at.speed:g} m/s and turning in "
     "place at {at.turn_rate:g} rad/s",
     "wpilib": "the state standard deviations after {at.distance:g} m straight",
+    "c-header": "the calibrated equivalent drive and wheel noise; the filter's gyro noise, "
+    "gates and slip test are diffdrive's defaults (EstimatorSettings) for a heading fused from "
+    "wheels and gyro: replace them with your gyro's",
+}
+# What each field of the C core's configurations is (c/include/diffdrive/*.h say more).
+_C_FIELDS = {
+    "drive": "r_left, r_right, track, offset: m (the equivalent drive)",
+    "method": "the step: the exact arc (SE(2) exponential)",
+    "ticks_per_revolution": "encoder counts per wheel revolution",
+    "counter_bits": "the counters' width: a change of more than half their range is a roll-over",
+    "max_wheel_speed": "rad/s past which a reading is refused (INFINITY: none)",
+    "k_left": "m: the left wheel's travel variance per metre travelled",
+    "k_right": "m: the right wheel's",
+    "heading": "from the wheels' turn and the gyro's, fused",
+    "estimate_bias": "the gyro's bias estimated",
+    "estimate_scale": "the turn scale estimated",
+    "estimate_distance": "the distance scale estimated",
+    "estimate_offset": "the position fixes' offset estimated",
+    "arw2": "rad^2/s: the gyro's angle random walk, squared",
+    "rrw2": "(rad/s)^2/s: its bias's random walk, squared",
+    "offset_rate2": "m^2/s: the fixes' offset's random walk, squared",
+    "slip_threshold": "the slip test's chi-square threshold",
+    "slip_inflation": "a slipping interval's wheel noise grows by this",
+    "gates": "chi-square gates for measurements of 1, 2 and 3 values",
+    "inflate": "past the gate: 1 inflates the measurement's covariance, 0 refuses it",
+    "reference_offset": "m: the state's reference point left of the body origin",
 }
 
 
@@ -70,6 +99,8 @@ def render(target: str, figures: dict[str, object], at: Reference, notes: list[s
     """The file's text: a ROS 2 parameter file (``node: ros__parameters: ...``) with the
     ``notes`` and the derivation in comments, or for WPILib a JSON document holding them."""
     settings = _SETTINGS[target].format(at=at)
+    if target == "c-header":
+        return _c_header(figures, [*notes, settings])
     if target == "wpilib":
         document = {
             "format": "diffdrive.wpilib/1",
@@ -82,6 +113,45 @@ def render(target: str, figures: dict[str, object], at: Reference, notes: list[s
     lines += [f"# {target}: see diffdrive.export for how each figure is derived", f"# {settings}"]
     lines += [f"{NODES[target]}:", "  ros__parameters:"]
     lines += [f"    {name}: {yaml_value(value)}" for name, value in figures.items()]
+    return "\n".join(lines) + "\n"
+
+
+def c_value(value: object) -> str:
+    """A figure as a C initialiser: a name or integer as it is, a double to the last digit
+    (a float build rounds it once, at compile time), infinity as INFINITY (math.h)."""
+    if isinstance(value, str | int) and not isinstance(value, bool):
+        return str(value)
+    if isinstance(value, list):
+        return "{" + ", ".join(c_value(v) for v in value) + "}"
+    number = float(value)  # type: ignore[arg-type]
+    if math.isinf(number):
+        return "INFINITY" if number > 0 else "-INFINITY"
+    text = repr(number)
+    return text if any(mark in text for mark in ".en") else text + ".0"
+
+
+def _c_header(figures: dict[str, object], notes: list[str]) -> str:
+    """The header: the notes, then ``diffdrive_odometry`` and ``diffdrive_filter``, the C
+    core's configurations, each field commented."""
+    notes = [*notes, "see diffdrive.export for how each figure is derived"]
+    lines = ["/* " + "\n * ".join(notes) + " */"]
+    lines += [
+        "#ifndef DIFFDRIVE_ROBOT_H",
+        "#define DIFFDRIVE_ROBOT_H",
+        "",
+        "#include <math.h>",
+        "",
+        '#include "diffdrive/filter.h"',
+        '#include "diffdrive/odometry.h"',
+    ]
+    for name, kind in (("odometry", "dd_odometry_config"), ("filter", "dd_filter_config")):
+        fields = figures[name]
+        assert isinstance(fields, dict)
+        lines += ["", f"static const {kind} diffdrive_{name} = {{"]
+        for field, value in fields.items():
+            lines.append(f"    .{field} = {c_value(value)}, /* {_C_FIELDS[field]} */")
+        lines.append("};")
+    lines += ["", "#endif"]
     return "\n".join(lines) + "\n"
 
 

@@ -29,18 +29,22 @@ Unused axes of a 2-D robot (z, roll, pitch) get 1e6 (unknown), its sideways velo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from diffdrive._validate import finite, positive, whole
 from diffdrive.calibration.noise import NoiseModel, covariances
+from diffdrive.estimation.fusion import core_settings, start_state
+from diffdrive.estimation.settings import Encoders, EstimatorSettings
 from diffdrive.export.amcl import match_alphas, reference_motions
-from diffdrive.model import DiffDrive
+from diffdrive.model import DiffDrive, geometry_of
+from diffdrive.sensor_noise import WheelNoise
 
 __all__ = ["TARGETS", "DriveConstants", "Reference", "parameters"]
 
-TARGETS = ("ros2", "robot_localization", "amcl", "wpilib")
+TARGETS = ("ros2", "robot_localization", "amcl", "wpilib", "c-header")
 UNKNOWN, KNOWN_ZERO = 1e6, 1e-9
 # robot_localization's documented default process noise diagonal (ekf.yaml).
 _RL_DEFAULT = (
@@ -130,10 +134,12 @@ def parameters(
     *,
     wheel_names: tuple[str, str] | None = None,
     drive: DriveConstants | None = None,
+    encoders: Encoders | None = None,
 ) -> dict[str, object]:
     """The figures of ``target`` for the calibrated ``robot`` (the ``nominal`` one gives the
     base values ROS multiplies), as a dict: see the module. ``wheel_names`` (left, right) are
-    the ROS 2 controller's joints; ``drive`` WPILib's feedforward."""
+    the ROS 2 controller's joints; ``drive`` WPILib's feedforward; ``encoders`` the
+    firmware's (``"c-header"``)."""
     if target not in TARGETS:
         raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
     # NoiseModel refuses a negative or non-finite term; all three 0 is its own mistake here.
@@ -148,6 +154,8 @@ def parameters(
         return _ros2(robot, nominal, model, at, wheel_names)
     if target == "amcl":
         return _amcl(robot, model, at)
+    if target == "c-header":
+        return _c_header(robot, model, encoders)
     k, track = model.k, robot.track_width
     if target == "robot_localization":
         diagonal = list(_RL_DEFAULT)
@@ -200,6 +208,48 @@ def _ros2(robot, nominal, model, at, wheel_names) -> dict[str, object]:
         ],
         "twist_covariance_diagonal": [var_v, KNOWN_ZERO, UNKNOWN, UNKNOWN, UNKNOWN, var_w],
     }
+
+
+def _c_header(robot: DiffDrive, model: NoiseModel, encoders: Encoders | None):
+    """The C core's ``dd_odometry_config`` and ``dd_filter_config`` fields, in its order."""
+    if encoders is None or encoders.ticks_per_revolution is None or not encoders.counter_bits:
+        raise ValueError(
+            "the C core converts counter readings itself: give the encoders' counts per wheel "
+            "revolution and their counters' width in bits (a count that never rolls over: 64)"
+        )
+    noise = WheelNoise(model.k_left, model.k_right)
+    settings = EstimatorSettings(heading="fused", wheel_noise=noise)
+    core = core_settings(robot, settings, *start_state(robot, settings, None, None))
+    r_left, r_right, track, offset = geometry_of(robot)
+    odometry: dict[str, object] = {
+        "drive": [r_left, r_right, track, offset],
+        "method": "DD_EXACT",
+        "ticks_per_revolution": encoders.ticks_per_revolution,
+        "counter_bits": encoders.counter_bits,
+        "max_wheel_speed": encoders.max_wheel_speed or math.inf,
+        "k_left": noise.left,
+        "k_right": noise.right,
+    }
+    filtered: dict[str, object] = {
+        "drive": [r_left, r_right, track, offset],
+        "method": "DD_EXACT",
+        "heading": "DD_FROM_BOTH",
+        "estimate_bias": int(core.estimate_bias),
+        "estimate_scale": int(core.estimate_scale),
+        "estimate_distance": int(core.estimate_distance),
+        "estimate_offset": int(core.estimate_offset),
+        "k_left": noise.left,
+        "k_right": noise.right,
+        "arw2": core.arw2,
+        "rrw2": core.rrw2,
+        "offset_rate2": core.offset_rate2,
+        "slip_threshold": core.slip_threshold,
+        "slip_inflation": core.slip_inflation,
+        "gates": list(core.gates),
+        "inflate": int(core.inflate),
+        "reference_offset": core.offset,
+    }
+    return {"odometry": odometry, "filter": filtered}
 
 
 def _speed_share(model: NoiseModel) -> float:
