@@ -149,7 +149,8 @@ def float_against_double(host: Path, cortex: Path) -> None:
         position = np.hypot(*(a[:, :2] - b[:, :2]).T).max()
         heading = np.abs(a[:, 2] - b[:, 2]).max()
         print(
-            f"   {name:6s} {len(a)} readings, heading to {a[-1, 2]:.0f} rad: largest position "
+            f"   {name:6s} {len(a)} readings, |heading| up to {np.abs(a[:, 2]).max():.0f} rad: "
+            "largest position "
             f"difference {1e3 * position:.3g} mm, heading {heading:.2g} rad"
         )
 

@@ -9,8 +9,10 @@ numbers to the bit; the float build differs by single precision only."""
 from __future__ import annotations
 
 import ctypes
+import json
 import math
 import re
+import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -570,3 +572,40 @@ def test_the_exported_header_builds_for_a_cortex_m4(cortex, tmp_path):
         cwd=tmp_path,
     )
     assert compiled.returncode == 0, compiled.stderr
+
+
+# -- the layouts firmware builds take ----------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_the_arduino_layout_finds_its_headers_in_src_alone(tmp_path):
+    """The Arduino IDE compiles a library's src/ with src/ as its only include folder."""
+    layout = tmp_path / "arduino" / "diffdrive"
+    made = run_bounded(["make", "-C", str(C), "arduino", f"ARDUINO={layout}"])
+    assert made.returncode == 0, made.stderr
+    assert (layout / "library.properties").read_text().startswith("name=diffdrive\n")
+    sources = sorted(str(path) for path in (layout / "src").glob("*.c"))
+    assert len(sources) == 4
+    compiled = run_bounded(
+        ["cc", "-std=c99", "-Wall", "-Werror", "-c", "-I", str(layout / "src"), *sources],
+        cwd=tmp_path,
+    )
+    assert compiled.returncode == 0, compiled.stderr
+
+
+@pytest.mark.slow
+def test_cmake_and_platformio_take_the_folder_as_it_is(tmp_path):
+    """PlatformIO reads c/library.json (src/ and include/, its own defaults); CMake builds
+    c/CMakeLists.txt, here in single precision."""
+    manifest = json.loads((C / "library.json").read_text())
+    assert (manifest["build"]["srcDir"], manifest["build"]["includeDir"]) == ("src", "include")
+    assert all((C / "include" / header).is_file() for header in manifest["headers"])
+    if shutil.which("cmake") is None:
+        pytest.skip("cmake not found, so the CMake build did NOT run (apt-get install cmake)")
+    configured = run_bounded(
+        ["cmake", "-S", str(C), "-B", "b", "-DDIFFDRIVE_SINGLE=ON"], cwd=tmp_path
+    )
+    assert configured.returncode == 0, configured.stderr
+    built = run_bounded(["cmake", "--build", "b"], cwd=tmp_path)
+    assert built.returncode == 0, built.stdout + built.stderr
+    assert (tmp_path / "b" / "libdiffdrive.a").is_file()

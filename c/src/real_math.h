@@ -5,6 +5,8 @@
 
 #include <math.h>
 
+#include "diffdrive/real.h" /* which may choose DD_SINGLE */
+
 /* Inlined even where the compiler optimises for size: small helpers on the hot path. */
 #if defined(__GNUC__) || defined(__clang__)
 #define DD_INLINE static inline __attribute__((always_inline))

@@ -1,13 +1,20 @@
 /* diffdrive's C core: the real type and the status codes every function returns.
  *
  * The real type is double unless DD_SINGLE is defined, for a microcontroller whose FPU does
- * single precision only (a Cortex-M4F): build every source of the library and its callers
- * with the same choice. Times stay double in both builds: a float clock an hour in has a
+ * single precision only (a Cortex-M4F, where it is chosen by itself): build every source of
+ * the library and its callers with the same choice, and there add -fsingle-precision-constant
+ * (GCC, Clang), or the constants in the sources stay double and cost a library call each. Times stay double in both builds: a float clock an hour in has a
  * resolution of 0.24 ms, a tenth of a 100 Hz reading's interval, so a float build would
  * misjudge speeds; a double subtraction per reading costs little on a single-precision FPU.
  */
 #ifndef DIFFDRIVE_REAL_H
 #define DIFFDRIVE_REAL_H
+
+/* An ARM core whose FPU has no double precision (a Cortex-M4F: __ARM_FP without bit 3) gets
+ * the float build by itself; DD_DOUBLE keeps double there (slow: a library call a step). */
+#if !defined(DD_SINGLE) && !defined(DD_DOUBLE) && defined(__ARM_FP) && !(__ARM_FP & 8)
+#define DD_SINGLE
+#endif
 
 #ifdef DD_SINGLE
 typedef float dd_real;
