@@ -18,7 +18,8 @@
 Needs make, a C compiler, and for 2 to 4 Debian's gcc-arm-none-eabi, libnewlib-arm-none-eabi
 and qemu-system-arm.
 
-    python benchmarks/bench_c_core.py [--against 3ecb469] [--rounds 5]
+    python benchmarks/bench_c_core.py [--against 3ecb469] [--rounds 5] [--seconds 3600]
+        [--updates 100000] [--log 20000]
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ def qemu(elf: Path, *arguments: str, icount: bool = False) -> str:
     ).stdout
 
 
-def drive_file(path: Path, left_rate, right_rate, seconds: int = 3600) -> np.ndarray:
+def drive_file(path: Path, left_rate, right_rate, seconds: int) -> np.ndarray:
     """An hour at 100 Hz of 16-bit counter readings; geometry floats hold exactly."""
     rate, counts = 100, 4096
     t = np.arange(seconds * rate + 1) / rate
@@ -96,8 +97,8 @@ def circle_right(t):
     return 10 + 0.5 * np.sin(2 * np.pi * t / 17)
 
 
-def host_against_python(host: Path, folder: Path) -> None:
-    readings = drive_file(folder / "wander.txt", wander, wander_right)
+def host_against_python(host: Path, folder: Path, seconds: int) -> None:
+    readings = drive_file(folder / "wander.txt", wander, wander_right, seconds)
     out = subprocess.run(
         [str(host / "odometry_stream"), "wander.txt"],
         cwd=folder,
@@ -128,13 +129,13 @@ def host_against_python(host: Path, folder: Path) -> None:
     )
 
 
-def float_against_double(host: Path, cortex: Path) -> None:
+def float_against_double(host: Path, cortex: Path, seconds: int) -> None:
     print("2. Cortex-M4F build (float, -Os) under QEMU against the host build (double)")
     for name, left, right in (
         ("wander", wander, wander_right),
         ("circle", circle_left, circle_right),
     ):
-        drive_file(cortex / f"{name}.txt", left, right)
+        drive_file(cortex / f"{name}.txt", left, right, seconds)
         double = subprocess.run(
             [str(host / "odometry_stream"), f"{name}.txt"],
             cwd=cortex,
@@ -187,7 +188,7 @@ import numpy as np
 import diffdrive as dd
 from diffdrive.estimation import Gyro, estimate_trajectory
 robot = dd.DiffDrive(0.033, 0.16)
-n = 100_000
+n, m = int(sys.argv[1]), int(sys.argv[2])
 rng = np.random.default_rng(0)
 ticks = np.cumsum(rng.integers(40, 60, (n, 2)), axis=0) % 65536
 left, right, times = ticks[:, 0].tolist(), ticks[:, 1].tolist(), (np.arange(n) * 0.01).tolist()
@@ -202,7 +203,6 @@ update = odometry.update_ticks
 for a, b, t in zip(left, right, times):
     update(a, b, t)
 w1, c1 = clocks()
-m = 20_000
 increments = rng.uniform(0.05, 0.1, (m - 1, 2))
 stamps = np.arange(m) * 0.01
 rates = np.concatenate([[0.0], (increments[:, 1] - increments[:, 0]) * 0.033 / 0.16 / 0.01])
@@ -212,7 +212,7 @@ print(json.dumps({"update": [(w1 - w0) / n, (c1 - c0) / n], "smoother": [w2 - w1
 """
 
 
-def extension_speed(against: str, rounds: int, folder: Path) -> None:
+def extension_speed(against: str, rounds: int, sizes: tuple[int, int], folder: Path) -> None:
     clones = {}
     for name, revision in (("before", against), ("after", "HEAD")):
         clone = folder / name
@@ -230,13 +230,17 @@ def extension_speed(against: str, rounds: int, folder: Path) -> None:
         for name, clone in clones.items():
             env = {**os.environ, "PYTHONPATH": str(clone / "src")}
             out = subprocess.run(
-                [sys.executable, "-c", TIMED], env=env, check=True, capture_output=True, text=True
+                [sys.executable, "-c", TIMED, *map(str, sizes)],
+                env=env,
+                check=True,
+                capture_output=True,
+                text=True,
             ).stdout
             taken[name].append(json.loads(out))
-    print(f"5. the extension before ({against}) and after, medians of {rounds} alternating rounds")
+    print(f"5. the extension before (--against) and after, medians of {rounds} alternating rounds")
     for what, unit, scale in (
         ("update", "ns an Odometry.update_ticks", 1e9),
-        ("smoother", "ms a smoothed 20,000-reading estimate_trajectory", 1e3),
+        ("smoother", f"ms a smoothed {sizes[1]:,}-reading estimate_trajectory", 1e3),
     ):
         wall = {n: statistics.median(r[what][0] for r in taken[n]) * scale for n in taken}
         cpu = {n: statistics.median(r[what][1] for r in taken[n]) * scale for n in taken}
@@ -250,6 +254,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--against", default="3ecb469", help="the revision before the move")
     parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--seconds", type=int, default=3600, help="the drives' length, s")
+    parser.add_argument("--updates", type=int, default=100_000, help="Odometry updates timed")
+    parser.add_argument("--log", type=int, default=20_000, help="the smoothed log's readings")
     args = parser.parse_args()
     print(
         f"machine: {platform.machine()}, {os.cpu_count()} cores; python {platform.python_version()}"
@@ -259,11 +266,11 @@ def main() -> None:
         make("host", where)
         make("cortex-m4", where)
         host, cortex = where / "host", where / "cortex-m4"
-        host_against_python(host, where)
-        float_against_double(host, cortex)
+        host_against_python(host, where, args.seconds)
+        float_against_double(host, cortex, args.seconds)
         sizes(cortex)
         instructions(cortex)
-        extension_speed(args.against, args.rounds, where)
+        extension_speed(args.against, args.rounds, (args.updates, args.log), where)
 
 
 if __name__ == "__main__":

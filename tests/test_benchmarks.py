@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from firmware import require_cross
 from processes import run_bounded
 from records import HEADER, NUMBER, record
 
@@ -19,6 +20,19 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # Each benchmark with the smallest sizes it takes (its defaults are what its record used).
 SMALL = {
+    # the extension before and after: here HEAD twice (a clone and a build each)
+    "bench_c_core": [
+        "--seconds",
+        "20",
+        "--rounds",
+        "1",
+        "--against",
+        "HEAD",
+        "--updates",
+        "1000",
+        "--log",
+        "500",
+    ],
     "bench_estimation": ["--seeds", "30", "--coverage-seeds", "1", "--repeats", "1"],
     "bench_fixes": ["--seeds", "1"],
     "bench_import": ["--runs", "1"],
@@ -66,6 +80,8 @@ def test_every_benchmark_is_in_the_table():
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SMALL))
 def test_the_benchmark_runs_on_small_sizes(name):
+    if name == "bench_c_core":
+        require_cross("bench_c_core's run on small sizes")
     # Bounded by processor time, not the wall clock: a busy machine only slows it.
     run = run_bounded(
         [sys.executable, str(ROOT / "benchmarks" / f"{name}.py"), *SMALL[name]], cwd=ROOT
