@@ -165,11 +165,27 @@ def sizes(cortex: Path) -> None:
     needed = subprocess.run(
         ["arm-none-eabi-nm", "-u", *map(str, objects)], check=True, capture_output=True, text=True
     ).stdout
-    symbols = sorted(set(re.findall(r"\bU (\S+)", needed)) - {"dd_drive_check"})
-    print("3. code size at -Os, Cortex-M4F (.text, bytes)")
+    defined = subprocess.run(
+        ["arm-none-eabi-nm", "--defined-only", *map(str, objects)],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    own = set(re.findall(r" [TDRB] (\S+)", defined))
+    symbols = sorted(set(re.findall(r"\bU (\S+)", needed)) - own)
+    code = {}  # .text alone, without the constants (.rodata)
+    for path in objects:
+        sections = subprocess.run(
+            ["arm-none-eabi-size", "-A", str(path)], check=True, capture_output=True, text=True
+        ).stdout
+        code[path.stem] = sum(
+            int(size) for size in re.findall(r"^\.text\S*\s+(\d+)", sections, re.M)
+        )
+    print("3. code size at -Os, Cortex-M4F (bytes: .text, and with the constants)")
     for name, size in text.items():
-        print(f"   {name:12s} {size:6d}")
-    print(f"   {'all':12s} {sum(text.values()):6d} ({sum(text.values()) / 1024:.1f} KiB)")
+        print(f"   {name:12s} {code[name]:6d} {size:6d}")
+    total, whole = sum(code.values()), sum(text.values())
+    print(f"   {'all':12s} {total:6d} {whole:6d} ({total / 1024:.1f} and {whole / 1024:.1f} KiB)")
     print(f"   needs: {', '.join(symbols)}")
 
 

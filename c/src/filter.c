@@ -547,6 +547,12 @@ void dd_filter_interval(const dd_filter *f, dd_interval *iv, dd_measurement *m, 
     }
 }
 
+void dd_interval_set(dd_interval *iv, double t0, double t1, dd_real dl, dd_real dr, dd_real g,
+                     int forced) {
+    iv->t0 = t0, iv->t1 = t1, iv->dl = dl, iv->dr = dr, iv->g = g;
+    iv->forced = forced, iv->slip = 0, iv->score = 0.0;
+}
+
 void dd_filter_correct(const dd_filter *f, dd_real *x, dd_real *P, dd_measurement *m) {
     absolute_update(f, x, P, m, &m->accepted, &m->score, &m->log_det);
 }

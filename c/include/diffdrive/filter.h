@@ -80,6 +80,10 @@ typedef struct {
     dd_real x[DD_STATES], P[DD_STATES * DD_STATES];
 } dd_interval;
 
+/* An interval's data, its state and outcomes left unset (a history fills them). */
+void dd_interval_set(dd_interval *iv, double t0, double t1, dd_real dl, dd_real dr, dd_real g,
+                     int forced);
+
 /* DD_OK, DD_NULL, or DD_BAD_SETTING (a radius, gate or noise out of range). */
 dd_status dd_filter_init(dd_filter *filter, const dd_filter_config *config);
 

@@ -6,10 +6,9 @@
  *
  * The wheels are read by an OdometryCore kept alongside (_odometry.c): its checks refuse a
  * reading before anything changes, and its snapshot takes a reading back when the filter's
- * own step refuses it. The history keeps each wheel interval with the state at its start;
- * absolute measurements are kept in one array in the order of Measurement.order (stamp, kind,
- * values, covariance), and a measurement stamped in the past is applied at its stamp and the
- * intervals since replayed.
+ * own step refuses it. The history is the library's (c/src/history.c: a late measurement is
+ * applied at its stamp and the intervals since replayed), in buffers this binding grows when
+ * the library finds one full.
  *
  * A whole log (_run_log, estimate_trajectory's pass) runs without the history: forward
  * interval by interval, then, for the smoother, back, each interval run again from its
@@ -23,13 +22,13 @@
 
 #include "_odometry.h"
 #include "diffdrive/filter.h"
+#include "diffdrive/history.h"
 
 #define N DD_STATES
 #define NN (DD_STATES * DD_STATES)
 enum { WHEELS = DD_FROM_WHEELS, GYRO = DD_FROM_GYRO, FUSED = DD_FROM_BOTH };
 enum { POSE = DD_POSE, POSITION = DD_POSITION, HEADING = DD_HEADING };
 static const char *KIND_NAMES[3] = {"pose", "position", "heading"};
-static const int KIND_RANK[3] = {1, 2, 0}; /* "heading" < "pose" < "position", as Python's */
 static const char *UPDATES[4] = {"update_ticks", "update_positions", "update_increments",
                                  "update_velocities"};
 #define SLIP_COMMAND_THRESHOLD 13.82
@@ -41,137 +40,44 @@ typedef dd_filter_record Step;
 /* _run_log copies Steps into a caller's rows of filter.RECORD_WIDTH float64 */
 _Static_assert(sizeof(Step) == (2 * N + 3 * NN) * sizeof(double), "a Step is 208 doubles");
 
-/* An interval's data, its state left unset (filled where it is kept in the history). */
-static void interval_of(Interval *iv, double t0, double t1, double dl, double dr, double g,
-                        int forced) {
-    iv->t0 = t0, iv->t1 = t1, iv->dl = dl, iv->dr = dr, iv->g = g;
-    iv->forced = forced, iv->slip = 0, iv->score = 0.0;
-}
 
 typedef struct {
     PyObject_HEAD
     PyObject *wheels;
-    dd_filter f; /* the filter's settings, the C library's */
-    double command_sigma, history, ahead, mount[3];
-    /* state */
-    double x[N], P[NN];
-    Interval *iv;
-    Py_ssize_t iv0, niv, civ;
-    Meas *ms;
-    Py_ssize_t ms0, nms, cms;
-    Meas *pend;
-    Py_ssize_t npend, cpend;
-    long long settled_ok, settled_bad;
+    dd_filter f;  /* the filter's settings, the C library's */
+    dd_history h; /* its history and state, in the buffers below */
+    double command_sigma, mount[3];
     double rate;
-    int have_rate, slip;
-    double slip_score, command_score;
+    int have_rate;
+    double command_score;
 } Est;
 
-/* -- the history ------------------------------------------------------------------------ */
+/* -- the history's buffers, grown here (the library allocates nothing) ---------------------- */
 
-/* Measurement.order: -1, 0 or 1 as a sorts before, with or after b. */
-static int order(const Meas *a, const Meas *b) {
-    if (a->t != b->t) return a->t < b->t ? -1 : 1;
-    if (a->kind != b->kind) return KIND_RANK[a->kind] < KIND_RANK[b->kind] ? -1 : 1;
-    for (int i = 0; i < a->size; ++i)
-        if (a->value[i] != b->value[i]) return a->value[i] < b->value[i] ? -1 : 1;
-    for (int i = 0; i < a->size * a->size; ++i)
-        if (a->cov[i] != b->cov[i]) return a->cov[i] < b->cov[i] ? -1 : 1;
-    return 0;
-}
-
-/* The first measurement index (absolute, in ms) whose stamp is > t (or >= t if inclusive). */
-static Py_ssize_t first_after(const Est *e, double t, int inclusive) {
-    Py_ssize_t lo = e->ms0, hi = e->ms0 + e->nms;
-    while (lo < hi) {
-        Py_ssize_t mid = (lo + hi) / 2;
-        int before = inclusive ? e->ms[mid].t < t : e->ms[mid].t <= t;
-        if (before)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo;
-}
-
-/* The measurements of history interval i (absolute index): (t0, t1], or [t0, t1] for the first. */
-static void slice_of(const Est *e, Py_ssize_t i, Py_ssize_t *lo, Py_ssize_t *hi) {
-    *lo = first_after(e, e->iv[i].t0, i == e->iv0);
-    *hi = first_after(e, e->iv[i].t1, 0);
-}
-
-/* P's block of the carried states, n x n row by row, into packed: what the history keeps. */
-static void pack(const Est *e, double *packed, const double *P) {
-    const int n = e->f.carried;
-    for (int i = 0; i < n; ++i) /* element by element: memcpy's setup would cost more here */
-        for (int j = 0; j < n; ++j) packed[i * n + j] = P[i * N + j];
-}
-
-/* P in full from its packed block, zero elsewhere (the states not carried). */
-static void unpack(const Est *e, double *P, const double *packed) {
-    const int n = e->f.carried;
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < N; ++j) P[i * N + j] = i < n && j < n ? packed[i * n + j] : 0.0;
-}
-
-/* Replay history intervals from absolute index k on: x, P now. */
-static void replay(Est *e, Py_ssize_t k, double *x, double *P) {
-    memcpy(x, e->iv[k].x, sizeof e->iv[k].x);
-    unpack(e, P, e->iv[k].P);
-    Py_ssize_t lo, hi;
-    slice_of(e, k, &lo, &hi);
-    for (Py_ssize_t i = k; i < e->iv0 + e->niv; ++i) {
-        memcpy(e->iv[i].x, x, sizeof e->iv[i].x);
-        pack(e, e->iv[i].P, P);
-        if (i > k) { /* the slices follow one another */
-            lo = hi;
-            while (hi < e->ms0 + e->nms && e->ms[hi].t <= e->iv[i].t1) ++hi;
-        }
-        dd_filter_interval(&e->f, &e->iv[i], e->ms + lo, hi - lo, 1, 0.0, x, P, NULL, NULL);
-    }
-}
-
-static int grow(void **array, Py_ssize_t *first, Py_ssize_t count, Py_ssize_t *capacity,
-                size_t size) {
-    if (*first + count < *capacity) return 0;
-    /* Move to the front, into the space the trimmed ones left, while they fill at most half:
-     * then a move of count items comes at most once every count appends. */
-    if (*first > 0 && 2 * count <= *capacity) {
-        memmove(*array, (char *)*array + *first * size, count * size);
-        *first = 0;
-        return 0;
-    }
-    Py_ssize_t larger = *capacity ? 2 * *capacity : 64;
-    void *bigger = PyMem_Realloc(*array, larger * size);
-    if (bigger == NULL) {
+/* Double every buffer of the history (64 of each at first), what it holds moved over. */
+static int enlarge(Est *e) {
+    const dd_history_buffers *old = &e->h.buffers;
+    dd_history_buffers larger = {
+        PyMem_New(Interval, old->interval_room ? 2 * old->interval_room : 64),
+        old->interval_room ? 2 * old->interval_room : 64,
+        PyMem_New(Meas, old->measurement_room ? 2 * old->measurement_room : 64),
+        old->measurement_room ? 2 * old->measurement_room : 64,
+        PyMem_New(Meas, old->pending_room ? 2 * old->pending_room : 64),
+        old->pending_room ? 2 * old->pending_room : 64,
+    };
+    if (larger.intervals == NULL || larger.measurements == NULL || larger.pending == NULL) {
+        PyMem_Free(larger.intervals);
+        PyMem_Free(larger.measurements);
+        PyMem_Free(larger.pending);
         PyErr_NoMemory();
         return -1;
     }
-    if (*first > 0) /* to the front of the larger array */
-        memmove(bigger, (char *)bigger + *first * size, count * size);
-    *array = bigger;
-    *first = 0;
-    *capacity = larger;
+    dd_history_buffers given = *old;
+    dd_history_rebuffer(&e->h, larger); /* cannot fail: each is larger */
+    PyMem_Free(given.intervals);
+    PyMem_Free(given.measurements);
+    PyMem_Free(given.pending);
     return 0;
-}
-
-static void trim(Est *e) {
-    double newest = e->iv[e->iv0 + e->niv - 1].t1;
-    while (e->niv > 1 && e->iv[e->iv0 + 1].t0 < newest - e->history) {
-        Py_ssize_t lo, hi;
-        slice_of(e, e->iv0, &lo, &hi);
-        for (Py_ssize_t j = e->ms0; j < hi; ++j) {
-            if (e->ms[j].accepted)
-                e->settled_ok++;
-            else
-                e->settled_bad++;
-        }
-        e->nms -= hi - e->ms0;
-        e->ms0 = hi;
-        e->iv0++;
-        e->niv--;
-    }
-    if (e->nms == 0) e->ms0 = 0;
 }
 
 /* -- numbers from Python objects --------------------------------------------------------- */
@@ -416,37 +322,15 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
         double sigma2 = e->command_sigma * e->command_sigma;
         command_score = (miss[0] * miss[0] + miss[1] * miss[1]) / sigma2;
     }
-    /* The measurements that waited for the wheels and are due now, in order. */
-    Py_ssize_t due = 0;
-    for (Py_ssize_t i = 0; i < e->npend; ++i)
-        if (e->pend[i].t <= now) ++due;
-    if (grow((void **)&e->ms, &e->ms0, e->nms + due, &e->cms, sizeof(Meas)) < 0 ||
-        grow((void **)&e->iv, &e->iv0, e->niv, &e->civ, sizeof(Interval)) < 0) {
-        odometry_restore(e->wheels, saved);
-        Py_DECREF(saved);
-        return NULL;
-    }
-    Meas *tail = e->ms + e->ms0 + e->nms;
-    Py_ssize_t n = 0;
-    for (Py_ssize_t i = 0; i < e->npend; ++i)
-        if (e->pend[i].t <= now) {
-            Py_ssize_t at = n++;
-            while (at > 0 && order(&tail[at - 1], &e->pend[i]) > 0) {
-                tail[at] = tail[at - 1];
-                --at;
-            }
-            tail[at] = e->pend[i];
+    dd_status status;
+    while ((status = dd_history_wheels(&e->h, &e->f, previous, now, dl, dr, g,
+                                       command_score > SLIP_COMMAND_THRESHOLD)) == DD_FULL)
+        if (enlarge(e) < 0) {
+            odometry_restore(e->wheels, saved);
+            Py_DECREF(saved);
+            return NULL;
         }
-    /* The interval in its place in the history, kept only if its update succeeds. */
-    Interval *iv = &e->iv[e->iv0 + e->niv];
-    interval_of(iv, previous, now, dl, dr, g, command_score > SLIP_COMMAND_THRESHOLD);
-    memcpy(iv->x, e->x, sizeof e->x);
-    pack(e, iv->P, e->P);
-    double x[N], P[NN];
-    memcpy(x, e->x, sizeof x);
-    memcpy(P, e->P, sizeof P);
-    dd_filter_interval(&e->f, iv, tail, due, 1, 0.0, x, P, NULL, NULL);
-    if (!dd_filter_finite(x, P)) {
+    if (status != DD_OK) {
         int restored = odometry_restore(e->wheels, saved);
         Py_DECREF(saved);
         if (restored < 0) return NULL;
@@ -455,22 +339,11 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
         return NULL;
     }
     Py_DECREF(saved);
-    e->nms += due;
-    Py_ssize_t kept = 0;
-    for (Py_ssize_t i = 0; i < e->npend; ++i)
-        if (e->pend[i].t > now) e->pend[kept++] = e->pend[i];
-    e->npend = kept;
     if (have_rate) {
         e->rate = rate;
         e->have_rate = 1;
     }
-    e->niv++;
-    memcpy(e->x, x, sizeof x);
-    memcpy(e->P, P, sizeof P);
-    e->slip = iv->slip;
-    e->slip_score = iv->score;
     e->command_score = command_score;
-    trim(e);
     Py_RETURN_NONE;
 }
 
@@ -490,99 +363,47 @@ static PyObject *float_of(double v) { return PyFloat_FromDouble(v); }
 static PyObject *add_measurement(Est *e, Meas *m) {
     PyObject *t = float_of(m->t);
     if (t == NULL) return NULL;
-    double now = odometry_time(e->wheels);
-    PyObject *result = NULL;
-    if (isnan(now)) {
+    double now = odometry_time(e->wheels), start = dd_history_start(&e->h, now);
+    int outcome, at_start = e->h.count == 0 && m->t == now;
+    dd_status status;
+    while ((status = dd_history_measure(&e->h, &e->f, now, m, &outcome)) == DD_FULL)
+        if (enlarge(e) < 0) {
+            Py_DECREF(t);
+            return NULL;
+        }
+    PyObject *result = NULL, *first = NULL, *second = NULL;
+    const char *kind = KIND_NAMES[m->kind];
+    switch (status) {
+    case DD_OK:
+        result = outcome < 0 ? Py_NewRef(Py_False) : PyBool_FromLong(outcome);
+        break;
+    case DD_NO_CLOCK:
         PyErr_Format(PyExc_ValueError,
                      "%s measurement at t = %R s: no wheel reading yet, so no time to place it at",
-                     KIND_NAMES[m->kind], t);
-        goto done;
-    }
-    double start = e->niv ? e->iv[e->iv0].t0 : now;
-    if (m->t > now + e->ahead) {
-        PyObject *ahead = float_of(e->ahead), *newest = float_of(now);
-        if (ahead && newest)
+                     kind, t);
+        break;
+    case DD_TOO_EARLY:
+        first = float_of(e->h.ahead), second = float_of(now);
+        if (first && second)
             PyErr_Format(PyExc_ValueError,
                          "%s measurement at t = %R s: more than ahead = %R s past the newest "
                          "wheel reading (%R s)",
-                         KIND_NAMES[m->kind], t, ahead, newest);
-        Py_XDECREF(ahead);
-        Py_XDECREF(newest);
-        goto done;
-    }
-    if (m->t > now) {
-        Py_ssize_t zero = 0;
-        if (grow((void **)&e->pend, &zero, e->npend, &e->cpend, sizeof(Meas)) < 0) goto done;
-        e->pend[e->npend++] = *m;
-        result = Py_NewRef(Py_False);
-        goto done;
-    }
-    if (e->niv == 0 || m->t < start) {
-        if (m->t == now && e->niv == 0) { /* at the start itself */
-            double x[N], P[NN];
-            memcpy(x, e->x, sizeof x);
-            memcpy(P, e->P, sizeof P);
-            dd_filter_correct(&e->f, x, P, m);
-            int ok = m->accepted;
-            if (!dd_filter_finite(x, P)) {
-                PyErr_Format(PyExc_ValueError,
-                             "%s measurement at t = %R s: it would overflow the state; refused",
-                             KIND_NAMES[m->kind], t);
-                goto done;
-            }
-            memcpy(e->x, x, sizeof x);
-            memcpy(e->P, P, sizeof P);
-            if (ok)
-                e->settled_ok++;
-            else
-                e->settled_bad++;
-            result = PyBool_FromLong(ok);
-            goto done;
-        }
-        PyObject *first = float_of(start), *history = float_of(e->history);
-        if (first && history)
+                         kind, t, first, second);
+        break;
+    case DD_TOO_OLD:
+        first = float_of(start), second = float_of(e->h.span);
+        if (first && second)
             PyErr_Format(PyExc_ValueError,
                          "%s measurement at t = %R s: older than the history, which starts at "
                          "%R s (history = %R s)",
-                         KIND_NAMES[m->kind], t, first, history);
-        Py_XDECREF(first);
-        Py_XDECREF(history);
-        goto done;
+                         kind, t, first, second);
+        break;
+    default:
+        PyErr_Format(PyExc_ValueError, "%s measurement at t = %R s: it would overflow the state; "
+                     "refused%s", kind, t, at_start ? "" : ", nothing changed");
     }
-    /* The interval it falls in, and its place among the measurements. */
-    Py_ssize_t lo = e->iv0, hi = e->iv0 + e->niv;
-    while (lo < hi) {
-        Py_ssize_t mid = (lo + hi) / 2;
-        if (e->iv[mid].t1 < m->t)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    Py_ssize_t k = lo;
-    if (grow((void **)&e->ms, &e->ms0, e->nms + 1, &e->cms, sizeof(Meas)) < 0) goto done;
-    Py_ssize_t at = e->ms0 + e->nms;
-    while (at > e->ms0 && order(&e->ms[at - 1], m) > 0) --at;
-    memmove(e->ms + at + 1, e->ms + at, (e->ms0 + e->nms - at) * sizeof(Meas));
-    e->ms[at] = *m;
-    e->nms++;
-    double x[N], P[NN];
-    replay(e, k, x, P);
-    if (!dd_filter_finite(x, P)) {
-        /* The history as it was: without the measurement, the same replay gives back, to the
-         * bit, the states and outcomes it had (nothing else changed). */
-        memmove(e->ms + at, e->ms + at + 1, (e->ms0 + e->nms - at - 1) * sizeof(Meas));
-        e->nms--;
-        replay(e, k, x, P);
-        PyErr_Format(PyExc_ValueError,
-                     "%s measurement at t = %R s: it would overflow the state; refused, "
-                     "nothing changed",
-                     KIND_NAMES[m->kind], t);
-    } else {
-        memcpy(e->x, x, sizeof x);
-        memcpy(e->P, P, sizeof P);
-        result = PyBool_FromLong(e->ms[at].accepted);
-    }
-done:
+    Py_XDECREF(first);
+    Py_XDECREF(second);
     Py_DECREF(t);
     return result;
 }
@@ -720,51 +541,29 @@ static PyObject *tuple_of(const double *v, int n) {
     return out;
 }
 
-static PyObject *state_now(Est *e, PyObject *unused) { return tuple_of(e->x, N); }
-static PyObject *covariance_now(Est *e, PyObject *unused) { return tuple_of(e->P, NN); }
+static PyObject *state_now(Est *e, PyObject *unused) { return tuple_of(e->h.x, N); }
+static PyObject *covariance_now(Est *e, PyObject *unused) { return tuple_of(e->h.P, NN); }
 
 static PyObject *counts(Est *e, PyObject *unused) {
-    long long ok = e->settled_ok, bad = e->settled_bad;
-    for (Py_ssize_t j = e->ms0; j < e->ms0 + e->nms; ++j) {
-        if (e->ms[j].accepted)
-            ++ok;
-        else
-            ++bad;
-    }
-    return Py_BuildValue("(LL)", ok, bad);
+    long long accepted, refused;
+    dd_history_outcomes(&e->h, &accepted, &refused);
+    return Py_BuildValue("(LL)", accepted, refused);
 }
 
 static PyObject *history_start(Est *e, PyObject *unused) {
-    return PyFloat_FromDouble(e->niv ? e->iv[e->iv0].t0 : odometry_time(e->wheels));
+    return PyFloat_FromDouble(dd_history_start(&e->h, odometry_time(e->wheels)));
 }
 
 static PyObject *slip_now(Est *e, PyObject *unused) {
-    return Py_BuildValue("(Ndd)", PyBool_FromLong(e->slip), e->slip_score, e->command_score);
+    return Py_BuildValue("(Ndd)", PyBool_FromLong(e->h.slip), (double)e->h.slip_score,
+                         e->command_score);
 }
 
 static PyObject *pose_at(Est *e, PyObject *arg) {
     double t = PyFloat_AsDouble(arg);
     if (t == -1.0 && PyErr_Occurred()) return NULL;
-    Py_ssize_t lo = e->iv0, hi = e->iv0 + e->niv;
-    while (lo < hi) {
-        Py_ssize_t mid = (lo + hi) / 2;
-        if (e->iv[mid].t1 < t)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
     double x[N], P[NN];
-    if (lo == e->iv0 + e->niv) {
-        memcpy(x, e->x, sizeof x);
-        memcpy(P, e->P, sizeof P);
-    } else {
-        Py_ssize_t a, b;
-        slice_of(e, lo, &a, &b);
-        Interval copy = e->iv[lo];
-        memcpy(x, copy.x, sizeof x);
-        unpack(e, P, copy.P);
-        dd_filter_interval(&e->f, &copy, e->ms + a, b - a, 0, t, x, P, NULL, NULL);
-    }
+    dd_history_state_at(&e->h, &e->f, t, x, P);
     return Py_BuildValue("(NN)", tuple_of(x, N), tuple_of(P, NN));
 }
 
@@ -779,7 +578,7 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
         PyErr_SetString(PyExc_TypeError, "EstimatorCore reads its wheels through an OdometryCore");
         return -1;
     }
-    double drive[4], k[2];
+    double drive[4], k[2], span, ahead, x[N], P[NN];
     dd_filter_config c;
     if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
         attribute_double(s, "arw2", &c.arw2) < 0 || attribute_double(s, "rrw2", &c.rrw2) < 0 ||
@@ -789,11 +588,11 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
         attribute_double(s, "command_sigma", &e->command_sigma) < 0 ||
         attribute_into(s, "gates", c.gates, 3) < 0 ||
         attribute_double(s, "offset", &c.reference_offset) < 0 ||
-        attribute_double(s, "history", &e->history) < 0 ||
-        attribute_double(s, "ahead", &e->ahead) < 0 ||
+        attribute_double(s, "history", &span) < 0 ||
+        attribute_double(s, "ahead", &ahead) < 0 ||
         attribute_into(s, "mounting", e->mount, 3) < 0 ||
-        attribute_into(s, "state", e->x, N) < 0 ||
-        attribute_into(s, "covariance", e->P, NN) < 0 ||
+        attribute_into(s, "state", x, N) < 0 ||
+        attribute_into(s, "covariance", P, NN) < 0 ||
         attribute_int(s, "method_code", &c.method) < 0 ||
         attribute_int(s, "heading_code", &c.heading) < 0 ||
         attribute_int(s, "estimate_bias", &c.estimate_bias) < 0 ||
@@ -810,18 +609,21 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
         return -1;
     }
     Py_XSETREF(e->wheels, Py_NewRef(wheels));
-    e->iv0 = e->niv = e->ms0 = e->nms = e->npend = 0;
-    e->settled_ok = e->settled_bad = 0;
-    e->have_rate = e->slip = 0;
-    e->rate = e->slip_score = e->command_score = 0.0;
+    /* empty, in the buffers a former __init__ left (tp_alloc zeroed them at first) */
+    if (dd_history_init(&e->h, e->h.buffers, span, ahead, x, P) != DD_OK) {
+        PyErr_SetString(PyExc_ValueError, "EstimatorCore: history and ahead must be >= 0");
+        return -1;
+    }
+    e->have_rate = 0;
+    e->rate = e->command_score = 0.0;
     return 0;
 }
 
 static void est_dealloc(Est *e) {
     Py_XDECREF(e->wheels);
-    PyMem_Free(e->iv);
-    PyMem_Free(e->ms);
-    PyMem_Free(e->pend);
+    PyMem_Free(e->h.buffers.intervals);
+    PyMem_Free(e->h.buffers.measurements);
+    PyMem_Free(e->h.buffers.pending);
     Py_TYPE(e)->tp_free((PyObject *)e);
 }
 
@@ -946,8 +748,8 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         }
     }
     double x[N], P[NN];
-    memcpy(x, e->x, sizeof x);
-    memcpy(P, e->P, sizeof P);
+    memcpy(x, e->h.x, sizeof x);
+    memcpy(P, e->h.P, sizeof P);
     Py_ssize_t j = 0, failed = -1;
     Py_BEGIN_ALLOW_THREADS;
     for (; j < nm && ms[j].t == t[0]; ++j) /* at the start itself */
@@ -958,7 +760,8 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
     slips[0] = scores[0] = 0.0;
     for (Py_ssize_t k = 1; k < n && failed == -1; ++k) {
         Interval iv;
-        interval_of(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0);
+        dd_interval_set(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1],
+                        forced[k - 1] != 0.0);
         Py_ssize_t lo = j;
         while (j < nm && ms[j].t <= t[k]) ++j;
         dd_filter_interval(&e->f, &iv, ms + lo, j - lo, 1, 0.0, x, P, NULL, NULL);
@@ -984,7 +787,8 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
             Py_ssize_t lo = hi;
             while (lo > 0 && ms[lo - 1].t > t[k - 1]) --lo;
             Interval iv;
-            interval_of(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], forced[k - 1] != 0.0);
+            dd_interval_set(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1],
+                        forced[k - 1] != 0.0);
             double fx[N], fP[NN];
             memcpy(fx, states + N * (k - 1), sizeof fx);
             memcpy(fP, covs + NN * (k - 1), sizeof fP);
