@@ -647,47 +647,49 @@ enum { LOG_TIMES, LOG_LEFT, LOG_RIGHT, LOG_GYRO, LOG_FORCED, LOG_MT, LOG_MKIND, 
        LOG_MCOV, LOG_MLEVER, LOG_STATES, LOG_COVS, LOG_SLIPS, LOG_SCORES, LOG_OK, LOG_MSCORE,
        LOG_MLOGDET, LOG_VIEWS };
 
-/* _run_log(times, left, right, gyro, forced, m_t, m_kind, m_value, m_cov, m_lever, smooth,
- *          states, covariances, slips, scores, accepted, distances, log_dets[, records]):
- * estimate_trajectory's pass over a whole log from the state now, in float64 arrays (see the
- * Python twin's docstring); records, unless None, takes the smoother's steps (a Step a row,
- * in time order). Returns -1, or the interval (-2: the start) whose state would overflow. */
+/* The arrays of a whole log's pass, read by name from the log (backends.settings.LogArrays)
+ * and the outputs (PassArrays), new references in objs (NULL where it failed; -1 then). */
+static int pass_arrays(PyObject *log, PyObject *out, PyObject **objs, const char *const *names,
+                       PyObject **records) {
+    for (int i = 0; i < LOG_VIEWS; ++i)
+        if ((objs[i] = PyObject_GetAttrString(i < LOG_STATES ? log : out, names[i])) == NULL)
+            return -1;
+    return (*records = PyObject_GetAttrString(out, "records")) == NULL ? -1 : 0;
+}
+
+/* _run_log(log, out, smooth): estimate_trajectory's pass over a whole log from the state
+ * now, its float64 arrays read by name (see the Python twin's docstring); out.records, unless
+ * None, takes the smoother's steps (a Step a row, in time order). Returns -1, or the
+ * interval (-2: the start) whose state would overflow. */
 static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 18 && nargs != 19) {
-        PyErr_SetString(PyExc_TypeError, "_run_log takes 18 or 19 arguments");
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "_run_log takes the log, the outputs and smooth");
         return NULL;
     }
-    PyObject *records_obj = nargs == 19 ? args[18] : Py_None;
-    Py_buffer records;
-    int keep = 0;
-    Py_ssize_t rows = 0, write = 0;
     static const char *names[LOG_VIEWS] = {
         "times", "left", "right", "gyro", "forced", "m_t", "m_kind", "m_value", "m_cov",
         "m_lever", "states", "covariances", "slips", "scores", "accepted", "distances",
         "log_dets"};
-    PyObject *objs[LOG_VIEWS];
-    for (int i = 0; i < LOG_VIEWS; ++i) objs[i] = args[i < 10 ? i : i + 1];
-    int smooth = PyObject_IsTrue(args[10]);
-    if (smooth < 0) return NULL;
+    PyObject *objs[LOG_VIEWS] = {NULL}, *records_obj = NULL, *result = NULL;
+    Py_buffer records, views[LOG_VIEWS];
+    int keep = 0, got = 0, smooth = PyObject_IsTrue(args[2]);
+    Py_ssize_t rows = 0, write = 0, n = 0, nm = 0;
+    Meas *ms = NULL;
+    Step *steps = NULL;
+    if (smooth < 0 || pass_arrays(args[0], args[1], objs, names, &records_obj) < 0) goto done;
     Py_buffer probe;
-    Py_ssize_t n, nm;
-    if (PyObject_GetBuffer(objs[LOG_TIMES], &probe, PyBUF_SIMPLE) < 0) return NULL;
+    if (PyObject_GetBuffer(objs[LOG_TIMES], &probe, PyBUF_SIMPLE) < 0) goto done;
     n = probe.len / (Py_ssize_t)sizeof(double);
     PyBuffer_Release(&probe);
-    if (PyObject_GetBuffer(objs[LOG_MT], &probe, PyBUF_SIMPLE) < 0) return NULL;
+    if (PyObject_GetBuffer(objs[LOG_MT], &probe, PyBUF_SIMPLE) < 0) goto done;
     nm = probe.len / (Py_ssize_t)sizeof(double);
     PyBuffer_Release(&probe);
     if (n < 2) {
         PyErr_SetString(PyExc_ValueError, "_run_log: times must hold at least 2 stamps");
-        return NULL;
+        goto done;
     }
     const Py_ssize_t sizes[LOG_VIEWS] = {n, n - 1, n - 1, n - 1, n - 1, nm, nm, 3 * nm, 9 * nm,
                                          2 * nm, N * n, NN * n, n, n, nm, nm, nm};
-    Py_buffer views[LOG_VIEWS];
-    int got = 0;
-    PyObject *result = NULL;
-    Meas *ms = NULL;
-    Step *steps = NULL;
     for (; got < LOG_VIEWS; ++got)
         if (doubles_view(objs[got], &views[got], sizes[got], got >= LOG_STATES, names[got]) < 0)
             goto done;
@@ -813,6 +815,8 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
 done:
     for (int i = 0; i < got; ++i) PyBuffer_Release(&views[i]);
     if (keep) PyBuffer_Release(&records);
+    for (int i = 0; i < LOG_VIEWS; ++i) Py_XDECREF(objs[i]);
+    Py_XDECREF(records_obj);
     PyMem_Free(ms);
     PyMem_Free(steps);
     return result;

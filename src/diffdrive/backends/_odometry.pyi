@@ -95,8 +95,9 @@ class EstimatorCore:
     def _history_start(self) -> float: ...
     def _slip(self) -> tuple[bool, float, float]: ...
     def _pose_at(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]: ...
-    def _run_log(self, *arrays_and_smooth: Any) -> int:
-        """As ``diffdrive.estimation.estimator_python.EstimatorCore._run_log``."""
+    def _run_log(self, log: Any, out: Any, smooth: bool) -> int:
+        """As ``diffdrive.estimation._estimator_python.EstimatorCore._run_log``: ``log`` a
+        ``backends.settings.LogArrays``, ``out`` a ``PassArrays``, each read by name."""
 
 def _partition(
     along: Any,  # (n, 2) float64, C-contiguous

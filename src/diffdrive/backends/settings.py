@@ -1,12 +1,15 @@
 """What the cores are built from: one value each, read by name by the C cores and their
 pure-Python twins. ``OdometrySettings`` for ``Odometry``'s; ``CoreSettings`` for the pose
 estimator's, the filter's ``Config`` (what one interval needs) and the rest of its state;
-``MPPISettings`` for the MPPI cycle's, compiled and in array libraries alike."""
+``MPPISettings`` for the MPPI cycle's, compiled and in array libraries alike; ``LogArrays``
+and ``PassArrays``, a whole log's pass in and out (``EstimatorCore._run_log``)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import NamedTuple
+
+import numpy as np
 
 from diffdrive._step import METHODS
 
@@ -18,9 +21,11 @@ __all__ = [
     "SCALE",
     "Config",
     "CoreSettings",
+    "LogArrays",
     "MPPISettings",
     "N",
     "OdometrySettings",
+    "PassArrays",
 ]
 
 HEADINGS = ("wheels", "gyro", "fused")  # the heading sources, in the C core's order
@@ -165,3 +170,42 @@ class MPPISettings(NamedTuple):
     goal_y: float
     sigma_v: float
     sigma_omega: float
+
+
+class LogArrays(NamedTuple):
+    """A whole log as a core's ``_run_log`` reads it, by name, each contiguous float64:
+    ``times`` ``(n,)`` s; per interval the wheels' turns ``left`` and ``right`` ``(n-1,)`` rad,
+    the gyro's ``gyro`` ``(n-1,)`` rad (NaN: none) and ``forced`` ``(n-1,)`` (nonzero:
+    slipping whatever its score); the absolute measurements in ``Measurement.order``: ``m_t``
+    ``(M,)`` s inside the log, ``m_kind`` ``(M,)`` (an index into ``MEASUREMENT_KINDS``),
+    ``m_value`` ``(M, 3)``, ``m_cov`` ``(M, 9)`` (the ``k x k`` covariance row by row, first)
+    and ``m_lever`` ``(M, 2)`` m."""
+
+    times: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    gyro: np.ndarray
+    forced: np.ndarray
+    m_t: np.ndarray
+    m_kind: np.ndarray
+    m_value: np.ndarray
+    m_cov: np.ndarray
+    m_lever: np.ndarray
+
+
+class PassArrays(NamedTuple):
+    """What a core's ``_run_log`` fills in place, by name, float64: the state ``states``
+    ``(n, 8)`` and covariance ``covariances`` ``(n, 64)`` at the start and at each interval's
+    end, each interval's slip flag ``slips`` and score ``scores`` ``(n,)`` (row 0: none), each
+    measurement's outcome ``accepted``, squared Mahalanobis distance ``distances`` and the log
+    determinant of its innovation's covariance ``log_dets`` ``(M,)``; ``records``: None, or
+    room for the smoother's record of each step ``(S, RECORD_WIDTH)``."""
+
+    states: np.ndarray
+    covariances: np.ndarray
+    slips: np.ndarray
+    scores: np.ndarray
+    accepted: np.ndarray
+    distances: np.ndarray
+    log_dets: np.ndarray
+    records: np.ndarray | None

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from diffdrive._validate import finite
-from diffdrive.backends.settings import CoreSettings
+from diffdrive.backends.settings import CoreSettings, LogArrays, PassArrays
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement, _floats
 from diffdrive.types import WheelVelocities
@@ -305,43 +305,16 @@ class EstimatorCore:
 
     # -- a whole log ----------------------------------------------------------------------
 
-    def _run_log(
-        self,
-        times: np.ndarray,
-        left: np.ndarray,
-        right: np.ndarray,
-        gyro: np.ndarray,
-        forced: np.ndarray,
-        m_t: np.ndarray,
-        m_kind: np.ndarray,
-        m_value: np.ndarray,
-        m_cov: np.ndarray,
-        m_lever: np.ndarray,
-        smooth: bool,
-        states: np.ndarray,
-        covariances: np.ndarray,
-        slips: np.ndarray,
-        scores: np.ndarray,
-        accepted: np.ndarray,
-        distances: np.ndarray,
-        log_dets: np.ndarray,
-        records: np.ndarray | None = None,
-    ) -> int:
-        """``estimate_trajectory``'s pass over a whole log from the state now, leaving the
-        estimator as it was. In: ``times`` ``(n,)`` s; per interval the wheels' turns ``left``
-        and ``right`` ``(n-1,)`` rad, the gyro's ``(n-1,)`` rad (NaN: none) and ``forced``
-        ``(n-1,)`` (nonzero: slipping whatever its score); the absolute measurements in
-        ``Measurement.order``: ``m_t`` ``(M,)`` s inside the log, ``m_kind`` ``(M,)`` (an
-        index into ``MEASUREMENT_KINDS``), ``m_value`` ``(M, 3)``, ``m_cov`` ``(M, 9)`` (the
-        ``k x k`` covariance row by row, first) and ``m_lever`` ``(M, 2)`` m. Out (float64,
-        filled in place): the state ``(n, 8)`` and covariance ``(n, 64)`` at the start and at
-        each interval's end (smoothed with ``smooth``), each interval's slip flag and score
-        ``(n,)`` (row 0: none), each measurement's outcome, squared Mahalanobis distance and
-        the log determinant of its innovation's covariance ``(M,)``; with ``smooth``, unless
-        ``records`` is None, the smoother's record of each step in time order
-        ``(S, RECORD_WIDTH)`` (``filter.record_steps`` says how many).
-        Measurements stamped at ``times[0]`` are applied at the start. Returns -1, or the
-        interval whose state would overflow (-2: the start)."""
+    def _run_log(self, log: LogArrays, out: PassArrays, smooth: bool) -> int:
+        """``estimate_trajectory``'s pass over a whole ``log`` from the state now, leaving the
+        estimator as it was, filling ``out`` (``backends.settings``' ``LogArrays`` and
+        ``PassArrays`` say what each array is), smoothed with ``smooth``; with ``smooth``,
+        unless ``out.records`` is None, the smoother's record of each step in time order
+        (``filter.record_steps`` says how many). Measurements stamped at ``times[0]`` are
+        applied at the start. Returns -1, or the interval whose state would overflow (-2: the
+        start)."""
+        times, left, right, gyro, forced, m_t, m_kind, m_value, m_cov, m_lever = log
+        states, covariances, slips, scores, accepted, distances, log_dets, records = out
         made = []
         for j in range(len(m_t)):
             kind = MEASUREMENT_KINDS[int(m_kind[j])]

@@ -25,9 +25,10 @@ past it waits for the wheels. ``pose_at(t)`` gives the pose and covariance at an
 inside the history.
 
 Cores. The readings, the history and the replay, and ``estimate_trajectory``'s pass over a
-whole log (``_run_log``), are in C (``backends/_estimator.c``, built with Odometry's core)
-where a C compiler was found, else in their pure-Python twin
-(``estimation/estimator_python.py``, also ``_PythonPoseEstimator``); ``COMPILED`` says which.
+whole log (``_run_log``), are in C (the C core's filter and history, ``c/``, bound in
+``backends/_estimator.c``) where a C compiler was found, else in their pure-Python twin
+(``estimation/_estimator_python.py``, also ``_PythonPoseEstimator``); ``estimation._cores``
+chooses, for Odometry's core too, and ``COMPILED`` says which.
 Both run ``diffdrive.estimation.filter``'s maths, the C one mirroring it; the tests hold the
 two to each other.
 """
@@ -35,7 +36,6 @@ two to each other.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -45,6 +45,8 @@ from diffdrive._validate import finite, settings_of
 from diffdrive.backends.settings import HEADINGS, CoreSettings
 from diffdrive.estimation import _estimator_python
 from diffdrive.estimation import filter as ekf
+from diffdrive.estimation._cores import COMPILED
+from diffdrive.estimation._cores import EstimatorCore as _Core
 from diffdrive.estimation.imu import mounting_yaw_row
 from diffdrive.estimation.measurements import Measurement, chi2_quantile
 from diffdrive.estimation.odometry import Odometry
@@ -55,16 +57,6 @@ from diffdrive.types import Pose
 
 __all__ = ["COMPILED", "HEADINGS", "OUTLIERS", "GyroNoise", "PoseEstimator"]
 
-
-# The C core beside Odometry's when it was built, else its pure-Python twin (as Odometry's);
-# DIFFDRIVE_PURE_PYTHON=1 asks for the twin anyway.
-try:
-    if os.environ.get("DIFFDRIVE_PURE_PYTHON") == "1":
-        raise ImportError("DIFFDRIVE_PURE_PYTHON=1")
-    from diffdrive.backends._odometry import EstimatorCore as _Core
-except ImportError:
-    _Core = _estimator_python.EstimatorCore  # type: ignore[assignment, misc]
-COMPILED: bool = _Core is not _estimator_python.EstimatorCore
 
 if TYPE_CHECKING:  # the core's methods, as the stub and the twin declare them
     _Base = _estimator_python.EstimatorCore

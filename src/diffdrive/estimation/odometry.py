@@ -31,7 +31,6 @@ Rules, stated once:
 from __future__ import annotations
 
 import math
-import os
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -39,6 +38,8 @@ import numpy as np
 from diffdrive._step import wheel_move
 from diffdrive._validate import finite, floats, positive
 from diffdrive.encoders import check_counter_bits
+from diffdrive.estimation._cores import COMPILED
+from diffdrive.estimation._cores import OdometryCore as _Core
 from diffdrive.integrate import METHODS, Method, check_method
 from diffdrive.model import Robot, check_robot, geometry_of
 from diffdrive.types import Pose, Twist, WheelVelocities
@@ -55,19 +56,6 @@ __all__ = [
     "odometry_of_run",
 ]
 
-# The C core when it was built (pip builds it where a C compiler is found), else its
-# pure-Python twin (imported only then, or for _PythonOdometry); DIFFDRIVE_PURE_PYTHON=1 asks
-# for the twin anyway.
-try:
-    if os.environ.get("DIFFDRIVE_PURE_PYTHON") == "1":
-        raise ImportError("DIFFDRIVE_PURE_PYTHON=1")
-    from diffdrive.backends._odometry import OdometryCore as _Core
-
-    COMPILED: bool = True
-except ImportError:
-    from diffdrive.estimation._odometry_python import OdometryCore as _Core  # type: ignore[assignment]
-
-    COMPILED = False
 
 UpdateKind = Literal["ticks", "positions", "increments", "velocities"]
 UPDATE_KINDS: tuple[UpdateKind, ...] = ("ticks", "positions", "increments", "velocities")

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive._validate import increasing, settings_of
+from diffdrive.backends.settings import LogArrays, PassArrays
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.episodes import steady_episodes
 from diffdrive.estimation.fixes import IDENTIFIED_GATE, identify_fixes
@@ -340,23 +341,16 @@ def _run(
     steps = ekf.record_steps(log.times, log.measurements[0]) if smooth and records else None
     rows = None if steps is None else np.empty((int(steps.sum()), ekf.RECORD_WIDTH))
     # the cores read contiguous float64 (a caller's times may be a strided view)
-    failed = estimator._run_log(
+    arrays = LogArrays(
         np.ascontiguousarray(log.times, dtype=float),
         np.ascontiguousarray(log.increments[:, 0], dtype=float),
         np.ascontiguousarray(log.increments[:, 1], dtype=float),
         np.ascontiguousarray(log.turned, dtype=float),
         flagged.astype(float),
         *log.measurements,
-        smooth,
-        states,
-        covariances,
-        slips,
-        scores,
-        accepted,
-        distances,
-        log_dets,
-        rows,
     )
+    out = PassArrays(states, covariances, slips, scores, accepted, distances, log_dets, rows)
+    failed = estimator._run_log(arrays, out, smooth)
     if failed == -2:
         raise ValueError(
             f"a measurement at the log's start ({log.times[0]:g} s) would overflow the state; "
