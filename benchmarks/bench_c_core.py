@@ -262,14 +262,15 @@ def extension_speed(against: str, rounds: int, sizes: tuple[int, int], folder: P
         cpu = {n: statistics.median(r[what][1] for r in taken[n]) * scale for n in taken}
         print(
             f"   {unit}: before {wall['before']:.1f} wall / {cpu['before']:.1f} CPU, after "
-            f"{wall['after']:.1f} / {cpu['after']:.1f}: {wall['after'] / wall['before']:.2f} x"
+            f"{wall['after']:.1f} / {cpu['after']:.1f}: {wall['after'] / wall['before']:.2f} x "
+            f"wall, {cpu['after'] / cpu['before']:.2f} x CPU"
         )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--against", default="3ecb469", help="the revision before the move")
-    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--rounds", type=int, default=9)
     parser.add_argument("--seconds", type=int, default=3600, help="the drives' length, s")
     parser.add_argument("--updates", type=int, default=100_000, help="Odometry updates timed")
     parser.add_argument("--log", type=int, default=20_000, help="the smoothed log's readings")

@@ -468,35 +468,20 @@ int main(void) {
 """
 
 
+def export_header(folder: Path, robot: str) -> None:
+    """``diffdrive export --to c-header`` of ``robot`` (its options) into folder."""
+    command = [sys.executable, "-m", "diffdrive", "export", "--to", "c-header", "-q"]
+    exported = run_bounded([*command, "-o", "diffdrive_robot.h", *robot.split()], cwd=folder)
+    assert exported.returncode == 0, exported.stderr
+
+
 @pytest.mark.slow
 def test_the_exported_header_builds_the_firmwares_odometry(host, tmp_path):
-    exported = run_bounded(
-        [
-            sys.executable,
-            "-m",
-            "diffdrive",
-            "export",
-            "--to",
-            "c-header",
-            "-o",
-            "diffdrive_robot.h",
-            "-q",
-            "--left-wheel-radius",
-            "0.0331",
-            "--right-wheel-radius",
-            "0.0329",
-            "--track-width",
-            "0.161",
-            "--ticks-per-revolution",
-            "4096",
-            "--counter-bits",
-            "16",
-            "--k",
-            "2e-4",
-        ],
-        cwd=tmp_path,
+    export_header(
+        tmp_path,
+        "--left-wheel-radius 0.0331 --right-wheel-radius 0.0329 --track-width 0.161 "
+        "--ticks-per-revolution 4096 --counter-bits 16 --k 2e-4",
     )
-    assert exported.returncode == 0, exported.stderr
     (tmp_path / "read.c").write_text(READ_BACK)
     include = ["-I", str(tmp_path), "-I", str(C / "include")]
     compiled = run_bounded(
@@ -528,31 +513,11 @@ def test_the_exported_header_builds_the_firmwares_odometry(host, tmp_path):
 
 @pytest.mark.slow
 def test_the_exported_header_builds_for_a_cortex_m4(cortex, tmp_path):
-    exported = run_bounded(
-        [
-            sys.executable,
-            "-m",
-            "diffdrive",
-            "export",
-            "--to",
-            "c-header",
-            "-o",
-            "diffdrive_robot.h",
-            "-q",
-            "--wheel-radius",
-            "0.033",
-            "--track-width",
-            "0.16",
-            "--ticks-per-revolution",
-            "1440",
-            "--counter-bits",
-            "32",
-            "--k",
-            "1e-4",
-        ],
-        cwd=tmp_path,
+    export_header(
+        tmp_path,
+        "--wheel-radius 0.033 --track-width 0.16 --ticks-per-revolution 1440 --counter-bits 32 "
+        "--k 1e-4",
     )
-    assert exported.returncode == 0, exported.stderr
     (tmp_path / "read.c").write_text(READ_BACK.replace("printf", "(void)printf"))
     flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-DDD_SINGLE"]
     compiled = run_bounded(

@@ -114,15 +114,16 @@ def test_the_c_whole_log_pass_is_its_python_twin(
     smoothed states."""
     log = make_log(steps, seen)
     extra = dict(extra, gate=Gate(0.9, outliers))
-    c = run_core(fusion.PoseEstimator, heading, scale, log, smooth, extra)
-    python = run_core(fusion._PythonPoseEstimator, heading, scale, log, smooth, extra)
+    c_run = run_core(fusion.PoseEstimator, heading, scale, log, smooth, extra)
+    python_run = run_core(fusion._PythonPoseEstimator, heading, scale, log, smooth, extra)
+    c, python = c_run.out, python_run.out
     if smooth:
-        assert c.records is not None
-        assert python.records is not None
-        _same_records(c.records, python.records)
-        _records_smooth_to(c.records, c.states, c.covariances)
+        assert c_run.records is not None
+        assert python_run.records is not None
+        _same_records(c_run.records, python_run.records)
+        _records_smooth_to(c_run.records, c.states, c.covariances)
     else:
-        assert c.records is None
+        assert c_run.records is None
     np.testing.assert_allclose(c.states, python.states, rtol=1e-9, atol=1e-11)
     scale_of = np.maximum(np.abs(python.covariances).max(axis=(1, 2)), 1e-12)[:, None, None]
     np.testing.assert_allclose(c.covariances / scale_of, python.covariances / scale_of, atol=1e-8)
@@ -169,7 +170,7 @@ def test_the_whole_log_filter_is_the_streaming_estimator(steps, seen):
     log = make_log(steps, seen)
     times, increments, turns, _, ordered = log
     unforced = (*log[:3], np.zeros(len(turns), dtype=bool), ordered)
-    run = run_core(fusion.PoseEstimator, "fused", True, unforced, False)
+    run = run_core(fusion.PoseEstimator, "fused", True, unforced, False).out
     streaming = fusion.PoseEstimator(
         ROBOT, log_settings("fused", True), initial_pose=(0.1, -0.2, 0.3),
         initial_covariance=np.eye(3) * 1e-3, initial_time=0.0,

@@ -323,6 +323,26 @@ static int parse_ticks(PyObject *obj, const char *field, int bits, long long *ou
     return 0;
 }
 
+/* The library refused counter readings left, right (its state as it was): the message,
+ * with the changes it read them as. */
+static void ticks_refused(const Core *c, dd_status status, long long left, long long right,
+                          int has_t, double t) {
+    int64_t change[2] = {0, 0};
+    if (c->od.have_ticks) {
+        const long long readings[2][2] = {{c->od.ticks_left, left}, {c->od.ticks_right, right}};
+        const char *sides[2] = {"left", "right"};
+        for (int w = 0; w < 2; ++w)
+            if (dd_tick_change(c->od.config.counter_bits, readings[w][0], readings[w][1],
+                               &change[w]) != DD_OK) {
+                PyErr_Format(PyExc_ValueError, "update_ticks: %s changed by more than 2^63 "
+                             "counts", sides[w]);
+                return;
+            }
+    }
+    refuse(c, "update_ticks", status, (double)change[0] * c->od.rad_per_tick,
+           (double)change[1] * c->od.rad_per_tick, has_t, t, t - c->od.time);
+}
+
 static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
                               PyObject *kwnames) {
     static const char *name = "update_ticks";
@@ -339,22 +359,10 @@ static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
         parse_ticks(lo, "left", bits, &left) < 0 || parse_ticks(ro, "right", bits, &right) < 0 ||
         parse_time(name, to, &has_t, &t) < 0 || (has_t && ensure_room(c, 1) < 0))
         return NULL;
-    int64_t change[2] = {0, 0};
-    if (c->od.have_ticks) {
-        const long long readings[2][2] = {{c->od.ticks_left, left}, {c->od.ticks_right, right}};
-        const char *sides[2] = {"left", "right"};
-        for (int w = 0; w < 2; ++w)
-            if (dd_tick_change(bits, readings[w][0], readings[w][1], &change[w]) != DD_OK) {
-                PyErr_Format(PyExc_ValueError, "update_ticks: %s changed by more than 2^63 "
-                             "counts", sides[w]);
-                return NULL;
-            }
-    }
     int reference = !c->od.have_ticks;
     dd_status status = dd_odometry_ticks(&c->od, has_t ? &t : NULL, left, right);
     if (status != DD_OK) {
-        refuse(c, name, status, (double)change[0] * c->od.rad_per_tick,
-               (double)change[1] * c->od.rad_per_tick, has_t, t, t - c->od.time);
+        ticks_refused(c, status, left, right, has_t, t);
         return NULL;
     }
     if (has_t || !reference) follow_clock(c, has_t);

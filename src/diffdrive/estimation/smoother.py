@@ -195,7 +195,7 @@ def estimate_trajectory(
     # into the estimate (the bias, in a fused heading) moved the episodes found.
     for _ in range(2 if episodes else 0):
         found = _episodes(estimator.config, log, run)
-        if forced is None and not np.any(found & ~run.slips[1:]):
+        if forced is None and not np.any(found & ~run.out.slips[1:]):
             break
         if forced is not None and np.array_equal(found, forced):
             break
@@ -206,22 +206,22 @@ def estimate_trajectory(
     twists, twist_covariances = _twists(robot, estimator.config, log, run)
     return Estimate(
         times,
-        body_poses(run.states, robot),
-        body_covariances(run.states, run.covariances, robot),
-        run.states,
-        run.covariances,
-        run.slips,
-        run.scores,
+        body_poses(run.out.states, robot),
+        body_covariances(run.out.states, run.out.covariances, robot),
+        run.out.states,
+        run.out.covariances,
+        run.out.slips,
+        run.out.scores,
         tuple(ordered),
-        run.accepted,
-        run.distances,
+        run.out.accepted,
+        run.out.distances,
         smooth,
         settings.heading,
         twists,
         twist_covariances,
         run.records,
         lines,
-        run.log_dets,
+        run.out.log_dets,
         settings.replace(window=window),
     )
 
@@ -242,7 +242,7 @@ def _identified_fixes(
     # The fixes' own covariance is not quoted: it may be a placeholder (fixes without one).
     fit = identify_fixes(
         times,
-        body_poses(dead.states, robot),
+        body_poses(dead.out.states, robot),
         [m.t for m in positions],
         [m.value for m in positions],
     )
@@ -311,15 +311,11 @@ class _Log:
 
 @dataclass(frozen=True)
 class _Run:
-    """One pass of a core over a ``_Log`` (see ``EstimatorCore._run_log``)."""
+    """One pass of a core over a ``_Log`` (see ``EstimatorCore._run_log``): what it filled,
+    ``covariances`` as ``(n, 8, 8)`` and the flags as booleans, and the smoother's
+    ``records`` as ``SmootherRecords`` (None unless kept)."""
 
-    states: np.ndarray
-    covariances: np.ndarray
-    slips: np.ndarray
-    scores: np.ndarray
-    accepted: np.ndarray
-    distances: np.ndarray
-    log_dets: np.ndarray
+    out: PassArrays
     records: ekf.SmootherRecords | None
 
 
@@ -360,13 +356,11 @@ def _run(
         where = f"interval {failed} ({log.times[failed]:g} to {log.times[failed + 1]:g} s)"
         raise ValueError(f"{where}: the update would overflow the state; refused")
     return _Run(
-        states,
-        covariances.reshape(n, ekf.N, ekf.N),
-        slips.astype(bool),
-        scores,
-        accepted.astype(bool),
-        distances,
-        log_dets,
+        out._replace(
+            covariances=covariances.reshape(n, ekf.N, ekf.N),
+            slips=slips.astype(bool),
+            accepted=accepted.astype(bool),
+        ),
         None
         if rows is None or steps is None
         else ekf.SmootherRecords.from_rows(np.repeat(np.arange(1, n), steps), rows),
@@ -432,8 +426,8 @@ def _twists(robot: Robot, c: ekf.Config, log: _Log, run: _Run):
     """The body twist over each interval and its covariance (``interval_twists``): the
     wheels' turn times the estimated turn scale, or the gyro's turn less the estimated bias,
     each interval's wheel noise inflated as the filter inflated it."""
-    states, covariances = run.states, run.covariances
-    inflation = np.where(run.slips[1:], c.slip_inflation, 1.0)
+    states, covariances = run.out.states, run.out.covariances
+    inflation = np.where(run.out.slips[1:], c.slip_inflation, 1.0)
     if c.heading == "wheels":
         return interval_twists(
             robot,
@@ -461,7 +455,7 @@ def _episodes(c: ekf.Config, log: _Log, run: _Run) -> np.ndarray:
     filter's at the end of the interval before)."""
     r_l, r_r, track, _ = c.drive
     dl, dr, dt = log.increments[:, 0], log.increments[:, 1], np.diff(log.times)
-    starts, start_covariances = run.states[:-1], run.covariances[:-1]
+    starts, start_covariances = run.out.states[:-1], run.out.covariances[:-1]
     innovation, variance, by_left, by_right = ekf.slip_innovation(
         c, starts, start_covariances, dl, dr, log.turned, dt
     )
@@ -472,7 +466,7 @@ def _episodes(c: ekf.Config, log: _Log, run: _Run) -> np.ndarray:
     return steady_episodes(
         innovation / deviation,
         np.column_stack([by_left, by_right]) / deviation[:, None],
-        run.slips[1:],
+        run.out.slips[1:],
         dt / deviation,
         shared,
     )
