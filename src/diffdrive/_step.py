@@ -22,7 +22,7 @@ above it ``sin(u) / u``. ``sinc_cos`` gives ``cos u`` the same way.
 Who follows it (``diffdrive.backends`` lists them): ``integrate.delta`` and the pure-Python
 odometry core use these functions as written; the numba kernels compile them; the batch layer
 applies the same flags and rule to arrays (``batch.integrate.delta``, ``batch.sinc``); the C
-core mirrors them (``backends/_odometry.c``).
+core mirrors them (``c/src/step.h``).
 ``tests/test_backends.py`` holds every backend to one table of cases.
 """
 

@@ -145,18 +145,6 @@ static void follow_clock(Core *c, int has_t) {
         c->count = 0; /* the clock is lost until the next time stamp */
 }
 
-/* An update from increments with an optional time stamp: checked, then applied. */
-static int update(Core *c, const char *name, double dl, double dr, int has_t, double t) {
-    if (has_t && ensure_room(c, 1) < 0) return -1;
-    dd_status status = dd_odometry_increments(&c->od, has_t ? &t : NULL, dl, dr);
-    if (status != DD_OK) {
-        refuse(c, name, status, dl, dr, has_t, t, t - c->od.time);
-        return -1;
-    }
-    follow_clock(c, has_t);
-    return 0;
-}
-
 /* -- argument parsing --------------------------------------------------------------------- */
 
 static int parse_double(PyObject *obj, const char *name, const char *field, double *out) {
@@ -232,35 +220,30 @@ static int parse_time(const char *name, PyObject *obj, int *has_t, double *t) {
 
 /* -- the update methods ---------------------------------------------------------------------- */
 
-static PyObject *update_increments(Core *c, PyObject *const *args, Py_ssize_t nargs,
-                                   PyObject *kwnames) {
-    static const char *name = "update_increments";
-    PyObject *lo, *ro, *to;
-    double dl, dr, t = NAN;
-    int has_t;
-    if (parse_update(name, "t", args, nargs, kwnames, &lo, &ro, &to) < 0 ||
-        parse_double(lo, name, "left", &dl) < 0 || parse_double(ro, name, "right", &dr) < 0 ||
-        parse_time(name, to, &has_t, &t) < 0 || update(c, name, dl, dr, has_t, t) < 0)
-        return NULL;
-    Py_RETURN_NONE;
-}
+enum { TICKS = 0, POSITIONS = 1, INCREMENTS = 2, VELOCITIES = 3 }; /* as UPDATE_KINDS */
+static const char *UPDATE_NAMES[4] = {"update_ticks", "update_positions", "update_increments",
+                                      "update_velocities"};
 
-static PyObject *update_positions(Core *c, PyObject *const *args, Py_ssize_t nargs,
-                                  PyObject *kwnames) {
-    static const char *name = "update_positions";
-    PyObject *lo, *ro, *to;
+/* Wheel angles (positions) or their increments, rad, with an optional time stamp to: checked,
+ * then applied; a first positions reading only sets the reference. */
+static PyObject *angles(Core *c, int kind, PyObject *lo, PyObject *ro, PyObject *to) {
+    const char *name = UPDATE_NAMES[kind];
     double left, right, t = NAN;
     int has_t;
-    if (parse_update(name, "t", args, nargs, kwnames, &lo, &ro, &to) < 0 ||
-        parse_double(lo, name, "left", &left) < 0 ||
+    if (parse_double(lo, name, "left", &left) < 0 ||
         parse_double(ro, name, "right", &right) < 0 || parse_time(name, to, &has_t, &t) < 0 ||
         (has_t && ensure_room(c, 1) < 0))
         return NULL;
     /* the increments the library takes, for a refusal's message (0 for the reference) */
-    double dl = c->od.have_positions ? left - c->od.position_left : 0.0;
-    double dr = c->od.have_positions ? right - c->od.position_right : 0.0;
-    int reference = !c->od.have_positions;
-    dd_status status = dd_odometry_positions(&c->od, has_t ? &t : NULL, left, right);
+    int reference = kind == POSITIONS && !c->od.have_positions;
+    double dl = left, dr = right;
+    if (kind == POSITIONS) {
+        dl = reference ? 0.0 : left - c->od.position_left;
+        dr = reference ? 0.0 : right - c->od.position_right;
+    }
+    const double *when = has_t ? &t : NULL;
+    dd_status status = kind == POSITIONS ? dd_odometry_positions(&c->od, when, left, right)
+                                         : dd_odometry_increments(&c->od, when, left, right);
     if (status != DD_OK) {
         refuse(c, name, status, dl, dr, has_t, t, t - c->od.time);
         return NULL;
@@ -343,10 +326,9 @@ static void ticks_refused(const Core *c, dd_status status, long long left, long 
            (double)change[1] * c->od.rad_per_tick, has_t, t, t - c->od.time);
 }
 
-static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
-                              PyObject *kwnames) {
+/* Absolute counter readings with an optional time stamp to; the first sets the reference. */
+static PyObject *ticks(Core *c, PyObject *lo, PyObject *ro, PyObject *to) {
     static const char *name = "update_ticks";
-    PyObject *lo, *ro, *to;
     long long left, right;
     double t = NAN;
     int has_t, bits = c->od.config.counter_bits;
@@ -355,8 +337,7 @@ static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
                         "Odometry was made without");
         return NULL;
     }
-    if (parse_update(name, "t", args, nargs, kwnames, &lo, &ro, &to) < 0 ||
-        parse_ticks(lo, "left", bits, &left) < 0 || parse_ticks(ro, "right", bits, &right) < 0 ||
+    if (parse_ticks(lo, "left", bits, &left) < 0 || parse_ticks(ro, "right", bits, &right) < 0 ||
         parse_time(name, to, &has_t, &t) < 0 || (has_t && ensure_room(c, 1) < 0))
         return NULL;
     int reference = !c->od.have_ticks;
@@ -369,12 +350,10 @@ static PyObject *update_ticks(Core *c, PyObject *const *args, Py_ssize_t nargs,
     Py_RETURN_NONE;
 }
 
-static PyObject *update_velocities(Core *c, PyObject *const *args, Py_ssize_t nargs,
-                                   PyObject *kwnames) {
+/* Wheel velocities, rad/s, held over dto s. */
+static PyObject *velocities(Core *c, PyObject *lo, PyObject *ro, PyObject *dto) {
     static const char *name = "update_velocities";
-    PyObject *lo, *ro, *dto;
     double left, right, dt;
-    if (parse_update(name, "dt", args, nargs, kwnames, &lo, &ro, &dto) < 0) return NULL;
     if (dto == NULL) {
         PyErr_SetString(PyExc_TypeError, "update_velocities needs dt, s");
         return NULL;
@@ -400,6 +379,30 @@ static PyObject *update_velocities(Core *c, PyObject *const *args, Py_ssize_t na
     follow_clock(c, 1);
     Py_RETURN_NONE;
 }
+
+/* One update of any kind (TICKS to VELOCITIES): (left, right[, t or dt]) parsed and refused
+ * by name, then the library's update of that kind; the named methods wrap it. */
+static PyObject *update(Core *c, int kind, PyObject *const *args, Py_ssize_t nargs,
+                        PyObject *kwnames) {
+    PyObject *lo, *ro, *third;
+    const char *last = kind == VELOCITIES ? "dt" : "t";
+    if (parse_update(UPDATE_NAMES[kind], last, args, nargs, kwnames, &lo, &ro, &third) < 0)
+        return NULL;
+    switch (kind) {
+    case TICKS: return ticks(c, lo, ro, third);
+    case VELOCITIES: return velocities(c, lo, ro, third);
+    default: return angles(c, kind, lo, ro, third);
+    }
+}
+
+#define UPDATE_METHOD(fn, kind)                                                              \
+    static PyObject *fn(Core *c, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames) { \
+        return update(c, kind, args, nargs, kwnames);                                        \
+    }
+UPDATE_METHOD(update_ticks, TICKS)
+UPDATE_METHOD(update_positions, POSITIONS)
+UPDATE_METHOD(update_increments, INCREMENTS)
+UPDATE_METHOD(update_velocities, VELOCITIES)
 
 /* -- what the Python class reads and sets --------------------------------------------------- */
 
@@ -524,8 +527,6 @@ static PyObject *run_log(Core *c, PyObject *args) {
     if (!PyArg_ParseTuple(args, "iO!O!O!OO", &kind, &PyList_Type, &lefts, &PyList_Type, &rights,
                           &PyList_Type, &thirds, &poses_obj, &cov_obj))
         return NULL;
-    typedef PyObject *(*Update)(Core *, PyObject *const *, Py_ssize_t, PyObject *);
-    Update updates[4] = {update_ticks, update_positions, update_increments, update_velocities};
     if (kind < 0 || kind > 3) {
         PyErr_SetString(PyExc_ValueError, "_run: kind must be 0 to 3");
         return NULL;
@@ -553,7 +554,7 @@ static PyObject *run_log(Core *c, PyObject *args) {
     for (Py_ssize_t k = 0; k < n; ++k) {
         PyObject *call[3] = {PyList_GET_ITEM(lefts, k), PyList_GET_ITEM(rights, k),
                              PyList_GET_ITEM(thirds, k)};
-        PyObject *done = updates[kind](c, call, 3, NULL);
+        PyObject *done = update(c, kind, call, 3, NULL);
         if (done == NULL) {
             if (!PyErr_ExceptionMatches(PyExc_ValueError) &&
                 !PyErr_ExceptionMatches(PyExc_TypeError))
@@ -621,13 +622,7 @@ static PyTypeObject CoreType = {
 int odometry_check(PyObject *obj) { return PyObject_TypeCheck(obj, &CoreType); }
 
 PyObject *odometry_update(PyObject *core, int kind, PyObject *const *args, Py_ssize_t nargs) {
-    Core *c = (Core *)core;
-    switch (kind) {
-    case 0: return update_ticks(c, args, nargs, NULL);
-    case 1: return update_positions(c, args, nargs, NULL);
-    case 2: return update_increments(c, args, nargs, NULL);
-    default: return update_velocities(c, args, nargs, NULL);
-    }
+    return update((Core *)core, kind, args, nargs, NULL);
 }
 
 double odometry_time(PyObject *core) { return ((Core *)core)->od.time; }
