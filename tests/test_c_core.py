@@ -275,6 +275,7 @@ class Limits(ctypes.Structure):
             "max_deceleration",
             "max_reverse_acceleration",
             "max_reverse_deceleration",
+            "max_jerk",
         )
     ]
 
@@ -400,17 +401,27 @@ def test_the_c_kinematics_are_the_models(library, geometry, wheels):
     assert got == pytest.approx(want, rel=1e-12) or (math.isinf(got) and math.isinf(want))
 
 
-LIMITS = (
-    dd.Limits(
-        max_velocity=1.0, max_reverse_velocity=0.5, max_acceleration=2.0, max_deceleration=3.0
+LIMITS = {  # two channels each: without jerk limits, with them on both, on one
+    "acceleration": (
+        dd.Limits(max_velocity=1.0, max_reverse_velocity=0.5, max_acceleration=2.0,
+                  max_deceleration=3.0),
+        dd.Limits(max_velocity=2.0, max_acceleration=4.0, max_reverse_acceleration=1.0),
     ),
-    dd.Limits(max_velocity=2.0, max_acceleration=4.0, max_reverse_acceleration=1.0),
-)
+    "jerk": (
+        dd.Limits(max_velocity=1.0, max_reverse_velocity=0.5, max_acceleration=2.0,
+                  max_deceleration=3.0, max_jerk=10.0),
+        dd.Limits(max_velocity=2.0, max_acceleration=4.0, max_reverse_acceleration=1.0,
+                  max_jerk=25.0),
+    ),
+    "jerk on one channel": (
+        dd.Limits(max_velocity=1.5, max_acceleration=2.0, max_jerk=8.0),
+        dd.Limits(max_velocity=2.0, max_acceleration=3.0),
+    ),
+}  # fmt: skip
 
 
 def _c_limits(limits: dd.Limits) -> Limits:
-    bounds = limits.bounds()  # v, v reverse, acc, dec, acc reverse, dec reverse, jerk
-    return Limits(*bounds[:6])
+    return Limits(*limits.bounds())  # v, v reverse, acc, dec, acc reverse, dec reverse, jerk
 
 
 @pytest.mark.slow
@@ -425,16 +436,17 @@ def _c_limits(limits: dd.Limits) -> Limits:
     )
 )
 def test_the_c_limiter_follows_the_python_one_step_by_step(library, steps):
-    python = dd.Limiter(LIMITS, timeout=0.3)
-    state = ctypes.create_string_buffer(STATE)
-    limits = (Limits * 2)(*map(_c_limits, LIMITS))
-    assert library.dd_limiter_init(state, 2, limits, 0.3) == 0
-    out = (ctypes.c_double * 2)()
-    for target, dt in steps:
-        want = python.step(target, dt)
-        given_target = None if target is None else (ctypes.c_double * 2)(*target)
-        assert library.dd_limiter_step(state, given_target, dt, out) == 0
-        np.testing.assert_allclose(list(out), want, rtol=1e-12, atol=1e-12)
+    for channels in LIMITS.values():
+        python = dd.Limiter(channels, timeout=0.3)
+        state = ctypes.create_string_buffer(STATE)
+        limits = (Limits * 2)(*map(_c_limits, channels))
+        assert library.dd_limiter_init(state, 2, limits, 0.3) == 0
+        out = (ctypes.c_double * 2)()
+        for target, dt in steps:
+            want = python.step(target, dt)
+            given_target = None if target is None else (ctypes.c_double * 2)(*target)
+            assert library.dd_limiter_step(state, given_target, dt, out) == 0
+            np.testing.assert_allclose(list(out), want, rtol=1e-12, atol=1e-12)
 
 
 # -- the header diffdrive export writes, read by the compiler that builds the firmware --------

@@ -102,9 +102,13 @@ void dd_filter_predict(const dd_filter *filter, dd_real *x, dd_real *P, dd_real 
  * accepted, score and log_det. */
 void dd_filter_correct(const dd_filter *filter, dd_real *x, dd_real *P, dd_measurement *m);
 
+#ifndef DD_NO_SMOOTHER
 /* The Rauch-Tung-Striebel step backwards through a record: x, P smoothed after it in,
- * smoothed before it out. */
+ * smoothed before it out. A build with DD_NO_SMOOTHER leaves the smoother out (a robot does
+ * not smooth its own past on line; the host does it over whole logs): it has no
+ * dd_filter_smooth, and the record pointers below must be NULL there. */
 void dd_filter_smooth(const dd_filter_record *record, dd_real *x, dd_real *P);
+#endif
 
 /* Run interval iv over the measurements m[0..count) (sorted by stamp; those in it): from its
  * start state in x, P to its end (record_outcomes: the slip test and the measurements'

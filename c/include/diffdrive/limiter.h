@@ -1,12 +1,16 @@
-/* diffdrive's C core: a command limiter (velocity and acceleration limits, a command timeout),
- * the rules of diffdrive.control.Limiter without its jerk limit.
+/* diffdrive's C core: a command limiter (velocity, acceleration and jerk limits, a command
+ * timeout), the rules of diffdrive.control.Limiter for one robot.
  *
  * Each step toward a target: (1) with no new target for `timeout` s, the target becomes 0;
  * (2) all channels are scaled by one factor into their velocity limits (forward, reverse), so
  * the target's curvature is kept; (3) each channel moves toward its target within its
  * acceleration limits (speeding up and slowing down, forward and reverse; through zero it
  * slows to rest, then speeds up the other way); (4) every channel moves the same fraction of
- * its way, the smallest any allows, so the output keeps the target's curvature.
+ * its way, the smallest any allows, so the output keeps the target's curvature. With jerk
+ * limits, each step's acceleration changes by at most jerk dt and ramps down to land on the
+ * target; with them on every channel, and the acceleration pointing along the way to the
+ * target, the fraction itself follows one jerk-limited profile in the tightest channel's
+ * limits, so the curvature is kept through it.
  */
 #ifndef DIFFDRIVE_LIMITER_H
 #define DIFFDRIVE_LIMITER_H
@@ -20,6 +24,7 @@ typedef struct {
     dd_real max_velocity, max_reverse_velocity; /* > 0; reverse 0 forbids reversing */
     dd_real max_acceleration, max_deceleration; /* moving forward, > 0 */
     dd_real max_reverse_acceleration, max_reverse_deceleration; /* moving backward, > 0 */
+    dd_real max_jerk;                                           /* > 0 */
 } dd_limits;
 
 typedef struct {
