@@ -116,13 +116,13 @@ def render(target: str, figures: dict[str, object], at: Reference, notes: list[s
     return "\n".join(lines) + "\n"
 
 
-def c_value(value: object) -> str:
+def _c_value(value: object) -> str:
     """A figure as a C initialiser: a name or integer as it is, a double to the last digit
     (a float build rounds it once, at compile time), infinity as INFINITY (math.h)."""
     if isinstance(value, str | int) and not isinstance(value, bool):
         return str(value)
     if isinstance(value, list):
-        return "{" + ", ".join(c_value(v) for v in value) + "}"
+        return "{" + ", ".join(_c_value(v) for v in value) + "}"
     number = float(value)  # type: ignore[arg-type]
     if math.isinf(number):
         return "INFINITY" if number > 0 else "-INFINITY"
@@ -149,7 +149,7 @@ def _c_header(figures: dict[str, object], notes: list[str]) -> str:
         assert isinstance(fields, dict)
         lines += ["", f"static const {kind} diffdrive_{name} = {{"]
         for field, value in fields.items():
-            lines.append(f"    .{field} = {c_value(value)}, /* {_C_FIELDS[field]} */")
+            lines.append(f"    .{field} = {_c_value(value)}, /* {_C_FIELDS[field]} */")
         lines.append("};")
     lines += ["", "#endif"]
     return "\n".join(lines) + "\n"
