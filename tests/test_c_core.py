@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 import diffdrive as dd
@@ -435,6 +435,7 @@ def _c_limits(limits: dd.Limits) -> Limits:
         max_size=40,
     )
 )
+@example(steps=[((0.0, 6.222806744061141e-140), 0.125), ((1.0, 1.0), 0.125)])  # a gap too small
 def test_the_c_limiter_follows_the_python_one_step_by_step(library, steps):
     for channels in LIMITS.values():
         python = dd.Limiter(channels, timeout=0.3)

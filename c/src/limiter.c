@@ -96,7 +96,7 @@ static int rate_along(const dd_real *a, const dd_real *gap, int n, dd_real *rate
         length += gap[i] * gap[i];
         along += a[i] * gap[i];
     }
-    if (length < DD_TINY) return 0; /* no gap, or one too small to divide by */
+    if (length < DD_SQUARE_FLOOR) return 0; /* no gap, or one too small to divide by */
     *rate = along / length;
     for (int i = 0; i < n; ++i) {
         dd_real rest = a[i] - *rate * gap[i];

@@ -15,10 +15,12 @@
 #endif
 
 /* DD_TINY: a positive number near the smallest normal one; DD_ROUNDING2: the square of a few
- * units of rounding, for convergence tests on squared sums. */
+ * units of rounding, for convergence tests on squared sums; DD_SQUARE_FLOOR: a squared length
+ * too small to divide by (diffdrive.control.Limiter's 1e-200; a float's smallest normal). */
 #ifdef DD_SINGLE
 #define DD_TINY 1e-37f
 #define DD_ROUNDING2 1e-13f
+#define DD_SQUARE_FLOOR DD_TINY
 #define dd_fma fmaf
 #define dd_sin sinf
 #define dd_cos cosf
@@ -34,6 +36,7 @@
 #else
 #define DD_TINY 1e-300
 #define DD_ROUNDING2 1e-32
+#define DD_SQUARE_FLOOR 1e-200
 #define dd_fma fma
 #define dd_sin sin
 #define dd_cos cos
