@@ -94,7 +94,7 @@ def test_a_bag_pose_topic_is_fused(tmp_path, monkeypatch, capsys):
             ["--gyro-bias", "0.01", "--slip-test", "interval"],
             "--gyro-bias, --slip-test: used only with a gyro",
         ),
-        (["--turn-scale-sigma", "0.1"], "the turn scale also learns from measurements"),
+        (["--turn-scale-sigma", "0.1"], "the turn scale learns from a gyro or absolute"),
         (["--measurements", "halfsigma.csv"], "gives all of sigma_x, sigma_y, sigma_theta or"),
         (
             ["--measurements", "unix.csv", "--gps-sigma", "0.1"],
@@ -119,7 +119,7 @@ def test_bad_measurements_are_refused_by_name_and_nothing_is_written(
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--gate", "0.99"], "--gate: used only with absolute measurements"),
+        (["--gate", "0.99"], "--settings gate: used only with absolute measurements"),
         (
             ["--lever-arm", "0.1", "0", "--gps-sigma", "1"],
             "--gps-sigma, --lever-arm: used only with absolute",
@@ -243,10 +243,10 @@ def test_odom_carries_the_twist_and_both_covariances_of_the_csv(synthetic_bag, p
 
 
 def test_no_wheel_noise_is_refused_for_a_bag(synthetic_bag, tmp_path, capsys):
-    joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
-    argv = ["odometry", str(synthetic_bag), *joints, "--k-left", "0", "--k-right", "0"]
+    joints = ["--joints", "left_wheel_joint", "right_wheel_joint"]
+    argv = ["odometry", str(synthetic_bag), *joints, "--k", "0"]
     assert main([*argv, "-o", str(tmp_path / "o.mcap")]) == 1
-    assert "--k-left 0 --k-right 0: the /odom messages would carry zero" in capsys.readouterr().err
+    assert "--k 0: the /odom messages would carry zero" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -345,12 +345,15 @@ def test_flags_that_set_the_same_length_are_refused_and_override_a_file_alike(tm
     """--track-width 0.5 --half-track 0.15 used 0.3, silently; --wheel-radius against a file's
     left and right radii was refused, with the blame on the file."""
     argv = ["fk", "8", "10", "--wheel-radius", "0.05", "--track-width", "0.5"]
-    code, _, err = run([*argv, "--half-track", "0.15"], capsys)
+    code, _, err = run([*argv, "--robot", "half_track=0.15"], capsys)
     assert code == 1
-    assert "--track-width and --half-track both given: they set the same length" in err
-    code, _, err = run([*argv, "--left-wheel-radius", "0.05"], capsys)
+    assert "--track-width and --robot half_track both given: they set the same length" in err
+    code, _, err = run([*argv, "--half-track", "0.15"], capsys)  # the spelling before 0.9
     assert code == 1
-    assert "--wheel-radius and --left-wheel-radius both given" in err
+    assert "--track-width and --robot half_track both given: they set the same length" in err
+    code, _, err = run([*argv, "--robot", "left_wheel_radius=0.05"], capsys)
+    assert code == 1
+    assert "--wheel-radius and --robot left_wheel_radius both given" in err
     robot = tmp_path / "robot.toml"
     robot.write_text("left_wheel_radius = 0.04\nright_wheel_radius = 0.06\nhalf_track = 0.1\n")
 
@@ -364,9 +367,14 @@ def test_flags_that_set_the_same_length_are_refused_and_override_a_file_alike(tm
     assert overridden["vx"] == pytest.approx(plain.vx)
     assert overridden["omega"] == pytest.approx(plain.omega)
     one = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.06, half_track=0.1)
-    assert fk("--left-wheel-radius", "0.05")["omega"] == pytest.approx(one.to_twist((8, 10)).omega)
+    assert fk("--robot", "left_wheel_radius=0.05")["omega"] == pytest.approx(
+        one.to_twist((8, 10)).omega
+    )
     robot.write_text("wheel_radius = 0.04\ntrack_width = 0.2\n")
     kept = dd.DiffDrive(left_wheel_radius=0.05, right_wheel_radius=0.04, track_width=0.2)
+    assert fk("--robot", "left_wheel_radius=0.05")["omega"] == pytest.approx(
+        kept.to_twist((8, 10)).omega
+    )
     assert fk("--left-wheel-radius", "0.05")["omega"] == pytest.approx(kept.to_twist((8, 10)).omega)
 
 

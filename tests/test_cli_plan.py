@@ -148,13 +148,13 @@ def test_plan_with_a_jerk_limit_reports_what_its_rows_hold(files, capsys) -> Non
 
 
 def test_plan_takes_sysid_gains_per_metre(files, capsys) -> None:
-    """--ks, --kv, --ka are SysId's (V, V s/m, V s^2/m): a robot of 3-inch wheels at kV 3.13
+    """--feedforward KS KV KA are SysId's (V, V s/m, V s^2/m): a robot of 3-inch wheels at kV 3.13
     V s/m reaches about 2.7 m/s under 10 V (per rad/s, kV 3.13 would hold it under 0.21 m/s),
     and the voltage SysId's model gives on the written rows stays within the limit."""
     (files / "wp.csv").write_text("x,y\n0,0\n12,0\n")
     (files / "robot.toml").write_text("wheel_radius = 0.0762\ntrack_width = 0.69\n")
     out = files / "plan.csv"
-    gains = ["--ks", "1.34", "--kv", "3.13", "--ka", "0.926", "--max-voltage", "10"]
+    gains = ["--feedforward", "1.34", "3.13", "0.926", "--max-voltage", "10"]
     args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *gains]
     assert (
         main(["plan", *args, "--max-velocity", "4", "--max-acceleration", "3", "-o", str(out)]) == 0
@@ -166,9 +166,23 @@ def test_plan_takes_sysid_gains_per_metre(files, capsys) -> None:
     assert table["v"].max() > 2.5
     assert volts.max() <= 10 * 1.02  # the gradient of the written rows: a little rounding
     capsys.readouterr()
-    without_ka = [a for a in args if a not in ("--ka", "0.926")]
-    assert main(["plan", *without_ka, "--max-velocity", "4", "-o", str(out)]) == 1
-    assert "--ks, --kv and --ka go together (V, V s/m, V s^2/m" in capsys.readouterr().err
+    without_ka = [a for a in args if a != "0.926"]
+    with pytest.raises(SystemExit):
+        main(["plan", *without_ka, "--max-velocity", "4", "-o", str(out)])
+    assert "--feedforward: expected 3 arguments" in capsys.readouterr().err
+    # --ks, --kv, --ka, the spelling before 0.9: the same plan; one alone names the others.
+    old = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), "--max-voltage", "10"]
+    old += ["--ks", "1.34", "--kv", "3.13", "--ka", "0.926"]
+    again = files / "again.csv"
+    argv = ["plan", *old, "--max-velocity", "4", "--max-acceleration", "3", "-o", str(again)]
+    assert main(argv) == 0
+    assert again.read_text() == out.read_text() or np.allclose(
+        read_table(again, ["t", "x"])["x"], table["x"]
+    )
+    assert '"--ks 1.34 --kv 3.13 --ka 0.926" is now "--feedforward' in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["plan", *old[:-2], "--max-velocity", "4", "-o", str(out)])
+    assert "--ks, --kv without --ka" in capsys.readouterr().err
 
 
 def test_follow_drives_the_response_of_a_drive_file_and_says_so(files, capsys) -> None:
@@ -194,17 +208,22 @@ def test_follow_drives_the_response_of_a_drive_file_and_says_so(files, capsys) -
 def test_follow_takes_the_mppi_tracker_and_its_known_delay(files, capsys) -> None:
     args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
     out = files / "mppi.csv"
-    extra = ["--tracker", "mppi", "--delay", "0.1", "--dt", "0.05", "--seed", "1"]
-    assert main(["follow", *args, *extra, "-o", str(out)]) == 0
+    extra = ["--delay", "0.1", "--dt", "0.05", "--seed", "1"]
+    assert main(["mppi", *args, *extra, "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "follow: mppi, delay 0.1 s" in printed
     assert "delay margin beyond the known delay" in printed
     table = read_table(out, ["t", "x", "y", "theta", "cross_track"])
     assert np.abs(table["cross_track"]).max() < 0.1
-    assert main(["follow", *args, "--tracker", "mppi", "--predict", "--delay", "0.1"]) == 1
-    assert "--predict: mppi rolls its samples out through --delay and the lag" in (
-        capsys.readouterr().err
-    )
+    # mppi rolls its samples out through the delay and lag itself: no --predict to give.
+    with pytest.raises(SystemExit):
+        main(["mppi", *args, "--predict", "--delay", "0.1"])
+    assert "unrecognized arguments: --predict" in capsys.readouterr().err
+    # follow --tracker mppi, the spelling before 0.9: the same run, and a note.
+    old = files / "old.csv"
+    assert main(["follow", *args, "--tracker", "mppi", *extra, "-o", str(old)]) == 0
+    assert old.read_text() == out.read_text()
+    assert '"follow" --tracker mppi is now "mppi"' in capsys.readouterr().err
 
 
 def _map(folder) -> str:
@@ -233,9 +252,9 @@ def test_follow_steers_mppi_around_a_ros_map_and_writes_nav2_parameters(files, c
     (files / "line.csv").write_text("x,y,theta\n0,0,0\n5,0,0\n")
     args = [str(files / "line.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
     out, nav2 = files / "around.csv", files / "mppi.yaml"
-    extra = ["--tracker", "mppi", "--delay", "0.1", "--lag", "0.1", "--dt", "0.05", "--seed", "2"]
-    where = ["--map", _map(files), "--footprint", "0.35", "--nav2-mppi", str(nav2)]
-    assert main(["follow", *args, *extra, *where, "-o", str(out)]) == 0
+    extra = ["--delay", "0.1", "--lag", "0.1", "--dt", "0.05", "--seed", "2"]
+    where = ["--obstacles", _map(files), "0.35", "--nav2-mppi", str(nav2)]
+    assert main(["mppi", *args, *extra, *where, "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     table = read_table(out, ["t", "x", "y", "theta"])
     gaps = read_map(files / "room.yaml").clearance_at(np.column_stack([table["x"], table["y"]]))
@@ -254,19 +273,21 @@ def test_follow_steers_mppi_around_a_ros_map_and_writes_nav2_parameters(files, c
     assert "not carried over: temperature and cost weights" in nav2.read_text()
 
 
-def test_follow_refuses_a_map_without_its_footprint_or_tracker(files, capsys) -> None:
+def test_mppi_refuses_a_bad_map_or_footprint_and_follow_has_no_map(files, capsys) -> None:
     args = [str(files / "wp.csv"), "--robot", str(files / "robot.toml"), *LIMITS]
     room = _map(files)
     out = files / "x.csv"
-    assert main(["follow", *args, "--tracker", "mppi", "--map", room, "-o", str(out)]) == 1
-    assert "--map needs --footprint" in capsys.readouterr().err
-    argv = ["follow", *args, "--map", room, "--footprint", "0.3", "-o", str(out)]
-    assert main(argv) == 1
-    assert "--map: only --tracker mppi steers around obstacles" in capsys.readouterr().err
-    assert main(["follow", *args, "--nav2-mppi", str(files / "n.yaml"), "-o", str(out)]) == 1
-    assert "--nav2-mppi writes an mppi tracker's settings" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["mppi", *args, "--obstacles", room, "-o", str(out)])
+    assert "--obstacles: expected 2 arguments" in capsys.readouterr().err
+    assert main(["mppi", *args, "--obstacles", room, "-0.3", "-o", str(out)]) == 1
+    assert "the footprint is the robot's radius, m (finite, >= 0)" in capsys.readouterr().err
+    for option in (["--obstacles", room, "0.3"], ["--nav2-mppi", str(files / "n.yaml")]):
+        with pytest.raises(SystemExit):  # follow's trackers steer around nothing
+            main(["follow", *args, *option, "-o", str(out)])
+        assert "unrecognized arguments" in capsys.readouterr().err
     (files / "bad.yaml").write_text("image: room.pgm\nresolution: 0.05\n")
-    argv = ["follow", *args, "--tracker", "mppi", "--map", str(files / "bad.yaml")]
-    assert main([*argv, "--footprint", "0.3", "-o", str(out)]) == 1
+    argv = ["mppi", *args, "--obstacles", str(files / "bad.yaml"), "0.3"]
+    assert main([*argv, "-o", str(out)]) == 1
     assert "bad.yaml: the map's origin is missing" in capsys.readouterr().err
     assert not out.exists()

@@ -338,10 +338,10 @@ def test_calibrate_then_export_from_logs(tmp_path, monkeypatch, capsys):
     assert main(["calibrate", *logs, "--robot", "nominal.toml", "-o", "robot.toml", "-q"]) == 0
     calibrated = dd.io.read_robot(tmp_path / "robot.toml")
     exported = ["--robot", "robot.toml", "--nominal", "nominal.toml", "-o", "ros.yaml"]
-    joints = ["--left-joint", "wheel_l", "--right-joint", "wheel_r"]
-    assert main(["export", "--to", "ros2", *exported, *logs]) == 1
-    assert "give --left-joint NAME --right-joint NAME" in capsys.readouterr().err
-    assert main(["export", "--to", "ros2", *exported, *joints, *logs]) == 0
+    joints = ["--joints", "wheel_l", "wheel_r"]
+    assert main(["export", "ros2", *exported, *logs]) == 1
+    assert "give --joints LEFT RIGHT" in capsys.readouterr().err
+    assert main(["export", "ros2", *exported, *joints, *logs]) == 0
     printed = capsys.readouterr().out
     assert "noise model identified on 3 runs; the reference's accuracy 1 mm and 0.1 deg" in printed
     assert "held to its runs (the reference's own noise added): " in printed
@@ -447,7 +447,8 @@ def test_wpilib_takes_the_drive_identify_found(tmp_path, monkeypatch, capsys):
     assert document["kV"] == drive["kv"]
     assert document["trackWidth"] == 0.3
     assert "V s/m" in document["units"]["kV"]
-    assert main(["export", "--to", "amcl", *robot, "--k", "1e-4", "--drive", "drive.toml"]) == 1
-    assert "--drive: used only with --to wpilib" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # amcl takes no drive
+        main(["export", "amcl", *robot, "--k", "1e-4", "--drive", "drive.toml"])
+    assert "unrecognized arguments: --drive" in capsys.readouterr().err
     assert main(["identify", "sysid.csv", "-o", "x.toml"]) == 1
     assert "give --robot FILE, or --wheel-radius and --track-width" in capsys.readouterr().err

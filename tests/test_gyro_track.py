@@ -88,18 +88,27 @@ def test_calibrate_finds_the_track_from_a_bag_imu(tmp_path, monkeypatch, capsys)
 
     monkeypatch.chdir(tmp_path)
     bag = str(data_folder("ros-bags") / "turtlebot3_fuse.bag")
-    joints = ["--left-joint", "wheel_left_joint", "--right-joint", "wheel_right_joint"]
-    radii = ["--left-wheel-radius", "0.03256", "--right-wheel-radius", "0.03252"]
-    gyro = ["--track-from-gyro", "--gyro-topic", "/imu"]  # the track is what it finds
-    assert main(["calibrate", bag, *joints, *radii, *gyro, "-o", "robot.toml"]) == 0
+    joints = ["--joints", "wheel_left_joint", "wheel_right_joint"]
+    radii = ["--robot", "left_wheel_radius=0.03256,right_wheel_radius=0.03252"]
+    gyro = ["--gyro-topic", "/imu"]  # the track is what it finds
+    assert main(["calibrate-gyro", bag, *joints, *radii, *gyro, "-o", "robot.toml"]) == 0
     written = dd.io.read_robot(tmp_path / "robot.toml")
     assert written["track_width"] == pytest.approx(0.2955, rel=0.01)
     assert written["left_wheel_radius"] == 0.03256
     assert "track from the gyro: 0.2954" in capsys.readouterr().out
-    assert main(["calibrate", bag, bag, *joints, *radii, *gyro, "-o", "two.toml"]) != 0
-    assert "--track-from-gyro takes one log, got 2" in capsys.readouterr().err
-    assert main(["calibrate", bag, *joints, *gyro, "--track-width", "0.3", "-o", "x.toml"]) == 1
-    assert "--track-from-gyro keeps the wheel radii" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:
+        main(["calibrate-gyro", bag, bag, *joints, *radii, *gyro, "-o", "two.toml"])
+    assert usage.value.code == 2
+    assert "unrecognized arguments" in capsys.readouterr().err
+    argv = ["calibrate-gyro", bag, *joints, *gyro, "--track-width", "0.3", "-o", "x.toml"]
+    assert main(argv) == 1
+    assert "calibrate-gyro keeps the wheel radii" in capsys.readouterr().err
+    # The spelling before 0.9, for one release: the same file, and a note.
+    old = ["--left-joint", "wheel_left_joint", "--right-joint", "wheel_right_joint"]
+    old += ["--left-wheel-radius", "0.03256", "--right-wheel-radius", "0.03252"]
+    assert main(["calibrate", bag, *old, "--track-from-gyro", *gyro, "-o", "old.toml"]) == 0
+    assert dd.io.read_robot(tmp_path / "old.toml") == written
+    assert '"calibrate" without ground truth is now "calibrate-gyro"' in capsys.readouterr().err
 
 
 def test_bad_noise_settings_and_a_reversed_gyro_are_refused():

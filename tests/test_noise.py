@@ -351,10 +351,10 @@ def test_cross_validation_holds_each_group_out():
 
 
 def test_diffdrive_odometry_identifies_the_wheels_noise_on_a_logs_ground_truth(tmp_path, capsys):
-    """A log with ground truth and no --k-left/--k-right: each wheel's k is identified on it
-    (the reference held at motion capture's accuracy), said with its standard errors, and the
-    covariance written is Odometry's with those k; one given is kept and said so; both given,
-    nothing is identified or said."""
+    """A log with ground truth and no --k: each wheel's k is identified on it (the reference
+    held at motion capture's accuracy), said with its standard errors, and the covariance
+    written is Odometry's with those k; given (one for both wheels, or two), nothing is
+    identified or said."""
     from data import data_folder
     from diffdrive.cli import main
     from diffdrive.io.optiodom import optiodom_robot, read_optiodom_run
@@ -383,9 +383,11 @@ def test_diffdrive_odometry_identifies_the_wheels_noise_on_a_logs_ground_truth(t
     odometry.update_arrays("increments", *run.increments().T)
     written = np.genfromtxt(out, delimiter=",", names=True)
     assert written["cov_xx"][-1] == pytest.approx(odometry.covariance[0, 0], rel=1e-6)
-    assert main([*argv, "--k-left", "1e-4"]) == 0
-    assert "k = 0.0001 m left" in capsys.readouterr().out
-    assert main([*argv, "--k-left", "1e-4", "--k-right", "2e-4"]) == 0
+    assert main([*argv, "--k", "1e-4"]) == 0
+    assert "wheel noise" not in capsys.readouterr().out
+    assert main([*argv, "--k", "1e-4", "2e-4"]) == 0
+    assert "wheel noise" not in capsys.readouterr().out
+    assert main([*argv, "--k-left", "1e-4", "--k-right", "2e-4"]) == 0  # before 0.9
     assert "wheel noise" not in capsys.readouterr().out
 
 

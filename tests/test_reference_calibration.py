@@ -408,24 +408,26 @@ def test_diffdrive_calibrate_names_the_hold_that_leaves_out_what_a_drive_cannot_
 
 
 @pytest.mark.parametrize(
-    ("extra", "message"),
+    "argv",
     [
-        (["--reference-sigma", "0.5"], "--reference-sigma.*used only with --gps-topic"),
-        (["--gps-topic", "/fix", "--track-from-gyro"], "one calibration at a time"),
-        (["--gps-topic", "/fix", "--cv", "3"], "--cv.*not used by a calibration from driving"),
+        ["calibrate", "LOG", "--reference-sigma", "0.5"],
+        ["calibrate-driving", "LOG", "--gps-topic", "/fix", "--track-from-gyro"],
+        ["calibrate-driving", "LOG", "--gps-topic", "/fix", "--cv", "3"],
+        ["calibrate", "LOG", "--gps-topic", "/fix", "--cv", "3"],
     ],
 )
-def test_diffdrive_calibrate_refuses_options_that_do_not_fit_the_driving_calibration(
-    tmp_path, capsys, extra, message
-):
+def test_diffdrive_calibrate_knows_only_its_own_jobs_options(tmp_path, capsys, argv):
     from diffdrive.cli import main
 
     log = tmp_path / "log.csv"
     log.write_text("t,left_angle,right_angle\n0,0,0\n1,1,1\n")
     out = tmp_path / "robot.toml"
-    argv = ["calibrate", str(log), "--wheel-radius", "0.1", "--track-width", "0.3", "-o", str(out)]
-    assert main([*argv, *extra]) == 1
-    assert re.search(message, capsys.readouterr().err)
+    argv = [str(log) if a == "LOG" else a for a in argv]
+    robot = ["--wheel-radius", "0.1", "--track-width", "0.3", "-o", str(out)]
+    with pytest.raises(SystemExit) as usage:
+        main([*argv, *robot])
+    assert usage.value.code == 2
+    assert "unrecognized arguments" in capsys.readouterr().err
     assert not out.exists()
 
 
@@ -435,9 +437,12 @@ def test_diffdrive_calibrate_from_driving_takes_one_bag(tmp_path, capsys):
     log = tmp_path / "log.csv"
     log.write_text("t,left_angle,right_angle\n0,0,0\n1,1,1\n")
     out = tmp_path / "robot.toml"
-    argv = ["calibrate", str(log), "--wheel-radius", "0.1", "--track-width", "0.3"]
-    assert main([*argv, "--gps-topic", "/fix", "-o", str(out)]) == 1
-    assert "calibrate one bag's drive" in capsys.readouterr().err
+    argv = [str(log), "--wheel-radius", "0.1", "--track-width", "0.3"]
+    assert main(["calibrate-driving", *argv, "--gps-topic", "/fix", "-o", str(out)]) == 1
+    assert "calibrate-driving calibrates a bag's drive; this is no bag" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["calibrate-driving", *argv, str(log), "--gps-topic", "/fix", "-o", str(out)])
+    assert "unrecognized arguments" in capsys.readouterr().err
     assert not out.exists()
 
 

@@ -372,7 +372,7 @@ def test_the_cli_takes_a_bag_wherever_it_takes_a_log(tmp_path, capsys):
     assert "sensor_msgs/msg/JointState" in out
     code, _, err = run(["odometry", TB3, "-o", tmp_path / "o.csv"], capsys)
     assert code == 1
-    assert "--left-joint NAME --right-joint NAME" in err
+    assert "--joints LEFT RIGHT" in err
     code, out, err = run(["simulate", TB3, *JOINTS, "-o", tmp_path / "s.csv"], capsys)
     assert code == 0, err
     code, _, err = run(["plot", TB3, "--topic", "/odom", "-o", tmp_path / "p.png"], capsys)
@@ -496,7 +496,7 @@ def test_bag_errors_come_in_the_order_a_user_needs_them(capsys, tmp_path, monkey
     assert "no topic '/joint_states' (the bag has: /fix" in capsys.readouterr().err
     assert main(["odometry", str(TB3), "-o", "x.csv"]) == 1
     err = capsys.readouterr().err
-    assert "--left-joint NAME --right-joint NAME (the joints on /joint_states: " in err
+    assert "--joints LEFT RIGHT (the joints on /joint_states: " in err
     assert "wheel_right_joint, wheel_left_joint)" in err
     assert main(["info", str(TB3)]) == 0
     out = capsys.readouterr().out

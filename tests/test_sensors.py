@@ -372,8 +372,8 @@ def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, c
 
     bag, table = tmp_path / "run.mcap", tmp_path / "run.csv"
     common = ["--ticks-per-revolution", "4096", "--counter-bits", "12", "--seed", "1"]
-    argv = ["synth", *common, "--gyro-arw", "2e-3", "--pose-sigma", "0.02", "0.02", "0.01"]
-    assert main([*argv, "--pose-period", "0.5", "-o", str(bag)]) == 0
+    argv = ["synth", *common, "--gyro", "arw=2e-3", "--pose-sigma", "0.02", "0.02", "0.01"]
+    assert main([*argv, "--pose", "period=0.5", "-o", str(bag)]) == 0
     assert "/cmd_vel, /pose, the truth on /ground_truth in" in capsys.readouterr().out
     names = {topic.name for topic in ros.topics(bag)}
     assert names == {"/joint_states", "/imu/data", "/cmd_vel", "/pose", "/ground_truth"}
@@ -397,10 +397,10 @@ def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, c
         (["--time-offset", "nan", "-o", "x.mcap"], "--time-offset must be finite"),
         (["--time-offset", "3e9", "-o", "x.mcap"], "/joint_states: times must lie in [0, 2^31)"),
         (["--gps", "100", "0", "0", "-o", "x.mcap"], "latitude must lie in [-90, 90]"),
-        (
-            ["--pose-period", "0.5", "-o", "x.mcap"],
-            "--pose-period: used only with a pose or GPS sensor",
-        ),
+        (["--pose", "period=0.5", "-o", "x.mcap"], "--pose: a pose or GPS sensor's"),
+        (["--pose-period", "0.5", "-o", "x.mcap"], "--pose: a pose or GPS sensor's"),
+        (["--gyro", "arw=x", "-o", "x.mcap"], "--gyro arw=x: 'x' is not a number"),
+        (["--gyro", "noise=1", "-o", "x.mcap"], "--gyro: unknown setting 'noise'"),
         (["--unsigned", "-o", "x.mcap"], "--unsigned describes a counter that rolls over"),
     ]
     for extra, message in refused:

@@ -15,6 +15,9 @@ from pathlib import Path
 from diffdrive import __version__
 from diffdrive.cli import (
     calibrate,
+    calibrate_driving,
+    calibrate_gyro,
+    estimate,
     evaluate,
     export,
     identify,
@@ -24,6 +27,7 @@ from diffdrive.cli import (
     odometry,
     plan,
     plot,
+    renamed,
     simulate,
     synth,
 )
@@ -84,8 +88,11 @@ def build_parser() -> argparse.ArgumentParser:
     modules = (
         simulate,
         odometry,
+        estimate,
         plot,
         calibrate,
+        calibrate_gyro,
+        calibrate_driving,
         evaluate,
         export,
         identify,
@@ -102,7 +109,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 done, 1 failed, 2 misused)."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    given = list(sys.argv[1:] if argv is None else argv)
+    try:
+        rewritten = renamed.today(given, lambda name: _options_of(parser, name))
+    except renamed.MisspelledError as exc:
+        parser.error(str(exc))
+    for note in rewritten.notes:
+        print(f"diffdrive: note: {note}", file=sys.stderr)
+    args = parser.parse_args(rewritten.argv)
     if args.command is None:
         robot = example_robot()
         print(kinematics_report(robot))
@@ -132,6 +147,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _options_of(parser: argparse.ArgumentParser, command: str) -> set[str]:
+    """The option strings of ``parser``'s subcommand ``command`` (none for an unknown one)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and command in action.choices:
+            sub = action.choices[command]
+            return {option for known in sub._actions for option in known.option_strings}
+    return set()
 
 
 def _quiet_stdout() -> None:

@@ -19,25 +19,14 @@ from diffdrive.calibration import (
     UMBmark,
     calibrate,
 )
-from diffdrive.cli.calibrate_driving import (
-    add_driving_options,
-    driving,
-    refuse_misplaced,
-    run_from_driving,
-)
 from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
     Parents,
-    add_imu_options,
     at_least,
-    checked_ticks,
-    gyro_of,
     read_log_of,
     refuse_assumed_robot,
-    refuse_unused,
     robot_from,
-    robot_settings,
 )
 from diffdrive.demo import (
     EXAMPLE_DURATION,
@@ -45,12 +34,9 @@ from diffdrive.demo import (
 )
 from diffdrive.evaluation import run_errors, worst
 from diffdrive.integrate import METHODS, Method
-from diffdrive.io import TableError, robot_from_settings, write_robot
+from diffdrive.io import TableError, write_robot
 from diffdrive.model import DiffDrive, Robot
-from diffdrive.sensor_noise import GyroNoise
 from diffdrive.simulation import dead_reckon, simulate
-
-GYRO_ARW = 2e-3  # --gyro-arw's default, rad/s/sqrt(Hz)
 
 
 def _mirrored_example(t: np.ndarray) -> np.ndarray:
@@ -84,110 +70,8 @@ def _calibration_run(args, path: Path, ticks: float | None, robot: Robot):
     return (increments, log.truth), log.ticks_per_revolution
 
 
-def _track_from_gyro(args: argparse.Namespace, nominal, ticks) -> int:
-    """--track-from-gyro: the track from one log's wheels and gyro, the radii the robot's."""
-    from diffdrive.calibration import track_from_gyro
-
-    if len(args.runs) != 1:
-        raise TableError(f"--track-from-gyro takes one log, got {len(args.runs)}")
-    if not isinstance(nominal, DiffDrive):
-        raise TableError("--track-from-gyro calibrates a DiffDrive's track; the robot is not one")
-    path = args.runs[0]
-    log = read_log_of(args, path)
-    gyro = gyro_of(args, log, path)
-    if gyro is None:
-        raise TableError(
-            f"{path}: --track-from-gyro needs a gyro: --gyro-topic, or a gyro_z column"
-        )
-    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
-    if np.count_nonzero(inside) < 2:
-        raise TableError(f"{path}: the gyro does not cover the log's times")
-    log = log.rows(inside) if not inside.all() else log
-    ticks = ticks or log.ticks_per_revolution
-    increments, _ = log.checked_increments(nominal, ticks, args.counter_bits)
-    found = track_from_gyro(
-        nominal,
-        log.times,
-        increments,
-        np.diff(gyro.angles(log.times)),
-        wheel_noise=0.0 if args.k is None else args.k,
-        ticks_per_revolution=ticks,
-        gyro_noise=GyroNoise(
-            angle_random_walk=GYRO_ARW if args.gyro_arw is None else args.gyro_arw
-        ),
-    )
-    settings = nominal.with_geometry(
-        nominal.left_wheel_radius, nominal.right_wheel_radius, found.track
-    ).settings()
-    if ticks is not None:
-        settings["ticks_per_revolution"] = ticks
-    write_robot(args.output, settings, f"track from the gyro of {path} by diffdrive")
-    if not args.quiet:
-        low, high = sorted(found.bracket)
-        print(
-            f"track from the gyro: {found.track:.5f} m (standard error {found.standard_error:.5f} "
-            f"m; between {low:.5f} and {high:.5f} m whatever the noises; the plain ratio "
-            f"{found.plain_ratio:.5f} m); gyro bias {found.bias:.5f} rad/s; radii kept "
-            f"{nominal.left_wheel_radius:g} and {nominal.right_wheel_radius:g} m"
-        )
-        print(f"calibrate: wrote the robot to {args.output}")
-    return 0
-
-
-def _radii_robot(args: argparse.Namespace) -> tuple[Robot, float | None]:
-    """--track-from-gyro's robot: its wheel radii given (a gyro sees the track over the
-    radii), its track what is estimated, so not needed (1 m stands in until then)."""
-    settings = robot_settings(args)
-    ticks = checked_ticks(settings.pop("ticks_per_revolution", None))
-    radii = {"wheel_radius", "left_wheel_radius", "right_wheel_radius"} & settings.keys()
-    if not radii:
-        raise ValueError(
-            "--track-from-gyro keeps the wheel radii (a gyro sees the track over them): give "
-            "--wheel-radius, or --left-wheel-radius and --right-wheel-radius, or --robot FILE"
-        )
-    if not {"track_width", "half_track", "icr_left", "icr_right"} & settings.keys():
-        settings["track_width"] = 1.0
-    return robot_from_settings(settings, f" (in {args.robot})" if args.robot else ""), ticks
-
-
-def _refuse_options_of_the_other_kind(args: argparse.Namespace) -> None:
-    """--track-from-gyro's options without it, or a fit's options with it; the driving
-    calibration's likewise."""
-    if args.track_from_gyro and driving(args):
-        raise ValueError(
-            "--track-from-gyro and --gps-topic/--pose-topic: one calibration at a time"
-        )
-    refuse_misplaced(args)
-    if args.track_from_gyro or driving(args):
-        fit = {
-            "--method": args.method != "least_squares",
-            "--integration": args.integration != "exact",
-            "--square-side": args.square_side is not None,
-            "--window": args.window is not None,
-            "--cv": args.cv != "loo",
-            "--fix": bool(args.fix),
-            "--extra": args.extra is not None,
-        }
-        mode = "--track-from-gyro" if args.track_from_gyro else "a calibration from driving"
-        refuse_unused(fit, f"not used by {mode}, which fits by its own model")
-    else:
-        gyro = {
-            "--gyro-topic": args.gyro_topic is not None,
-            "--imu-rpy": any(args.imu_rpy),
-            "--gyro-arw": args.gyro_arw is not None,
-            "--k": args.k is not None,
-        }
-        refuse_unused(gyro, "used only with --track-from-gyro, --gps-topic or --pose-topic")
-
-
 def run_calibrate(args: argparse.Namespace) -> int:
-    _refuse_options_of_the_other_kind(args)
-    if args.track_from_gyro:
-        return _track_from_gyro(args, *_radii_robot(args))
     nominal, ticks = robot_from(args)
-    if driving(args):
-        refuse_assumed_robot(args, "calibration from driving starts from the nominal geometry")
-        return run_from_driving(args, nominal, ticks)
     if args.runs:
         # The fit starts from the nominal robot, and --fix and UMBmark keep parts of it.
         refuse_assumed_robot(args, "calibrate fits the robot from its nominal geometry")
@@ -334,22 +218,15 @@ def calibration_report(nominal: Robot, result, runs, integration: Method) -> str
     return "\n".join(lines)
 
 
-EPILOGS = {
-    "calibrate": f"""examples:
+EPILOG = f"""examples:
   diffdrive calibrate                      the built-in example runs -> robot.toml
   diffdrive calibrate runs/*_run-*.csv --robot nominal.toml --method least_squares -o robot.toml
-  diffdrive calibrate run.bag --left-joint L --right-joint R --wheel-radius 0.033 \
-      --track-from-gyro --gyro-topic /imu -o robot.toml     the track from a gyro
-  diffdrive calibrate husky.bag --wheel-topic /husky_velocity_controller/odom --robot husky.toml \
-      --gps-topic /fix --gyro-topic /imu/data --imu-rpy 90 0 0 -o robot.toml
-                                           from ordinary driving: wheels, antenna, clocks, gyro
 
 runs with ground truth, each as below (x, y, theta needed; OptiOdom files count 2796.8 a
 turn unless told). Runs need the nominal robot (--robot, or the geometry flags: the fit starts
-from it); the built-in robot is the default for the built-in runs only, and --track-from-gyro
-needs only the radii.
-{LOG_COLUMNS}""",
-}
+from it); the built-in robot is the default for the built-in runs only. Without ground truth:
+diffdrive calibrate-gyro (the track from a gyro) and calibrate-driving (against GPS or poses).
+{LOG_COLUMNS}"""
 
 
 def add_to(command: Command, parents: Parents) -> None:
@@ -359,7 +236,7 @@ def add_to(command: Command, parents: Parents) -> None:
         "fit wheel radii and track width to ground truth",
         [parents.robot, parents.logs],
         run_calibrate,
-        EPILOGS["calibrate"],
+        EPILOG,
     )
     cal.add_argument("runs", nargs="*", type=Path, help="runs with ground truth; none: built-in")
     cal.add_argument("-o", "--output", type=Path, default=Path("robot.toml"))
@@ -371,30 +248,6 @@ def add_to(command: Command, parents: Parents) -> None:
         help="the odometry's method (default exact)",
     )
     cal.add_argument("--square-side", type=float, help="UMBmark's square, m")
-    gyro = cal.add_argument_group(
-        "the track from a gyro, without ground truth (the radii: the robot's)"
-    )
-    gyro.add_argument(
-        "--track-from-gyro",
-        action="store_true",
-        help="one log's wheels against its gyro (calibration.track_from_gyro)",
-    )
-    add_imu_options(gyro)
-    gyro.add_argument(
-        "--gyro-arw",
-        type=float,
-        metavar="RAD_S_SQRT_HZ",
-        help=f"the gyro's angle random walk (default: {GYRO_ARW} for --track-from-gyro; "
-        "identified from the drive when driving, and held where given)",
-    )
-    gyro.add_argument(
-        "--k",
-        type=float,
-        metavar="M",
-        help="the wheels' noise, m (default: 0, read exactly, for --track-from-gyro; "
-        "identified from the drive when driving, and held where given)",
-    )
-    add_driving_options(cal)
     cal.add_argument(
         "--window",
         type=at_least(1),

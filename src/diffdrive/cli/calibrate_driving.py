@@ -1,4 +1,4 @@
-"""``diffdrive calibrate LOG --gps-topic|--pose-topic``: the wheels, the sensor's mount and
+"""``diffdrive calibrate-driving BAG --gps-topic|--pose-topic``: the wheels, the sensor's mount and
 clock, and the gyro's terms from ordinary driving, against a reference that is not ground
 truth (``calibration.calibrate_to_reference``).
 
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -22,7 +23,16 @@ from diffdrive.calibration.reference import (
     calibrate_to_reference,
     estimable,
 )
-from diffdrive.cli.options import add_datum_option, gyro_of, read_log_of, refuse_unused
+from diffdrive.cli.options import (
+    Command,
+    Parents,
+    add_datum_option,
+    add_imu_options,
+    gyro_of,
+    read_log_of,
+    refuse_assumed_robot,
+    robot_from,
+)
 from diffdrive.io import TableError, is_bag, write_robot
 from diffdrive.model import DiffDrive
 from diffdrive.sensor_noise import DEFAULT, DEFAULT_GYRO, GyroNoise, WheelNoise
@@ -34,12 +44,20 @@ START_GPS = 1.0
 START_POSE = (0.05, 2.0)
 
 
-def add_driving_options(parser: argparse.ArgumentParser) -> None:
-    """The options of calibration from ordinary driving."""
-    group = parser.add_argument_group(
-        "from ordinary driving, against a reference that is not ground truth (a bag)"
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive calibrate-driving``."""
+    parser = command(
+        "calibrate-driving",
+        "the wheels, the reference's mount and clock and the gyro's terms from ordinary "
+        "driving, against GPS fixes or poses that are not ground truth",
+        [parents.robot_required, parents.logs],
+        run_calibrate_driving,
+        EPILOG,
     )
-    sources = group.add_mutually_exclusive_group()
+    parser.add_argument("input", type=Path, help="a bag of the drive")
+    parser.add_argument("-o", "--output", type=Path, default=Path("robot.toml"))
+    group = parser.add_argument_group("the reference")
+    sources = group.add_mutually_exclusive_group(required=True)
     sources.add_argument(
         "--gps-topic", metavar="TOPIC", help="sensor_msgs/NavSatFix: the antenna's positions"
     )
@@ -65,37 +83,39 @@ def add_driving_options(parser: argparse.ArgumentParser) -> None:
         f"does not determine, say): {', '.join(PARAMETERS)}",
     )
     add_datum_option(group)
+    gyro = parser.add_argument_group("a gyro (a bag's IMU topic), and the noises held")
+    add_imu_options(gyro)
+    gyro.add_argument(
+        "--gyro-arw",
+        type=float,
+        metavar="RAD_S_SQRT_HZ",
+        help="the gyro's angle random walk, held (default: identified from the drive)",
+    )
+    gyro.add_argument(
+        "--k", type=float, metavar="M", help="the wheels' noise, m, held (default: identified)"
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
-def driving(args: argparse.Namespace) -> bool:
-    """Whether the command calibrates from driving."""
-    return bool(args.gps_topic or args.pose_topic)
+EPILOG = """examples:
+  diffdrive calibrate-driving husky.bag --wheel-topic /husky_velocity_controller/odom \\
+      --robot husky.toml --gps-topic /fix --gyro-topic /imu/data --imu-rpy 90 0 0 -o robot.toml
+
+From ordinary driving: the wheels' scale and track, the antenna's or camera's lever arm and
+clock offset, the gyro's scale and bias, each noise identified from the drive unless held. A
+parameter the drive does not determine is refused by name (--hold leaves it out)."""
 
 
-def refuse_misplaced(args: argparse.Namespace) -> None:
-    """The options that need a reference to drive against, without one."""
-    if not driving(args):
-        refuse_unused(
-            {
-                "--reference-sigma": args.reference_sigma is not None,
-                "--hold": args.hold is not None,
-                "--datum": args.datum is not None,
-            },
-            "used only with --gps-topic or --pose-topic",
-        )
-
-
-def run_from_driving(args: argparse.Namespace, nominal, ticks: float | None) -> int:
+def run_calibrate_driving(args: argparse.Namespace) -> int:
     """Calibrate one bag's wheels (and gyro) against its GPS or pose topic; write the robot,
     print the report. A parameter the drive did not determine is refused, nothing written."""
-    if len(args.runs) != 1 or not is_bag(args.runs[0]):
-        raise TableError(
-            f"--gps-topic and --pose-topic calibrate one bag's drive, got {len(args.runs)} "
-            "logs" + ("" if len(args.runs) != 1 else f" ({args.runs[0]} is no bag)")
-        )
+    refuse_assumed_robot(args, "calibration from driving starts from the nominal geometry")
+    nominal, ticks = robot_from(args)
+    path = args.input
+    if not is_bag(path):
+        raise TableError(f"{path}: calibrate-driving calibrates a bag's drive; this is no bag")
     if not isinstance(nominal.equivalent, DiffDrive):
         raise TableError("calibration from driving fits a DiffDrive's geometry")
-    path = args.runs[0]
     log = read_log_of(args, path)
     ticks = ticks or log.ticks_per_revolution
     # Refused where they cannot be this robot's wheels (a counter's width, a unit).

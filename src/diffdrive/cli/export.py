@@ -40,13 +40,13 @@ from diffdrive.io import TableError, is_bag, read_drive, read_robot, robot_from_
 def run_export(args: argparse.Namespace) -> int:
     _refuse_misplaced(args)
     refuse_assumed_robot(
-        args, f"export --to {args.to} writes the robot's geometry and the noise it implies"
+        args, f"export {args.to} writes the robot's geometry and the noise it implies"
     )
     wheel_names = _wheel_names(args)
     drive = _drive(args)
     model_robot, ticks = robot_from(args)
     robot = nominal = model_robot.equivalent  # a SkidSteer's equivalent drive: what ROS takes
-    if args.nominal is not None:
+    if getattr(args, "nominal", None) is not None:
         settings = read_robot(args.nominal)
         nominal = robot_from_settings(settings, f" (in {args.nominal})").equivalent
     notes = ["written by diffdrive export"]
@@ -69,15 +69,11 @@ def run_export(args: argparse.Namespace) -> int:
             "WRITTEN THOUGH INCONSISTENT with its runs (--accept-inconsistent): " + "; ".join(held)
         )
     at = Reference(
-        args.distance,
-        args.turn,
-        args.speed,
-        args.turn_rate,
-        args.rate,
-        args.window,
-        args.scan_rate,
-        args.update_min_d,
-        args.update_min_a,
+        **{
+            name: getattr(args, name)
+            for name in TARGET_OPTIONS[args.to]
+            if name not in ("nominal", "drive")
+        }
     )
     if args.to == "amcl":
         fit = amcl_fit(robot, model, at)
@@ -149,37 +145,19 @@ def _refuse_misplaced(args) -> None:
             "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
             "with --radius-sigma and --track-sigma"
         )
-    refuse_unused(
-        {"--drive": args.drive is not None and args.to != "wpilib"}, "used only with --to wpilib"
-    )
-    ros2_only = {
-        "--window": args.window != Reference.window,
-    }
-    refuse_unused(
-        {k: v and args.to != "ros2" for k, v in ros2_only.items()}, "used only with --to ros2"
-    )
-    amcl_only = {
-        "--turn-rate": args.turn_rate != Reference.turn_rate,
-        "--scan-rate": args.scan_rate != Reference.scan_rate,
-        "--update-min-d": args.update_min_d != Reference.update_min_d,
-        "--update-min-a": args.update_min_a != Reference.update_min_a,
-    }
-    refuse_unused(
-        {k: v and args.to != "amcl" for k, v in amcl_only.items()}, "used only with --to amcl"
-    )
 
 
 def _wheel_names(args) -> tuple[str, str] | None:
-    """The controller's wheel joints (--left-joint, --right-joint), which ros2 needs."""
+    """The controller's wheel joints (--joints , ), which ros2 needs."""
     if args.to != "ros2":
         return None
-    if args.left_joint is None or args.right_joint is None:
+    if args.joints is None:
         raise ValueError(
-            "export --to ros2 writes diff_drive_controller's left_wheel_names and "
-            "right_wheel_names: give --left-joint NAME --right-joint NAME (the wheels' joints "
-            "in the robot's URDF, as a bag's /joint_states names them)"
+            "export ros2 writes diff_drive_controller's left_wheel_names and "
+            "right_wheel_names: give --joints LEFT RIGHT (the wheels' joints in the robot's "
+            "URDF, as a bag's /joint_states names them)"
         )
-    return args.left_joint, args.right_joint
+    return args.joints[0], args.joints[1]
 
 
 def _flat(figures: dict[str, object]):
@@ -198,13 +176,13 @@ def _encoders(args, ticks: float | None, notes: list[str]) -> Encoders | None:
         return None
     if ticks is None:
         raise ValueError(
-            "export --to c-header writes the encoders' counts per wheel revolution, which the "
+            "export c-header writes the encoders' counts per wheel revolution, which the "
             "firmware turns ticks into angles with: give --ticks-per-revolution N (or "
             "ticks_per_revolution in the robot file)"
         )
     if args.counter_bits is None:
         raise ValueError(
-            "export --to c-header writes the width of the encoder counters, which tells a "
+            "export c-header writes the width of the encoder counters, which tells a "
             "roll-over from a jump: give --counter-bits B (16 on many motor drivers, 32 on a "
             "microcontroller's timer, 64 for a count that never rolls over)"
         )
@@ -217,7 +195,7 @@ def _encoders(args, ticks: float | None, notes: list[str]) -> Encoders | None:
 
 def _drive(args) -> DriveConstants | None:
     """WPILib's kS, kV, kA from a drive file (``diffdrive identify`` writes one)."""
-    if args.drive is None:
+    if getattr(args, "drive", None) is None:
         return None
     sections = read_drive(args.drive)
     if "feedforward" not in sections:
@@ -275,12 +253,12 @@ def _identified(args, robot, ticks, notes: list[str], lines: list[str]):
 EPILOGS = {
     "export": """examples:
   diffdrive calibrate run1.csv run2.csv --robot nominal.toml -o robot.toml
-  diffdrive export --to ros2 --robot robot.toml --nominal nominal.toml run1.csv run2.csv \\
-      --left-joint left_wheel_joint --right-joint right_wheel_joint
-  diffdrive export --to amcl --robot robot.toml --k 1e-4 --radius-sigma 0.002
+  diffdrive export ros2 --robot robot.toml --nominal nominal.toml run1.csv run2.csv \\
+      --joints left_wheel_joint right_wheel_joint
+  diffdrive export amcl --robot robot.toml --k 1e-4 --radius-sigma 0.002
   diffdrive identify sysid.csv --robot robot.toml -o drive.toml
-  diffdrive export --to wpilib --robot robot.toml --drive drive.toml run1.csv run2.csv
-  diffdrive export --to c-header --robot robot.toml --ticks-per-revolution 4096 \\
+  diffdrive export wpilib --robot robot.toml --drive drive.toml run1.csv run2.csv
+  diffdrive export c-header --robot robot.toml --ticks-per-revolution 4096 \\
       --counter-bits 16 run1.csv run2.csv
 
 The noise model is identified on the runs given (ground truth as the reference, its own
@@ -288,25 +266,57 @@ accuracy held at --reference-sigma: by default motion capture's, 1 mm and 0.1 de
 identified for a bag's --reference-topic), then held to them: below 80 % of their poses inside
 its 95 % ellipse, or with its wheel noise k at 0, it is refused (--accept-inconsistent writes
 it, saying so in the file). Or it is taken from --k, --radius-sigma and --track-sigma. How each
-figure is derived: the module diffdrive.export, and the notes at the top of the file.""",
+figure is derived: the module diffdrive.export, and the notes at the top of the file. Each
+target's own options: diffdrive export TARGET --help.""",
+}
+
+
+# Each target's own options beside the noise model's: the motions its figures are taken at and
+# the settings of the stack that reads them.
+TARGET_OPTIONS = {
+    "ros2": ("nominal", "distance", "speed", "rate", "window"),
+    "robot_localization": ("speed",),
+    "amcl": ("distance", "turn", "speed", "turn_rate", "scan_rate", "update_min_d", "update_min_a"),
+    "wpilib": ("distance", "drive"),
+    "c-header": (),
+}
+TARGET_HELP = {
+    "ros2": "diff_drive_controller's parameters (YAML): the wheels and the covariance diagonals",
+    "robot_localization": "robot_localization's process noise (YAML)",
+    "amcl": "Nav2 AMCL's alpha1-alpha4, matched to its sampler (YAML)",
+    "wpilib": "WPILib's DifferentialDrivePoseEstimator and feedforward (JSON)",
+    "c-header": "the C core's robot, encoders and noise for the robot's firmware (a C header)",
 }
 
 
 def add_to(command: Command, parents: Parents) -> None:
-    """The options of ``diffdrive export``."""
+    """The options of ``diffdrive export TARGET``: one subcommand a target, each with its
+    own options only."""
     ex = command(
         "export",
         "the calibrated robot, its noise model and its drive as ROS 2, robot_localization, "
         "AMCL or WPILib files, or a C header for the C core in the robot's firmware",
-        [parents.robot_required, parents.logs],
+        [],
         run_export,
         EPILOGS["export"],
     )
-    defaults = Reference()
+    targets = ex.add_subparsers(dest="to", metavar="TARGET", required=True)
+    for target in TARGETS:
+        sub = targets.add_parser(
+            target,
+            help=TARGET_HELP[target],
+            description=TARGET_HELP[target],
+            parents=[parents.robot_required, parents.logs],
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        _common_options(sub)
+        _target_options(sub, TARGET_OPTIONS[target])
+
+
+def _common_options(ex: argparse.ArgumentParser) -> None:
+    """The noise model's options, the output and the runs: every target's."""
     ex.add_argument("runs", nargs="*", type=Path, help="runs with ground truth to identify on")
-    ex.add_argument("--to", choices=TARGETS, required=True, help="the file to write")
     ex.add_argument("-o", "--output", type=Path, help="default: the target's usual file name")
-    ex.add_argument("--nominal", type=Path, help="the nominal robot file ROS multiplies")
     ex.add_argument("--k", type=float, metavar="M", help="wheel noise, m (without runs)")
     ex.add_argument("--radius-sigma", type=float, metavar="REL", help="per-run radius error")
     ex.add_argument("--track-sigma", type=float, metavar="REL", help="per-run track error")
@@ -324,43 +334,31 @@ def add_to(command: Command, parents: Parents) -> None:
         help="write a model its runs refute (fewer than 80 %% inside its 95 %% ellipse, or k at "
         "0), saying so in the file",
     )
-    ex.add_argument(
-        "--drive", type=Path, metavar="FILE", help="wpilib: kS, kV, kA from diffdrive identify"
-    )
-    ex.add_argument("--distance", type=float, default=defaults.distance, help="straight, m (1)")
-    ex.add_argument("--turn", type=float, default=defaults.turn, help="turn, rad (1)")
-    ex.add_argument("--speed", type=float, default=defaults.speed, help="speed, m/s (0.5)")
-    ex.add_argument(
-        "--turn-rate", type=float, default=defaults.turn_rate, help="amcl: turn rate, rad/s (1)"
-    )
-    ex.add_argument(
-        "--rate",
-        type=float,
-        default=defaults.rate,
-        help="the controller's update rate, Hz (50): each update's velocity from one period",
-    )
-    ex.add_argument(
-        "--window",
-        type=between(1, 1_000_000),
-        default=defaults.window,
-        help="ros2: velocity_rolling_window_size, updates (10, the controller's default)",
-    )
-    ex.add_argument(
-        "--scan-rate",
-        type=float,
-        default=defaults.scan_rate,
-        help="amcl: the laser's rate, Hz (10): when AMCL looks at the odometry",
-    )
-    ex.add_argument(
-        "--update-min-d",
-        type=float,
-        default=defaults.update_min_d,
-        help="amcl: update_min_d, m (0.25, Nav2's default), written with the alphas",
-    )
-    ex.add_argument(
-        "--update-min-a",
-        type=float,
-        default=defaults.update_min_a,
-        help="amcl: update_min_a, rad (0.2, Nav2's default), written with the alphas",
-    )
     ex.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+
+
+def _target_options(ex: argparse.ArgumentParser, names: tuple[str, ...]) -> None:
+    """The target's own options (``TARGET_OPTIONS``), each with ``Reference``'s default."""
+    defaults = Reference()
+    helps = {
+        "distance": "straight, m (1)",
+        "turn": "turn, rad (1)",
+        "speed": "speed, m/s (0.5)",
+        "turn_rate": "turn rate in place, rad/s (1)",
+        "rate": "the controller's update rate, Hz (50): each update's velocity from one period",
+        "window": "velocity_rolling_window_size, updates (10, the controller's default)",
+        "scan_rate": "the laser's rate, Hz (10): when AMCL looks at the odometry",
+        "update_min_d": "update_min_d, m (0.25, Nav2's default), written with the alphas",
+        "update_min_a": "update_min_a, rad (0.2, Nav2's default), written with the alphas",
+    }
+    for name in names:
+        flag = "--" + name.replace("_", "-")
+        if name == "nominal":
+            ex.add_argument(flag, type=Path, help="the nominal robot file ROS multiplies")
+        elif name == "drive":
+            ex.add_argument(
+                flag, type=Path, metavar="FILE", help="kS, kV, kA from diffdrive identify"
+            )
+        else:
+            kind = between(1, 1_000_000) if name == "window" else float
+            ex.add_argument(flag, type=kind, default=getattr(defaults, name), help=helps[name])

@@ -82,12 +82,12 @@ EPILOGS = {
   diffdrive identify sysid.csv --robot robot.toml -o drive.toml
       a table t, left_velocity, right_velocity (or angles, ticks), left_voltage,
       right_voltage: kS (V), kV (V s/m), kA (V s^2/m) of the linear and angular channels
-  diffdrive identify robot.bag --left-joint wheel_left_joint --right-joint wheel_right_joint \\
+  diffdrive identify robot.bag --joints wheel_left_joint wheel_right_joint \\
       --command-topic /cmd_vel --robot robot.toml --accelerations inf 20 40 60 -o drive.toml
       a velocity-commanded drive's delay, time constant, gain and acceleration limit
 
 The drive file is TOML: [feedforward] and [angular] (ks, kv, ka, delay) and [response]
-(delay, time_constant, gain, acceleration); diffdrive export --to wpilib --drive FILE puts
+(delay, time_constant, gain, acceleration); diffdrive export wpilib --drive FILE puts
 kS, kV, kA into WPILib's file.""",
 }
 

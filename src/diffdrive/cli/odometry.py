@@ -8,21 +8,16 @@ from pathlib import Path
 
 import numpy as np
 
-from diffdrive.cli.fusion import (
-    GATE_HELP,
-    estimator_settings,
-    refuse_idle_options,
-    run_fusion,
-    wants_fusion,
-)
+from diffdrive.cli.estimate import estimator_settings
 from diffdrive.cli.options import (
     COVARIANCE_COLUMNS,
     LOG_COLUMNS,
     TWIST_COVARIANCE_COLUMNS,
     Command,
     Parents,
-    add_datum_option,
     add_imu_options,
+    add_method_option,
+    add_wheel_noise_option,
     estimate_columns,
     gyro_of,
     output_format,
@@ -31,14 +26,15 @@ from diffdrive.cli.options import (
     refuse_unused,
     robot_from,
     robot_note,
+    wheel_commands,
     wheel_noise,
+    within_gyro,
     write_output,
 )
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation.odometry import odometry_of_run
 from diffdrive.estimation.twists import interval_twists
-from diffdrive.io import RIM_SPEED_LIMIT, Run, TableError
-from diffdrive.io.read import read_commands
+from diffdrive.io import RIM_SPEED_LIMIT, Run
 from diffdrive.model import Robot
 
 # Past this share of intervals flagged, slip is not the explanation: robots slip on a few
@@ -48,7 +44,6 @@ SUSPICIOUS_SLIP_SHARE = 0.25
 
 
 def run_odometry(args: argparse.Namespace) -> int:
-    refuse_idle_options(args)
     robot, ticks = robot_from(args)
     log = read_log_of(args)
     ticks = ticks or log.ticks_per_revolution
@@ -57,12 +52,6 @@ def run_odometry(args: argparse.Namespace) -> int:
     gyro = gyro_of(args, log)
     if gyro is None:
         _refuse_gyro_options(args)
-    if wants_fusion(args):
-        if gyro is not None:
-            log, note = _within_gyro(log, gyro, note)
-        increments = log.increments(ticks, args.counter_bits)
-        commanded = _commands(args, robot, log) if gyro is not None else None
-        return run_fusion(args, robot, log, increments, gyro, note, commanded)
     if gyro is not None:
         return _gyro_odometry(args, robot, log, ticks, gyro, note)
     if args.heading not in (None, "wheels"):
@@ -80,7 +69,9 @@ def run_odometry(args: argparse.Namespace) -> int:
         covariance=with_covariance,
     )
     twists, twist_covariances = interval_twists(robot, log.times, increments, noise)
-    columns = estimate_columns(args, covariances, twists, twist_covariances, args.covariance)
+    columns = estimate_columns(
+        covariances, twists, twist_covariances, twist=args.twist, covariance=args.covariance
+    )
     what = f"odometry of {log.source}"
     write_output(args, log.times, poses, what, columns, covariances, twists, twist_covariances)
     if not args.quiet:
@@ -92,24 +83,33 @@ def run_odometry(args: argparse.Namespace) -> int:
 
 def _refuse_gyro_options(args) -> None:
     """The options that act through a gyro, given for a log without one."""
-    measured = args.pose_topic or args.gps_topic or args.measurements
     refuse_unused(
         {
             "--gyro-bias": args.gyro_bias is not None,
             "--slip-test": args.slip_test is not None,
             "--command-topic": args.command_topic is not None,
-            "--turn-scale-sigma": bool(args.turn_scale_sigma) and not measured,
         },
-        "used only with a gyro (--gyro-topic, or a gyro_z column; the turn scale also learns "
-        "from measurements)",
+        "used only with a gyro (--gyro-topic, or a gyro_z column)",
     )
+
+
+def _gyro_settings(args: argparse.Namespace) -> dict[str, object]:
+    """The estimator's settings the gyro flags give, by name (``estimator_settings``)."""
+    given: dict[str, object] = {"method": args.method}
+    if args.heading is not None:
+        given["heading"] = args.heading
+    if args.gyro_bias is not None:
+        given["bias"] = args.gyro_bias
+    if args.slip_test is not None:
+        given["whole_log.slip_episodes"] = args.slip_test == "episodes"
+    return given
 
 
 def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     """Odometry with a gyro: the heading from --heading, slip flags and the bias as columns."""
     from diffdrive.estimation.gyro import gyro_odometry
 
-    log, note = _within_gyro(log, gyro, note)
+    log, note = within_gyro(log, gyro, note)
     increments = log.increments(ticks, args.counter_bits)
     noise, assumed = wheel_noise(args, robot, log, increments)
     note += assumed
@@ -118,12 +118,18 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
         log.times,
         increments,
         gyro,
-        estimator_settings(args, noise, "given", True),
+        estimator_settings(noise, "given", True, _gyro_settings(args)),
         initial_pose=log.start_pose(),
-        commanded=_commands(args, robot, log),
+        commanded=wheel_commands(args, robot, log),
     )
     twists, twist_covariances = result.twists, result.twist_covariances
-    columns = estimate_columns(args, result.covariances, twists, twist_covariances, args.covariance)
+    columns = estimate_columns(
+        result.covariances,
+        twists,
+        twist_covariances,
+        twist=args.twist,
+        covariance=args.covariance,
+    )
     columns.update(
         slip=result.slip.astype(float), slip_score=result.slip_score, gyro_bias=result.bias
     )
@@ -154,35 +160,13 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     return 0
 
 
-def _within_gyro(log: Run, gyro, note: str) -> tuple[Run, str]:
-    """The log cut to the gyro's span (a bag's IMU may start a little after the wheels)."""
-    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
-    if np.count_nonzero(inside) < 2:
-        raise TableError(f"{log.source}: the gyro does not cover the log's times")
-    if not inside.all():
-        log = log.rows(inside)
-        note += (
-            f"\nthe log is cut to [{log.times[0]:.3f}, {log.times[-1]:.3f}] s, where the gyro is"
-        )
-    return log, note
-
-
-def _commands(args, robot, log: Run):
-    """The wheel velocities commanded over each interval ``(T, 2)`` (``read_commands``, held;
-    0 before the first), or None."""
-    from diffdrive.dynamics.response import held_commands
-
-    found = read_commands(args.input, robot, log, args.command_topic)
-    return None if found is None else held_commands(*found, log.times[:-1])
-
-
 EPILOGS = {
     "odometry": f"""examples:
   diffdrive odometry                      a built-in 20 Hz log of the example -> odometry.csv
   diffdrive odometry log.csv --ticks-per-revolution 4096 --counter-bits 12 -o odometry.csv
   diffdrive odometry log.csv --time-unit ns --max-wheel-speed 30 --twist --covariance
-  diffdrive odometry run.mcap --left-joint left_wheel_joint --right-joint right_wheel_joint \\
-      --gyro-topic /imu/data --pose-topic /pose --smooth -o estimate.csv
+  diffdrive odometry run.mcap --joints left_wheel_joint right_wheel_joint \\
+      --gyro-topic /imu/data -o odometry.mcap
 
 {LOG_COLUMNS}
 With ground truth an error summary is printed. The largest wheel speed the log implies is
@@ -207,18 +191,8 @@ def add_to(command: Command, parents: Parents) -> None:
         help="refuse a row whose wheel turns faster (rad/s); default: a rim speed of "
         f"{RIM_SPEED_LIMIT:g} m/s",
     )
-    odo.add_argument(
-        "--k-left",
-        type=float,
-        metavar="M",
-        help="left wheel-error constant of the covariance model, m (default 1e-4, said when used)",
-    )
-    odo.add_argument(
-        "--k-right",
-        type=float,
-        metavar="M",
-        help="right wheel-error constant, m (default 1e-4)",
-    )
+    add_wheel_noise_option(odo, "default 1e-4, or identified from ground truth; said when used")
+    add_method_option(odo)
     gyro = odo.add_argument_group("a gyro: a bag's IMU topic or a gyro_z column (rad/s)")
     add_imu_options(gyro)
     gyro.add_argument(
@@ -244,61 +218,6 @@ def add_to(command: Command, parents: Parents) -> None:
         metavar="TOPIC",
         help="geometry_msgs/Twist commands of the bag, to flag wheels that spin "
         "beyond them (or left_command, right_command columns)",
-    )
-    fused = odo.add_argument_group(
-        "absolute measurements and smoothing (PoseEstimator; writes the covariance)"
-    )
-    fused.add_argument(
-        "--pose-topic", metavar="TOPIC", help="PoseWithCovarianceStamped or Odometry topic"
-    )
-    fused.add_argument("--gps-topic", metavar="TOPIC", help="NavSatFix topic of the bag")
-    add_datum_option(fused)
-    fused.add_argument(
-        "--measurements",
-        type=Path,
-        metavar="FILE",
-        help="a table t, x, y[, theta][, sigma_x, sigma_y[, sigma_theta]]: poses with theta, "
-        "else positions",
-    )
-    fused.add_argument(
-        "--pose-sigma",
-        type=float,
-        nargs=3,
-        metavar=("SX", "SY", "STHETA"),
-        help="standard deviations (m, m, rad) of poses that come without a covariance",
-    )
-    fused.add_argument(
-        "--gps-sigma",
-        type=float,
-        metavar="M",
-        help="standard deviation (m) of positions that come without a covariance",
-    )
-    fused.add_argument(
-        "--lever-arm",
-        type=float,
-        nargs=2,
-        metavar=("X", "Y"),
-        help="where the pose or GPS sensor sits in the body frame, m (default 0 0)",
-    )
-    fused.add_argument(
-        "--fixes",
-        choices=("identified", "given"),
-        help="what position fixes are worth: identified from the fixes themselves (white noise, "
-        "the offset's wander, the wheels' distance scale, the start; the default for 10 or more "
-        "--gps-topic fixes) or given (their covariance, white; the default for a table's)",
-    )
-    fused.add_argument("--gate", type=float, metavar="P", help=GATE_HELP)
-    fused.add_argument(
-        "--turn-scale-sigma",
-        type=float,
-        metavar="S",
-        help="estimate the wheels' turn scale (an effective track), prior standard deviation S",
-    )
-    fused.add_argument(
-        "--smooth",
-        action="store_true",
-        help="the whole log forward and back (Rauch-Tung-Striebel): every pose uses every "
-        "measurement",
     )
     odo.add_argument(
         "--twist",

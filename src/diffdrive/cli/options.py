@@ -7,7 +7,7 @@ import argparse
 import json
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -36,6 +36,7 @@ from diffdrive.io import (
     robot_from_settings,
     write_trajectory,
 )
+from diffdrive.io.read import read_commands
 from diffdrive.io.trajectories import COVARIANCE_COLUMNS
 from diffdrive.model import Robot
 from diffdrive.sensor_noise import DEFAULT as DEFAULT_WHEEL_NOISE
@@ -70,20 +71,47 @@ def robot_options(required: bool = False) -> argparse.ArgumentParser:
         else f"robot (default: {ROBOT_DEFAULTS})"
     )
     group = options.add_argument_group(title)
-    group.add_argument("--robot", type=Path, help="a robot file (TOML) with the settings below")
-    helps = {
-        "ticks_per_revolution": "encoder counts per wheel revolution",
-        "track_width": "m, the FULL distance between the wheels' contact points",
-        "half_track": "m, half the track width (the notes' b, d, D or L); instead of it",
-        "icr_left": "m: a skid-steer robot's left ICR on body y (instead of the track)",
-        "icr_right": "m: its right ICR on body y",
-        "icr_x": "m: its ICR on body x (the point that does not slide sideways)",
-    }
-    for name in ROBOT_KEYS:
-        group.add_argument(
-            f"--{name.replace('_', '-')}", type=float, metavar="X", help=helps.get(name, "m")
-        )
+    group.add_argument(
+        "--robot",
+        action="append",
+        metavar="FILE|KEY=VALUE,...",
+        help="a robot file (TOML), or its settings given here: "
+        f"{', '.join(ROBOT_KEYS)} (m); repeat to add, the later winning",
+    )
+    group.add_argument("--wheel-radius", type=float, metavar="M", help="both wheels' radius, m")
+    group.add_argument(
+        "--track-width",
+        type=float,
+        metavar="M",
+        help="m, the FULL distance between the wheels' contact points (half_track, the notes' "
+        "b, d, D or L: --robot half_track=M)",
+    )
     return options
+
+
+def key_values(flag: str, text: str, keys: Collection[str]) -> dict[str, str]:
+    """``KEY=VALUE[,KEY=VALUE...]`` given to ``flag``, as a dict of the texts; ``ValueError``
+    naming the flag and the part that is not such a pair or names no key in ``keys``."""
+    pairs: dict[str, str] = {}
+    for part in text.split(","):
+        key, equals, value = part.partition("=")
+        key = key.strip()
+        if not equals or not key or not value.strip():
+            raise ValueError(f"{flag} {text!r}: {part!r} is not KEY=VALUE")
+        if key not in keys:
+            raise ValueError(f"{flag}: unknown setting {key!r}; known: {', '.join(sorted(keys))}")
+        if key in pairs:
+            raise ValueError(f"{flag} {text!r}: {key} given twice")
+        pairs[key] = value.strip()
+    return pairs
+
+
+def number_of(flag: str, key: str, text: str) -> float:
+    """``text`` as a float; ``ValueError`` naming ``flag`` and ``key`` when it is none."""
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"{flag} {key}={text}: {text!r} is not a number") from None
 
 
 def log_options() -> argparse.ArgumentParser:
@@ -94,13 +122,7 @@ def log_options() -> argparse.ArgumentParser:
         choices=TIME_UNITS,
         help="unit of the t column (default s; plainly other units are refused)",
     )
-    group.add_argument(
-        "--counter-bits",
-        type=between(MIN_COUNTER_BITS, MAX_COUNTER_BITS),
-        metavar="B",
-        help=f"width of the encoder counters ({MIN_COUNTER_BITS}-{MAX_COUNTER_BITS}), for "
-        "roll-over; default: counters that never roll over",
-    )
+    add_encoder_options(group)
     bags = options.add_argument_group("a ROS bag or MCAP file as the log (diffdrive[ros])")
     bags.add_argument(
         "--joint-topic",
@@ -108,7 +130,12 @@ def log_options() -> argparse.ArgumentParser:
         metavar="TOPIC",
         help="sensor_msgs/JointState topic (default /joint_states)",
     )
-    bags.add_argument("--left-joint", metavar="NAME", help="the left wheel's joint name")
+    bags.add_argument(
+        "--joints",
+        nargs=2,
+        metavar=("LEFT", "RIGHT"),
+        help="the wheels' joint names in it",
+    )
     bags.add_argument(
         "--wheel-topic",
         metavar="TOPIC",
@@ -116,13 +143,29 @@ def log_options() -> argparse.ArgumentParser:
         "its poses) or Twist commands (each held until the next), through the robot's inverse "
         "kinematics",
     )
-    bags.add_argument("--right-joint", metavar="NAME", help="the right wheel's joint name")
     bags.add_argument(
         "--reference-topic",
         metavar="TOPIC",
         help="nav_msgs/Odometry (or tf:PARENT:CHILD) as the ground truth",
     )
     return options
+
+
+def add_encoder_options(group) -> None:
+    """``--ticks-per-revolution`` and ``--counter-bits``: the encoders' counts."""
+    group.add_argument(
+        "--ticks-per-revolution",
+        type=float,
+        metavar="N",
+        help="encoder counts per wheel revolution (or the robot file's ticks_per_revolution)",
+    )
+    group.add_argument(
+        "--counter-bits",
+        type=between(MIN_COUNTER_BITS, MAX_COUNTER_BITS),
+        metavar="B",
+        help=f"width of the encoder counters ({MIN_COUNTER_BITS}-{MAX_COUNTER_BITS}), for "
+        "roll-over; default: counters that never roll over",
+    )
 
 
 def output_options(default: str) -> argparse.ArgumentParser:
@@ -134,24 +177,75 @@ def output_options(default: str) -> argparse.ArgumentParser:
         help="default: from the file's suffix; mcap (a file) and ros2 (a bag "
         "folder) write nav_msgs/Odometry and /tf",
     )
-    options.add_argument("--frame", default="odom", help="bag output: the parent frame (odom)")
     options.add_argument(
-        "--child-frame", default="base_link", help="bag output: the robot's frame (base_link)"
+        "--frames",
+        nargs=2,
+        default=BAG_FRAMES,
+        metavar=("PARENT", "CHILD"),
+        help="bag output: the parent frame and the robot's (default: odom base_link)",
     )
-    options.add_argument("--method", choices=METHODS, default="exact", help="default: exact")
     options.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     return options
 
+
+def add_method_option(parser) -> None:
+    """``--method``: how each interval is integrated."""
+    parser.add_argument("--method", choices=METHODS, default="exact", help="default: exact")
+
+
+def add_wheel_noise_option(parser, default: str) -> None:
+    """``--k K [K_RIGHT]``: the wheels' error constants (m), one for both or left and right."""
+    parser.add_argument(
+        "--k",
+        type=float,
+        nargs="+",
+        metavar=("K", "K_RIGHT"),
+        help=f"the wheels' error constant, m: one for both, or left and right ({default})",
+    )
+
+
+def wheel_pair(args: argparse.Namespace) -> tuple[float, float] | None:
+    """``--k``'s left and right, or None where not given; ``ValueError`` past two."""
+    if args.k is None:
+        return None
+    if len(args.k) > 2:
+        raise ValueError(f"--k takes one value (both wheels) or two (left, right), got {args.k}")
+    return args.k[0], args.k[-1]
+
+
+# The settings the flags give; the rest through --robot KEY=VALUE.
+ROBOT_FLAGS = ("wheel_radius", "track_width", "ticks_per_revolution")
+BAG_FRAMES = ("odom", "base_link")
 
 # The settings that fix a robot's geometry; ticks per revolution are the encoders', not it.
 GEOMETRY_KEYS = tuple(key for key in ROBOT_KEYS if key != "ticks_per_revolution")
 
 
 def robot_settings(args: argparse.Namespace) -> dict[str, float]:
-    """The robot file's settings with the flags over them."""
-    flags = {name: getattr(args, name) for name in ROBOT_KEYS if getattr(args, name) is not None}
-    from_file = read_robot(args.robot) if args.robot else {}
-    return overridden(from_file, flags, lambda key: "--" + key.replace("_", "-"))
+    """The robot's settings: its files (``--robot FILE``) each over the one before, then what
+    the command line gives (``--robot KEY=VALUE`` and the flags) over them all; two of those
+    that set the same length are refused."""
+    settings: dict[str, float] = {}
+    given: dict[str, float] = {}
+    for entry in args.robot or ():
+        if "=" in entry:
+            pairs = key_values("--robot", entry, ROBOT_KEYS)
+            given.update({key: number_of("--robot", key, text) for key, text in pairs.items()})
+        else:
+            settings = overridden(settings, read_robot(Path(entry)))
+    flags = {name for name in ROBOT_FLAGS if getattr(args, name, None) is not None}
+    given.update({name: getattr(args, name) for name in flags})
+
+    def named(key: str) -> str:
+        return "--" + key.replace("_", "-") if key in flags else f"--robot {key}"
+
+    return overridden(settings, given, named)
+
+
+def robot_files(args: argparse.Namespace) -> str:
+    """`` (in FILE, ...)`` of the robot files given, for a message; else nothing."""
+    files = [entry for entry in args.robot or () if "=" not in entry]
+    return f" (in {', '.join(files)})" if files else ""
 
 
 def robot_given(args: argparse.Namespace) -> bool:
@@ -205,7 +299,7 @@ def robot_from(args: argparse.Namespace) -> tuple[Robot, float | None]:
     ticks = checked_ticks(settings.pop("ticks_per_revolution", None))
     if not settings:
         return example_robot(), ticks
-    return robot_from_settings(settings, f" (in {args.robot})" if args.robot else ""), ticks
+    return robot_from_settings(settings, robot_files(args)), ticks
 
 
 OutputFormat = Literal["csv", "jsonl", "tum", "mcap", "ros2"]
@@ -244,15 +338,14 @@ def write_output(
                 twists,
                 twist_covariances,
                 format=format,
-                frame=args.frame,
-                child_frame=args.child_frame,
+                frame=args.frames[0],
+                child_frame=args.frames[1],
             )
         ]
     else:
-        frames = (getattr(args, "frame", "odom"), getattr(args, "child_frame", "base_link"))
-        if frames != ("odom", "base_link"):
+        if tuple(args.frames) != BAG_FRAMES:
             raise ValueError(
-                f"--frame and --child-frame name a bag's frames; a {format} file has none "
+                f"--frames names a bag's frames; a {format} file has none "
                 "(write .mcap, or --format ros2)"
             )
         written = write_trajectory(args.output, times, poses, format, columns)
@@ -270,12 +363,17 @@ def read_log_of(args: argparse.Namespace, path: Path | None = None) -> Run:
         path,
         args.time_unit,
         joint_topic=args.joint_topic,
-        left_joint=args.left_joint,
-        right_joint=args.right_joint,
+        left_joint=joints(args)[0],
+        right_joint=joints(args)[1],
         reference_topic=args.reference_topic,
         wheel_topic=args.wheel_topic,
         robot=robot_from(args)[0] if args.wheel_topic else None,
     )
+
+
+def joints(args: argparse.Namespace) -> tuple[str | None, str | None]:
+    """``--joints LEFT RIGHT``, or (None, None)."""
+    return (args.joints[0], args.joints[1]) if args.joints else (None, None)
 
 
 # The covariance's distinct entries, by their index in the row-major 3x3 matrix: the pose's
@@ -296,15 +394,17 @@ def matrix_columns(matrices: np.ndarray, names: dict[str, int]) -> dict[str, np.
     return {name: flat[:, index] for name, index in names.items()}
 
 
-def estimate_columns(args, covariances, twists, twist_covariances, covariance: bool) -> dict:
-    """A trajectory file's extra columns: with ``--twist`` the twist ``vx, vy, omega``; with
-    ``covariance`` the pose covariance's entries and, with ``--twist``, the twist's."""
+def estimate_columns(
+    covariances, twists, twist_covariances, *, twist: bool, covariance: bool = True
+) -> dict:
+    """A trajectory file's extra columns: with ``twist`` the twist ``vx, vy, omega``; with
+    ``covariance`` the pose covariance's entries and, with ``twist``, the twist's."""
     columns: dict[str, np.ndarray] = {}
-    if args.twist:
+    if twist:
         columns.update(vx=twists[:, 0], vy=twists[:, 1], omega=twists[:, 2])
     if covariance:
         columns.update(matrix_columns(covariances, COVARIANCE_COLUMNS))
-        if args.twist:
+        if twist:
             columns.update(matrix_columns(twist_covariances, TWIST_COVARIANCE_COLUMNS))
     return columns
 
@@ -312,41 +412,35 @@ def estimate_columns(args, covariances, twists, twist_covariances, covariance: b
 def wheel_noise(
     args: argparse.Namespace, robot: Robot | None = None, log=None, increments=None
 ) -> tuple[WheelNoise, str]:
-    """``--k-left`` and ``--k-right`` (m) as a ``WheelNoise`` and a report's line (with its
-    newline) on what was assumed, or nothing. A wheel not given is identified from the log's
-    ground truth where it has one (``log.truth``; ``noise.identify`` of ``increments`` against
-    it, the reference held at motion capture's accuracy), else the library's default
-    (``diffdrive.sensor_noise.DEFAULT``). Both 0 are refused for a bag: its
-    ``nav_msgs/Odometry`` would carry zero covariances, which a filter reads as exact
-    (robot_localization floors them to 1e-9 and holds the robot to them)."""
-    given = (args.k_left, args.k_right)
-    k_left = DEFAULT_WHEEL_NOISE.left if args.k_left is None else args.k_left
-    k_right = DEFAULT_WHEEL_NOISE.right if args.k_right is None else args.k_right
-    source = "a default where not given: --k-left, --k-right"
-    truth = None if log is None else log.truth
-    if None in given and truth is not None and robot is not None:
-        from diffdrive.calibration.noise import identify_wheel_noise
+    """``--k`` (m; one for both wheels, or left and right) as a ``WheelNoise`` and a report's
+    line (with its newline) on what was assumed, or nothing. Not given, the wheels' noise is
+    identified from the log's ground truth where it has one (``log.truth``;
+    ``noise.identify`` of ``increments`` against it, the reference held at motion capture's
+    accuracy), else the library's default (``diffdrive.sensor_noise.DEFAULT``). Both 0 are
+    refused for a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which a filter
+    reads as exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
+    given = wheel_pair(args)
+    if given is not None:
+        noise, line = WheelNoise(*given), ""
+    else:
+        noise, line = DEFAULT_WHEEL_NOISE, "a default where not given: --k K or --k LEFT RIGHT"
+        truth = None if log is None else log.truth
+        if truth is not None and robot is not None:
+            from diffdrive.calibration.noise import identify_wheel_noise
 
-        found, why = identify_wheel_noise(robot, increments, truth)
-        if found is None:
-            source = f"the default: {why}"
-        else:
-            source = f"{why}; --k-left, --k-right to give them"
-            k_left = found.left if args.k_left is None else k_left
-            k_right = found.right if args.k_right is None else k_right
-    noise = WheelNoise(k_left, k_right)
-    if k_left == 0.0 and k_right == 0.0 and output_format(args) in ("mcap", "ros2"):
+            found, why = identify_wheel_noise(robot, increments, truth)
+            noise, line = (
+                (DEFAULT_WHEEL_NOISE, f"the default: {why}")
+                if found is None
+                else (found, f"{why}; --k to give them")
+            )
+        line = f"\nwheel noise: k = {noise.left:.3g} m left, {noise.right:.3g} m right ({line})"
+    if noise.left == 0.0 and noise.right == 0.0 and output_format(args) in ("mcap", "ros2"):
         raise ValueError(
-            "--k-left 0 --k-right 0: the /odom messages would carry zero covariances, which ROS "
-            "filters read as exact; give the wheels' noise (k > 0, m)"
+            "--k 0: the /odom messages would carry zero covariances, which ROS filters read as "
+            "exact; give the wheels' noise (k > 0, m)"
         )
-    if all(k is not None for k in given):
-        return noise, ""
-    if any(k is not None for k in given):
-        source = (
-            f"the {'left' if args.k_left is not None else 'right'} as given, the other {source}"
-        )
-    return noise, f"\nwheel noise: k = {k_left:.3g} m left, {k_right:.3g} m right ({source})"
+    return noise, line
 
 
 def example_trajectory(robot: Robot, dt: float = 0.01, method: Method = "exact"):
@@ -475,3 +569,25 @@ def add_imu_options(group, topic: bool = True) -> None:
         metavar=("ROLL", "PITCH", "YAW"),
         help="the IMU's mounting in the body, degrees (default 0 0 0: z up)",
     )
+
+
+def within_gyro(log: Run, gyro, note: str) -> tuple[Run, str]:
+    """The log cut to the gyro's span (a bag's IMU may start a little after the wheels)."""
+    inside = (log.times >= gyro.times[0]) & (log.times <= gyro.times[-1])
+    if np.count_nonzero(inside) < 2:
+        raise TableError(f"{log.source}: the gyro does not cover the log's times")
+    if not inside.all():
+        log = log.rows(inside)
+        note += (
+            f"\nthe log is cut to [{log.times[0]:.3f}, {log.times[-1]:.3f}] s, where the gyro is"
+        )
+    return log, note
+
+
+def wheel_commands(args, robot, log: Run):
+    """The wheel velocities commanded over each interval ``(T, 2)`` (``read_commands``, held;
+    0 before the first), or None."""
+    from diffdrive.dynamics.response import held_commands
+
+    found = read_commands(args.input, robot, log, args.command_topic)
+    return None if found is None else held_commands(*found, log.times[:-1])

@@ -4,6 +4,7 @@ trackers driving robots along it."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -50,7 +51,7 @@ LIMIT_FLAGS = {
     "max_voltage": "V",
     "max_jerk": "m/s^3",
 }
-TRACKERS = ("ramsete", "ltv", "pure-pursuit", "mppi")
+TRACKERS = ("ramsete", "ltv", "pure-pursuit")
 
 
 def _plan_of(args: argparse.Namespace):
@@ -74,14 +75,11 @@ def _plan_of(args: argparse.Namespace):
     table = read_table(args.waypoints, ["x", "y"], ["theta"], increasing=None)
     columns = ["x", "y"] + (["theta"] if "theta" in table else [])
     waypoints = np.column_stack([table[name] for name in columns])
-    gains = [args.ks, args.kv, args.ka]
-    if any(g is not None for g in gains) and not all(g is not None for g in gains):
-        raise ValueError("--ks, --kv and --ka go together (V, V s/m, V s^2/m, as SysId gives them)")
     feedforward = None
-    if all(g is not None for g in gains):
+    if args.feedforward is not None:
         # SysId's gains are per m/s of the wheel's surface; the plan's wheels turn in rad/s.
         radius = 0.5 * (robot.left_wheel_radius + robot.right_wheel_radius)
-        feedforward = Feedforward(*gains).per_radian(radius)
+        feedforward = Feedforward(*args.feedforward).per_radian(radius)
     limits = PathLimits(
         **{name: getattr(args, name) for name in LIMIT_FLAGS}, feedforward=feedforward
     )
@@ -128,10 +126,8 @@ def run_plan(args: argparse.Namespace) -> int:
 
 def _tracker(args: argparse.Namespace, drive: DriveModel | None, obstacles: Obstacles | None):
     if args.tracker == "mppi":  # it rolls its samples out through the delay itself
-        if args.predict:
-            raise ValueError("--predict: mppi rolls its samples out through --delay and the lag")
         known = drive or DriveModel(time_constant=args.lag)
-        avoid = None if obstacles is None else Avoidance(obstacles, args.footprint or 0.0)
+        avoid = None if obstacles is None else Avoidance(obstacles, _footprint(args))
         return MPPI(
             dt=args.dt,
             drive=known,
@@ -139,8 +135,6 @@ def _tracker(args: argparse.Namespace, drive: DriveModel | None, obstacles: Obst
             avoid=avoid,
             sampling=MPPISampling(seed=args.seed),
         )
-    if obstacles is not None:
-        raise ValueError("--map: only --tracker mppi steers around obstacles")
     tracker = {"ramsete": Ramsete, "ltv": LTVUnicycle, "pure-pursuit": PurePursuit}[args.tracker]
     made = tracker(dt=args.dt) if args.tracker == "ltv" else tracker()
     if args.predict:
@@ -172,14 +166,27 @@ def _drive_of(args: argparse.Namespace) -> DriveModel | None:
 
 
 def _map_of(args: argparse.Namespace) -> Obstacles | None:
-    """``--map``'s obstacles, or None; it needs ``--footprint``."""
-    if args.map is None:
-        if args.footprint is not None:
-            raise ValueError("--footprint is the robot's radius among obstacles: give --map")
+    """``--obstacles``' map, or None (``follow``'s trackers have none)."""
+    obstacles = getattr(args, "obstacles", None)
+    if obstacles is None:
         return None
-    if args.footprint is None:
-        raise ValueError("--map needs --footprint, the robot's radius (m) for the obstacles")
-    return read_map(args.map)
+    _footprint(args)
+    return read_map(Path(obstacles[0]))
+
+
+def _footprint(args: argparse.Namespace) -> float:
+    """``--obstacles``' footprint: the robot's radius, m (finite, >= 0)."""
+    text = args.obstacles[1]
+    try:
+        radius = float(text)
+    except ValueError:
+        radius = math.nan
+    if not (math.isfinite(radius) and radius >= 0.0):
+        raise ValueError(
+            f"--obstacles {args.obstacles[0]} {text}: the footprint is the robot's radius, m "
+            "(finite, >= 0)"
+        )
+    return radius
 
 
 def _response(args: argparse.Namespace, drive: DriveModel | None) -> str:
@@ -197,8 +204,6 @@ def run_follow(args: argparse.Namespace) -> int:
         raise ValueError("--seed draws the wheel noise: give --wheel-noise too, or leave it out")
     if args.predict and not (args.delay or args.lag):
         raise ValueError("--predict predicts over the delay and lag: give --delay or --lag")
-    if args.nav2_mppi and args.tracker != "mppi":
-        raise ValueError("--nav2-mppi writes an mppi tracker's settings: give --tracker mppi")
     drive = _drive_of(args)
     obstacles = _map_of(args)
     robot, result = _plan_of(args)
@@ -222,7 +227,7 @@ def run_follow(args: argparse.Namespace) -> int:
         "heading_error": errors.heading[0],
     }
     write_poses(args, run.times, run.poses[0], "follow", columns)
-    if args.nav2_mppi:
+    if getattr(args, "nav2_mppi", None):
         from diffdrive.export.nav2_mppi import write_nav2_mppi
 
         write_nav2_mppi(args.nav2_mppi, tracker, robot, result.limits)
@@ -252,13 +257,13 @@ def run_follow(args: argparse.Namespace) -> int:
             if args.robots == 1:
                 break
         if obstacles is not None:
-            gaps = obstacles.clearance_at(run.poses[..., :2]) - args.footprint
+            gaps = obstacles.clearance_at(run.poses[..., :2]) - _footprint(args)
             touching = int(np.count_nonzero(gaps < 0.0))
             print(
-                f"  obstacles ({args.map}): closest {1e3 * float(gaps.min()):.0f} mm beyond the "
-                f"footprint; touching at {touching} of {gaps.size} poses"
+                f"  obstacles ({args.obstacles[0]}): closest {1e3 * float(gaps.min()):.0f} mm "
+                f"beyond the footprint; touching at {touching} of {gaps.size} poses"
             )
-        if args.nav2_mppi:
+        if getattr(args, "nav2_mppi", None):
             print(f"  Nav2 MPPI parameters: {args.nav2_mppi}")
         beyond = " beyond the known delay" if known else ""
         print(
@@ -272,7 +277,7 @@ EPILOGS = {
   diffdrive plan waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
       --max-wheel-velocity 20 -o plan.csv --plot plan.png
   diffdrive plan waypoints.csv --robot robot.toml --max-velocity 3 --max-acceleration 2 \\
-      --max-voltage 10 --ks 1.34 --kv 3.13 --ka 0.926 -o plan.csv
+      --max-voltage 10 --feedforward 1.34 3.13 0.926 -o plan.csv
 
 waypoints.csv has columns x, y (m) and optionally theta (rad, the robot's heading); two rows at
 one place with different headings make a turn in place. Written: t, x, y, theta, v, omega and
@@ -284,7 +289,14 @@ written rows use.""",
   diffdrive follow waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
       --robots 200 --wheel-noise 1e-4 --seed 1 -o follow.csv
 
-Written: robot 0's true poses with its cross-track, along-track and heading errors.""",
+Written: robot 0's true poses with its cross-track, along-track and heading errors. Around
+obstacles: diffdrive mppi.""",
+    "mppi": """examples:
+  diffdrive mppi waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
+      --delay 0.1 --lag 0.1 --obstacles map.yaml 0.2 --nav2-mppi mppi.yaml --plot mppi.png
+
+It rolls its samples out through the delay and the lag itself. Written: robot 0's true poses
+with its cross-track, along-track and heading errors.""",
 }
 
 
@@ -302,12 +314,12 @@ def _planning_options(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("waypoints", type=Path, help="CSV of waypoints: x, y[, theta]")
     for name, unit in LIMIT_FLAGS.items():
         sub.add_argument("--" + name.replace("_", "-"), type=float, metavar=unit.upper())
-    sub.add_argument("--ks", type=float, metavar="V", help="wheel feedforward kS (SysId's)")
     sub.add_argument(
-        "--kv", type=float, metavar="V_S/M", help="wheel feedforward kV per m/s (SysId's)"
-    )
-    sub.add_argument(
-        "--ka", type=float, metavar="V_S2/M", help="wheel feedforward kA per m/s^2 (SysId's)"
+        "--feedforward",
+        type=float,
+        nargs=3,
+        metavar=("KS", "KV", "KA"),
+        help="the wheels' feedforward as SysId gives it: V, V s/m, V s^2/m (with --max-voltage)",
     )
     sub.add_argument("--reverse", action="store_true", help="drive the path backward")
     sub.add_argument(
@@ -332,38 +344,54 @@ def add_to(command: Command, parents: Parents) -> None:
     _planning_options(planned)
     followed = command(
         "follow",
-        "simulate a tracker driving robots along a plan, with delay, lag and noisy odometry",
+        "simulate a tracker (Ramsete, LTV, pure pursuit) driving robots along a plan, with "
+        "delay, lag and noisy odometry",
         [parents.robot_required, output_options("follow.csv")],
         run_follow,
         EPILOGS["follow"],
     )
     _planning_options(followed)
     followed.add_argument("--tracker", choices=TRACKERS, default="ramsete")
-    followed.add_argument("--delay", type=float, default=0.0, help="actuation delay, s (0)")
-    followed.add_argument("--lag", type=float, default=0.0, help="wheels' time constant, s (0)")
-    followed.add_argument(
+    _run_options(followed)
+    followed.add_argument("--predict", action="store_true", help="predict over the delay and lag")
+    followed.add_argument("--seed", type=int, help="for the wheel noise")
+    sampled = command(
+        "mppi",
+        "simulate sampling-based predictive control (MPPI) driving robots along a plan, "
+        "around a map's obstacles, with delay, lag and noisy odometry",
+        [parents.robot_required, output_options("mppi.csv")],
+        run_follow,
+        EPILOGS["mppi"],
+    )
+    sampled.set_defaults(tracker="mppi", predict=False)
+    _planning_options(sampled)
+    _run_options(sampled)
+    sampled.add_argument("--seed", type=int, help="for the wheel noise and the sampling")
+    sampled.add_argument(
+        "--obstacles",
+        nargs=2,
+        metavar=("MAP_YAML", "FOOTPRINT"),
+        help="a ROS map's map.yaml (map_server, Nav2's map_saver) and the robot's radius "
+        "among its obstacles, m",
+    )
+    sampled.add_argument(
+        "--nav2-mppi",
+        type=Path,
+        metavar="FILE",
+        help="also write the controller's settings as Nav2 MPPI controller parameters (YAML)",
+    )
+
+
+def _run_options(sub: argparse.ArgumentParser) -> None:
+    """What the simulated robots are: their wheels' delay and response, how many, their noise."""
+    sub.add_argument("--delay", type=float, default=0.0, help="actuation delay, s (0)")
+    sub.add_argument("--lag", type=float, default=0.0, help="wheels' time constant, s (0)")
+    sub.add_argument(
         "--drive",
         type=Path,
         metavar="FILE",
         help="the wheels' identified response instead of --lag: a drive file's [response] "
         "(diffdrive identify writes it): delay, time constant, gain, acceleration limit",
     )
-    followed.add_argument("--predict", action="store_true", help="predict over the delay and lag")
-    followed.add_argument("--robots", type=int, default=1, help="robots in the batch (1)")
-    followed.add_argument("--wheel-noise", type=float, default=0.0, metavar="M", help="k, m (0)")
-    followed.add_argument("--seed", type=int, help="for the wheel noise and mppi's sampling")
-    followed.add_argument(
-        "--map",
-        type=Path,
-        metavar="MAP_YAML",
-        help="obstacles for --tracker mppi: a ROS map's map.yaml (map_server, Nav2's map_saver)",
-    )
-    followed.add_argument(
-        "--footprint", type=float, metavar="M", help="the robot's radius among --map's obstacles"
-    )
-    followed.add_argument(
-        "--nav2-mppi",
-        type=Path,
-        metavar="FILE",
-        help="also write --tracker mppi's settings as Nav2 MPPI controller parameters (YAML)",
-    )
+    sub.add_argument("--robots", type=int, default=1, help="robots in the batch (1)")
+    sub.add_argument("--wheel-noise", type=float, default=0.0, metavar="M", help="k, m (0)")

@@ -11,6 +11,7 @@ from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
     Parents,
+    add_method_option,
     example_trajectory,
     output_format,
     output_options,
@@ -46,7 +47,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         raise ValueError(
             f"simulate writes {args.input} as an exact trajectory, and a bag's nav_msgs/Odometry "
             "would carry zero covariances; diffdrive odometry writes a log's odometry to a bag "
-            "with its covariances (--k-left, --k-right)"
+            "with its covariances (--k)"
         )
     log = read_log_of(args)
     increments, note = log.checked_increments(robot, ticks, args.counter_bits)
@@ -78,6 +79,7 @@ def add_to(command: Command, parents: Parents) -> None:
         EPILOGS["simulate"],
     )
     sim.add_argument("input", nargs="?", type=Path, help="driving history or log; none: built-in")
+    add_method_option(sim)
     sim.add_argument(
         "--dt", type=float, default=DT, help=f"step for the built-in history, s (default {DT})"
     )

@@ -13,12 +13,16 @@ from diffdrive import sensors
 from diffdrive.cli.options import (
     Command,
     Parents,
+    add_encoder_options,
     add_imu_options,
+    add_wheel_noise_option,
     example_trajectory,
+    key_values,
+    number_of,
     refuse_unused,
     robot_from,
+    wheel_pair,
 )
-from diffdrive.encoders import MAX_COUNTER_BITS, MIN_COUNTER_BITS
 from diffdrive.estimation.gyro import rotation_from_rpy
 from diffdrive.io import read_trajectory
 from diffdrive.sensor_noise import GyroNoise, WheelNoise
@@ -106,7 +110,7 @@ def _encoder_model(args: argparse.Namespace, ticks: float | None) -> sensors.Enc
         signed=not args.unsigned,
         radius_bias=tuple(args.radius_bias),
         track_bias=args.track_bias,
-        wheel_noise=WheelNoise(args.k_left, args.k_right),
+        wheel_noise=WheelNoise(*(wheel_pair(args) or (0.0, 0.0))),
         slips=slips,
         jitter=args.jitter,
         latency=args.latency,
@@ -114,37 +118,57 @@ def _encoder_model(args: argparse.Namespace, ticks: float | None) -> sensors.Enc
     )
 
 
+# --gyro's settings: (how GyroModel or GyroNoise names it, unit).
+GYRO_KEYS = {
+    "bias": ("bias", "rad/s"),
+    "scale": ("scale", "relative"),
+    "arw": ("angle_random_walk", "rad/s/sqrt(Hz)"),
+    "rrw": ("rate_random_walk", "rad/s^2/sqrt(Hz)"),
+    "instability": ("bias_instability", "rad/s"),
+}
+# --pose's settings: AbsoluteModel's, beside --pose-sigma.
+POSE_KEYS = {
+    "period": "s between poses (default: each sample)",
+    "latency": "s until a pose arrives",
+    "dropout": "probability one is lost",
+    "outlier": "probability of an outlier",
+}
+
+
+def _specs(flag: str, entries: list[str] | None, keys) -> dict[str, float]:
+    """Every ``KEY=VALUE`` of ``flag``'s ``entries`` as numbers, the later winning."""
+    values: dict[str, float] = {}
+    for entry in entries or ():
+        given = key_values(flag, entry, keys)
+        values.update({key: number_of(flag, key, text) for key, text in given.items()})
+    return values
+
+
 def _gyro_model(args: argparse.Namespace) -> sensors.GyroModel:
+    given = {
+        GYRO_KEYS[key][0]: value for key, value in _specs("--gyro", args.gyro, GYRO_KEYS).items()
+    }
     return sensors.GyroModel(
-        bias=args.gyro_bias,
-        scale=args.gyro_scale,
-        noise=GyroNoise(
-            angle_random_walk=args.gyro_arw,
-            rate_random_walk=args.gyro_rrw,
-            bias_instability=args.gyro_instability,
-        ),
+        bias=given.pop("bias", 0.0),
+        scale=given.pop("scale", 0.0),
+        noise=GyroNoise(**given),
         mounting=rotation_from_rpy(*(math.radians(a) for a in args.imu_rpy)),
     )
 
 
 def _absolute(args, robot, times, poses):
     """A pose sensor's readings (or a GPS's, with --gps), or None without --pose-sigma."""
+    shaping = _specs("--pose", args.pose, POSE_KEYS)
     if args.pose_sigma is None and args.gps is None:
-        shaping = {
-            "--pose-period": args.pose_period is not None,
-            "--pose-latency": args.pose_latency != 0.0,
-            "--pose-dropout": args.pose_dropout != 0.0,
-            "--pose-outlier": args.pose_outlier != 0.0,
-        }
-        refuse_unused(shaping, "used only with a pose or GPS sensor (--pose-sigma or --gps)")
+        refuse_unused({"--pose": bool(shaping)}, "a pose or GPS sensor's (--pose-sigma or --gps)")
         return None
     sigma = tuple(args.pose_sigma or (0.0, 0.0, 0.0))
     model = sensors.AbsoluteModel(
         sigma=sigma,
-        period=args.pose_period,
-        latency=args.pose_latency,
-        dropout=args.pose_dropout,
-        outlier=args.pose_outlier,
+        period=shaping.get("period"),
+        latency=shaping.get("latency", 0.0),
+        dropout=shaping.get("dropout", 0.0),
+        outlier=shaping.get("outlier", 0.0),
         position_only=args.gps is not None,
     )
     seed = None if args.seed is None else args.seed + 2
@@ -155,7 +179,7 @@ EPILOGS = {
     "synth": """examples:
   diffdrive synth -o run.mcap                    the built-in path: joints, IMU, commands
   diffdrive synth path.csv --robot robot.toml --ticks-per-revolution 4096 --counter-bits 16 \\
-      --k-left 1e-5 --k-right 1e-5 --slip 6 6.4 left 0.5 --gyro-arw 2e-3 --seed 1 -o run.mcap
+      --k 1e-5 --slip 6 6.4 left 0.5 --gyro arw=2e-3,bias=0.01 --seed 1 -o run.mcap
   diffdrive synth --ticks-per-revolution 4096 -o run.csv    a wheel log odometry reads
 
 Every error source defaults to none (an ideal sensor); --seed makes the run repeatable. A bag
@@ -183,12 +207,7 @@ def add_to(command: Command, parents: Parents) -> None:
     synth.add_argument("--time-offset", type=float, help="s added to a bag's times")
     synth.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     encoder = synth.add_argument_group("encoders")
-    encoder.add_argument(
-        "--counter-bits",
-        type=int,
-        metavar="B",
-        help=f"counter width, {MIN_COUNTER_BITS}-{MAX_COUNTER_BITS} (default: no roll-over)",
-    )
+    add_encoder_options(encoder)
     encoder.add_argument("--unsigned", action="store_true", help="an unsigned counter")
     encoder.add_argument(
         "--radius-bias",
@@ -199,8 +218,7 @@ def add_to(command: Command, parents: Parents) -> None:
         help="relative radius errors",
     )
     encoder.add_argument("--track-bias", type=float, default=0.0, help="relative track error")
-    encoder.add_argument("--k-left", type=float, default=0.0, help="wheel noise, m (Odometry's)")
-    encoder.add_argument("--k-right", type=float, default=0.0, help="wheel noise, m")
+    add_wheel_noise_option(encoder, "Odometry's; default 0")
     encoder.add_argument(
         "--slip",
         nargs=4,
@@ -212,18 +230,28 @@ def add_to(command: Command, parents: Parents) -> None:
     encoder.add_argument("--latency", type=float, default=0.0, help="encoder latency, s")
     encoder.add_argument("--drop", type=float, default=0.0, help="probability a row is lost")
     gyro = synth.add_argument_group("gyro (rad/s)")
-    gyro.add_argument("--gyro-bias", type=float, default=0.0)
-    gyro.add_argument("--gyro-instability", type=float, default=0.0, help="bias instability")
-    gyro.add_argument("--gyro-arw", type=float, default=0.0, help="angle random walk")
-    gyro.add_argument("--gyro-rrw", type=float, default=0.0, help="rate random walk")
-    gyro.add_argument("--gyro-scale", type=float, default=0.0, help="relative scale error")
+    gyro.add_argument(
+        "--gyro",
+        action="append",
+        metavar="KEY=VALUE,...",
+        help="its errors, each 0 unless given: "
+        + ", ".join(f"{key} ({unit})" for key, (_, unit) in GYRO_KEYS.items()),
+    )
     add_imu_options(gyro, topic=False)
     pose = synth.add_argument_group("a pose sensor (or a GPS) in the bag")
-    pose.add_argument("--pose-sigma", type=float, nargs=3, metavar=("X", "Y", "THETA"))
-    pose.add_argument("--pose-period", type=float, help="s between poses (default: each sample)")
-    pose.add_argument("--pose-latency", type=float, default=0.0, help="s until a pose arrives")
-    pose.add_argument("--pose-dropout", type=float, default=0.0, help="probability one is lost")
-    pose.add_argument("--pose-outlier", type=float, default=0.0, help="probability of an outlier")
+    pose.add_argument(
+        "--pose-sigma",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "THETA"),
+        help="its standard deviations, m, m, rad: a pose sensor in the bag (/pose)",
+    )
+    pose.add_argument(
+        "--pose",
+        action="append",
+        metavar="KEY=VALUE,...",
+        help="its timing and faults: " + "; ".join(f"{k}, {h}" for k, h in POSE_KEYS.items()),
+    )
     pose.add_argument(
         "--gps",
         type=float,

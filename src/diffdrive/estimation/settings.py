@@ -36,8 +36,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -51,6 +52,7 @@ from diffdrive.sensor_noise import DEFAULT, DEFAULT_GYRO, GyroNoise, WheelNoise
 
 __all__ = [
     "OUTLIERS",
+    "PARTS",
     "SLIP_THRESHOLD",
     "Encoders",
     "EstimatorSettings",
@@ -254,20 +256,9 @@ class EstimatorSettings:
         object.__setattr__(self, "wheel_noise", noise)
         if self.bias is not None:
             object.__setattr__(self, "bias", finite("EstimatorSettings.bias", self.bias))
-        parts: tuple[tuple[str, type, bool], ...] = (
-            ("gyro_noise", GyroNoise, True),
-            ("turn_scale", Prior, False),
-            ("distance_scale", Prior, True),
-            ("fix_offset", FixOffset, True),
-            ("gate", Gate, True),
-            ("slip", SlipTest, False),
-            ("window", Window, False),
-            ("encoders", Encoders, False),
-            ("whole_log", WholeLog, False),
-        )
-        for name, kind, optional in parts:
+        for name, (kind, optional) in PARTS.items():
             value = getattr(self, name)
-            if not (optional and value is None):
+            if name != "wheel_noise" and not (optional and value is None):
                 _kind("EstimatorSettings", name, value, kind)
         check_method(self.method)
         if self.mounting is not None:
@@ -306,3 +297,42 @@ class EstimatorSettings:
     def replace(self, **changes: object) -> EstimatorSettings:
         """A copy with ``changes`` (parts by name), checked again."""
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+    def changed(self, changes: Mapping[str, object]) -> EstimatorSettings:
+        """A copy with ``changes`` by name, as a settings file or the command line gives them:
+        a part (``"bias"``, ``"heading"``) or one field of a part (``"gate.probability"``; a
+        part that is None starts from its own defaults). ``ValueError`` names an unknown one;
+        each part checks its values as ever."""
+        parts: dict[str, object] = {}
+        known = [item.name for item in dataclasses.fields(self)]
+        for key, value in changes.items():
+            name, dot, inner = key.partition(".")
+            if name not in known:
+                raise ValueError(f"unknown setting {key!r}; the parts: {', '.join(known)}")
+            if not dot:
+                parts[name] = value
+                continue
+            if name not in PARTS:
+                raise ValueError(f"setting {key!r}: {name} is one value, with no fields")
+            kind = PARTS[name][0]
+            fields = [item.name for item in dataclasses.fields(kind)]
+            if inner not in fields:
+                raise ValueError(f"unknown setting {key!r}; {name}'s fields: {', '.join(fields)}")
+            current: Any = parts.get(name, getattr(self, name)) or kind()
+            parts[name] = dataclasses.replace(current, **{inner: value})
+        return dataclasses.replace(self, **parts)  # type: ignore[arg-type]
+
+
+# The parts that are values of their own, and whether each may be None.
+PARTS: dict[str, tuple[type, bool]] = {
+    "wheel_noise": (WheelNoise, False),
+    "gyro_noise": (GyroNoise, True),
+    "turn_scale": (Prior, False),
+    "distance_scale": (Prior, True),
+    "fix_offset": (FixOffset, True),
+    "gate": (Gate, True),
+    "slip": (SlipTest, False),
+    "window": (Window, False),
+    "encoders": (Encoders, False),
+    "whole_log": (WholeLog, False),
+}

@@ -1,5 +1,5 @@
 """Drive files: what ``diffdrive identify`` found of how a drive answers (TOML), for
-``diffdrive export --to wpilib`` and for a reader.
+``diffdrive export wpilib`` and for a reader.
 
 Sections (each optional, at least one):
 

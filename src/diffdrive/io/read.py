@@ -59,7 +59,7 @@ def read_run(
         # What the bag has first: its JointState topic (ros names a missing one), then names.
         joints = ", ".join(ros.joint_names(path, joint_topic)) or "none"
         raise TableError(
-            f"{path}: give the wheel joints by name: --left-joint NAME --right-joint NAME "
+            f"{path}: give the wheel joints by name: --joints LEFT RIGHT "
             f"(the joints on {joint_topic}: {joints})"
         )
     run = ros.read_joint_states(path, left_joint, right_joint, joint_topic)

@@ -46,13 +46,26 @@ def read_robot(path: str | Path) -> dict[str, float]:
     return {key: toml_number(path, key, value) for key, value in settings.items()}
 
 
-def load_toml(path: Path, what: str) -> dict[str, Any]:
-    """The TOML document at ``path`` (``what`` names the kind of file in messages);
-    ``TableError`` names the file and what is wrong with it."""
+def toml_value(text: str) -> object:
+    """``text`` as TOML reads a value (a number, true, a "string", an array), else the text."""
+    try:
+        return _tomllib().loads(f"v = {text}")["v"]
+    except _tomllib().TOMLDecodeError:
+        return text
+
+
+def _tomllib():
     if sys.version_info >= (3, 11):
         import tomllib
     else:
         import tomli as tomllib
+    return tomllib
+
+
+def load_toml(path: Path, what: str) -> dict[str, Any]:
+    """The TOML document at ``path`` (``what`` names the kind of file in messages);
+    ``TableError`` names the file and what is wrong with it."""
+    tomllib = _tomllib()
     try:
         with path.open("rb") as handle:
             return tomllib.load(handle)

@@ -1,5 +1,5 @@
-"""``diffdrive odometry`` with absolute measurements or a smoother: the log through
-``estimate_trajectory``.
+"""``diffdrive estimate``: the pose estimator over a log (``estimate_trajectory``), its wheels
+and gyro with absolute measurements, filtered or smoothed.
 
 Measurements come from a bag's pose topic (``PoseWithCovarianceStamped`` or ``Odometry``: a
 camera, a localiser), its GPS topic (``NavSatFix``, in the local east-north frame at its first
@@ -17,37 +17,46 @@ span are left out, and said so.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
+from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
 from diffdrive.backends.settings import OFFSET
-from diffdrive.cli.options import estimate_columns, refuse_unused, wheel_noise, write_output
+from diffdrive.cli.options import (
+    LOG_COLUMNS,
+    Command,
+    Parents,
+    add_datum_option,
+    add_imu_options,
+    add_wheel_noise_option,
+    estimate_columns,
+    gyro_of,
+    key_values,
+    output_options,
+    read_log_of,
+    refuse_unused,
+    robot_from,
+    robot_note,
+    wheel_commands,
+    wheel_noise,
+    within_gyro,
+    write_output,
+)
 from diffdrive.cli.report import error_summary
 from diffdrive.estimation import Measurement, estimate_trajectory
-from diffdrive.estimation.fixes import IDENTIFIED_GATE, LEAST_FIXES
+from diffdrive.estimation.fixes import LEAST_FIXES
 from diffdrive.estimation.measurements import start_in_frame
-from diffdrive.estimation.settings import EstimatorSettings, Gate, Prior, WholeLog
-from diffdrive.io import Run, TableError, is_bag
-from diffdrive.model import Robot
+from diffdrive.estimation.settings import PARTS, EstimatorSettings, WholeLog
+from diffdrive.io import RIM_SPEED_LIMIT, TableError, is_bag
+from diffdrive.io.robots import load_toml, toml_value
 from diffdrive.sensor_noise import WheelNoise
 
-GATE_HELP = (
-    "chi-square gate: refuse a measurement outside this probability (default "
-    f"{Gate().probability:g}; with identified fixes 1 - {1 - IDENTIFIED_GATE:.0e}, a fix past it "
-    "inflated, not refused)"
-)
 
-
-def wants_fusion(args) -> bool:
-    """Whether the command runs the estimator with measurements or a smoother."""
-    return bool(args.pose_topic or args.gps_topic or args.measurements or args.smooth) or bool(
-        args.turn_scale_sigma
-    )
-
-
-def refuse_idle_options(args) -> None:
+def _refuse_idle_options(args) -> None:
     """The measurement options, given without any measurements."""
     refuse_idle_datum(args)
     if args.pose_topic or args.gps_topic or args.measurements:
@@ -57,7 +66,6 @@ def refuse_idle_options(args) -> None:
             "--pose-sigma": args.pose_sigma is not None,
             "--gps-sigma": args.gps_sigma is not None,
             "--lever-arm": args.lever_arm is not None,
-            "--gate": args.gate is not None,
             "--fixes": args.fixes is not None,
         },
         "used only with absolute measurements (--pose-topic, --gps-topic or --measurements)",
@@ -176,31 +184,81 @@ def _table_measurements(args) -> list[Measurement]:
 
 
 def estimator_settings(
-    args: argparse.Namespace, noise: WheelNoise, fixes: str, with_gyro: bool
+    noise: WheelNoise,
+    fixes: Literal["given", "identified"],
+    with_gyro: bool,
+    changes: dict[str, object],
 ) -> EstimatorSettings:
-    """The one ``EstimatorSettings`` the options ask for: the wheels' ``noise``
-    (``options.wheel_noise``), what the ``fixes`` are worth, and each option given (the
-    heading from the wheels where there is no gyro); the library's default for every part not
-    given. A ``--gate`` beside identified fixes keeps their inflated outliers."""
-    whole: dict = {"fixes": fixes}
-    if args.slip_test is not None:
-        whole["slip_episodes"] = args.slip_test == "episodes"
-    parts: dict = {"wheel_noise": noise, "method": args.method, "whole_log": WholeLog(**whole)}
-    if args.heading is not None or not with_gyro:
-        parts["heading"] = args.heading or "wheels"
-    if args.gyro_bias is not None:
-        parts["bias"] = args.gyro_bias
-    if getattr(args, "turn_scale_sigma", None):
-        parts["turn_scale"] = Prior(sigma=args.turn_scale_sigma)
-    if getattr(args, "gate", None) is not None:
-        parts["gate"] = Gate(args.gate, "inflate" if fixes == "identified" else "refuse")
-    return EstimatorSettings(**parts)
+    """The one ``EstimatorSettings`` a command asks for: the wheels' ``noise``
+    (``options.wheel_noise``), what the ``fixes`` are worth, then its ``changes`` by name
+    (``EstimatorSettings.changed``: ``--settings``, or ``odometry``'s gyro flags); the heading
+    from the wheels where there is no gyro, and the library's default for every part not
+    given. A gate given beside identified fixes keeps their inflated outliers."""
+    if "whole_log.fixes" in changes:
+        raise ValueError("--settings whole_log.fixes: give --fixes given|identified")
+    base = EstimatorSettings(wheel_noise=noise, whole_log=WholeLog(fixes=fixes))
+    if not with_gyro:
+        base = base.replace(heading="wheels")
+    wanted = dict(changes)
+    if "gate.probability" in wanted and "gate.outliers" not in wanted:
+        wanted["gate.outliers"] = "inflate" if fixes == "identified" else "refuse"
+    return base.changed(wanted)
 
 
-def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, commanded=None) -> int:
+def settings_changes(entries: list[str] | None) -> dict[str, object]:
+    """``--settings``: each a settings file (TOML: a part's fields in a table named after it)
+    or ``KEY=VALUE`` pairs (``gate.probability=0.99,heading=gyro``), the later winning; the
+    values as TOML reads them, a bare word as text. Checked by ``EstimatorSettings.changed``."""
+    changes: dict[str, object] = {}
+    for entry in entries or ():
+        if "=" in entry:
+            given = key_values("--settings", entry, _SETTING_KEYS)
+            changes.update({key: toml_value(text) for key, text in given.items()})
+            continue
+        path = Path(entry)
+        for key, value in load_toml(path, "an estimator settings file").items():
+            inner = value.items() if isinstance(value, dict) else [("", value)]
+            changes.update({f"{key}.{name}" if name else key: item for name, item in inner})
+        try:
+            EstimatorSettings().changed(changes)
+        except (ValueError, TypeError) as exc:
+            raise TableError(f"{path}: {exc}") from None
+    return changes
+
+
+# Every name --settings may set: the parts and their fields, checked again by changed().
+_SETTING_KEYS = frozenset(
+    [item.name for item in dataclasses.fields(EstimatorSettings)]
+    + [
+        f"{part.name}.{inner.name}"
+        for part in dataclasses.fields(EstimatorSettings)
+        if part.name in PARTS
+        for inner in dataclasses.fields(PARTS[part.name][0])
+    ]
+)
+
+
+def run_estimate(args: argparse.Namespace) -> int:
     """The estimator over the log with the measurements, filtered or smoothed; the poses,
-    covariance and the filter's own columns written. ``commanded``: the wheel velocities
-    commanded over each interval ``(T-1, 2)`` rad/s, for the slip flags, or None."""
+    covariance, twist and the filter's own columns written."""
+    _refuse_idle_options(args)
+    changes = settings_changes(args.settings)
+    robot, ticks = robot_from(args)
+    log = read_log_of(args)
+    ticks = ticks or log.ticks_per_revolution
+    _, note = log.checked_increments(robot, ticks, args.counter_bits, args.max_wheel_speed)
+    note += robot_note(args)
+    gyro = gyro_of(args, log)
+    commanded = None
+    if gyro is None:
+        refuse_unused(
+            {"--command-topic": args.command_topic is not None},
+            "used only with a gyro (--gyro-topic, or a gyro_z column)",
+        )
+    else:
+        log, note = within_gyro(log, gyro, note)
+        commanded = wheel_commands(args, robot, log)
+    increments = log.increments(ticks, args.counter_bits)
     measurements, notes, uncovered = measurements_of_args(args)
     inside = [m for m in measurements if log.times[0] <= m.t <= log.times[-1]]
     if measurements and not inside:
@@ -214,22 +272,37 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         )
     if len(inside) < len(measurements):
         notes.append(f"{len(measurements) - len(inside)} measurements outside the log left out")
-    if args.heading not in (None, "wheels") and gyro is None:
-        raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
+    if changes.get("heading", "wheels") != "wheels" and gyro is None:
+        raise ValueError(
+            f"--settings heading={changes['heading']} needs a gyro: --gyro-topic, or a gyro_z "
+            "column"
+        )
     noise, assumed = wheel_noise(args, robot, log, increments)
     note += assumed
     # A receiver's fixes (--gps-topic) report its whole error: identified by default, given
     # enough of them; a covariance the user wrote (a table's sigmas) is taken as given.
     positions = sum(m.kind == "position" for m in inside)
-    default = "identified" if args.gps_topic and positions >= LEAST_FIXES else "given"
-    fixes = args.fixes or default
+    default: Literal["given", "identified"] = (
+        "identified" if args.gps_topic and positions >= LEAST_FIXES else "given"
+    )
+    fixes: Literal["given", "identified"] = args.fixes or default
     if fixes == "given" and uncovered:  # too few to identify their noise from
         raise TableError(
             f"{uncovered} of the fixes from {args.gps_topic} have no covariance, and {positions} "
             f"fixes are too few to identify their noise from (at least {LEAST_FIXES}): give "
             "--gps-sigma M"
         )
-    settings = estimator_settings(args, noise, fixes, gyro is not None)
+    settings = estimator_settings(noise, fixes, gyro is not None, changes)
+    if settings.turn_scale.estimated and gyro is None and not inside:
+        raise ValueError(
+            "--settings turn_scale: the turn scale learns from a gyro or absolute measurements, "
+            "and this run has neither"
+        )
+    if not inside:
+        refuse_unused(
+            {"--settings gate": any(key.startswith("gate.") for key in changes)},
+            "used only with absolute measurements (--pose-topic, --gps-topic or --measurements)",
+        )
     heading = settings.heading
     common = dict(gyro=gyro, commanded=commanded)
     start: np.ndarray | None = log.start_pose()
@@ -257,7 +330,7 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         **common,
     )
     twists, twist_covariances = result.twists, result.twist_covariances
-    columns = estimate_columns(args, result.covariances, twists, twist_covariances, True)
+    columns = estimate_columns(result.covariances, twists, twist_covariances, twist=True)
     if heading != "wheels":
         columns.update(slip=result.slip.astype(float), gyro_bias=result.states[:, 3])
     if settings.turn_scale.estimated:
@@ -272,8 +345,8 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
     )
     if result.rejected and result.rejected > 0.5 * max(1, len(inside)):
         print(
-            f"diffdrive odometry: warning: the gate refused {result.rejected} of {len(inside)} "
-            "measurements: the wheels' noise (--k-left, --k-right) or the measurements' "
+            f"diffdrive estimate: warning: the gate refused {result.rejected} of {len(inside)} "
+            "measurements: the wheels' noise (--k) or the measurements' "
             "covariance is likely too small, or the frames disagree",
             file=sys.stderr,
         )
@@ -298,3 +371,104 @@ def run_fusion(args, robot: Robot, log: Run, increments, gyro, note: str, comman
         if log.truth is not None:
             print(error_summary(result.poses, log.truth))
     return 0
+
+
+EPILOG = f"""examples:
+  diffdrive estimate run.mcap --joints left_wheel_joint right_wheel_joint \\
+      --gyro-topic /imu/data --pose-topic /pose --smooth -o estimate.csv
+  diffdrive estimate husky.bag --wheel-topic /husky_velocity_controller/odom \\
+      --gyro-topic /imu/data --gps-topic /navsat/fix --robot husky.toml -o estimate.mcap
+  diffdrive estimate log.csv --measurements fixes.csv --settings gate.probability=0.99
+
+{LOG_COLUMNS}
+Written: the poses with the covariance and the twist (columns vx, vy, omega and theirs), with
+a gyro its bias and slip flags, with identified fixes their offset.
+
+--settings sets any part of the estimator (diffdrive.estimation.EstimatorSettings) by name:
+a part (heading=gyro, bias=0.002, method=rk2) or a part's field (gate.probability=0.99,
+gate.outliers=inflate, turn_scale.sigma=0.05, fix_offset.rate=0.01, slip.threshold=20,
+whole_log.slip_episodes=false), or a TOML file of them, a part's fields in a table of its
+name ([gate] probability = 0.99). What is not given keeps the library's default; --fixes says
+what the fixes are worth (identified from 10 or more --gps-topic fixes by default; a gate
+beside identified fixes inflates its outliers)."""
+
+
+def add_to(command: Command, parents: Parents) -> None:
+    """The options of ``diffdrive estimate``."""
+    est = command(
+        "estimate",
+        "the pose estimator over a log: wheels, a gyro and absolute measurements, filtered "
+        "or smoothed",
+        [parents.robot, parents.logs, output_options("estimate.csv")],
+        run_estimate,
+        EPILOG,
+    )
+    est.add_argument("input", nargs="?", type=Path, help="the log; none: built-in")
+    est.add_argument(
+        "--max-wheel-speed",
+        type=float,
+        metavar="RAD_S",
+        help="refuse a row whose wheel turns faster (rad/s); default: a rim speed of "
+        f"{RIM_SPEED_LIMIT:g} m/s",
+    )
+    add_wheel_noise_option(est, "default 1e-4, or identified from ground truth; said when used")
+    gyro = est.add_argument_group("a gyro: a bag's IMU topic or a gyro_z column (rad/s)")
+    add_imu_options(gyro)
+    gyro.add_argument(
+        "--command-topic",
+        metavar="TOPIC",
+        help="geometry_msgs/Twist commands of the bag, to flag wheels that spin beyond them "
+        "(or left_command, right_command columns)",
+    )
+    fused = est.add_argument_group("absolute measurements")
+    fused.add_argument(
+        "--pose-topic", metavar="TOPIC", help="PoseWithCovarianceStamped or Odometry topic"
+    )
+    fused.add_argument("--gps-topic", metavar="TOPIC", help="NavSatFix topic of the bag")
+    add_datum_option(fused)
+    fused.add_argument(
+        "--measurements",
+        type=Path,
+        metavar="FILE",
+        help="a table t, x, y[, theta][, sigma_x, sigma_y[, sigma_theta]]: poses with theta, "
+        "else positions",
+    )
+    fused.add_argument(
+        "--pose-sigma",
+        type=float,
+        nargs=3,
+        metavar=("SX", "SY", "STHETA"),
+        help="standard deviations (m, m, rad) of poses that come without a covariance",
+    )
+    fused.add_argument(
+        "--gps-sigma",
+        type=float,
+        metavar="M",
+        help="standard deviation (m) of positions that come without a covariance",
+    )
+    fused.add_argument(
+        "--lever-arm",
+        type=float,
+        nargs=2,
+        metavar=("X", "Y"),
+        help="where the pose or GPS sensor sits in the body frame, m (default 0 0)",
+    )
+    fused.add_argument(
+        "--fixes",
+        choices=("identified", "given"),
+        help="what position fixes are worth: identified from the fixes themselves (white noise, "
+        "the offset's wander, the wheels' distance scale, the start; the default for 10 or more "
+        "--gps-topic fixes) or given (their covariance, white; the default for a table's)",
+    )
+    est.add_argument(
+        "--smooth",
+        action="store_true",
+        help="the whole log forward and back (Rauch-Tung-Striebel): every pose uses every "
+        "measurement",
+    )
+    est.add_argument(
+        "--settings",
+        action="append",
+        metavar="FILE|KEY=VALUE,...",
+        help="the estimator's settings by name, or a TOML file of them (below); repeat to add",
+    )
