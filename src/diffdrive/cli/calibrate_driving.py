@@ -27,6 +27,7 @@ from diffdrive.cli.options import (
     Command,
     Parents,
     add_datum_option,
+    add_gyro_noise_options,
     add_imu_options,
     gyro_of,
     read_log_of,
@@ -85,15 +86,7 @@ def add_to(command: Command, parents: Parents) -> None:
     add_datum_option(group)
     gyro = parser.add_argument_group("a gyro (a bag's IMU topic), and the noises held")
     add_imu_options(gyro)
-    gyro.add_argument(
-        "--gyro-arw",
-        type=float,
-        metavar="RAD_S_SQRT_HZ",
-        help="the gyro's angle random walk, held (default: identified from the drive)",
-    )
-    gyro.add_argument(
-        "--k", type=float, metavar="M", help="the wheels' noise, m, held (default: identified)"
-    )
+    add_gyro_noise_options(gyro, "held where given; else identified from the drive")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 

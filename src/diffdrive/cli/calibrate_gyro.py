@@ -12,6 +12,7 @@ from diffdrive.cli.options import (
     LOG_COLUMNS,
     Command,
     Parents,
+    add_gyro_noise_options,
     add_imu_options,
     checked_ticks,
     gyro_of,
@@ -108,13 +109,5 @@ def add_to(command: Command, parents: Parents) -> None:
     cal.add_argument("input", type=Path, help="a log with a gyro (a bag, or a gyro_z column)")
     cal.add_argument("-o", "--output", type=Path, default=Path("robot.toml"))
     add_imu_options(cal)
-    cal.add_argument(
-        "--gyro-arw",
-        type=float,
-        metavar="RAD_S_SQRT_HZ",
-        help=f"the gyro's angle random walk (default {GYRO_ARW})",
-    )
-    cal.add_argument(
-        "--k", type=float, metavar="M", help="the wheels' noise, m (default: 0, read exactly)"
-    )
+    add_gyro_noise_options(cal, f"defaults: {GYRO_ARW} for the gyro, 0 m for the wheels")
     cal.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")

@@ -591,3 +591,15 @@ def wheel_commands(args, robot, log: Run):
 
     found = read_commands(args.input, robot, log, args.command_topic)
     return None if found is None else held_commands(*found, log.times[:-1])
+
+
+def add_gyro_noise_options(group, held: str) -> None:
+    """``--gyro-arw`` and ``--k``: the gyro's and the wheels' noise, ``held`` saying what
+    each is when not given."""
+    group.add_argument(
+        "--gyro-arw",
+        type=float,
+        metavar="RAD_S_SQRT_HZ",
+        help=f"the gyro's angle random walk ({held})",
+    )
+    group.add_argument("--k", type=float, metavar="M", help=f"the wheels' noise, m ({held})")

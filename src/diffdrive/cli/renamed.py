@@ -15,17 +15,10 @@ from __future__ import annotations
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 
-# The geometry settings that lost their flags: --robot KEY=VALUE.
-GEOMETRY = (
-    "left_wheel_radius",
-    "right_wheel_radius",
-    "half_track",
-    "axle_offset",
-    "icr_left",
-    "icr_right",
-    "icr_x",
-    "ticks_per_revolution",
-)
+from diffdrive.io.robots import ROBOT_KEYS
+
+# The robot settings that lost their flags: --robot KEY=VALUE.
+GEOMETRY = tuple(key for key in ROBOT_KEYS if key not in ("wheel_radius", "track_width"))
 # Old odometry options that meant the estimator: with any of them, odometry is estimate.
 ESTIMATOR_FLAGS = (
     "--pose-topic",
