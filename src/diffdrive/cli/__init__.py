@@ -149,13 +149,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-def _options_of(parser: argparse.ArgumentParser, command: str) -> set[str]:
-    """The option strings of ``parser``'s subcommand ``command`` (none for an unknown one)."""
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction) and command in action.choices:
-            sub = action.choices[command]
-            return {option for known in sub._actions for option in known.option_strings}
-    return set()
+def _options_of(parser: argparse.ArgumentParser, command: str) -> dict[str, object]:
+    """Each option string of ``parser``'s subcommand ``command`` (``"export amcl"``: a
+    subcommand's own) with its ``nargs``; none for an unknown one."""
+    for name in command.split():
+        found = [
+            action.choices[name]
+            for action in parser._actions
+            if isinstance(action, argparse._SubParsersAction) and name in action.choices
+        ]
+        if not found:
+            return {}
+        parser = found[0]
+    return {option: known.nargs for known in parser._actions for option in known.option_strings}
 
 
 def _quiet_stdout() -> None:

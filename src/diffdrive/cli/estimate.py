@@ -32,6 +32,7 @@ from diffdrive.cli.options import (
     Parents,
     add_datum_option,
     add_imu_options,
+    add_pairs_option,
     add_wheel_noise_option,
     estimate_columns,
     gyro_of,
@@ -466,9 +467,6 @@ def add_to(command: Command, parents: Parents) -> None:
         help="the whole log forward and back (Rauch-Tung-Striebel): every pose uses every "
         "measurement",
     )
-    est.add_argument(
-        "--settings",
-        action="append",
-        metavar="FILE|KEY=VALUE,...",
-        help="the estimator's settings by name, or a TOML file of them (below); repeat to add",
+    add_pairs_option(
+        est, "--settings", "the estimator's settings by name, or a TOML file of them (below)", True
     )

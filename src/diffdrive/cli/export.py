@@ -68,13 +68,7 @@ def run_export(args: argparse.Namespace) -> int:
         notes.append(
             "WRITTEN THOUGH INCONSISTENT with its runs (--accept-inconsistent): " + "; ".join(held)
         )
-    at = Reference(
-        **{
-            name: getattr(args, name)
-            for name in TARGET_OPTIONS[args.to]
-            if name not in ("nominal", "drive")
-        }
-    )
+    at = Reference(**{name: getattr(args, name) for name in TARGET_REFERENCE[args.to]})
     if args.to == "amcl":
         fit = amcl_fit(robot, model, at)
         x_miss, y_miss = fit.split
@@ -271,13 +265,13 @@ target's own options: diffdrive export TARGET --help.""",
 }
 
 
-# Each target's own options beside the noise model's: the motions its figures are taken at and
-# the settings of the stack that reads them.
-TARGET_OPTIONS = {
-    "ros2": ("nominal", "distance", "speed", "rate", "window"),
+# Each target's ``Reference`` fields: the motions its figures are taken at and the settings
+# of the stack that reads them, each an option of its own.
+TARGET_REFERENCE = {
+    "ros2": ("distance", "speed", "rate", "window"),
     "robot_localization": ("speed",),
     "amcl": ("distance", "turn", "speed", "turn_rate", "scan_rate", "update_min_d", "update_min_a"),
-    "wpilib": ("distance", "drive"),
+    "wpilib": ("distance",),
     "c-header": (),
 }
 TARGET_HELP = {
@@ -310,7 +304,13 @@ def add_to(command: Command, parents: Parents) -> None:
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         _common_options(sub)
-        _target_options(sub, TARGET_OPTIONS[target])
+        if target == "ros2":
+            sub.add_argument("--nominal", type=Path, help="the nominal robot file ROS multiplies")
+        if target == "wpilib":
+            sub.add_argument(
+                "--drive", type=Path, metavar="FILE", help="kS, kV, kA from diffdrive identify"
+            )
+        _reference_options(sub, TARGET_REFERENCE[target])
 
 
 def _common_options(ex: argparse.ArgumentParser) -> None:
@@ -337,8 +337,9 @@ def _common_options(ex: argparse.ArgumentParser) -> None:
     ex.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
-def _target_options(ex: argparse.ArgumentParser, names: tuple[str, ...]) -> None:
-    """The target's own options (``TARGET_OPTIONS``), each with ``Reference``'s default."""
+def _reference_options(ex: argparse.ArgumentParser, names: tuple[str, ...]) -> None:
+    """The target's ``Reference`` fields (``TARGET_REFERENCE``) as options, each with its
+    default."""
     defaults = Reference()
     helps = {
         "distance": "straight, m (1)",
@@ -352,13 +353,6 @@ def _target_options(ex: argparse.ArgumentParser, names: tuple[str, ...]) -> None
         "update_min_a": "update_min_a, rad (0.2, Nav2's default), written with the alphas",
     }
     for name in names:
+        kind = between(1, 1_000_000) if name == "window" else float
         flag = "--" + name.replace("_", "-")
-        if name == "nominal":
-            ex.add_argument(flag, type=Path, help="the nominal robot file ROS multiplies")
-        elif name == "drive":
-            ex.add_argument(
-                flag, type=Path, metavar="FILE", help="kS, kV, kA from diffdrive identify"
-            )
-        else:
-            kind = between(1, 1_000_000) if name == "window" else float
-            ex.add_argument(flag, type=kind, default=getattr(defaults, name), help=helps[name])
+        ex.add_argument(flag, type=kind, default=getattr(defaults, name), help=helps[name])

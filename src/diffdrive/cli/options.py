@@ -71,12 +71,11 @@ def robot_options(required: bool = False) -> argparse.ArgumentParser:
         else f"robot (default: {ROBOT_DEFAULTS})"
     )
     group = options.add_argument_group(title)
-    group.add_argument(
+    add_pairs_option(
+        group,
         "--robot",
-        action="append",
-        metavar="FILE|KEY=VALUE,...",
-        help="a robot file (TOML), or its settings given here: "
-        f"{', '.join(ROBOT_KEYS)} (m); repeat to add, the later winning",
+        f"a robot file (TOML), or its settings given here: {', '.join(ROBOT_KEYS)} (m)",
+        files=True,
     )
     group.add_argument("--wheel-radius", type=float, metavar="M", help="both wheels' radius, m")
     group.add_argument(
@@ -104,6 +103,26 @@ def key_values(flag: str, text: str, keys: Collection[str]) -> dict[str, str]:
             raise ValueError(f"{flag} {text!r}: {key} given twice")
         pairs[key] = value.strip()
     return pairs
+
+
+def add_pairs_option(group, flag: str, help: str, files: bool = False) -> None:
+    """``flag KEY=VALUE,...`` (``files``: or a TOML file of them), repeated to add, the later
+    winning."""
+    group.add_argument(
+        flag,
+        action="append",
+        metavar=("FILE|" if files else "") + "KEY=VALUE,...",
+        help=f"{help}; repeat to add, the later winning",
+    )
+
+
+def key_numbers(flag: str, entries: list[str] | None, keys: Collection[str]) -> dict[str, float]:
+    """Every ``KEY=VALUE`` of ``flag``'s ``entries`` as numbers, the later winning."""
+    values: dict[str, float] = {}
+    for entry in entries or ():
+        given = key_values(flag, entry, keys)
+        values.update({key: number_of(flag, key, text) for key, text in given.items()})
+    return values
 
 
 def number_of(flag: str, key: str, text: str) -> float:
@@ -229,8 +248,7 @@ def robot_settings(args: argparse.Namespace) -> dict[str, float]:
     given: dict[str, float] = {}
     for entry in args.robot or ():
         if "=" in entry:
-            pairs = key_values("--robot", entry, ROBOT_KEYS)
-            given.update({key: number_of("--robot", key, text) for key, text in pairs.items()})
+            given.update(key_numbers("--robot", [entry], ROBOT_KEYS))
         else:
             settings = overridden(settings, read_robot(Path(entry)))
     flags = {name for name in ROBOT_FLAGS if getattr(args, name, None) is not None}

@@ -24,7 +24,6 @@ from diffdrive.control import (
     FollowSettings,
     LTVUnicycle,
     MPPISampling,
-    Obstacles,
     PathLimits,
     Predictive,
     PurePursuit,
@@ -124,10 +123,9 @@ def run_plan(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tracker(args: argparse.Namespace, drive: DriveModel | None, obstacles: Obstacles | None):
+def _tracker(args: argparse.Namespace, drive: DriveModel | None, avoid: Avoidance | None):
     if args.tracker == "mppi":  # it rolls its samples out through the delay itself
         known = drive or DriveModel(time_constant=args.lag)
-        avoid = None if obstacles is None else Avoidance(obstacles, _footprint(args))
         return MPPI(
             dt=args.dt,
             drive=known,
@@ -165,28 +163,21 @@ def _drive_of(args: argparse.Namespace) -> DriveModel | None:
     )
 
 
-def _map_of(args: argparse.Namespace) -> Obstacles | None:
-    """``--obstacles``' map, or None (``follow``'s trackers have none)."""
-    obstacles = getattr(args, "obstacles", None)
-    if obstacles is None:
+def _avoidance_of(args: argparse.Namespace) -> Avoidance | None:
+    """``--obstacles``' map and the robot's footprint (m, finite, >= 0) among them, or None
+    (``follow``'s trackers have none); the footprint is checked before the map is read."""
+    if getattr(args, "obstacles", None) is None:
         return None
-    _footprint(args)
-    return read_map(Path(obstacles[0]))
-
-
-def _footprint(args: argparse.Namespace) -> float:
-    """``--obstacles``' footprint: the robot's radius, m (finite, >= 0)."""
-    text = args.obstacles[1]
+    where, text = args.obstacles
     try:
-        radius = float(text)
+        footprint = float(text)
     except ValueError:
-        radius = math.nan
-    if not (math.isfinite(radius) and radius >= 0.0):
+        footprint = math.nan
+    if not (math.isfinite(footprint) and footprint >= 0.0):
         raise ValueError(
-            f"--obstacles {args.obstacles[0]} {text}: the footprint is the robot's radius, m "
-            "(finite, >= 0)"
+            f"--obstacles {where} {text}: the footprint is the robot's radius, m (finite, >= 0)"
         )
-    return radius
+    return Avoidance(read_map(Path(where)), footprint)
 
 
 def _response(args: argparse.Namespace, drive: DriveModel | None) -> str:
@@ -205,9 +196,9 @@ def run_follow(args: argparse.Namespace) -> int:
     if args.predict and not (args.delay or args.lag):
         raise ValueError("--predict predicts over the delay and lag: give --delay or --lag")
     drive = _drive_of(args)
-    obstacles = _map_of(args)
+    avoid = _avoidance_of(args)
     robot, result = _plan_of(args)
-    tracker = _tracker(args, drive, obstacles)
+    tracker = _tracker(args, drive, avoid)
     noise = args.wheel_noise  # k (m), both wheels
     run = follow(
         result,
@@ -256,8 +247,8 @@ def run_follow(args: argparse.Namespace) -> int:
             )
             if args.robots == 1:
                 break
-        if obstacles is not None:
-            gaps = obstacles.clearance_at(run.poses[..., :2]) - _footprint(args)
+        if avoid is not None:
+            gaps = avoid.obstacles.clearance_at(run.poses[..., :2]) - avoid.footprint
             touching = int(np.count_nonzero(gaps < 0.0))
             print(
                 f"  obstacles ({args.obstacles[0]}): closest {1e3 * float(gaps.min()):.0f} mm "

@@ -12,9 +12,10 @@ tuning ``--settings``. This module goes in the next release."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
+from diffdrive.cli.synth import GYRO_KEYS, POSE_KEYS
 from diffdrive.io.robots import ROBOT_KEYS
 
 # The robot settings that lost their flags: --robot KEY=VALUE.
@@ -42,17 +43,10 @@ GROUPS: dict[str, tuple[tuple[str, ...], tuple[str, ...] | None]] = {
     "--feedforward": (("--ks", "--kv", "--ka"), None),
     "--obstacles": (("--map", "--footprint"), None),
 }
-# synth's figures that became --gyro KEY=VALUE and --pose KEY=VALUE.
-SYNTH = {
-    "--gyro-bias": ("--gyro", "bias"),
-    "--gyro-instability": ("--gyro", "instability"),
-    "--gyro-arw": ("--gyro", "arw"),
-    "--gyro-rrw": ("--gyro", "rrw"),
-    "--gyro-scale": ("--gyro", "scale"),
-    "--pose-period": ("--pose", "period"),
-    "--pose-latency": ("--pose", "latency"),
-    "--pose-dropout": ("--pose", "dropout"),
-    "--pose-outlier": ("--pose", "outlier"),
+GROUPS_OLD = {old for olds, _ in GROUPS.values() for old in olds}
+# synth's figures that became --gyro KEY=VALUE and --pose KEY=VALUE (--gyro-arw: arw).
+SYNTH = {f"--gyro-{key}": ("--gyro", key) for key in GYRO_KEYS} | {
+    f"--pose-{key}": ("--pose", key) for key in POSE_KEYS
 }
 # odometry's gyro and output options that the estimator takes as --settings, or always does.
 ESTIMATE = {
@@ -80,10 +74,11 @@ class Rewritten:
     notes: list[str] = field(default_factory=list)
 
 
-def today(argv: list[str], options_of: Callable[[str], Collection[str]]) -> Rewritten:
+def today(argv: list[str], options_of: Callable[[str], Mapping[str, object]]) -> Rewritten:
     """``argv`` with the spellings of before 0.9 rewritten to today's. ``options_of(command)``:
-    the option strings today's ``command`` knows (an old spelling it still knows is left as it
-    is). ``MisspelledError`` names what cannot be rewritten."""
+    the option strings today's ``command`` knows, each with its ``nargs`` (an old spelling it
+    still knows is left as it is, and an old pair is made one only where the command takes
+    that one with as many values). ``MisspelledError`` names what cannot be rewritten."""
     if not argv or argv[0].startswith("-"):
         return Rewritten(list(argv))
     command, rest = argv[0], _split_equals(argv[1:])
@@ -91,7 +86,7 @@ def today(argv: list[str], options_of: Callable[[str], Collection[str]]) -> Rewr
     new_command = _command(command, rest)
     if new_command != command:
         notes.append(f'"{command}" {_why_moved(command, rest)} is now "{new_command}"; {LATER}')
-    known = options_of(new_command.split()[0]) if new_command.split()[0] else ()
+    known = options_of(new_command)
     kept, added = _rewrite(new_command, rest, known, notes, moved=new_command != command)
     if new_command == "estimate" and not {"-o", "--output"} & set(rest):
         added += ["-o", "odometry.csv"]  # odometry's default name, which scripts may read
@@ -141,10 +136,17 @@ def _value(rest: list[str], flag: str) -> str | None:
 
 
 def _rewrite(
-    command: str, rest: list[str], known: Collection[str], notes: list[str], moved: bool
+    command: str, rest: list[str], known: Mapping[str, object], notes: list[str], moved: bool
 ) -> tuple[list[str], list[str]]:
     """The tokens kept and today's options added in place of the old ones; ``moved``: the
     old subcommand became ``command``, so the option that chose it goes."""
+    # animate's --frames N is no pair: an old --frame there was argparse's abbreviation of it.
+    pairs = {
+        old
+        for flag, (olds, _) in GROUPS.items()
+        if known.get(flag) in (len(olds), "+")
+        for old in olds
+    }
     kept: list[str] = []
     added: list[str] = []
     grouped: dict[str, str] = {}
@@ -159,11 +161,11 @@ def _rewrite(
         if token in known or not token.startswith("--"):
             kept.append(token)
             continue
-        if token in GROUPS_OLD:
+        if token in pairs:
             grouped[token] = next(tokens, "")
             continue
         value = None if token in SWITCHES else next(tokens, "")
-        new = _single(command, token, value)
+        new = _single(command, token, value, known)
         if new is None:
             kept += [token] + ([] if value is None else [value])
             continue
@@ -187,13 +189,12 @@ def _rewrite(
     return kept, added
 
 
-GROUPS_OLD = {old for olds, _ in GROUPS.values() for old in olds}
-
-
-def _single(command: str, token: str, value: str | None) -> list[str] | None:
+def _single(
+    command: str, token: str, value: str | None, known: Mapping[str, object]
+) -> list[str] | None:
     """Today's tokens for one old option (``[]``: left out), or None when it is not old."""
     key = token[2:].replace("-", "_")
-    if key in GEOMETRY:
+    if key in GEOMETRY and "--robot" in known:
         return ["--robot", f"{key}={value}"]
     if command == "synth" and token in SYNTH:
         flag, name = SYNTH[token]

@@ -15,10 +15,10 @@ from diffdrive.cli.options import (
     Parents,
     add_encoder_options,
     add_imu_options,
+    add_pairs_option,
     add_wheel_noise_option,
     example_trajectory,
-    key_values,
-    number_of,
+    key_numbers,
     refuse_unused,
     robot_from,
     wheel_pair,
@@ -135,18 +135,10 @@ POSE_KEYS = {
 }
 
 
-def _specs(flag: str, entries: list[str] | None, keys) -> dict[str, float]:
-    """Every ``KEY=VALUE`` of ``flag``'s ``entries`` as numbers, the later winning."""
-    values: dict[str, float] = {}
-    for entry in entries or ():
-        given = key_values(flag, entry, keys)
-        values.update({key: number_of(flag, key, text) for key, text in given.items()})
-    return values
-
-
 def _gyro_model(args: argparse.Namespace) -> sensors.GyroModel:
     given = {
-        GYRO_KEYS[key][0]: value for key, value in _specs("--gyro", args.gyro, GYRO_KEYS).items()
+        GYRO_KEYS[key][0]: value
+        for key, value in key_numbers("--gyro", args.gyro, GYRO_KEYS).items()
     }
     return sensors.GyroModel(
         bias=given.pop("bias", 0.0),
@@ -158,7 +150,7 @@ def _gyro_model(args: argparse.Namespace) -> sensors.GyroModel:
 
 def _absolute(args, robot, times, poses):
     """A pose sensor's readings (or a GPS's, with --gps), or None without --pose-sigma."""
-    shaping = _specs("--pose", args.pose, POSE_KEYS)
+    shaping = key_numbers("--pose", args.pose, POSE_KEYS)
     if args.pose_sigma is None and args.gps is None:
         refuse_unused({"--pose": bool(shaping)}, "a pose or GPS sensor's (--pose-sigma or --gps)")
         return None
@@ -230,11 +222,10 @@ def add_to(command: Command, parents: Parents) -> None:
     encoder.add_argument("--latency", type=float, default=0.0, help="encoder latency, s")
     encoder.add_argument("--drop", type=float, default=0.0, help="probability a row is lost")
     gyro = synth.add_argument_group("gyro (rad/s)")
-    gyro.add_argument(
+    add_pairs_option(
+        gyro,
         "--gyro",
-        action="append",
-        metavar="KEY=VALUE,...",
-        help="its errors, each 0 unless given: "
+        "its errors, each 0 unless given: "
         + ", ".join(f"{key} ({unit})" for key, (_, unit) in GYRO_KEYS.items()),
     )
     add_imu_options(gyro, topic=False)
@@ -246,11 +237,10 @@ def add_to(command: Command, parents: Parents) -> None:
         metavar=("X", "Y", "THETA"),
         help="its standard deviations, m, m, rad: a pose sensor in the bag (/pose)",
     )
-    pose.add_argument(
+    add_pairs_option(
+        pose,
         "--pose",
-        action="append",
-        metavar="KEY=VALUE,...",
-        help="its timing and faults: " + "; ".join(f"{k}, {h}" for k, h in POSE_KEYS.items()),
+        "its timing and faults: " + "; ".join(f"{k}, {h}" for k, h in POSE_KEYS.items()),
     )
     pose.add_argument(
         "--gps",

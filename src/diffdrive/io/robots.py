@@ -48,9 +48,10 @@ def read_robot(path: str | Path) -> dict[str, float]:
 
 def toml_value(text: str) -> object:
     """``text`` as TOML reads a value (a number, true, a "string", an array), else the text."""
+    tomllib = _tomllib()
     try:
-        return _tomllib().loads(f"v = {text}")["v"]
-    except _tomllib().TOMLDecodeError:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
         return text
 
 
