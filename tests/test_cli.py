@@ -769,8 +769,16 @@ def test_a_cusp_in_reverse_says_theta_is_the_robots_heading(tmp_path, capsys):
         (["animate", "t.csv", "--frame", "5"], ["animate", "t.csv", "--frame", "5"]),
         (
             ["odometry", "b.bag", "--gps-topic", "/fix", "--gate", "0.9", "--twist"],
-            ["estimate", "b.bag", "--gps-topic", "/fix", "--settings", "gate.probability=0.9"]
-            + ["-o", "odometry.csv"],
+            [
+                "estimate",
+                "b.bag",
+                "--gps-topic",
+                "/fix",
+                "--settings",
+                "gate.probability=0.9",
+                "-o",
+                "odometry.csv",
+            ],
         ),
         (
             ["export", "--to", "ros2", "--left-joint", "l", "--right-joint", "r"],
