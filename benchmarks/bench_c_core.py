@@ -262,9 +262,16 @@ def extension_speed(against: str, rounds: int, sizes: tuple[int, int], folder: P
         cpu = {n: statistics.median(r[what][1] for r in taken[n]) * scale for n in taken}
         print(
             f"   {unit}: before {wall['before']:.1f} wall / {cpu['before']:.1f} CPU, after "
-            f"{wall['after']:.1f} / {cpu['after']:.1f}: {wall['after'] / wall['before']:.2f} x "
-            f"wall, {cpu['after'] / cpu['before']:.2f} x CPU"
+            f"{wall['after']:.1f} / {cpu['after']:.1f}: {_ratio(wall)} wall, {_ratio(cpu)} CPU"
         )
+
+
+def _ratio(times: dict[str, float]) -> str:
+    """after / before, or why there is none: a small run's CPU time can fall below the
+    clock's tick and read 0."""
+    if times["before"] <= 0.0:
+        return "no ratio (the time before read 0, below the clock's tick) for"
+    return f"{times['after'] / times['before']:.2f} x"
 
 
 def main() -> None:
