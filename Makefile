@@ -8,7 +8,13 @@ BIN    := $(VENV)/bin
 SOURCES := pyproject.toml setup.py $(wildcard src/diffdrive/backends/*.[ch]) \
 	$(wildcard c/src/*.[ch]) $(wildcard c/include/diffdrive/*.h)
 
-.PHONY: demo test docs bench clean
+.PHONY: demo test test-all docs bench clean
+
+# The tests marked slow (0.4 s or more each: subprocesses, real logs, the benchmarks' smoke
+# runs, the firmware under QEMU) take 9 of the suite's 10 minutes on 2 cores. CI (CI set, as
+# .ci/run sets it) and `make test-all` run them; elsewhere `make test` leaves them out and
+# takes about 2 minutes.
+SLOW ?= $(if $(CI),,-m "not slow")
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -25,7 +31,7 @@ $(VENV)/.test: $(SOURCES) | $(BIN)/python
 demo: $(VENV)/.demo               ## the main job on the built-in example
 	$(BIN)/diffdrive
 
-test: $(VENV)/.test               ## linter, type check, then the whole test suite
+test: $(VENV)/.test               ## linter, type check, then the test suite (all of it in CI)
 	$(BIN)/ruff check
 	$(BIN)/ruff format --check
 	$(BIN)/mypy
@@ -33,7 +39,10 @@ test: $(VENV)/.test               ## linter, type check, then the whole test sui
 	# Bytecode cached even where the environment says not to (PYTHONDONTWRITEBYTECODE): each
 	# worker and subprocess would otherwise compile the package and rewrite the tests again
 	# (collection 6 s instead of 2).
-	PYTHONDONTWRITEBYTECODE= OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -n auto --maxprocesses 4
+	PYTHONDONTWRITEBYTECODE= OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -n auto --maxprocesses 4 $(SLOW)
+
+test-all:                         ## make test with the slow tests, as CI runs it
+	$(MAKE) test SLOW=
 
 $(VENV)/.docs: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --group docs

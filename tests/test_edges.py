@@ -278,19 +278,29 @@ def test_bad_numbers_name_their_parameter(call, error, message):
 @pytest.mark.slow
 @pytest.mark.parametrize("interrupt", [signal.SIGTERM, signal.SIGINT], ids=["term", "ctrl-c"])
 def test_an_interrupted_write_leaves_no_temporary_file_and_no_traceback(tmp_path, interrupt):
+    """The signal is sent once the temporary file is there. On a busy machine the test can be
+    held off the processor until the write is done: such a try proves nothing, and is made
+    again (it failed a suite at load 4 on 2 cores)."""
     command = [sys.executable, "-m", "diffdrive", "simulate", "--dt", "1e-5", "-o", "big.csv"]
-    with subprocess.Popen(
-        command, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-    ) as process:
-        deadline = time.monotonic() + 60
-        while not list(tmp_path.glob(".big.*")) and time.monotonic() < deadline:
-            assert process.poll() is None, "finished before it could be interrupted"
-            time.sleep(0.02)
-        process.send_signal(interrupt)
-        assert process.wait(timeout=30) == 128 + interrupt
-        printed = process.stderr.read()
-    assert "Traceback" not in printed
-    assert list(tmp_path.iterdir()) == []
+    for _ in range(3):
+        with subprocess.Popen(
+            command, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        ) as process:
+            deadline = time.monotonic() + 60
+            while not list(tmp_path.glob(".big.*")) and time.monotonic() < deadline:
+                assert process.poll() is None, "finished before it could be interrupted"
+                time.sleep(0.02)
+            process.send_signal(interrupt)
+            code = process.wait(timeout=30)
+            printed = process.stderr.read()
+        if code == 0 and [path.name for path in tmp_path.iterdir()] == ["big.csv"]:
+            (tmp_path / "big.csv").unlink()  # written whole before the signal came: again
+            continue
+        assert code == 128 + interrupt, printed
+        assert "Traceback" not in printed
+        assert list(tmp_path.iterdir()) == []
+        return
+    pytest.fail("each of 3 writes was done before its interrupt arrived")
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="os.kill ends the process on Windows")

@@ -38,3 +38,32 @@ def test_a_child_that_loops_is_stopped_by_its_processor_time(monkeypatch):
     done = run_bounded([sys.executable, "-c", "while True: pass"])
     assert done.returncode != 0
     assert CPU_SECONDS >= 60  # the suite's own bound: far past any child that works
+
+
+@pytest.mark.parametrize(
+    ("environment", "command", "leaves_out_slow"),
+    [({}, "test", True), ({"CI": "1"}, "test", False), ({}, "test-all", False)],
+    ids=["make test", "make test in CI", "make test-all"],
+)
+def test_the_slow_tests_run_in_ci_and_in_test_all(environment, command, leaves_out_slow):
+    """``make test`` stays within minutes by leaving out the tests marked slow, but not where
+    ``CI`` is set (``.ci/run`` sets it), nor in ``make test-all``: no assertion is dropped."""
+    import os
+    import shutil
+    import subprocess
+
+    if shutil.which("make") is None:
+        pytest.skip("make is not on this machine")
+    settings = {k: v for k, v in os.environ.items() if k not in ("CI", "SLOW", "MAKEFLAGS")}
+    done = subprocess.run(
+        ["make", "-n", command],
+        cwd=TESTS.parent,
+        env=settings | environment,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    pytest_lines = [line for line in done.stdout.splitlines() if "-m pytest" in line]
+    assert len(pytest_lines) == 1, done.stdout
+    assert ('-m "not slow"' in pytest_lines[0]) == leaves_out_slow
+    assert 'export CI="${CI:-1}"' in (TESTS.parent / ".ci" / "run").read_text()

@@ -383,21 +383,19 @@ static PyObject *add_measurement(Est *e, Meas *m) {
                      kind, t);
         break;
     case DD_TOO_EARLY:
-        first = float_of(e->h.ahead), second = float_of(now);
+    case DD_TOO_OLD: {
+        int early = status == DD_TOO_EARLY;
+        first = float_of(early ? e->h.ahead : start);
+        second = float_of(early ? now : e->h.span);
         if (first && second)
             PyErr_Format(PyExc_ValueError,
-                         "%s measurement at t = %R s: more than ahead = %R s past the newest "
-                         "wheel reading (%R s)",
+                         early ? "%s measurement at t = %R s: more than ahead = %R s past the "
+                                 "newest wheel reading (%R s)"
+                               : "%s measurement at t = %R s: older than the history, which "
+                                 "starts at %R s (history = %R s)",
                          kind, t, first, second);
         break;
-    case DD_TOO_OLD:
-        first = float_of(start), second = float_of(e->h.span);
-        if (first && second)
-            PyErr_Format(PyExc_ValueError,
-                         "%s measurement at t = %R s: older than the history, which starts at "
-                         "%R s (history = %R s)",
-                         kind, t, first, second);
-        break;
+    }
     default:
         PyErr_Format(PyExc_ValueError, "%s measurement at t = %R s: it would overflow the state; "
                      "refused%s", kind, t, at_start ? "" : ", nothing changed");

@@ -146,30 +146,17 @@ def _integrate_chunk(
 
 
 @_kernel
-def run_tasks(
-    stage,
-    history,
-    times,
-    angles,
-    start,
-    geometry,
-    midpoint,
-    chord,
-    chunks,
-    turns,
-    out,
-    ends,
-    first,
-    stop,
-):
+def run_tasks(stage, inputs, first, stop):
     """One pass over tasks ``first:stop`` (robot ``task // chunks``, chunk ``task % chunks``).
 
     Stage 0 writes each chunk's turn into ``turns``; stage 1 integrates each chunk from its
     start heading (the robot's, plus the turns of the chunks before it) into ``out`` and its
     final x and y into ``ends``; the first chunk of a robot starts at its start pose, the
     others at x = y = 0; stage 2 shifts the positions of every chunk but a robot's first by
-    the ends of the chunks before it.
+    the ends of the chunks before it. ``inputs`` is the tuple ``(history, times, angles,
+    start, geometry, midpoint, chord, chunks, turns, out, ends)``.
     """
+    history, times, angles, start, geometry, midpoint, chord, chunks, turns, out, ends = inputs
     steps = out.shape[1] - 1
     size = (steps + chunks - 1) // chunks
     for task in range(first, stop):
@@ -241,8 +228,7 @@ def kernel_ir(values: str, times: str, poses: str) -> tuple[str, str]:
         stop,
     ):
         tasks = robots * chunks
-        run_tasks(
-            stage,
+        inputs = (
             numba.carray(history, (history_rows, history_length, 2)),
             numba.carray(times, (times_rows, times_length)),
             angles != 0,
@@ -254,9 +240,8 @@ def kernel_ir(values: str, times: str, poses: str) -> tuple[str, str]:
             numba.carray(turns, (tasks,)),
             numba.carray(poses, (robots, samples, 3)),
             numba.carray(ends, (tasks, 2)),
-            first,
-            stop,
         )
+        run_tasks(stage, inputs, first, stop)
 
     compiled = numba.cfunc(signature, error_model="numpy")(entry)
     return compiled.inspect_llvm(), compiled.native_name

@@ -56,28 +56,9 @@ _MIN_CHUNK = 1 << 14
 # What the machine code comes from: the kernel, its step, and how the cache is written.
 _SOURCES = ("numba_simulate.py", "../_step.py", "simulate_kernel.py")
 _USES_CACHE = sys.platform.startswith("linux")
-_INT64, _POINTER = ctypes.c_int64, ctypes.c_void_p
-_C_SIGNATURE = (
-    _INT64,
-    _POINTER,
-    _INT64,
-    _INT64,
-    _POINTER,
-    _INT64,
-    _INT64,
-    _INT64,
-    _POINTER,
-    _POINTER,
-    _INT64,
-    _INT64,
-    _INT64,
-    _POINTER,
-    _POINTER,
-    _INT64,
-    _INT64,
-    _POINTER,
-    _INT64,
-    _INT64,
+# numba_simulate.kernel_ir's C signature: "p" a pointer, "i" an int64 (a count or a flag).
+_C_SIGNATURE = tuple(
+    ctypes.c_void_p if kind == "p" else ctypes.c_int64 for kind in "ipiipiiippiiippiipii"
 )
 _DECLARATION = re.compile(
     r"^declare (?P<head>.*?)@(?P<name>[-\w.$]+|\"[^\"]+\")\((?P<arguments>.*)\)(?P<tail>[^()]*)$",
@@ -176,23 +157,10 @@ def integrate_history(
     weight, chord = _step.method_flags(method)
     midpoint = weight != 0.0  # the kernel turns the move by half the step's turn, or not
 
+    inputs = (history, times, angles, start, geometry, midpoint, chord, chunks, turns, out, ends)
+
     def run(stage: int, first: int, stop: int) -> None:
-        kernel(
-            stage,
-            history,
-            times,
-            angles,
-            start,
-            geometry,
-            midpoint,
-            chord,
-            chunks,
-            turns,
-            out,
-            ends,
-            first,
-            stop,
-        )
+        kernel(stage, inputs, first, stop)
 
     for stage in (0, 1, 2) if chunks > 1 else (1,):  # each pass waits for the one before
         _share_out(min(workers, tasks), tasks, functools.partial(run, stage))
@@ -319,22 +287,8 @@ def _link(llvm: Any, machine: Any, code: bytes, symbol: str) -> Callable[..., No
     _engines.append(engine)
     function = ctypes.CFUNCTYPE(None, *_C_SIGNATURE)(engine.get_function_address(symbol))
 
-    def kernel(
-        stage,
-        history,
-        times,
-        angles,
-        start,
-        geometry,
-        midpoint,
-        chord,
-        chunks,
-        turns,
-        out,
-        ends,
-        first,
-        stop,
-    ) -> None:
+    def kernel(stage: int, inputs: tuple, first: int, stop: int) -> None:
+        history, times, angles, start, geometry, midpoint, chord, chunks, turns, out, ends = inputs
         # ctypes releases the GIL for the call.
         function(
             stage,

@@ -36,6 +36,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from diffdrive._validate import floats
+
 __all__ = ["Limiter", "Limits"]
 
 
@@ -202,16 +204,7 @@ class Limiter:
 
     def _vector(self, name: str, value: object) -> np.ndarray:
         """``value`` as one finite float per channel, or an error naming ``name``."""
-        if isinstance(value, str | bytes):
-            raise TypeError(f"{name} must be numbers, got {value!r}")
-        try:
-            array = np.asarray(value, dtype=float)
-        except OverflowError:
-            raise ValueError(
-                f"{name} must be finite, got an integer too large for a float"
-            ) from None
-        except (TypeError, ValueError):
-            raise TypeError(f"{name} must be numbers, got {value!r}") from None
+        array = floats(name, value)
         if array.shape != self.value.shape:
             raise ValueError(f"{name} must have shape {self.value.shape}, got {array.shape}")
         if not np.all(np.isfinite(array)):

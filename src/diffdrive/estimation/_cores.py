@@ -16,11 +16,7 @@ try:
 
     COMPILED: bool = True
 except ImportError:
-    from diffdrive.estimation._estimator_python import (  # type: ignore[assignment]
-        EstimatorCore,
-    )
-    from diffdrive.estimation._odometry_python import (  # type: ignore[assignment]
-        OdometryCore,
-    )
+    from diffdrive.estimation._estimator_python import EstimatorCore
+    from diffdrive.estimation._odometry_python import OdometryCore
 
     COMPILED = False

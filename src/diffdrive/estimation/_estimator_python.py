@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -44,6 +45,31 @@ class Interval:
 
 def _end(interval: Interval) -> float:
     return interval.t1
+
+
+def _named_update(kind: int, what: str) -> Callable[..., None]:
+    """The core's update method ``KINDS[kind]``: one reading of ``what``, with the gyro and
+    command given beside it; the third argument is t, or dt for velocities."""
+
+    def update(
+        self: EstimatorCore,
+        left: Any,
+        right: Any,
+        t: Any,
+        *,
+        gyro_angle: Any = None,
+        gyro_rate: Any = None,
+        commanded: Any = None,
+    ) -> None:
+        self._update(kind, (left, right, t), t, gyro_angle, gyro_rate, commanded)
+
+    update.__name__ = update.__qualname__ = KINDS[kind]
+    third = "dt" if kind == 3 else "t"
+    update.__doc__ = (
+        f"{KINDS[kind]}(left, right, {third}, *, gyro_angle=None, gyro_rate=None, "
+        f"commanded=None): {what}."
+    )
+    return update
 
 
 class EstimatorCore:
@@ -108,58 +134,12 @@ class EstimatorCore:
 
     # -- wheel readings -------------------------------------------------------------------
 
-    def update_ticks(
-        self,
-        left: Any,
-        right: Any,
-        t: Any,
-        *,
-        gyro_angle: Any = None,
-        gyro_rate: Any = None,
-        commanded: Any = None,
-    ) -> None:
-        """update_ticks(left, right, t, *, gyro_angle=None, gyro_rate=None, commanded=None):
-        absolute encoder counter readings at t s (the first sets the reference)."""
-        self._update(0, (left, right, t), t, gyro_angle, gyro_rate, commanded)
-
-    def update_positions(
-        self,
-        left: Any,
-        right: Any,
-        t: Any,
-        *,
-        gyro_angle: Any = None,
-        gyro_rate: Any = None,
-        commanded: Any = None,
-    ) -> None:
-        """update_positions(left, right, t, *, ...): accumulated wheel angles (rad) at t s."""
-        self._update(1, (left, right, t), t, gyro_angle, gyro_rate, commanded)
-
-    def update_increments(
-        self,
-        left: Any,
-        right: Any,
-        t: Any,
-        *,
-        gyro_angle: Any = None,
-        gyro_rate: Any = None,
-        commanded: Any = None,
-    ) -> None:
-        """update_increments(left, right, t, *, ...): wheel-angle increments (rad) at t s."""
-        self._update(2, (left, right, t), t, gyro_angle, gyro_rate, commanded)
-
-    def update_velocities(
-        self,
-        left: Any,
-        right: Any,
-        dt: Any,
-        *,
-        gyro_angle: Any = None,
-        gyro_rate: Any = None,
-        commanded: Any = None,
-    ) -> None:
-        """update_velocities(left, right, dt, *, ...): wheel velocities (rad/s) held dt s."""
-        self._update(3, (left, right, dt), dt, gyro_angle, gyro_rate, commanded)
+    update_ticks = _named_update(
+        0, "absolute encoder counter readings at t s (the first sets the reference)"
+    )
+    update_positions = _named_update(1, "accumulated wheel angles (rad) at t s")
+    update_increments = _named_update(2, "wheel-angle increments (rad) at t s")
+    update_velocities = _named_update(3, "wheel velocities (rad/s) held dt s")
 
     def _update(self, kind, args, t, gyro_angle, gyro_rate, commanded) -> None:
         name = KINDS[kind]

@@ -14,6 +14,7 @@ import math
 from typing import Any
 
 from diffdrive._step import METHODS, method_flags, move_jacobians, wheel_move
+from diffdrive._validate import finite
 from diffdrive.backends.settings import OdometrySettings
 
 __all__ = ["OdometryCore"]
@@ -53,19 +54,12 @@ def _propagate(cov: list[float], jp: list[float], jw: list[float], q: tuple[floa
 
 def _number(name: str, field: str, value: object) -> float:
     """A finite float, or the C core's TypeError or ValueError."""
-    if isinstance(value, str | bytes | bool):
-        raise TypeError(f"{name}: {field} must be a number, got {value!r}")
     try:
-        number = float(value)  # type: ignore[arg-type]
-    except OverflowError:
-        raise ValueError(
-            f"{name}: {field} must be finite, got an integer too large for a float"
-        ) from None
-    except (TypeError, ValueError):
+        if isinstance(value, bool):
+            raise TypeError
+        return finite(f"{name}: {field}", value)
+    except TypeError:  # the C core's wording, text and booleans included
         raise TypeError(f"{name}: {field} must be a number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise ValueError(f"{name}: {field} must be finite, got {number!r}")
-    return number
 
 
 def _tick_reading(value: object, field: str, bits: int) -> int:
