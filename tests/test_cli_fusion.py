@@ -12,6 +12,7 @@ from diffdrive import batch
 from diffdrive.cli import main
 from diffdrive.cli.options import COVARIANCE_COLUMNS, TWIST_COVARIANCE_COLUMNS
 from diffdrive.demo import EXAMPLE_TICKS_PER_REVOLUTION, example_encoder_log
+from diffdrive.io.ros.covariance import FLOOR, floored
 
 TICKS = ["--ticks-per-revolution", str(EXAMPLE_TICKS_PER_REVOLUTION)]
 
@@ -233,13 +234,43 @@ def test_odom_carries_the_twist_and_both_covariances_of_the_csv(synthetic_bag, p
         (back.twist_covariances, TWIST_COVARIANCE_COLUMNS),
     )
     for matrices, names in pairs:
-        flat = matrices.reshape(-1, 9)
-        for name, index in names.items():
-            np.testing.assert_allclose(flat[:, index], table[name], rtol=1e-12, atol=1e-18)
+        written = np.zeros((len(table), 9))
+        for name, index in names.items():  # the upper triangle, mirrored
+            written[:, index] = written[:, 3 * (index % 3) + index // 3] = table[name]
+        # The CSV's covariances as written; the bag's floored, so that a fuser can invert them.
+        expected = floored(written.reshape(-1, 3, 3))
+        np.testing.assert_allclose(matrices, expected, rtol=1e-12, atol=1e-18)
+        assert np.all(np.linalg.eigvalsh(matrices)[:, 0] >= 0.999 * FLOOR)
+    # vy: known zero, written as the floor rather than exactly 0
+    np.testing.assert_allclose(back.twist_covariances[:, 1, 1], FLOOR, rtol=1e-6)
     moving = np.abs(twists[:, 0]) > 0.1
     assert moving.mean() > 0.5  # the built-in path drives: the twist says so
     assert np.all(back.twist_covariances[moving, 0, 0] > 0)
     assert np.all(back.twist_covariances[:, 2, 2] > 0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", ["wheels", "fused", "smoother"])
+def test_every_odom_message_holds_covariances_a_fuser_can_invert(synthetic_bag, path):
+    """Read back as robot_localization reads them, whole 6x6 matrices: each message's pose and
+    twist covariance is positive definite (the twist's vy variance was exactly 0)."""
+    pytest.importorskip("rosbags")
+    from rosbags.highlevel import AnyReader
+
+    bag = synthetic_bag.parent / f"pd-{path}.mcap"
+    joints = ["--joints", "left_wheel_joint", "right_wheel_joint"]
+    command = "odometry" if path == "wheels" else "estimate"
+    assert main([command, str(synthetic_bag), *joints, *PATHS[path], "-q", "-o", str(bag)]) == 0
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic == "/odom"]
+        messages = [
+            reader.deserialize(raw, connection.msgtype)
+            for connection, _, raw in reader.messages(connections=connections)
+        ]
+    assert len(messages) > 100
+    for message in messages:
+        for covariance in (message.pose.covariance, message.twist.covariance):
+            np.linalg.cholesky(np.asarray(covariance).reshape(6, 6))  # raises if not PD
 
 
 def test_no_wheel_noise_is_refused_for_a_bag(synthetic_bag, tmp_path, capsys):
@@ -290,7 +321,8 @@ def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, cap
         _, _, raw = next(reader.messages(connections=fixes))
         fix = reader.deserialize(raw, fixes[0].msgtype)
     assert fix.position_covariance_type == 2  # COVARIANCE_TYPE_DIAGONAL_KNOWN
-    np.testing.assert_allclose(fix.position_covariance, np.diag([0.25, 0.16, 0.0]).ravel())
+    # the height synth does not vary: known, at the floor a reader can invert
+    np.testing.assert_allclose(fix.position_covariance, np.diag([0.25, 0.16, FLOOR]).ravel())
     odometry = ["odometry", "run.mcap", "--left-joint", "left_wheel_joint", "--right-joint"]
     assert main([*odometry, "right_wheel_joint", "-o", "odo.csv", "-q"]) == 0
     code = main(["evaluate", "odo.csv", "--truth", "traj.csv", "--json"])

@@ -150,6 +150,24 @@ def test_each_file_has_the_structure_its_consumer_reads(target, tmp_path):
         assert (parameters["update_min_d"], parameters["update_min_a"]) == (0.25, 0.2)
 
 
+@pytest.mark.parametrize(
+    "model",
+    [noise.NoiseModel.symmetric(0.0, 0.0, 0.01), noise.NoiseModel.symmetric(1e-4)],
+    ids=["a track spread alone", "wheel noise alone"],
+)
+def test_every_exported_variance_is_one_a_consumer_can_invert(model):
+    """No variance of the ROS parameters is 0 (a track spread alone leaves a straight line's
+    pose and the sideways velocity exactly 0): each is at least the floor the bags carry,
+    ``io.ros.covariance.FLOOR``, and the sideways velocity is that floor."""
+    from diffdrive.io.ros.covariance import FLOOR
+
+    at = export.Reference(distance=1.0, speed=0.5, rate=50.0)
+    ros = export.parameters("ros2", NOMINAL, NOMINAL, model, at, wheel_names=WHEELS)
+    for key in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
+        assert min(ros[key]) >= FLOOR, (key, ros[key])
+    assert ros["twist_covariance_diagonal"][1] == FLOOR
+
+
 def test_the_figures_follow_their_stated_derivation():
     """With the wheel noise alone: the pose diagonal is Odometry's covariance after 1 m
     straight; the twist's that of the mean of a 10-update window of per-update velocities

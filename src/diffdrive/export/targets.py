@@ -23,8 +23,9 @@ How each figure is derived (``Reference`` holds the choices, all stated in the f
   how far the odometry is trusted between measurements) and, from a drive identification,
   kS, kV, kA in WPILib's units (V, V s/m, V s^2/m) and the angular channel's kV, kA.
 
-Unused axes of a 2-D robot (z, roll, pitch) get 1e6 (unknown), its sideways velocity 1e-9
-(known zero; some consumers invert the matrix).
+Unused axes of a 2-D robot (z, roll, pitch) get 1e6 (unknown), and a variance below 1e-9
+(its sideways velocity, known zero) gets 1e-9: the covariances ``diffdrive.io.ros.covariance``
+states for the bags too, positive definite as the consumers that invert them need.
 """
 
 from __future__ import annotations
@@ -39,13 +40,13 @@ from diffdrive.calibration.noise import NoiseModel, covariances
 from diffdrive.estimation.fusion import core_settings, start_state
 from diffdrive.estimation.settings import Encoders, EstimatorSettings
 from diffdrive.export.amcl import match_alphas, reference_motions
+from diffdrive.io.ros.covariance import UNESTIMATED, floored
 from diffdrive.model import DiffDrive, geometry_of
 from diffdrive.sensor_noise import WheelNoise
 
 __all__ = ["TARGETS", "DriveConstants", "Reference", "parameters"]
 
 TARGETS = ("ros2", "robot_localization", "amcl", "wpilib", "c-header")
-UNKNOWN, KNOWN_ZERO = 1e6, 1e-9
 # robot_localization's documented default process noise diagonal (ekf.yaml).
 _RL_DEFAULT = (
     0.05,
@@ -198,16 +199,16 @@ def _ros2(robot, nominal, model, at, wheel_names) -> dict[str, object]:
         "left_wheel_radius_multiplier": robot.left_wheel_radius / base,
         "right_wheel_radius_multiplier": robot.right_wheel_radius / base,
         "velocity_rolling_window_size": at.window,
-        "pose_covariance_diagonal": [
-            straight[0, 0],
-            straight[1, 1],
-            UNKNOWN,
-            UNKNOWN,
-            UNKNOWN,
-            straight[2, 2],
-        ],
-        "twist_covariance_diagonal": [var_v, KNOWN_ZERO, UNKNOWN, UNKNOWN, UNKNOWN, var_w],
+        "pose_covariance_diagonal": _ros_diagonal(np.diag(straight)),
+        "twist_covariance_diagonal": _ros_diagonal([var_v, 0.0, var_w]),
     }
+
+
+def _ros_diagonal(planar: object) -> list[float]:
+    """Variances of x, y, yaw (or their rates) as ROS's diagonal of six: each at least
+    ``covariance.FLOOR``, the axes a planar robot does not estimate unknown."""
+    x, y, yaw = np.diag(floored(np.diag(np.asarray(planar, dtype=float)))).tolist()
+    return [x, y, UNESTIMATED, UNESTIMATED, UNESTIMATED, yaw]
 
 
 def _c_header(robot: DiffDrive, model: NoiseModel, encoders: Encoders | None):

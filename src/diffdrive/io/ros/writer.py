@@ -17,16 +17,13 @@ from typing import Literal
 import numpy as np
 
 from diffdrive._optional import optional
+from diffdrive.io.ros.covariance import floored, planar_6x6
 from diffdrive.io.tables import TableError
 
 __all__ = ["BAG_FORMATS", "Stream", "write_odometry", "write_streams"]
 
 BagFormat = Literal["mcap", "ros2"]
 BAG_FORMATS: tuple[BagFormat, ...] = ("mcap", "ros2")
-# z, roll and pitch are not estimated by planar odometry: their variances say "unknown", as
-# ROS's diff_drive_controller configures them by default.
-_UNESTIMATED_VARIANCE = 1e6
-_PLANAR = (0, 1, 5)  # x, y, yaw in the 6x6 (x, y, z, roll, pitch, yaw) covariance
 
 
 def write_odometry(
@@ -51,7 +48,8 @@ def write_odometry(
     pitch, and their rates, get 1e6: not estimated); ``twists`` ``(N, 3)`` ``[vx, vy, omega]``
     the twist, in the child frame as ROS has it. A covariance or twist not given is zero: an
     exact trajectory (a simulation's, a ground truth), at rest unless ``twists`` says
-    otherwise. ``format`` is ``"mcap"`` (one MCAP file, what Foxglove
+    otherwise. Every covariance is written ``covariance.floored`` (no eigenvalue below 1e-9),
+    so that a fuser can invert it. ``format`` is ``"mcap"`` (one MCAP file, what Foxglove
     opens) or ``"ros2"`` (a ROS 2 bag folder, for ``ros2 bag play``); default: ``mcap`` for a
     name ending in ``.mcap``, else ``ros2``. The file or folder appears whole or not at all; an
     existing folder is not replaced.
@@ -212,10 +210,11 @@ _COVARIANCE_UNKNOWN, _DIAGONAL_KNOWN, _COVARIANCE_KNOWN = 0, 2, 3
 
 def _fix(store, stamp, stream, value):
     t = store.types
-    if stream.covariance is None:
+    if stream.covariance is None or not np.any(stream.covariance):
+        # NavSatFix's own word for "no covariance", which its readers know (not a singular one)
         covariance, kind = np.zeros(9), _COVARIANCE_UNKNOWN
     else:
-        matrix = np.asarray(stream.covariance, dtype=float)
+        matrix = floored(stream.covariance)
         diagonal = not np.any(matrix - np.diag(np.diag(matrix)))
         covariance, kind = matrix.ravel(), _DIAGONAL_KNOWN if diagonal else _COVARIANCE_KNOWN
     return t["sensor_msgs/msg/NavSatFix"](
@@ -239,7 +238,7 @@ def _pose(store, stamp, stream, value):
             pose=t["geometry_msgs/msg/Pose"](
                 position=position, orientation=_quaternion(store, float(value[2]))
             ),
-            covariance=_planar_covariance(planar),
+            covariance=planar_6x6(planar),
         ),
     )
 
@@ -320,15 +319,6 @@ def _quaternion(store, yaw: float):
     return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
 
 
-def _planar_covariance(covariance: np.ndarray) -> np.ndarray:
-    """A 3x3 over ``(x, y, yaw)`` (or their rates) as ROS's row-major 6x6, 36 values; the
-    axes a planar robot does not estimate at 1e6."""
-    full = np.zeros((6, 6))
-    full[2, 2] = full[3, 3] = full[4, 4] = _UNESTIMATED_VARIANCE
-    full[np.ix_(_PLANAR, _PLANAR)] = covariance
-    return full.ravel()
-
-
 def _odometry(store, stamp, frames, pose, covariance, twist, twist_covariance):
     t = store.types
     frame, child_frame = frames
@@ -341,14 +331,14 @@ def _odometry(store, stamp, frames, pose, covariance, twist, twist_covariance):
             pose=t["geometry_msgs/msg/Pose"](
                 position=position, orientation=_quaternion(store, float(pose[2]))
             ),
-            covariance=_planar_covariance(covariance),
+            covariance=planar_6x6(covariance),
         ),
         twist=t["geometry_msgs/msg/TwistWithCovariance"](
             twist=t["geometry_msgs/msg/Twist"](
                 linear=vector(x=float(twist[0]), y=float(twist[1]), z=0.0),
                 angular=vector(x=0.0, y=0.0, z=float(twist[2])),
             ),
-            covariance=_planar_covariance(twist_covariance),
+            covariance=planar_6x6(twist_covariance),
         ),
     )
 
