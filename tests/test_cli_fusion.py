@@ -287,7 +287,9 @@ def test_no_wheel_noise_is_refused_for_a_bag(synthetic_bag, tmp_path, capsys):
 @pytest.mark.slow
 def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, capsys):
     """/ground_truth: the trajectory with its twists, stamped as the joints; a GPS fix with
-    the covariance synth knows. Against the trajectory file (1 s earlier) evaluate warns."""
+    the covariance synth knows. A synth run's table and bag share one clock: the bag's
+    estimate pairs pose for pose with the table's truth. Against the trajectory file (1 s
+    earlier) evaluate refuses, naming the move and the --t-offset that undoes it."""
     pytest.importorskip("rosbags")
     from diffdrive.io import ros
 
@@ -295,9 +297,14 @@ def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, cap
     assert main(["simulate", "--dt", "0.02", "-o", "traj.csv", "-q"]) == 0
     gps = ["--gps", "48.1", "11.6", "520", "--pose-sigma", "0.5", "0.4", "0", "--seed", "2"]
     assert main(["synth", "traj.csv", *gps, "-o", "run.mcap"]) == 0
-    assert "the bag's stamps are the trajectory's plus 1 s" in capsys.readouterr().out
+    assert "the stamps are the trajectory's plus 1 s, in a table as in a bag" in (
+        capsys.readouterr().out
+    )
+    assert main(["synth", "traj.csv", "--seed", "2", "-o", "run.csv", "-q"]) == 0
     table = np.genfromtxt("traj.csv", delimiter=",", names=True)
+    run_table = np.genfromtxt("run.csv", delimiter=",", names=True)
     truth = ros.read_odometry("run.mcap", "/ground_truth")
+    np.testing.assert_allclose(run_table["t"], truth.times, atol=2e-9)  # one clock
     joints = ros.read_joint_states("run.mcap", "left_wheel_joint", "right_wheel_joint")
     np.testing.assert_allclose(truth.times, joints.times, atol=2e-9)
     np.testing.assert_allclose(truth.times, table["t"] + 1.0, atol=2e-9)
@@ -325,11 +332,18 @@ def test_a_synth_bag_holds_the_truth_on_its_own_clock(tmp_path, monkeypatch, cap
     np.testing.assert_allclose(fix.position_covariance, np.diag([0.25, 0.16, FLOOR]).ravel())
     odometry = ["odometry", "run.mcap", "--left-joint", "left_wheel_joint", "--right-joint"]
     assert main([*odometry, "right_wheel_joint", "-o", "odo.csv", "-q"]) == 0
-    code = main(["evaluate", "odo.csv", "--truth", "traj.csv", "--json"])
-    assert code == 0
+    assert main(["evaluate", "odo.csv", "--truth", "traj.csv", "--json"]) == 1
     captured = capsys.readouterr()
-    assert "start +1 s and end +1 s apart, more than a period (0.02 s)" in captured.err
-    assert json.loads(captured.out)["max_heading_error_deg"] > 50  # paired across 1 s
+    assert "start +1 s and end +1 s apart, the same span moved by more than a period (0.02 s)" in (
+        captured.err
+    )
+    assert "Give --t-offset -1" in captured.err
+    assert captured.out == ""
+    for truth_file in (["traj.csv", "--t-offset", "-1"], ["run.csv"]):
+        assert main(["evaluate", "odo.csv", "--truth", *truth_file, "--json"]) == 0
+        captured = capsys.readouterr()
+        assert "warning" not in captured.err
+        assert json.loads(captured.out)["max_heading_error_deg"] < 1e-6
     code = main(["evaluate", "odo.csv", "--truth", "run.mcap", "--truth-topic", "/ground_truth",
                  "--json"])  # fmt: skip
     captured = capsys.readouterr()

@@ -380,6 +380,11 @@ def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, c
     assert main(["synth", *common, "-o", str(table), "-q"]) == 0
     run = read_run(table)
     assert run.kind == "ticks"
+    joints = ros.read_joint_states(bag, "left_wheel_joint", "right_wheel_joint")
+    np.testing.assert_allclose(run.times, joints.times, atol=2e-9)  # the bag's clock
+    assert main(["synth", *common, "--time-offset", "5", "-o", str(tmp_path / "late.csv")]) == 0
+    assert "the stamps are the trajectory's plus 5 s" in capsys.readouterr().out
+    np.testing.assert_allclose(read_run(tmp_path / "late.csv").times, run.times + 4.0)
     assert run.wheels.max() < 2**11
     odometry = tmp_path / "o.csv"
     argv = ["odometry", str(table), "--counter-bits", "12", "-o", str(odometry)]
@@ -393,7 +398,6 @@ def test_the_synth_command_writes_what_odometry_and_the_readers_take(tmp_path, c
     assert "a pose or GPS sensor needs a bag" in capsys.readouterr().err
     assert not (tmp_path / "x.csv").exists()
     refused = [
-        (["--time-offset", "5", "-o", "x.csv"], "--time-offset shifts a bag's stamps"),
         (["--time-offset", "nan", "-o", "x.mcap"], "--time-offset must be finite"),
         (["--time-offset", "3e9", "-o", "x.mcap"], "/joint_states: times must lie in [0, 2^31)"),
         (["--gps", "100", "0", "0", "-o", "x.mcap"], "latitude must lie in [-90, 90]"),

@@ -86,7 +86,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 f"--datum places GPS fixes: neither {args.input} nor {args.truth} is a "
                 "NavSatFix topic"
             )
-        _warn_of_other_clocks(args, times, truth_times)
+        _check_clocks(args, times, truth_times)
         times, estimate, truth, covariances = _paired(
             args, times, estimate, truth_times, truth, covariances
         )
@@ -116,21 +116,33 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _warn_of_other_clocks(args, times: np.ndarray, truth_times: np.ndarray) -> None:
-    """Say when the two inputs' time spans (the trajectory's after --t-offset) differ by more
-    than their period: most likely two clocks (a bag's stamps 1 s in, Unix time), whose poses
-    would be paired with others of other times."""
+def _check_clocks(args, times: np.ndarray, truth_times: np.ndarray) -> None:
+    """Refuse two inputs whose time spans (the trajectory's after --t-offset) are one span
+    moved by more than a period (the larger median step of the two): two clocks, such as a
+    bag's stamps and the trajectory they were made from, whose poses would be paired with
+    those of other times. Spans that differ otherwise (a truth that starts earlier and ends
+    later) are said in a warning."""
     shifted = times + args.t_offset
     period = max(float(np.median(np.diff(times))), float(np.median(np.diff(truth_times))))
     starts, ends = shifted[0] - truth_times[0], shifted[-1] - truth_times[-1]
     if max(abs(starts), abs(ends)) <= period:
         return
+    spans = (
+        f"{args.input} spans {shifted[0]:g} to {shifted[-1]:g} s (after --t-offset) and "
+        f"{args.truth} {truth_times[0]:g} to {truth_times[-1]:g} s: they start {starts:+g} s and "
+        f"end {ends:+g} s apart"
+    )
+    if abs(starts - ends) <= period:
+        raise TableError(
+            f"{spans}, the same span moved by more than a period ({period:g} s): two clocks, "
+            f"whose poses would be paired with others of other times. Give --t-offset "
+            f"{args.t_offset - starts:g} if the moves are the same, or compare on one clock "
+            "(a synth run's table and bag share theirs; its bag holds the truth on "
+            "/ground_truth)"
+        )
     print(
-        f"evaluate: warning: {args.input} spans {shifted[0]:g} to {shifted[-1]:g} s (after "
-        f"--t-offset) and {args.truth} {truth_times[0]:g} to {truth_times[-1]:g} s: they start "
-        f"{starts:+g} s and end {ends:+g} s apart, more than a period ({period:g} s). If they "
-        "are on two clocks, --t-offset moves the trajectory's (a synth bag starts 1 s in: "
-        "compare with its /ground_truth)",
+        f"evaluate: warning: {spans}, more than a period ({period:g} s): only the poses "
+        "within both spans are paired",
         file=sys.stderr,
     )
 

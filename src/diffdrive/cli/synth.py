@@ -47,27 +47,26 @@ def run_synth(args: argparse.Namespace) -> int:
     commands = sensors.commands_of(robot, times, poses)
     absolute = _absolute(args, robot, times, poses)
     format = args.format or _format_of(args.output)
-    offset = 0.0
+    # One clock for the table and the bag: both stamped as the bag must be (ROS reads a
+    # stamp of 0 as unset), so a run's two files pair pose for pose.
+    offset = sensors.bag_time_offset(times[0]) if args.time_offset is None else args.time_offset
+    if not math.isfinite(offset):
+        raise ValueError(f"--time-offset must be finite (s), got {offset}")
+    if format != "csv" and not times[0] + offset > 0.0:
+        raise ValueError(
+            f"--time-offset {offset:g}: the bag's first stamp would be {times[0] + offset:g} "
+            f"s, and ROS reads a stamp of 0 as unset; give an offset above {0.0 - times[0]:g}"
+        )
     if format == "csv":
         if absolute is not None:
             raise ValueError("a pose or GPS sensor needs a bag (-o NAME.mcap, or --format ros2)")
-        if args.time_offset is not None:
-            raise ValueError("--time-offset shifts a bag's stamps; a table keeps the trajectory's")
-        sensors.write_table(args.output, encoders, gyro=gyro, commands=commands)
+        sensors.write_table(args.output, encoders, gyro=gyro, commands=commands, time_offset=offset)
         written = "wheels, gyro_z, commands and truth as a table"
     else:
         streams: dict[str, Any] = {"encoders": encoders, "gyro": gyro, "commands": commands}
         if absolute is not None:
             streams["absolute"] = absolute
         origin = tuple(args.gps) if args.gps else None
-        offset = sensors.bag_time_offset(times[0]) if args.time_offset is None else args.time_offset
-        if not math.isfinite(offset):
-            raise ValueError(f"--time-offset must be finite (s), got {offset}")
-        if not times[0] + offset > 0.0:
-            raise ValueError(
-                f"--time-offset {offset:g}: the bag's first stamp would be {times[0] + offset:g} "
-                f"s, and ROS reads a stamp of 0 as unset; give an offset above {0.0 - times[0]:g}"
-            )
         sensors.write_bag(
             args.output,
             format=format,
@@ -82,12 +81,12 @@ def run_synth(args: argparse.Namespace) -> int:
         written += ", the truth on /ground_truth"
     if not args.quiet:
         print(f"synth: {len(times)} samples along {what}: {written} in {args.output} ({format})")
-        if format != "csv" and offset:
-            # The one thing that makes the bag's clock differ from the trajectory's.
+        if offset:
+            # The one thing that makes the run's clock differ from the trajectory's.
             print(
-                f"synth: the bag's stamps are the trajectory's plus {offset:g} s (ROS reads a "
-                "stamp of 0 as unset): evaluate against the bag's /ground_truth, or give "
-                f"--t-offset {-offset:g} against {what}"
+                f"synth: the stamps are the trajectory's plus {offset:g} s, in a table as in a "
+                "bag (ROS reads a stamp of 0 as unset): evaluate against the run's own truth, "
+                f"or give --t-offset {-offset:g} against {what}"
             )
     return 0
 
@@ -176,8 +175,9 @@ EPILOGS = {
 
 Every error source defaults to none (an ideal sensor); --seed makes the run repeatable. A bag
 holds the trajectory itself as nav_msgs/Odometry on /ground_truth (world -> base_link, exact:
-zero covariances), on the bag's clock; a table holds it as x, y, theta. ROS reads a stamp of 0
-as unset: bag times start --time-offset s in (default 1 s for a path that starts at 0).""",
+covariances at the 1e-9 floor), on the bag's clock; a table holds it as x, y, theta. ROS
+reads a stamp of 0 as unset: a run's times, in a table as in a bag, start --time-offset s in
+(default 1 s for a path that starts at 0), so that its two files share one clock.""",
 }
 
 
@@ -196,7 +196,7 @@ def add_to(command: Command, parents: Parents) -> None:
     synth.add_argument("-o", "--output", type=Path, default=Path("synth.mcap"))
     synth.add_argument("--format", choices=("mcap", "ros2", "csv"), help="default: by suffix")
     synth.add_argument("--seed", type=int, help="the random numbers' seed (default: fresh)")
-    synth.add_argument("--time-offset", type=float, help="s added to a bag's times")
+    synth.add_argument("--time-offset", type=float, help="s added to the run's times, table or bag")
     synth.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     encoder = synth.add_argument_group("encoders")
     add_encoder_options(encoder)

@@ -151,14 +151,16 @@ def write_table(
     *,
     gyro: GyroReadings | None = None,
     commands: Commands | None = None,
+    time_offset: float = 0.0,
 ) -> Path:
-    """Robot ``robot``'s encoder rows as a wheel-log table (CSV): ``t``, the wheel columns
-    (counts, or angles in rad), the truth ``x, y, theta``, and where given the gyro's yaw rate
-    ``gyro_z`` and the commanded wheel velocities, sampled with the encoders."""
+    """Robot ``robot``'s encoder rows as a wheel-log table (CSV): ``t`` (the readings' times
+    plus ``time_offset`` s, as ``write_bag`` stamps them), the wheel columns (counts, or angles
+    in rad), the truth ``x, y, theta``, and where given the gyro's yaw rate ``gyro_z`` and the
+    commanded wheel velocities, sampled with the encoders."""
     keep = encoders.kept[robot]
     run = encoders.run(robot)
     kind = "ticks" if run.kind == "ticks" else "angle"
-    columns = {"t": run.times}
+    columns = {"t": run.times + finite("time_offset", time_offset)}
     columns[f"left_{kind}"], columns[f"right_{kind}"] = run.wheels[:, 0], run.wheels[:, 1]
     assert run.truth is not None
     columns.update(x=run.truth[:, 0], y=run.truth[:, 1], theta=run.truth[:, 2])
