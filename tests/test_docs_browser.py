@@ -36,6 +36,27 @@ def test_the_site_builds_in_strict_mode_without_a_warning(built):
     assert "calibrate_to_reference" in page.read_text()
 
 
+def test_every_name_a_face_exports_has_an_entry_on_its_page(built):
+    """As a reader finds them: each name of each face's ``__all__`` (but the submodules, which
+    have their own pages) is an entry of that face's reference page, with its own anchor."""
+    import importlib
+    import re
+
+    from test_docs import FACES, _reference_page
+
+    site, build = built
+    assert build.returncode == 0, build.stderr
+    missing = []
+    for face in FACES:
+        page = _reference_page(face)[: -len(".md")]
+        html = site / (page[: -len("index")] if page.endswith("index") else page + "/")
+        anchors = set(re.findall(r'id="([^"]+)"', (html / "index.html").read_text()))
+        for name in getattr(importlib.import_module(face), "__all__", ()):
+            if f"{face}.{name}" not in FACES and f"{face}.{name}" not in anchors:
+                missing.append(f"{face}.{name}")
+    assert missing == [], "\n".join(missing)
+
+
 @pytest.fixture(scope="module")
 def served(built):
     """The built site served by ``http.server``: yields its address."""

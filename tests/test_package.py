@@ -69,14 +69,32 @@ def test_import_loads_the_core_and_the_rest_on_first_use():
     assert out[:2] == ["[]", "True True"]
 
 
-def test_a_submodule_imported_first_does_not_hide_the_function_it_names():
-    """``control.follow`` is the function even when ``diffdrive.control.follow`` (the module)
-    was imported before the name was first reached."""
+def test_no_face_names_a_function_as_one_of_its_modules():
+    """A name a face exports is never also one of its submodules (``control.follow`` was the
+    function and a module: the reference documented the module, and importing the module
+    could hide the function); a submodule imported first leaves the face's names as they
+    are."""
+    import importlib
+    import pkgutil
+
+    import diffdrive
+
+    packages = ["diffdrive"] + [
+        found.name
+        for found in pkgutil.walk_packages(diffdrive.__path__, "diffdrive.")
+        if found.ispkg
+    ]
+    for name in packages:
+        package = importlib.import_module(name)
+        submodules = {found.name for found in pkgutil.iter_modules(package.__path__)}
+        for exported in getattr(package, "__all__", ()):
+            if exported in submodules:
+                value = getattr(package, exported)
+                assert getattr(value, "__name__", None) == f"{name}.{exported}", (name, exported)
     code = (
-        "import diffdrive.control.follow as module\n"
-        "import sys\n"
+        "import diffdrive.control.closed_loop as module\n"
         "from diffdrive import control\n"
-        "print(control.follow is sys.modules['diffdrive.control.follow'].follow)\n"
+        "print(control.follow is module.follow)\n"
         "print(sorted(set(control.__all__) - set(dir(control))))\n"
     )
     assert python_lines(code)[:2] == ["True", "[]"]

@@ -20,6 +20,7 @@ from diffdrive.trajectory import Trajectory
 from diffdrive.types import Pose, Twist, WheelPositions, WheelVelocities
 
 __version__ = "0.1.0"
+"""The package's version (PEP 440), as its metadata gives it."""
 
 # The control names load diffdrive.control's modules on first use; the submodules below are
 # loaded when first reached as attributes (dd.calibration, dd.plot, ...).

@@ -50,12 +50,15 @@ __all__ = [
 # Per method: the share of the step's turn by which the move's direction is turned, and
 # whether the move is scaled to the chord of the arc.
 Method = Literal["euler", "rk2", "exact"]
+"""The integration methods' names: ``"euler"``, ``"rk2"`` (midpoint heading) and ``"exact"`` (the
+SE(2) exponential of a constant twist)."""
 METHOD_FLAGS: dict[Method, tuple[float, bool]] = {
     "euler": (0.0, False),
     "rk2": (0.5, False),
     "exact": (0.5, True),
 }
 METHODS: tuple[Method, ...] = tuple(METHOD_FLAGS)
+"""Every ``Method``, in order of accuracy."""
 TAYLOR_LIMIT = 1.0 / 16.0
 
 

@@ -12,7 +12,8 @@ def example_robot() -> DiffDrive:
     return DiffDrive(wheel_radius=0.042, track_width=0.200)
 
 
-EXAMPLE_DURATION = 20.0  # s
+EXAMPLE_DURATION = 20.0
+"""How long the built-in driving history lasts, s."""
 
 
 def example_wheel_velocities(t: np.ndarray) -> np.ndarray:
@@ -27,7 +28,9 @@ def example_wheel_velocities(t: np.ndarray) -> np.ndarray:
     return np.stack([cruise - weave - spin, cruise + weave + spin], axis=-1)
 
 
-EXAMPLE_TICKS_PER_REVOLUTION = 2796.8  # the OptiOdom robot's encoders: 43.7:1 gear, 64 counts
+EXAMPLE_TICKS_PER_REVOLUTION = 2796.8
+"""The built-in encoder log's counts per wheel revolution: the OptiOdom robot's (43.7:1 gear,
+64 counts per motor revolution)."""
 
 
 def example_encoder_log(rate: float = 20.0) -> dict[str, np.ndarray]:

@@ -16,7 +16,9 @@ import numpy as np
 __all__ = ["MAX_COUNTER_BITS", "MIN_COUNTER_BITS", "check_counter_bits", "count_changes"]
 
 MIN_COUNTER_BITS = 2
+"""The narrowest encoder counter the readers take, bits."""
 MAX_COUNTER_BITS = 64
+"""The widest encoder counter the readers take, bits (a counter that never rolls over)."""
 
 
 def check_counter_bits(bits: object) -> int | None:

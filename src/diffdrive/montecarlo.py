@@ -38,8 +38,8 @@ import numpy as np
 
 from diffdrive._arrays import components
 from diffdrive._validate import finite, whole
+from diffdrive.batch.integration import accumulate, twists
 from diffdrive.batch.kinematics import WHEELS
-from diffdrive.batch.rollout import accumulate, twists
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive, geometry_of

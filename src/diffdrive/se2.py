@@ -35,8 +35,12 @@ __all__ = [
 ]
 
 compose = Pose.compose
+"""``compose(a, b)``: the pose ``b`` (given in ``a``'s frame) in the world, ``a b`` in SE(2)
+(``Pose.compose``)."""
 inverse = Pose.inverse
+"""``inverse(a)``: the world's origin seen from ``a`` (``Pose.inverse``)."""
 relative_to = Pose.relative_to
+"""``relative_to(a, b)``: the pose ``a`` seen from ``b``, ``b^-1 a`` (``Pose.relative_to``)."""
 
 
 def sinc(u: float) -> float:

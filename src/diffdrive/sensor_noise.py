@@ -103,9 +103,13 @@ class WheelNoise:
 
 
 WheelNoiseLike = Union[WheelNoise, float, tuple[float, float]]  # noqa: UP007 (a runtime alias)
+"""What a wheel-noise argument takes: a ``WheelNoise``, one ``k`` (m) for both wheels, or
+``(k_left, k_right)``."""
 
 DEFAULT = WheelNoise.symmetric(1e-4)
+"""The library's wheel noise where none is given to an estimator: ``k`` = 1e-4 m on each wheel."""
 NONE = WheelNoise()  # a simulator's default: no noise drawn
+"""No wheel noise: a simulator's default, which draws none."""
 
 
 @dataclass(frozen=True)
@@ -134,6 +138,8 @@ class GyroNoise:
 
 
 DEFAULT_GYRO = GyroNoise(angle_random_walk=2e-3, rate_random_walk=1e-4, initial_bias_sigma=5e-3)
+"""The library's gyro noise where none is given: angle random walk 2e-3 rad/s^0.5, rate random walk
+1e-4 rad/s^1.5, initial bias sigma 5e-3 rad/s."""
 
 
 def draw_travel(travel: np.ndarray, k: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -24,8 +24,8 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive._arrays import components, device, floating, namespace
+from diffdrive.batch.integration import travel as prefix_travel
 from diffdrive.batch.kinematics import WHEELS
-from diffdrive.batch.rollout import travel as prefix_travel
 from diffdrive.batch.se2 import POSE
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import Robot

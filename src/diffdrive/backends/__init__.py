@@ -2,7 +2,7 @@
 
 - NumPy blocked prefix sums: ``diffdrive.simulation`` (``simulate``'s default path);
 - any array-API library (JAX, PyTorch, CuPy, ...), functional and differentiable:
-  ``diffdrive.batch.rollout``;
+  ``diffdrive.batch.integration``;
 - numba: ``numba_simulate`` (``simulate``'s compiled kernel, and ``_step``'s functions
   compiled), ``simulate_kernel`` (that kernel's machine code cached on disk and loaded without
   numba, and the threads that run it) and ``numba_montecarlo`` (the reduce-only Monte Carlo);

@@ -29,6 +29,7 @@ __all__ = [
 ]
 
 HEADINGS = ("wheels", "gyro", "fused")  # the heading sources, in the C core's order
+"""The estimator's heading sources, in the C core's order: the wheels, the gyro, or both fused."""
 # the estimator's state: x, y, theta, bias, turn_scale, distance_scale, the fixes' offset x, y
 N = 8
 BIAS, SCALE, DISTANCE, OFFSET = 3, 4, 5, 6

@@ -5,6 +5,7 @@ the same formula, leading axes broadcast, the input's floating dtype kept.
 """
 
 from diffdrive.batch.integrate import delta, step
+from diffdrive.batch.integration import accumulate, rollout, twists
 from diffdrive.batch.kinematics import (
     advance_wheel_positions,
     instantaneous_center,
@@ -13,7 +14,6 @@ from diffdrive.batch.kinematics import (
     turning_radius,
     wheel_velocities_from_positions,
 )
-from diffdrive.batch.rollout import accumulate, rollout, twists
 from diffdrive.batch.se2 import (
     compose,
     exp,

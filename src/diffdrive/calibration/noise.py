@@ -88,9 +88,11 @@ TERMS = (
     "reference_sigma",
     "reference_heading_sigma",
 )
-# The accuracy of a motion-capture reference, (m, rad): 1 mm and 0.1 degree, above a
-# motion-capture room's sub-millimetre (OptiOdom's ground truth has mm-level jitter).
+"""The noise model's terms by name: each wheel's ``k`` (m), the relative spread of the radii and of
+the track, and the reference's position (m) and heading (rad) noise."""
 MOTION_CAPTURE = (0.001, math.radians(0.1))
+"""A motion-capture reference's accuracy ``(m, rad)``: 1 mm and 0.1 degree, above the room's
+sub-millimetre (OptiOdom's ground truth jitters at the millimetre)."""
 # Which term owns each of _noise_fit.PARAMETERS (a pair of the geometry is fitted when both of
 # its terms are), and how a refusal names it.
 _OWNER = (

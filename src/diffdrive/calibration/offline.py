@@ -75,20 +75,24 @@ __all__ = [
 ]
 
 CalibrationMethod = Literal["umbmark", "least_squares", "minimax", "increments"]
+"""The offline calibration methods' names."""
 CALIBRATION_METHODS: tuple[CalibrationMethod, ...] = (
     "umbmark",
     "least_squares",
     "minimax",
     "increments",
 )
+"""Every ``CalibrationMethod``: UMBmark's square runs, least squares and minimax over the runs' end
+poses, and least squares over every increment."""
 PARAMETERS = ("left_wheel_radius", "right_wheel_radius", "track_width")
-# Optional extra parameters of least squares and minimax: where the reference point lies ahead
-# of the axle (m), and a constant heading between the reference's body and the robot (rad).
+"""The geometry every method fits: both wheel radii and the track width (m)."""
 EXTRAS = ("axle_offset", "heading_offset")
-# The extra parameters fitted unless asked (the library's and the command line's): none. The
-# heading offset belongs to the reference, not to the robot file, and an axle offset only
-# helps runs that turn while driving (docs/guides/calibration.md: which to use when).
+"""The optional parameters of least squares and minimax: how far the reference point lies ahead of
+the axle (m), and a constant heading between the reference's body and the robot (rad)."""
 DEFAULT_EXTRA: tuple[str, ...] = ()
+"""The extras fitted when none are asked for (in the library and on the command line): none. The
+heading offset belongs to the reference, not the robot file, and an axle offset helps only runs
+that turn while driving."""
 # A motion-capture body is set up within a few degrees of the robot's heading.
 PLAUSIBLE_HEADING_OFFSET = math.radians(10.0)
 _EXTRA_BOUNDS = {"axle_offset": (-0.5, 0.5), "heading_offset": (-0.5, 0.5)}
@@ -137,6 +141,7 @@ class Increments:
 
 
 MethodOptions = UMBmark | LeastSquares | Increments
+"""A method's options: ``UMBmark``, ``LeastSquares`` (least squares, minimax) or ``Increments``."""
 # Each method's options, and its defaults.
 _OPTIONS: dict[str, type] = {
     "umbmark": UMBmark,

@@ -42,6 +42,7 @@ from diffdrive.io import TIME_UNITS
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The `diffdrive` command line's parser: every subcommand, its options and its help."""
     parser = argparse.ArgumentParser(
         prog="diffdrive",
         description="Kinematics of differential-drive robots. With no arguments: the "

@@ -9,14 +9,15 @@
   limits; ``limit_ratios`` judges any timed path against them;
 - ``tracking``: ``Ramsete``, ``LTVUnicycle``, ``PurePursuit``, and ``Predictive`` for a known
   delay and lag;
-- ``follow``: ``follow``, closed-loop simulation of a batch of robots; ``delay_margin``;
-- ``rollouts``: many candidate command sequences through a delay and acceleration limits;
+- ``closed_loop``: ``follow``, closed-loop simulation of a batch of robots; ``delay_margin``;
+- ``candidates``: ``rollouts``, many candidate command sequences through a delay and
+  acceleration limits;
 - ``mppi``: ``MPPI``, a tracker that samples them (model predictive path integral control),
   with its ``MPPICosts``, ``MPPISampling`` and ``Avoidance``; ``_mppi_arrays`` runs its
   cycle in an array library;
 - ``obstacles``: ``Obstacles``, a clearance field from circles, an occupancy grid or a ROS map
-  (``read_map``); ``guide``: a plan made to clear them; ``courses``: ``cluttered_corridor``, a
-  random course to test a controller on.
+  (``read_map``); ``clearance``: ``guide``, a plan made to clear them; ``courses``:
+  ``cluttered_corridor``, a random course to test a controller on.
 """
 
 from typing import TYPE_CHECKING
@@ -26,15 +27,15 @@ from diffdrive._lazy import attach
 # Each name loads its module on first use.
 _NAMES = {
     **dict.fromkeys(["KEEP", "desaturate"], "commands"),
-    **dict.fromkeys(["FollowResult", "FollowSettings", "delay_margin", "follow"], "follow"),
+    **dict.fromkeys(["FollowResult", "FollowSettings", "delay_margin", "follow"], "closed_loop"),
     **dict.fromkeys(["Limiter", "Limits"], "limiter"),
     **dict.fromkeys(["OpenLoopOdometry", "drive_commands"], "open_loop"),
     **dict.fromkeys(["from_segments", "from_waypoints"], "path"),
     **dict.fromkeys(["PathLimits", "Plan", "limit_ratios", "plan"], "planning"),
-    "rollouts": "rollouts",
+    "rollouts": "candidates",
     **dict.fromkeys(["MPPI", "Avoidance", "MPPICosts", "MPPISampling"], "mppi"),
     **dict.fromkeys(["Obstacles", "read_map"], "obstacles"),
-    "guide": "guide",
+    "guide": "clearance",
     **dict.fromkeys(["Course", "cluttered_corridor"], "courses"),
     **dict.fromkeys(["LTVUnicycle", "Predictive", "PurePursuit", "Ramsete", "Tracker"], "tracking"),
 }
@@ -74,15 +75,15 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # what the names are, for type checkers
+    from diffdrive.control.candidates import rollouts
+    from diffdrive.control.clearance import guide
+    from diffdrive.control.closed_loop import FollowResult, FollowSettings, delay_margin, follow
     from diffdrive.control.commands import KEEP, desaturate
     from diffdrive.control.courses import Course, cluttered_corridor
-    from diffdrive.control.follow import FollowResult, FollowSettings, delay_margin, follow
-    from diffdrive.control.guide import guide
     from diffdrive.control.limiter import Limiter, Limits
     from diffdrive.control.mppi import MPPI, Avoidance, MPPICosts, MPPISampling
     from diffdrive.control.obstacles import Obstacles, read_map
     from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
     from diffdrive.control.path import from_segments, from_waypoints
     from diffdrive.control.planning import PathLimits, Plan, limit_ratios, plan
-    from diffdrive.control.rollouts import rollouts
     from diffdrive.control.tracking import LTVUnicycle, Predictive, PurePursuit, Ramsete, Tracker

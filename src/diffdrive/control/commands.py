@@ -24,6 +24,8 @@ __all__ = ["KEEP", "Keep", "desaturate"]
 
 Keep = Literal["curvature", "omega", "v"]
 KEEP: tuple[Keep, ...] = ("curvature", "omega", "v")
+"""What desaturation keeps of a command beyond a wheel's limit: its ``"curvature"`` (the path), its
+``"omega"`` or its ``"v"``."""
 
 
 def desaturate(

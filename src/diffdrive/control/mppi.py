@@ -66,7 +66,7 @@ from diffdrive._validate import (
 )
 from diffdrive.backends.settings import MPPISettings
 from diffdrive.control._mppi_arrays import ArrayCycle, drive_period
-from diffdrive.control.guide import guide
+from diffdrive.control.clearance import guide
 from diffdrive.control.obstacles import Obstacles
 from diffdrive.control.planning import Plan
 from diffdrive.dynamics.drive import DriveModel

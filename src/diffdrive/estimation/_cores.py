@@ -15,6 +15,7 @@ try:
     from diffdrive.backends._odometry import EstimatorCore, OdometryCore
 
     COMPILED: bool = True
+    """Whether ``Odometry`` and ``PoseEstimator`` run the C core (True) or the Python twins."""
 except ImportError:
     from diffdrive.estimation._estimator_python import EstimatorCore
     from diffdrive.estimation._odometry_python import OdometryCore

@@ -59,6 +59,8 @@ __all__ = [
 
 UpdateKind = Literal["ticks", "positions", "increments", "velocities"]
 UPDATE_KINDS: tuple[UpdateKind, ...] = ("ticks", "positions", "increments", "velocities")
+"""What an odometry update reads: counter ``"ticks"``, accumulated wheel ``"positions"`` (rad),
+``"increments"`` (rad) or ``"velocities"`` (rad/s) held over a step."""
 
 
 class RefusedUpdateError(ValueError):

@@ -38,8 +38,8 @@ __all__ = [
     "render",
 ]
 
-# The least share of the runs' poses inside the model's 95 % ellipse that an export accepts.
 MIN_INSIDE_95 = 0.80
+"""The least share of the runs' poses inside the model's 95 % ellipse that an export accepts."""
 
 
 def refusals(found, model: NoiseModel) -> list[str]:

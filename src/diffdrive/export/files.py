@@ -13,12 +13,13 @@ from diffdrive.export.targets import Reference
 
 __all__ = ["FILES", "NODES", "WPILIB_SCHEMA", "render", "write", "yaml_value"]
 
-# The node each ROS file configures, as ``ros2 param load NODE FILE`` and a launch file take it.
 NODES = {
     "ros2": "diff_drive_controller",
     "robot_localization": "ekf_filter_node",
     "amcl": "amcl",
 }
+"""The node each ROS file configures, by target, as ``ros2 param load NODE FILE`` and a launch file
+take it."""
 FILES = {
     "ros2": "diff_drive_controller.yaml",
     "robot_localization": "ekf.yaml",
@@ -26,7 +27,9 @@ FILES = {
     "wpilib": "drivetrain.json",
     "c-header": "diffdrive_robot.h",
 }
+"""The file each target writes by default, by target."""
 WPILIB_SCHEMA = Path(__file__).with_name("wpilib.schema.json")
+"""The JSON Schema of the WPILib file, which the export checks what it writes against."""
 # What each WPILib figure is, in the file itself (JSON has no comments).
 _WPILIB_UNITS = {
     "trackWidth": "m: DifferentialDriveKinematics' track width (the calibrated, effective one)",

@@ -47,6 +47,8 @@ from diffdrive.sensor_noise import WheelNoise
 __all__ = ["TARGETS", "DriveConstants", "Reference", "parameters"]
 
 TARGETS = ("ros2", "robot_localization", "amcl", "wpilib", "c-header")
+"""What ``export`` writes for: ROS 2's diff_drive_controller, robot_localization, AMCL, WPILib, and
+the C core's header."""
 # robot_localization's documented default process noise diagonal (ekf.yaml).
 _RL_DEFAULT = (
     0.05,

@@ -26,8 +26,9 @@ __all__ = [
 # Experiments started less than this apart (h) were recorded in one sitting.
 SESSION_GAP_HOURS = 12.0
 
-# 43.7:1 gearbox times 64 encoder counts per motor revolution.
 OPTIODOM_TICKS_PER_REVOLUTION = 43.7 * 64
+"""The OptiOdom robot's counts per wheel revolution: a 43.7:1 gearbox times 64 counts per motor
+revolution."""
 
 
 def optiodom_robot(

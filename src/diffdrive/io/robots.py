@@ -15,7 +15,6 @@ from diffdrive.skid_steer import SkidSteer
 
 __all__ = ["ROBOT_KEYS", "overridden", "read_robot", "robot_from_settings", "write_robot"]
 
-# What a robot file may set: the DiffDrive's arguments, and the encoders' resolution.
 ROBOT_KEYS = (
     "wheel_radius",
     "left_wheel_radius",
@@ -28,6 +27,8 @@ ROBOT_KEYS = (
     "icr_x",
     "ticks_per_revolution",
 )
+"""What a robot file may set: the ``DiffDrive``'s (or ``SkidSteer``'s) arguments, and the encoders'
+resolution."""
 
 
 def read_robot(path: str | Path) -> dict[str, float]:

@@ -25,16 +25,18 @@ from diffdrive.model import Robot
 
 __all__ = ["RIM_SPEED_LIMIT", "WHEEL_COLUMNS", "Run", "WheelKind", "narrower_counter"]
 
-# Past this speed at the rim (m/s) a wheel-speed jump is no motion of a wheeled robot but a
-# misread log, unless the user sets the limit (max_wheel_speed, --max-wheel-speed).
 RIM_SPEED_LIMIT = 50.0
+"""The rim speed (m/s) past which a wheel-speed jump is taken for a misread log, not motion, unless
+the user sets the limit (``max_wheel_speed``, ``--max-wheel-speed``)."""
 
 WheelKind = Literal["ticks", "angle", "velocity"]
+"""What a log's wheel columns hold: counter ``"ticks"``, angles (rad) or velocities (rad/s)."""
 WHEEL_COLUMNS: dict[WheelKind, tuple[str, str]] = {
     "ticks": ("left_ticks", "right_ticks"),
     "angle": ("left_angle", "right_angle"),
     "velocity": ("left_velocity", "right_velocity"),
 }
+"""The wheel columns' names of each ``WheelKind``, left then right."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -40,8 +40,8 @@ __all__ = [
     "times_in_seconds",
 ]
 
-# Seconds per unit of a time column.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+"""Seconds per unit of a time column, by the unit's name."""
 # Stamps since 1970 in seconds stay below 1e11 until the year 5138; larger ones are finer units.
 _EPOCH_LIMIT = 1e11
 # Rows this far apart (s, the median) are no log of a moving robot: a log in ms at 100 Hz

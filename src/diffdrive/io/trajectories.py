@@ -43,6 +43,7 @@ __all__ = ["FORMATS", "read_trajectory", "trajectory_format", "write_trajectory"
 
 Format = Literal["csv", "jsonl", "tum"]
 FORMATS: tuple[Format, ...] = ("csv", "jsonl", "tum")
+"""The trajectory file formats: CSV, JSON lines and TUM."""
 _POSE = ("t", "x", "y", "theta")
 _ROWS_PER_WRITE = 1 << 16
 _BAG_TYPES = (

@@ -20,6 +20,7 @@ from pathlib import Path
 __all__ = ["PAGE", "export_page", "missing_extra", "serve", "serve_command"]
 
 PAGE = Path(__file__).with_name("page.py")
+"""The marimo notebook of the learning page."""
 
 
 def missing_extra() -> str | None:

@@ -13,10 +13,13 @@ dropped (counted in ``dropped``), since a log's times must increase.
 - ``read_imu``, ``read_twists`` (``Twist``/``TwistStamped`` commands), ``read_tf`` (a
   parent-to-child chain as a trajectory), ``read_navsatfix`` (to a local east-north frame);
 - ``topics``: what a bag holds, and which topics diffdrive can use;
+- ``FLOOR``, ``UNESTIMATED``, ``floored``: the covariances every written message carries,
+  positive definite (``covariance``);
 - ``write_odometry``: ``nav_msgs/Odometry`` with the propagated covariance and ``/tf``, to an
   MCAP file or a ROS 2 bag folder, written atomically.
 """
 
+from diffdrive.io.ros.covariance import FLOOR, UNESTIMATED, floored
 from diffdrive.io.ros.reader import (
     BagError,
     Imu,
@@ -39,6 +42,8 @@ from diffdrive.io.sniff import is_bag
 
 __all__ = [
     "BAG_FORMATS",
+    "FLOOR",
+    "UNESTIMATED",
     "BagError",
     "Imu",
     "NavSatFix",
@@ -46,6 +51,7 @@ __all__ = [
     "Stream",
     "Topic",
     "Twists",
+    "floored",
     "is_bag",
     "joint_names",
     "read_imu",

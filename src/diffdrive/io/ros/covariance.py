@@ -19,7 +19,10 @@ import numpy as np
 __all__ = ["FLOOR", "UNESTIMATED", "floored", "planar_6x6"]
 
 UNESTIMATED = 1e6
+"""The variance of an axis a planar robot does not estimate (z, roll, pitch, their rates):
+unknown, as ROS's diff_drive_controller writes it."""
 FLOOR = 1e-9
+"""The least eigenvalue of a written covariance, in its units squared (m^2, rad^2, (m/s)^2)."""
 _PLANAR = (0, 1, 5)  # x, y, yaw in the 6x6 (x, y, z, roll, pitch, yaw)
 
 

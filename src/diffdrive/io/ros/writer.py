@@ -24,6 +24,7 @@ __all__ = ["BAG_FORMATS", "Stream", "write_odometry", "write_streams"]
 
 BagFormat = Literal["mcap", "ros2"]
 BAG_FORMATS: tuple[BagFormat, ...] = ("mcap", "ros2")
+"""The bag formats written: one MCAP file, or a ROS 2 bag folder."""
 
 
 def write_odometry(

@@ -18,7 +18,7 @@ import numpy as np
 
 from diffdrive._step import method_flags
 from diffdrive._validate import positive
-from diffdrive.batch.rollout import accumulate
+from diffdrive.batch.integration import accumulate
 from diffdrive.integrate import Method
 
 __all__ = ["rollouts"]
