@@ -426,3 +426,33 @@ def test_without_the_guide_the_plan_is_followed_as_given():
     assert plain._guided(path) is path
     assert guided._guided(path) is not path
     assert guided._guided(path) is guided._guided(path)  # made once
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize(
+    ("time", "shift", "costs", "message"),
+    [
+        (math.nan, 0.0, None, "t must be finite"),
+        (0.1, 1e200, None, "its pose is 1e\\+200 m from the plan"),
+        (0.1, 2.0, MPPICosts(cross_track=1e308), "the largest cost weight is 1e\\+308"),
+    ],
+    ids=["a NaN time", "a pose 1e200 m off", "a weight of 1e308"],
+)
+def test_a_refused_cycle_changes_nothing(backend, time, shift, costs, message):
+    """One cycle given a NaN time, a pose 1e200 m off or a weight of 1e308 made a NaN command
+    without an error, and the NaN time every later command NaN: each is refused by name, and
+    the next cycle commands what a controller that never saw it commands."""
+    if backend == "numba":
+        compiled()
+    planned = plan(np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 1.0], [3.0, 1.0]]), ROBOT, LIMITS)
+    sampling = MPPISampling(horizon=10, samples=128, seed=3)
+    made = [MPPI(dt=0.05, backend=backend, sampling=sampling, costs=costs) for _ in range(2)]
+    start = planned.poses[:1] + np.array([[0.05, 0.02, 0.0]])
+    for tracker in made:
+        tracker.command(planned, 0.0, start)
+    bad = start + np.array([[0.0, shift, 0.0]])
+    with pytest.raises(ValueError, match=message):
+        made[0].command(planned, time, bad)
+    after = [tracker.command(planned, 0.05, start) for tracker in made]
+    assert np.all(np.isfinite(after[0]))
+    np.testing.assert_array_equal(after[0], after[1])

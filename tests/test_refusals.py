@@ -355,11 +355,47 @@ def test_a_queued_fix_with_a_huge_lever_arm_is_gated_out_and_the_estimator_goes_
             "times must be numbers",
         ),
         (lambda: dd.Odometry(ROBOT).reset(None, "a"), TypeError, "covariance must be numbers"),
+        # the round of probes of issue 55
+        (
+            lambda: dd.evaluation.consistency(
+                np.zeros((3, 3)), np.tile(np.eye(3) * 1e-2, (3, 1, 1)), np.full((3, 3), 1e200)
+            ),
+            ValueError,
+            "pose 0: its error .* overflows the NEES",  # an ANEES of inf before
+        ),
+        (
+            lambda: dd.control.Predictive(dd.control.Ramsete(), delay="0.1", dt=0.02),
+            TypeError,
+            "Predictive delay must be a real number",  # str / float inside before
+        ),
+        (
+            lambda: dd.control.Predictive(dd.control.Ramsete(), delay=0.04, dt=0.02, lag=-1),
+            ValueError,
+            "Predictive lag must be >= 0",
+        ),
+        (
+            lambda: dd.io.sample_times(np.arange(100) * 0.01, share="0.8"),
+            TypeError,
+            "share must be a real number",  # float < str inside before
+        ),
     ],
 )
 def test_the_campaigns_findings_are_refused_by_name(call, error, message):
     with pytest.raises(error, match=message):
         call()
+
+
+@pytest.mark.parametrize("sigma", ["nan", "-1", "0"])
+def test_calibrate_driving_refuses_a_reference_noise_that_is_none(tmp_path, sigma, capsys):
+    """``--reference-sigma nan`` or ``-1`` was taken (and held); refused by name before any
+    file is read, nothing written."""
+    from diffdrive.cli import main
+
+    argv = ["calibrate-driving", str(tmp_path / "drive.mcap"), "--robot", "wheel_radius=0.1"]
+    argv += ["--robot", "track_width=0.5", "--gps-topic", "/fix", "--reference-sigma", sigma]
+    assert main([*argv, "-o", str(tmp_path / "robot.toml")]) == 1
+    assert "--reference-sigma (m, and deg for poses) must be" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_integers_fractions_numpy_scalars_and_lists_of_rows():

@@ -433,8 +433,10 @@ def test_wrapped_headings_are_read_as_the_small_turns_they_are():
 
 def test_an_ideal_gyro_integrates_back_to_the_turn_on_uneven_stamps():
     """Each sample the duration-weighted mean of its two intervals' rates: the gyro's angle
-    (the rate linear between samples) ends on the trajectory's turn to rounding, and lies
-    within half an interval's change of it between (it drifted 2.2e-3 rad off before)."""
+    (the rate linear between samples) ends on the trajectory's turn to rounding, and at each
+    sample between is off by exactly the trapezoid's error where the rate steps, d[m-1] d[m]
+    (w[m] - w[m-1]) / (2 (d[m-1] + d[m])), as the reading's comment states (it drifted
+    2.2e-3 rad off before)."""
     rng = np.random.default_rng(0)
     t = np.concatenate([[0.0], np.cumsum(rng.uniform(0.005, 0.05, 600))])
     wheels = np.stack([6 + 4 * np.sin(0.7 * t[:-1]), 6 - 4 * np.cos(0.5 * t[:-1])], -1)
@@ -442,7 +444,37 @@ def test_an_ideal_gyro_integrates_back_to_the_turn_on_uneven_stamps():
     gyro = sensors.gyro_readings(ROBOT, t, path.poses)
     turned = path.poses[:, 2] - path.poses[0, 2]
     assert abs(gyro.angles[0, -1] - turned[-1]) < 1e-12
+    d, w = np.diff(t), np.diff(path.poses[:, 2]) / np.diff(t)
+    stated = d[:-1] * d[1:] * (w[1:] - w[:-1]) / (2 * (d[:-1] + d[1:]))
+    np.testing.assert_allclose(gyro.angles[0, 1:-1] - turned[1:-1], stated, rtol=0, atol=1e-12)
     assert np.abs(gyro.angles[0] - turned).max() < 5e-4
+
+
+@pytest.mark.parametrize("shift", [0.0, 2 * np.pi], ids=["(-pi, pi]", "[0, 2 pi)"])
+def test_headings_wrapped_to_any_turn_are_read_as_unwrapped_ones(shift):
+    """Headings stored in [0, 2 pi), as some tools write them, read as those in (-pi, pi]
+    and the unwrapped ones: each sensor's readings the same (a [0, 2 pi) trajectory was read
+    as unwrapped, its wrap as a turn of -2 pi: a gyro 314 rad/s off, wheels 19 rad off, a
+    pose sensor's heading interpolated across the wrap)."""
+    t = np.arange(501) * 0.02
+    unwrapped = dd.simulate(ROBOT, np.tile([6.0, 9.0], (500, 1)), times=t).poses
+    wrapped = unwrapped.copy()
+    wrapped[:, 2] = np.remainder(wrapped[:, 2] + np.pi, 2 * np.pi) - np.pi
+    wrapped[:, 2] = np.where(wrapped[:, 2] < 0, wrapped[:, 2] + shift, wrapped[:, 2])
+    model = sensors.AbsoluteModel(period=0.05)  # between samples: interpolated
+    read = [
+        (
+            sensors.gyro_readings(ROBOT, t, poses).rates,
+            np.asarray(sensors.encoder_readings(ROBOT, t, poses).readings),
+            sensors.absolute_readings(ROBOT, t, poses, model).poses,
+        )
+        for poses in (unwrapped, wrapped)
+    ]
+    np.testing.assert_allclose(read[1][0], read[0][0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(read[1][1], read[0][1], rtol=0, atol=1e-9)
+    headings = read[1][2][..., 2] - read[0][2][..., 2]
+    np.testing.assert_allclose(dd.batch.wrap_angle(headings), 0.0, atol=1e-9)
+    np.testing.assert_allclose(read[1][2][..., :2], read[0][2][..., :2], atol=1e-9)
 
 
 # The compiled kernel against NumPy's stages, on a batch of different trajectories: every
@@ -468,7 +500,7 @@ KERNEL_MODELS = {
     importlib.util.find_spec("numba") is None, reason="numba (the fast extra) is not installed"
 )
 @pytest.mark.parametrize("model", KERNEL_MODELS.values(), ids=KERNEL_MODELS)
-@pytest.mark.parametrize("headings", ["wrapped", "unwrapped", "shared"])
+@pytest.mark.parametrize("headings", ["wrapped", "wrapped to [0, 2 pi)", "unwrapped", "shared"])
 def test_the_compiled_encoders_read_what_numpys_stages_read(monkeypatch, model, headings):
     from diffdrive.sensors import encoders
 
@@ -479,8 +511,10 @@ def test_the_compiled_encoders_read_what_numpys_stages_read(monkeypatch, model, 
     robots = None
     if headings == "wrapped":
         poses[..., 2] = dd.batch.wrap_angle(poses[..., 2])
+    elif headings == "wrapped to [0, 2 pi)":
+        poses[..., 2] = np.remainder(poses[..., 2], 2 * np.pi)
     elif headings == "unwrapped":
-        poses[..., 2] += 8.0  # beyond pi: unwrapped
+        poses[..., 2] += 8.0  # beyond pi: any turn's window reads alike
     else:  # one trajectory that every robot drives
         poses, robots = poses[3], 12
     fast = sensors.encoder_readings(SKID, T, poses, model, robots=robots, seed=7)

@@ -371,7 +371,15 @@ def consistency(
         )
     nees = np.full(len(estimate), np.nan)
     solved = np.linalg.solve(block[usable], error[usable][..., None])[..., 0]
-    nees[usable] = np.einsum("ni,ni->n", error[usable], solved)
+    with np.errstate(over="ignore", invalid="ignore"):
+        nees[usable] = np.einsum("ni,ni->n", error[usable], solved)
+    if not np.all(np.isfinite(nees[usable])):
+        row = int(np.flatnonzero(usable)[np.argmin(np.isfinite(nees[usable]))])
+        raise ValueError(
+            f"pose {row}: its error ({np.abs(error[row]).max():.3g} off) against its covariance "
+            "overflows the NEES past float64's range; are the estimate and the truth in one "
+            "frame and one unit?"
+        )
     dof = len(axes)
     used = nees[usable]
     return Consistency(

@@ -86,20 +86,21 @@ def _reference(poses, b, k, offset):
 
 @numba.njit(cache=True, parallel=True)
 def scan(poses):
-    """``(finite, largest)``: whether every number of ``poses`` ``(n, T+1, 3)`` is finite,
-    and the largest heading's size (rad), in one parallel pass."""
+    """``(finite, span)``: whether every number of ``poses`` ``(n, T+1, 3)`` is finite, and
+    the largest span of one robot's headings (rad, ``sensors.motion.heading_span``), in one
+    parallel pass."""
     robots = poses.shape[0]
     bad = np.zeros(robots, dtype=np.bool_)
-    largest = np.zeros(robots)
+    spans = np.zeros(robots)
     for i in numba.prange(robots):
-        top = 0.0
+        low, high = poses[i, 0, 2], poses[i, 0, 2]
         for k in range(poses.shape[1]):
             x, y, heading = poses[i, k, 0], poses[i, k, 1], poses[i, k, 2]
             if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(heading)):
                 bad[i] = True
-            top = max(top, abs(heading))
-        largest[i] = top
-    return not bad.any(), largest.max()
+            low, high = min(low, heading), max(high, heading)
+        spans[i] = high - low
+    return not bad.any(), spans.max()
 
 
 @numba.njit(cache=True, parallel=True)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from diffdrive._validate import positive
 from diffdrive.calibration.reference import (
     PARAMETERS,
     ReferenceSettings,
@@ -103,6 +104,8 @@ def run_calibrate_driving(args: argparse.Namespace) -> int:
     """Calibrate one bag's wheels (and gyro) against its GPS or pose topic; write the robot,
     print the report. A parameter the drive did not determine is refused, nothing written."""
     refuse_assumed_robot(args, "calibration from driving starts from the nominal geometry")
+    for value in args.reference_sigma or ():  # before any file is read
+        positive("--reference-sigma (m, and deg for poses)", value)
     nominal, ticks = robot_from(args)
     path = args.input
     if not is_bag(path):

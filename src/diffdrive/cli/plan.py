@@ -82,7 +82,7 @@ def _plan_of(args: argparse.Namespace):
     limits = PathLimits(
         **{name: getattr(args, name) for name in LIMIT_FLAGS}, feedforward=feedforward
     )
-    stops = args.stops or []
+    stops = _indices(args.stops) if args.stops else []
     try:
         return robot, plan(waypoints, robot, limits, reverse=args.reverse, stops=stops)
     except ValueError as error:
@@ -292,12 +292,14 @@ with its cross-track, along-track and heading errors.""",
 
 
 def _indices(text: str) -> list[int]:
-    """``--stops``: waypoint indices separated by commas."""
+    """``--stops``: waypoint indices separated by commas (a refusal, exit 1, as for any
+    value the command reads)."""
     try:
         return [int(part) for part in text.split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"waypoint indices (whole numbers from 0) separated by commas, got {text!r}"
+        raise ValueError(
+            f"--stops takes waypoint indices (whole numbers from 0) separated by commas, got "
+            f"{text!r}"
         ) from None
 
 
@@ -315,7 +317,6 @@ def _planning_options(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--reverse", action="store_true", help="drive the path backward")
     sub.add_argument(
         "--stops",
-        type=_indices,
         metavar="I,J",
         help="interior waypoints to halt at, counted from 0, separated by commas",
     )

@@ -53,6 +53,23 @@ class ArrayCycle:
         self.index = self.xp.int64 if self.dtype == self.xp.float64 else self.xp.int32
         self._grid: tuple[np.ndarray, Any] | None = None
 
+    def generator_state(self) -> Any:
+        """Where the draws stand, for ``restore_generator``: a refused cycle draws nothing."""
+        if self.library == "numpy":
+            return self._rng.bit_generator.state
+        if self.library == "torch":
+            return self._rng.get_state()
+        return self._rng  # a JAX key is a value
+
+    def restore_generator(self, state: Any) -> None:
+        """Put the draws back where ``generator_state`` found them."""
+        if self.library == "numpy":
+            self._rng.bit_generator.state = state
+        elif self.library == "torch":
+            self._rng.set_state(state)
+        else:
+            self._rng = state
+
     def draw(self, shape: tuple[int, ...], sigma: np.ndarray) -> Any:
         """Perturbations ``(T, 2, K)``, standard deviations ``sigma`` ``(2,)`` on axis 1."""
         if self.library == "numpy":

@@ -57,6 +57,7 @@ import numpy as np
 from diffdrive import batch
 from diffdrive._validate import (
     check_samples,
+    finite,
     floats,
     nonnegative,
     positive,
@@ -248,7 +249,10 @@ class MPPI:
             self._arrays = ArrayCycle(self.backend, self._seed)
 
     def command(self, plan: Plan, t: float, poses: np.ndarray) -> np.ndarray:
-        """Each robot's twist ``(N, 2)`` to send now, from its pose ``(N, 3)``."""
+        """Each robot's twist ``(N, 2)`` to send now, from its pose ``(N, 3)`` at ``t`` s. A
+        refused cycle (a time or pose that is no number, costs past float64's range: a pose
+        far off the plan, weights too large) changes nothing, the draws included."""
+        t = finite("t", t)
         poses = np.asarray(poses, dtype=float)
         if poses.ndim != 2 or poses.shape[1] != 3 or not np.all(np.isfinite(poses)):
             raise ValueError(f"poses must be finite (N, 3) [x, y, theta], got {poses.shape}")
@@ -263,15 +267,32 @@ class MPPI:
             self._sent = np.zeros((len(poses), self.delay_steps, 2))
             self._wheels = np.zeros((len(poses), 2))
             self._progress = np.full(len(poses), plan.times[0])
+        saved = self._cycle_state()
+        try:
+            return self._cycle(plan, q, t, poses)
+        except BaseException:
+            self._restore_cycle_state(saved)
+            raise
+
+    def _cycle(self, plan: Plan, q, t: float, poses: np.ndarray) -> np.ndarray:
+        """``command``'s cycle over the robots, its state moved on."""
         sent = np.empty((len(poses), 2))
         ahead = self.dt * np.arange(self.delay_steps + 1, self.delay_steps + self.horizon + 1)
         for n, pose in enumerate(poses):
             window = self.lead + ahead[-1]
-            self._progress[n] = _progress(plan, pose[:2], self._progress[n], window)
-            on_plan = plan.sample(min(t, self._progress[n] + self.lead) + ahead)["pose"]
-            heading = on_plan[:, 2]
-            reference = np.column_stack([on_plan[:, :2], np.cos(heading), np.sin(heading)])
-            step = self._step(q, n, pose, reference)
+            with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below
+                self._progress[n] = _progress(plan, pose[:2], self._progress[n], window)
+                on_plan = plan.sample(min(t, self._progress[n] + self.lead) + ahead)["pose"]
+                heading = on_plan[:, 2]
+                reference = np.column_stack([on_plan[:, :2], np.cos(heading), np.sin(heading)])
+                step = self._step(q, n, pose, reference)
+            if not np.all(np.isfinite(step)):
+                far = float(np.hypot(*(pose[:2] - on_plan[0, :2])))
+                weight = max(getattr(self.costs, term.name) for term in fields(self.costs))
+                raise ValueError(
+                    f"robot {n}: every candidate's cost overflows float64 (its pose is {far:.3g} "
+                    f"m from the plan; the largest cost weight is {weight:.3g}): no command"
+                )
             mean = _moving_average(self._mean[n] + step, self.smoothing)
             sent[n] = mean[0]
             taking_effect = self._sent[n, :1] if self.delay_steps else sent[n : n + 1]
@@ -280,6 +301,25 @@ class MPPI:
         if self.delay_steps:
             self._sent = np.concatenate([self._sent[:, 1:], sent[:, None]], axis=1)
         return sent
+
+    def _cycle_state(self) -> tuple:
+        """What a cycle changes: the robots' mean sequences, commands in flight, wheels,
+        progress, and where the draws stand."""
+        arrays = None if self._arrays is None else self._arrays.generator_state()
+        return (
+            self._mean.copy(),
+            self._sent.copy(),
+            self._wheels.copy(),
+            self._progress.copy(),
+            self._rng.bit_generator.state,
+            arrays,
+        )
+
+    def _restore_cycle_state(self, saved: tuple) -> None:
+        self._mean, self._sent, self._wheels, self._progress, rng, arrays = saved
+        self._rng.bit_generator.state = rng
+        if self._arrays is not None:
+            self._arrays.restore_generator(arrays)
 
     def sampled(self, plan: Plan, pose: object, count: int = 64, robot: int = 0) -> np.ndarray:
         """Where ``count`` candidates drawn around ``robot``'s mean sequence would take it from

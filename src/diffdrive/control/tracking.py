@@ -30,7 +30,7 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive._optional import optional
-from diffdrive._validate import finite, positive
+from diffdrive._validate import finite, nonnegative, positive
 from diffdrive.control.planning import Plan
 from diffdrive.dynamics.lag import first_order
 
@@ -222,13 +222,12 @@ class Predictive:
     """
 
     def __init__(self, tracker: Tracker, delay: float, dt: float, lag: float = 0.0) -> None:
-        self.tracker, self.dt = tracker, positive("dt", dt)
-        steps = delay / dt
-        if not (math.isfinite(steps) and steps >= 0 and abs(steps - round(steps)) < 1e-9):
+        self.tracker, self.dt = tracker, positive("Predictive dt", dt)
+        delay, lag = nonnegative("Predictive delay", delay), nonnegative("Predictive lag", lag)
+        steps = delay / self.dt
+        if not (math.isfinite(steps) and abs(steps - round(steps)) < 1e-9):
             raise ValueError(f"delay must be a whole number of dt ({dt} s) >= 0, got {delay!r}")
-        if not (math.isfinite(lag) and lag >= 0.0):
-            raise ValueError(f"lag must be finite and >= 0, got {lag!r}")
-        self.delay, self.lag, self.steps = float(delay), float(lag), round(steps)
+        self.delay, self.lag, self.steps = delay, lag, round(steps)
         self.reset()
 
     def reset(self) -> None:

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from diffdrive._validate import increasing, positive
+from diffdrive._validate import finite, increasing, positive
 
 __all__ = ["SampleTimes", "sample_times"]
 
@@ -52,7 +52,7 @@ def sample_times(times: object, tick: float = 1e-3, *, share: float = 0.8) -> Sa
         raise ValueError(f"times must be (N,) s with N >= 10, got shape {stamps.shape}")
     increasing("times", stamps)
     tick = positive("tick", tick)
-    if not 0.0 < share <= 1.0:
+    if not 0.0 < finite("share", share) <= 1.0:
         raise ValueError(f"share must lie in (0, 1], got {share!r}")
     guess = float(np.median(np.diff(stamps)))
     if guess < 4.5 * tick:  # stamps on ticks: a median of 5 ticks is 5, give or take a bit

@@ -122,7 +122,12 @@ def absolute_readings(
     t = motion.times
     at = t if model.period is None else np.arange(t[0], t[-1] + 1e-9 * model.period, model.period)
     truth = np.stack(
-        [np.stack([np.interp(at, t, p[:, i]) for i in range(3)], axis=-1) for p in motion.poses]
+        [
+            np.stack(
+                [np.interp(at, t, p[:, 0]), np.interp(at, t, p[:, 1]), np.interp(at, t, h)], -1
+            )
+            for p, h in zip(motion.poses, motion.headings, strict=True)
+        ]
     )
     if any(model.mount):
         truth = batch.compose(truth, np.asarray(model.mount, dtype=float))

@@ -37,6 +37,7 @@ from diffdrive.sensor_noise import NONE as NO_NOISE
 from diffdrive.sensor_noise import WheelNoise, draw_travel
 from diffdrive.sensors.motion import (
     NOT_FINITE,
+    ONE_TURN,
     Motion,
     checked_trajectory,
     motion_of,
@@ -209,10 +210,10 @@ def _read_compiled(robot, poses, factor, geometry, model, rng, scale, readings) 
     from diffdrive.backends.numba_encoders import read_encoders, read_encoders_serial, scan
     from diffdrive.backends.simulate_kernel import threads
 
-    finite, largest = scan(poses)
+    finite, span = scan(poses)
     if not finite:
         raise ValueError(NOT_FINITE)
-    noise, turned = model.wheel_noise, bool(largest > np.pi)  # as motion.unwrapped
+    noise, turned = model.wheel_noise, bool(span > ONE_TURN)  # as motion.unwrapped
     counts = model.ticks_per_revolution is not None
     bits = 0 if model.counter_bits is None else model.counter_bits
 

@@ -1,8 +1,9 @@
 """A synthetic yaw gyro: what an IMU mounted on the robot would read along a trajectory.
 
-The true yaw rate at each sample (between two intervals, the mean of their rates: the
-trajectory's turn over an interval over its duration; at the ends, the end interval's) is
-read with the error terms ``diffdrive.estimation.gyro`` states (IEEE Std 952-1997):
+The true yaw rate at each sample (between two intervals, the mean of their rates weighed by
+their durations, each rate the trajectory's turn over an interval over its duration; at the
+ends, the end interval's) is read with the error terms ``diffdrive.estimation.gyro`` states
+(IEEE Std 952-1997):
 
     rate = (1 + scale) omega + bias + b_in(t) + b_rw(t) + white
 
@@ -114,7 +115,10 @@ def gyro_readings(
     omega = motion.increments[..., 2] / durations  # (B, T): each interval's mean rate
     # At a sample, its two intervals' mean rates weighed by their durations: each interval's
     # turn shared evenly between its two ends, so that linear interpolation between samples
-    # (Gyro.angles) integrates back the trajectory's turn, on even and uneven stamps alike.
+    # (Gyro.angles) integrates back the whole run's turn exactly, on even and uneven stamps
+    # alike. At a sample m between, the angle is off by d[m-1] d[m] (w[m] - w[m-1]) /
+    # (2 (d[m-1] + d[m])), the trapezoid's own error where the rate steps (no sampled rates
+    # do better: matching every interval's turn would make them alternate without end).
     before, after = durations[:-1], durations[1:]
     inner = (omega[:, :-1] * before + omega[:, 1:] * after) / (before + after)
     truth = np.concatenate([omega[:, :1], inner, omega[:, -1:]], 1)

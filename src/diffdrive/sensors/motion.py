@@ -2,8 +2,9 @@
 
 A trajectory is its sample ``times`` ``(T+1,)`` s, strictly increasing, and its ``poses``
 ``(T+1, 3)`` or, for a batch of robots, ``(N, T+1, 3)`` (a ``simulate`` result, or a
-reference read from a file or bag). Its headings may be wrapped to (-pi, pi] (all within
-[-pi, pi]: each step then turns less than pi) or unwrapped (some beyond: each step's own
+reference read from a file or bag). Its headings may be wrapped to any one turn, (-pi, pi] or
+[0, 2 pi) alike (all within a span of 2 pi: each step then turns less than pi, and a jump
+across the wrap is a small turn), or unwrapped (spanning more than a turn: each step's own
 turn). Between two samples the body moves along the constant twist that joins them (the SE(2)
 logarithm of the relative pose), as ``simulate``'s exact step does; so a trajectory that
 ``simulate`` made gives its own wheel motion back to rounding.
@@ -22,6 +23,7 @@ from diffdrive.sensor_noise import draw_geometry
 __all__ = [
     "Motion",
     "checked_trajectory",
+    "heading_span",
     "motion_of",
     "robot_count",
     "robot_geometry",
@@ -43,6 +45,14 @@ class Motion:
     def durations(self) -> np.ndarray:
         """Each step's length ``(T,)``, s."""
         return np.diff(self.times)
+
+    @property
+    def headings(self) -> np.ndarray:
+        """The headings ``(B, T+1)`` rad made continuous by each interval's turn (a wrapped
+        trajectory's unwrapped): what interpolation between samples reads."""
+        turned = np.cumsum(self.increments[..., 2], axis=-1)
+        first = self.poses[..., :1, 2]
+        return np.concatenate([first, first + turned], axis=-1)
 
     def robots(self, robots: int | None) -> int:
         """How many robots: the batch's, or ``robots`` for one trajectory (default 1)."""
@@ -68,17 +78,29 @@ def motion_of(robot: Robot, times: object, poses: object) -> Motion:
     moved = robot.to_reference(p)
     relative = batch.relative_to(moved[:, 1:], moved[:, :-1])
     increments = batch.log(relative)
-    # The log wraps each turn to (-pi, pi]. Headings that all lie in [-pi, pi] are read as
-    # wrapped, as most tools write them (a jump across +-pi is a small turn); beyond, they are
-    # unwrapped, and their own turn is kept (a fast spin may turn more than pi in a sample).
+    # The log wraps each turn to (-pi, pi]. Headings within one turn's span are read as
+    # wrapped, as tools write them (a jump across the wrap is a small turn); spanning more,
+    # they are unwrapped, and their own turn is kept (a fast spin may turn more than pi in a
+    # sample).
     if unwrapped(p):
         increments[..., 2] = np.diff(p[..., 2], axis=-1)
     return Motion(t, p, np.asarray(increments))
 
 
 def unwrapped(poses: np.ndarray) -> bool:
-    """Whether a trajectory's headings are unwrapped (some beyond pi: see the module)."""
-    return bool(np.abs(poses[..., 2]).max() > np.pi)
+    """Whether a trajectory's headings are unwrapped: some robot's span more than a turn,
+    which wrapped ones cannot (see the module)."""
+    return heading_span(poses) > ONE_TURN
+
+
+ONE_TURN = 2.0 * np.pi * (1.0 + 1e-12)  # a wrapped heading's span, and its rounding
+
+
+def heading_span(poses: np.ndarray) -> float:
+    """The largest span (max - min, rad) of one robot's headings in ``poses`` ``(..., T+1,
+    3)``."""
+    headings = poses[..., 2]
+    return float((headings.max(axis=-1) - headings.min(axis=-1)).max())
 
 
 def checked_trajectory(
