@@ -251,3 +251,28 @@ def test_fixes_that_cannot_be_identified_are_refused_by_name():
         FixOffset(rate=-0.1)
     with pytest.raises(ValueError, match=r"Prior\.start must be"):
         Prior(0.0)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            lambda f: np.where(np.arange(len(f))[:, None] == 3, np.nan, f),
+            "fixes must be finite: row 3",
+        ),
+        (lambda f: np.full_like(f, 5.0), "the fixes hardly move \\(0 m RMS"),
+        (lambda f: f[:, :1], "fix_times \\(M,\\) and fixes \\(M, 2\\) m must match"),
+    ],
+    ids=["a NaN fix", "a receiver that never moves", "fixes of one column"],
+)
+def test_identify_fixes_names_what_is_wrong(change, message):
+    """A NaN fix, a receiver that never moves and a wrong shape were taken without a word (a
+    NaN or zero scale): each is refused by name."""
+    from diffdrive.estimation.fixes import identify_fixes
+
+    t = np.linspace(0.0, 100.0, 1001)
+    poses = np.column_stack([0.5 * t, np.sin(t / 10), np.zeros_like(t)])
+    fixes = poses[::10, :2] + np.random.default_rng(0).normal(0.0, 0.5, (101, 2))
+    assert identify_fixes(t, poses, t[::10], fixes).report  # the good case is taken
+    with pytest.raises(ValueError, match=message):
+        identify_fixes(t, poses, t[::10], change(fixes))

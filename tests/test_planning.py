@@ -370,3 +370,18 @@ def test_the_timing_kernel_plans_alike_compiled_and_in_plain_python(waypoints, m
     plain = plan(waypoints, ROBOT, LIMITS)
     np.testing.assert_allclose(plain.times, compiled.times, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(plain.poses, compiled.poses, rtol=0, atol=1e-9)
+
+
+def test_before_and_after_the_plan_the_robot_is_at_rest():
+    """``sample`` outside the plan's times: the end poses, no twist and no rate (the first and
+    last states' accelerations were given, a robot at rest accelerating)."""
+    robot = dd.DiffDrive(wheel_radius=0.05, track_width=0.3)
+    waypoints = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 1.0], [3.0, 1.0]])
+    planned = plan(waypoints, robot, PathLimits(max_velocity=0.5, max_wheel_velocity=10.0))
+    before, after = planned.times[0] - 1.0, planned.times[-1] + 1.0
+    sampled = planned.sample([before, after])
+    np.testing.assert_allclose(sampled["pose"], planned.poses[[0, -1]], atol=1e-12)
+    for name in ("twist", "twist_rate", "wheel_velocities", "wheel_accelerations"):
+        np.testing.assert_array_equal(sampled[name], 0.0)
+    inside = planned.sample(planned.times[:2])  # within, the states' accelerations stand
+    assert np.any(inside["twist_rate"] != 0.0)

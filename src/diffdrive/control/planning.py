@@ -25,7 +25,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from diffdrive._validate import check_samples, positive
+from diffdrive._validate import check_samples, floats, positive
 from diffdrive.control import _timing
 from diffdrive.control.path import Leg, from_waypoints
 from diffdrive.dynamics.voltage import Feedforward
@@ -197,8 +197,10 @@ class Plan:
         from one state's to the next, its rate that line's slope: so every wheel's velocity,
         acceleration and voltage between two states is what a controller stepping from one
         to the other sees, within the limits the states keep (the path's speed times its
-        curvature, interpolated each, could leave them in between)."""
-        t = np.asarray(np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1]))
+        curvature, interpolated each, could leave them in between). Before the plan and after
+        it the robot is at rest at its ends: no twist, and no rate."""
+        given = floats("t", t)
+        t = np.asarray(np.clip(given, self.times[0], self.times[-1]))
         i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
         tau = t - self.times[i]
         a, u0 = self.accelerations[i], self.speed[i]
@@ -215,8 +217,9 @@ class Plan:
         lin, ang = along(self.lin), along(self.ang)
         twists = self.twists
         slope = (twists[i + 1] - twists[i]) / gap[..., None]
-        twist = twists[i] + slope * (t - self.times[i])[..., None]
-        rate = slope
+        outside = ((given < self.times[0]) | (given > self.times[-1]))[..., None]
+        twist = np.where(outside, 0.0, twists[i] + slope * (t - self.times[i])[..., None])
+        rate = np.where(outside, 0.0, slope)
         wheels = _wheel_map(self.robot)
         with np.errstate(invalid="ignore", divide="ignore"):
             kappa = np.where(lin != 0.0, ang / np.where(lin != 0.0, lin, 1.0), np.nan)

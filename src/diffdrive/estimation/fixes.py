@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from diffdrive._validate import floats, increasing
 from diffdrive.estimation.measurements import Measurement, measurements_of
 from diffdrive.estimation.settings import EstimatorSettings, FixOffset, Gate, Prior
 
@@ -89,6 +90,29 @@ class FixFit:
         return measurements_of("position", fix_times, fixes, self.white, lever_arm)
 
 
+def _checked(times, poses, fix_times, fixes) -> tuple[np.ndarray, ...]:
+    """The four arrays of ``identify_fixes``, or a ``ValueError`` naming the one that is
+    wrong: its shape, a stamp out of order, a value that is no finite number."""
+    times, poses = floats("times", times), floats("poses", poses)
+    fix_times, fixes = floats("fix_times", fix_times), floats("fixes", fixes)
+    if times.ndim != 1 or poses.shape != (len(times), 3) or len(times) < 2:
+        raise ValueError(
+            f"times (N,) and poses (N, 3) with N >= 2 must match, got {times.shape} and "
+            f"{poses.shape}"
+        )
+    if fix_times.ndim != 1 or fixes.shape != (len(fix_times), 2):
+        raise ValueError(
+            f"fix_times (M,) and fixes (M, 2) m must match, got {fix_times.shape} and {fixes.shape}"
+        )
+    increasing("times", times)
+    increasing("fix_times", fix_times)
+    for name, values in (("poses", poses), ("fixes", fixes)):
+        if not np.all(np.isfinite(values)):
+            row = int(np.argmin(np.all(np.isfinite(values), axis=1)))
+            raise ValueError(f"{name} must be finite: row {row} is {values[row].tolist()}")
+    return times, poses, fix_times, fixes
+
+
 def identify_fixes(
     times: object,
     poses: object,
@@ -102,8 +126,7 @@ def identify_fixes(
     ``reported`` (m): the receiver's own figure, quoted in the report. ``ValueError`` naming
     what is missing: fewer than ``LEAST_FIXES`` fixes, or dead reckoning that hardly moves
     while they were taken (no rotation or scale to fit)."""
-    times, poses = np.asarray(times, dtype=float), np.asarray(poses, dtype=float)
-    fix_times, fixes = np.asarray(fix_times, dtype=float), np.asarray(fixes, dtype=float)
+    times, poses, fix_times, fixes = _checked(times, poses, fix_times, fixes)
     if len(fix_times) < LEAST_FIXES:
         raise ValueError(
             f"{len(fix_times)} position fixes: at least {LEAST_FIXES} are needed to identify "
@@ -117,6 +140,14 @@ def identify_fixes(
             "the dead reckoning hardly moves while the fixes were taken (under 0.1 m from its "
             "mean): no heading or scale can be fitted onto them; drive a few metres, or give "
             "initial_pose, a FixOffset and WholeLog(fixes='given')"
+        )
+    reckoned = math.sqrt(moved / len(z))  # RMS distance from the mean, m
+    spread = float(np.sqrt(np.mean(np.abs(seen - seen.mean()) ** 2)))
+    if not spread > 0.1 * reckoned:
+        raise ValueError(
+            f"the fixes hardly move ({spread:.3g} m RMS from their mean) while the dead "
+            f"reckoning moves {reckoned:.3g} m: a receiver that never moved (no fix, or a held "
+            "one?); no heading or scale can be fitted onto them"
         )
     residuals = seen - (turn * z + shift)
     flat = np.column_stack([residuals.real, residuals.imag])
