@@ -15,16 +15,22 @@ moves by ``rot1 - n1``, ``trans - nt``, ``rot2 - n2`` with
 AMCL updates when the odometry, sampled at each laser scan, has moved more than
 ``update_min_d`` along the odom frame's x or y, or turned more than ``update_min_a``, since the
 last update (``AmclNode::shouldUpdateFilter``): the noise is applied per update, so the
-variance a motion collects depends on how it is cut.
+variance a motion collects depends on how it is cut, and the motion after the last update
+waits for the next.
 
-Matching (``match_alphas``): along three reference motions (``distance`` m straight, a turn
-in place of ``turn`` rad at ``turn_rate``, an arc of twice ``distance`` turning ``turn``
-rad), all from heading 0 in the odom frame, sampled at ``scan_rate`` and cut into updates by
-that rule (the last piece applied at the motion's end), the particles' covariance is linear in
-the four alphas: the sampler's Jacobians along the nominal path (``sampler_terms``). The
-alphas make the largest relative miss of its diagonal against the noise model's covariance
-after the same motions least (Lawson's iteratively reweighted least squares toward the
-minimax fit, kept non-negative); that miss is reported with them.
+Matching (``match_alphas``): along the reference motions (``distance`` m straight, a turn in
+place of ``turn`` rad at ``turn_rate``, arcs of twice ``distance`` of radius ``distance`` and
+twice it), all from heading 0 in the odom frame, sampled at ``scan_rate`` and cut into updates
+by that rule, each up to its last update, the particles' covariance is linear in the four
+alphas: the sampler's Jacobians along the nominal path (``sampler_terms``). The alphas make
+the largest relative miss of its diagonal against the noise model's covariance over the same
+motion least (Lawson's iteratively reweighted least squares toward the minimax fit, kept
+non-negative); that miss is reported with them, and an alpha that would be 0 is refused.
+Where the rule cuts motions into updates of uneven size (an arc's turn crossing
+``update_min_a`` before its distance crosses ``update_min_d``), no four alphas match every
+motion: at Nav2's defaults and 10 Hz the least largest miss is 14 %, and motions the fit never
+saw (1.5 m straight, 1.5 rad turn, arcs of radius 1 and 1.5 m) land within it
+(``tests/test_export.py``, a Monte Carlo of the sampler).
 
 One split no alphas can set: in a turn in place the sampler moves a particle along its heading
 at the update's start (a pure turn has no ``rot1`` noise), so a 1 rad turn cut into a few
@@ -44,6 +50,11 @@ import numpy as np
 
 from diffdrive import batch
 from diffdrive._stats import nonnegative_least_squares
+
+# The reference motions' sizes, in units of the Reference's distance and turn, and the arcs'
+# radii in units of its distance.
+LENGTHS = np.array([1.0])
+RADII = (1.0, 2.0)
 
 __all__ = ["AlphaFit", "ReferenceMotion", "match_alphas", "reference_motions", "sampler_terms"]
 
@@ -89,8 +100,8 @@ def angle_diff(a: float, b: float) -> float:
 
 def update_points(poses: np.ndarray, update_min_d: float, update_min_a: float) -> list[int]:
     """The indices of ``poses`` ``(K, 3)`` (the odometry at each scan) where AMCL updates:
-    more than ``update_min_d`` along x or y, or ``update_min_a`` of turn, since the last
-    update; the last pose always (the motion's end)."""
+    the first, then each scan more than ``update_min_d`` along x or y, or ``update_min_a`` of
+    turn, from the last update. The motion after the last waits for the next update."""
     points, last = [0], poses[0]
     for k in range(1, len(poses)):
         dx, dy = poses[k, 0] - last[0], poses[k, 1] - last[1]
@@ -98,8 +109,6 @@ def update_points(poses: np.ndarray, update_min_d: float, update_min_a: float) -
         if abs(dx) > update_min_d or abs(dy) > update_min_d or turned > update_min_a:
             points.append(k)
             last = poses[k]
-    if points[-1] != len(poses) - 1:
-        points.append(len(poses) - 1)
     return points
 
 
@@ -138,28 +147,42 @@ def sampler_terms(poses: np.ndarray) -> np.ndarray:
 
 
 def reference_motions(robot, at) -> list[ReferenceMotion]:
-    """The three motions the alphas are matched on, at ``at``'s speed, turn rate and scan
-    rate (see the module): each driven by its wheels' increments in 100 even steps, and its
-    odometry at every scan and at its end. ``robot``: the (equivalent) differential drive."""
+    """The motions the alphas are matched on, each from heading 0 at ``at``'s speed and turn
+    rate, seen at its scan rate: straights of ``distance`` and 3 ``distance`` m, turns in
+    place of ``turn`` and 2 ``turn`` rad, arcs of 2 ``distance`` m of radius 0.5, 1, 2 and 4
+    ``distance`` m. Each is cut where AMCL has applied it, at its last update
+    (``update_points``: the motion after it waits for the next), its ``poses`` those at its
+    updates; its wheels' increments drive it that far in 100 even steps. A motion too short
+    for AMCL to update on is left out. ``robot``: the (equivalent) differential drive."""
     r_l, r_r, track = robot.left_wheel_radius, robot.right_wheel_radius, robot.track_width
-    curvature = at.turn / (2.0 * at.distance)
+    d, v = at.distance, at.speed
+    specs = [(f"{length:g} m straight", (v, 0.0), length / v) for length in LENGTHS * d]
+    specs += [
+        (f"{angle:g} rad turn in place", (0.0, at.turn_rate), angle / at.turn_rate)
+        for angle in LENGTHS * at.turn
+    ]
+    specs += [
+        (f"{2 * d:g} m arc of radius {radius * d:g} m", (v, v / (radius * d)), 2.0 * d / v)
+        for radius in RADII
+    ]
     made = []
-    for name, twist, duration in (
-        (f"{at.distance:g} m straight", (at.speed, 0.0, 0.0), at.distance / at.speed),
-        (f"{at.turn:g} rad turn in place", (0.0, 0.0, at.turn_rate), at.turn / at.turn_rate),
-        (
-            f"{2 * at.distance:g} m arc turning {at.turn:g} rad",
-            (at.speed, 0.0, at.speed * curvature),
-            2.0 * at.distance / at.speed,
-        ),
-    ):
-        v, _, omega = twist
-        left = (v - 0.5 * track * omega) * duration / r_l
-        right = (v + 0.5 * track * omega) * duration / r_r
-        increments = np.tile([left / 100, right / 100], (100, 1))
+    for name, (speed, omega), duration in specs:
         scans = np.unique(np.append(np.arange(0.0, duration, 1.0 / at.scan_rate), duration))
-        poses = batch.exp(np.tile(twist, (len(scans), 1)), scans)
-        made.append(ReferenceMotion(name, increments, poses, spin=v == 0.0))
+        poses = batch.exp(np.tile([speed, 0.0, omega], (len(scans), 1)), scans)
+        points = update_points(poses, at.update_min_d, at.update_min_a)
+        if len(points) < 2:
+            continue
+        applied = scans[points[-1]]
+        left = (speed - 0.5 * track * omega) * applied / r_l
+        right = (speed + 0.5 * track * omega) * applied / r_r
+        increments = np.tile([left / 100, right / 100], (100, 1))
+        made.append(ReferenceMotion(name, increments, poses[points], spin=speed == 0.0))
+    if not made:
+        raise ValueError(
+            f"AMCL would update on none of the reference motions: update_min_d "
+            f"{at.update_min_d:g} m and update_min_a {at.update_min_a:g} rad, seen at "
+            f"{at.scan_rate:g} Hz, are past them (distance {d:g} m, turn {at.turn:g} rad)"
+        )
     return made
 
 
@@ -174,37 +197,54 @@ def _matched(covariance: np.ndarray, spin: bool) -> np.ndarray:
 
 def _minimax(rows: np.ndarray, rounds: int = 100) -> np.ndarray:
     """Non-negative ``x`` making the largest ``|rows @ x - 1|`` least, near enough: least
-    squares reweighted each round by the residuals (Lawson 1961), a floor keeping every row
-    in play."""
+    squares reweighted each round by the residuals (Lawson 1961), floors keeping every row in
+    play."""
     weights = np.ones(len(rows))
     for _ in range(rounds):
         root = np.sqrt(weights)
         found = nonnegative_least_squares(rows * root[:, None], root)
         residual = np.abs(rows @ found - 1.0)
         weights = weights * np.maximum(residual, 1e-4 * residual.max())
-        weights /= weights.max()
+        # Each row keeps a share: one matched exactly early on would otherwise shrink by
+        # 1e-4 a round until it no longer counts, and the alpha it alone sets go to 0.
+        weights = np.maximum(weights / weights.max(), 1e-6)
     return found
 
 
-def match_alphas(motions: list[ReferenceMotion], model_covariances: np.ndarray, at) -> AlphaFit:
-    """The alphas whose sampler covariance (``sampler_terms`` at the update points of each
-    motion) best matches ``model_covariances`` ``(3, 3, 3)`` (the noise model's after each
-    motion), term by term relative to its own size: the least largest miss."""
+def match_alphas(motions: list[ReferenceMotion], model_covariances: np.ndarray) -> AlphaFit:
+    """The alphas whose sampler covariance (``sampler_terms`` at each motion's update poses)
+    best matches ``model_covariances`` ``(M, 3, 3)`` (the noise model's after each motion as
+    AMCL has applied it), term by term relative to its own size: the least largest miss. An
+    alpha the fit leaves at 0 is refused, naming the motion and term matched worst: AMCL would
+    then spread none of the noise that term needs."""
     rows, per_motion = [], []
     for motion, covariance in zip(motions, model_covariances, strict=True):
-        points = update_points(motion.poses, at.update_min_d, at.update_min_a)
-        terms = sampler_terms(motion.poses[points])
+        terms = sampler_terms(motion.poses)
         per_motion.append(terms)
         wanted = _matched(covariance, motion.spin)
         made = _matched(terms, motion.spin)  # (4, terms)
         rows += [made[:, i] / wanted[i] for i in range(len(wanted)) if wanted[i] > 0.0]
     alphas = _minimax(np.array(rows))
     sampler = np.array([np.tensordot(alphas, terms, axes=1) for terms in per_motion])
-    misses, split = [], (0.0, 0.0)
+    misses: list[tuple[float, str]] = []
+    split = (0.0, 0.0)
     for motion, made, wanted in zip(motions, sampler, model_covariances, strict=True):
         ours, theirs = _matched(made, motion.spin), _matched(wanted, motion.spin)
-        misses += [abs(a / b - 1.0) for a, b in zip(ours, theirs, strict=True) if b > 0.0]
-        if motion.spin:
+        labels = ("x + y", "heading") if motion.spin else ("x", "y", "heading")
+        misses += [
+            (abs(a / b - 1.0), f"{motion.name}'s {label}")
+            for a, b, label in zip(ours, theirs, labels, strict=True)
+            if b > 0.0
+        ]
+        if motion.spin and not split[0]:
             split = (made[0, 0] / wanted[0, 0] - 1.0, made[1, 1] / wanted[1, 1] - 1.0)
+    worst, where = max(misses)
+    if not np.all(alphas > 0.0):
+        zero = ", ".join(f"alpha{i + 1}" for i in np.flatnonzero(~(alphas > 0.0)))
+        raise ValueError(
+            f"AMCL's {zero} fit to 0: its sampler cannot match the noise model at these "
+            f"update settings; {where} is off by {worst:.0%} (give other update_min_d, "
+            "update_min_a or scan rate)"
+        )
     names = tuple(motion.name for motion in motions)
-    return AlphaFit(alphas, names, np.asarray(model_covariances), sampler, max(misses), split)
+    return AlphaFit(alphas, names, np.asarray(model_covariances), sampler, worst, split)

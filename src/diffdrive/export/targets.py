@@ -274,4 +274,4 @@ def amcl_fit(robot: DiffDrive, model: NoiseModel, at: Reference):
     """AMCL's alphas matched to the noise model on the reference motions (an ``AlphaFit``)."""
     motions = reference_motions(robot, at)
     targets = np.array([_motion_covariance(robot, model, m.increments) for m in motions])
-    return match_alphas(motions, targets, at)
+    return match_alphas(motions, targets)
