@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 import diffdrive as dd
+from diffdrive import export
 from diffdrive.calibration import OnlineCalibrator, calibrate
+from diffdrive.calibration.noise import NoiseModel
 from diffdrive.estimation import EstimatorSettings as S
 from diffdrive.estimation import SlipTest
 from diffdrive.estimation.gyro import Gyro, GyroOdometry, gyro_odometry
@@ -377,6 +379,44 @@ def test_a_queued_fix_with_a_huge_lever_arm_is_gated_out_and_the_estimator_goes_
             lambda: dd.io.sample_times(np.arange(100) * 0.01, share="0.8"),
             TypeError,
             "share must be a real number",  # float < str inside before
+        ),
+        # a fuzzer's round on the entry points added since (NaN, inf, text, wrong types)
+        (lambda: dd.control.MPPI(delay="0.1"), TypeError, "delay must be a real number"),
+        (
+            lambda: dd.control.FollowSettings(wheel_noise=math.nan),
+            ValueError,
+            "FollowSettings.wheel_noise: wheel noise left must be finite",  # unnamed before
+        ),
+        (
+            lambda: S().changed(0.5),
+            TypeError,
+            "changes must be a mapping of setting names",  # AttributeError before
+        ),
+        (
+            lambda: export.parameters(
+                "ros2", ROBOT, ROBOT, 1e-4, export.Reference(), wheel_names=("l", "r")
+            ),
+            TypeError,
+            "model must be a NoiseModel",  # AttributeError before
+        ),
+        (
+            lambda: export.parameters(
+                "ros2",
+                ROBOT,
+                ROBOT,
+                NoiseModel.symmetric(1e-4),
+                export.Reference(),
+                wheel_names="lr",
+            ),
+            TypeError,
+            "wheel_names must be two joint names",  # IndexError before
+        ),
+        (
+            lambda: dd.control.plan(
+                np.array([[0, 0], [1, 0], [2, 1.0]]), ROBOT, dd.control.PathLimits(max_velocity=1)
+            ).sample(math.nan),
+            ValueError,
+            "t must be times",  # NaN poses and twists before
         ),
     ],
 )

@@ -82,7 +82,10 @@ class WheelNoise:
         if isinstance(value, int | float | np.floating | np.integer) and not isinstance(
             value, bool
         ):
-            return cls.symmetric(float(value))
+            try:
+                return cls.symmetric(float(value))
+            except ValueError as error:
+                raise ValueError(f"{name}: {error}") from None
         if isinstance(value, tuple | list | np.ndarray) and len(value) == 2:
             try:
                 return cls(*(float(v) for v in value))

@@ -211,7 +211,7 @@ class MPPI:
         if drive is not None and not isinstance(drive, DriveModel):
             raise TypeError(f"drive must be a DriveModel, got {type(drive).__name__}")
         self.drive = DriveModel() if drive is None else drive
-        delay = self.drive.delay if delay is None else delay
+        delay = self.drive.delay if delay is None else nonnegative("delay", delay)
         steps = delay / self.dt
         if not (math.isfinite(steps) and steps >= 0 and abs(steps - round(steps)) < 1e-9):
             raise ValueError(f"delay must be a whole number of dt ({dt} s) >= 0, got {delay!r}")

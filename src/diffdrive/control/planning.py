@@ -200,6 +200,8 @@ class Plan:
         curvature, interpolated each, could leave them in between). Before the plan and after
         it the robot is at rest at its ends: no twist, and no rate."""
         given = floats("t", t)
+        if np.isnan(given).any():
+            raise ValueError("t must be times (s), not NaN")
         t = np.asarray(np.clip(given, self.times[0], self.times[-1]))
         i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
         tau = t - self.times[i]

@@ -303,6 +303,10 @@ class EstimatorSettings:
         a part (``"bias"``, ``"heading"``) or one field of a part (``"gate.probability"``; a
         part that is None starts from its own defaults). ``ValueError`` names an unknown one;
         each part checks its values as ever."""
+        if not isinstance(changes, Mapping):
+            raise TypeError(
+                f"changes must be a mapping of setting names to values, got {changes!r}"
+            )
         parts: dict[str, object] = {}
         known = [item.name for item in dataclasses.fields(self)]
         for key, value in changes.items():

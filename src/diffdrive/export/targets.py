@@ -145,6 +145,20 @@ def parameters(
     firmware's (``"c-header"``)."""
     if target not in TARGETS:
         raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
+    for name, value, kind in (
+        ("robot", robot, DiffDrive),
+        ("nominal", nominal, DiffDrive),
+        ("model", model, NoiseModel),
+        ("at", at, Reference),
+    ):
+        if not isinstance(value, kind):
+            raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+    if wheel_names is not None and (
+        not isinstance(wheel_names, tuple | list)
+        or len(wheel_names) != 2
+        or not all(isinstance(name, str) and name for name in wheel_names)
+    ):
+        raise TypeError(f"wheel_names must be two joint names (left, right), got {wheel_names!r}")
     # NoiseModel refuses a negative or non-finite term; all three 0 is its own mistake here.
     if not any((model.k, model.radius_sigma, model.track_sigma)):
         # Zero covariances read as perfectly known (a filter then ignores every other sensor)
