@@ -537,3 +537,26 @@ def test_calibrate_warns_of_offsets_no_robot_of_its_size_has(capsys, tmp_path):
     assert "warning: heading offset 28.6 deg" in err
     assert main(argv) == 0  # no extra parameters: nothing to warn of
     assert "warning" not in capsys.readouterr().err
+
+
+def test_info_names_the_options_each_topic_is_given_by():
+    """``info``'s use of each topic names the subcommands and the option that take it (it
+    never named --gps-topic, --pose-topic or --gyro-topic), and each named option is one of
+    those subcommands'."""
+    import re
+
+    from diffdrive.cli import _options_of, build_parser
+    from diffdrive.io.ros.reader import USES
+
+    parser = build_parser()
+    for msgtype, wanted in (
+        ("sensor_msgs/msg/NavSatFix", "--gps-topic"),
+        ("sensor_msgs/msg/Imu", "--gyro-topic"),
+        ("geometry_msgs/msg/PoseWithCovarianceStamped", "--pose-topic"),
+        ("nav_msgs/msg/Odometry", "--pose-topic"),
+    ):
+        assert wanted in USES[msgtype], msgtype
+    for use in USES.values():
+        for commands, option in re.findall(r"([a-z-]+(?:/[a-z-]+)+) (--[a-z-]+)", use):
+            for command in commands.split("/"):
+                assert option in _options_of(parser, command), (command, option)

@@ -34,15 +34,17 @@ __all__ = [
 
 # What diffdrive can do with a topic of each type, for ``topics`` and ``diffdrive info``.
 USES = {
-    "sensor_msgs/msg/JointState": "wheels: odometry/simulate/calibrate --joint-topic",
-    "nav_msgs/msg/Odometry": "a trajectory: --topic, a reference: --truth-topic, or the "
-    "wheels: --wheel-topic",
-    "sensor_msgs/msg/Imu": "a gyro (angular velocity, orientation)",
+    "sensor_msgs/msg/JointState": "wheels: odometry/estimate/calibrate --joint-topic",
+    "nav_msgs/msg/Odometry": "a trajectory: --topic; a reference: --truth-topic; poses: "
+    "estimate/calibrate-driving --pose-topic; or the wheels: --wheel-topic",
+    "sensor_msgs/msg/Imu": "a gyro: estimate/calibrate-gyro/calibrate-driving --gyro-topic",
     "geometry_msgs/msg/Twist": "commands (v, omega), or the wheels: --wheel-topic",
     "geometry_msgs/msg/TwistStamped": "commands (v, omega), or the wheels: --wheel-topic",
     "tf2_msgs/msg/TFMessage": "a trajectory of a frame: --topic tf:PARENT:CHILD",
-    "sensor_msgs/msg/NavSatFix": "reference positions (local east, north): --truth-topic",
-    "geometry_msgs/msg/PoseWithCovarianceStamped": "poses (a camera, a localiser): --topic",
+    "sensor_msgs/msg/NavSatFix": "GPS fixes: estimate/calibrate-driving --gps-topic (local east, "
+    "north from --datum, else the first fix); a reference: --truth-topic",
+    "geometry_msgs/msg/PoseWithCovarianceStamped": "poses (a camera, a localiser): "
+    "estimate/calibrate-driving --pose-topic, or --topic",
 }
 
 
