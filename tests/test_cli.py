@@ -1,5 +1,6 @@
 """The command line: the main job in-process and as a real subprocess."""
 
+import math
 import subprocess
 import sys
 
@@ -789,6 +790,27 @@ def test_a_cusp_in_reverse_says_theta_is_the_robots_heading(tmp_path, capsys):
         (["synth", "--gyro-rrw", "1e-4"], ["synth", "--gyro", "rrw=1e-4"]),
         (["plan", "w.csv", "--method", "rk2"], ["plan", "w.csv"]),
         (["fk", "1", "2", "--json"], ["fk", "1", "2", "--json"]),
+        # degrees then, radians now: renamed, the figures converted
+        (
+            ["odometry", "b.mcap", "--imu-rpy", "90", "-45", "0", "-q"],
+            [
+                "odometry",
+                "b.mcap",
+                "--imu-mount",
+                repr(math.pi / 2),
+                repr(-math.pi / 4),
+                "0.0",
+                "-q",
+            ],
+        ),
+        (
+            ["calibrate-driving", "b.mcap", "--reference-sigma", "0.02", "2"],
+            ["calibrate-driving", "b.mcap", "--reference-noise", "0.02", repr(math.radians(2))],
+        ),
+        (
+            ["calibrate-driving", "b.mcap", "--reference-sigma", "0.5", "--gps-topic", "/fix"],
+            ["calibrate-driving", "b.mcap", "--reference-noise", "0.5", "--gps-topic", "/fix"],
+        ),
     ],
 )
 def test_the_spellings_before_0_9_are_rewritten_to_todays(old, new):

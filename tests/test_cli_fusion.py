@@ -125,8 +125,8 @@ def test_bad_measurements_are_refused_by_name_and_nothing_is_written(
             ["--lever-arm", "0.1", "0", "--gps-sigma", "1"],
             "--gps-sigma, --lever-arm: used only with absolute",
         ),
-        (["--imu-rpy", "0", "0", "90"], "--imu-rpy turns a bag's IMU (--gyro-topic)"),
-        (["--imu-rpy", "0", "nan", "0"], "--imu-rpy must be three finite angles"),
+        (["--imu-mount", "0", "0", "1.5708"], "--imu-mount turns a bag's IMU (--gyro-topic)"),
+        (["--imu-mount", "0", "nan", "0"], "--imu-mount must be three finite angles"),
     ],
 )
 def test_options_that_would_change_nothing_are_refused(log_and_fixes, capsys, extra, message):

@@ -449,7 +449,7 @@ def test_the_optiodom_recipe_exports_what_its_runs_hold(tmp_path, monkeypatch, c
     deviations = json.loads((tmp_path / "w.json").read_text())["stateStdDevs"]
     assert deviations[0] > 0.005  # 0.12 mm before
     assert deviations[2] > 0.01  # 0.066 degree before
-    loose = ["--reference-sigma", "0.0136", "2.6"]
+    loose = ["--reference-noise", "0.0136", "0.0454"]
     assert main([*argv[:-1], "refused.json", *loose]) == 1
     assert re.search("k_(left|right) came out at its bound, 0 m", capsys.readouterr().err)
     assert not (tmp_path / "refused.json").exists()

@@ -340,7 +340,7 @@ def test_diffdrive_calibrate_refuses_holding_what_the_reference_does_not_calibra
     argv = [
         "calibrate", str(bag), "--wheel-topic", "/husky_velocity_controller/odom",
         "--wheel-radius", "0.165", "--track-width", "0.555", "--gps-topic", "/fix",
-        "--gyro-topic", "/imu/data", "--imu-rpy", "90", "0", "0", "--hold", "yaw",
+        "--gyro-topic", "/imu/data", "--imu-mount", "1.5707963", "0", "0", "--hold", "yaw",
         "-o", str(held),
     ]  # fmt: skip
     assert main(argv) == 1
@@ -370,7 +370,7 @@ def test_a_reference_that_reports_no_covariance_has_its_noise_identified_from_a_
     monkeypatch.setattr(ros, "read_odometry", lambda *args: poses)
     args = argparse.Namespace(
         gps_topic="/fix" if kind == "gps" else None,
-        pose_topic="/pose" if kind == "poses" else None, reference_sigma=None, datum=None,
+        pose_topic="/pose" if kind == "poses" else None, reference_noise=None, datum=None,
     )  # fmt: skip
     _, _, sigma, said = calibrate_driving._reference(args, "log.bag")
     if kind == "gps":

@@ -427,14 +427,15 @@ def test_the_campaigns_findings_are_refused_by_name(call, error, message):
 
 @pytest.mark.parametrize("sigma", ["nan", "-1", "0"])
 def test_calibrate_driving_refuses_a_reference_noise_that_is_none(tmp_path, sigma, capsys):
-    """``--reference-sigma nan`` or ``-1`` was taken (and held); refused by name before any
+    """``--reference-noise nan`` or ``-1`` (``--reference-sigma`` before) was taken (and
+    held); refused by name before any
     file is read, nothing written."""
     from diffdrive.cli import main
 
     argv = ["calibrate-driving", str(tmp_path / "drive.mcap"), "--robot", "wheel_radius=0.1"]
-    argv += ["--robot", "track_width=0.5", "--gps-topic", "/fix", "--reference-sigma", sigma]
+    argv += ["--robot", "track_width=0.5", "--gps-topic", "/fix", "--reference-noise", sigma]
     assert main([*argv, "-o", str(tmp_path / "robot.toml")]) == 1
-    assert "--reference-sigma (m, and deg for poses) must be" in capsys.readouterr().err
+    assert "--reference-noise (m, and rad for poses) must be" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -192,7 +192,7 @@ def test_husky_gyro_heading_from_the_command_line(tmp_path, capsys):
     """The Husky has no joint states: its wheels come from the controller's odometry
     (--wheel-topic), and the gyro heading against GPS is the example's 2.77 m."""
     robot = ["--wheel-radius", "0.165", "--track-width", "0.555"]
-    imu = ["--gyro-topic", "/imu/data", "--imu-rpy", "90", "0", "0", "--heading", "gyro"]
+    imu = ["--gyro-topic", "/imu/data", "--imu-mount", "1.5707963", "0", "0", "--heading", "gyro"]
     out = tmp_path / "gyro.csv"
     argv = ["odometry", HUSKY, "--wheel-topic", "/husky_velocity_controller/odom", *robot, *imu]
     code, printed, err = run([*argv, "--k-left", "1e-3", "--k-right", "1e-3", "-o", out], capsys)
@@ -212,7 +212,7 @@ def test_husky_gps_fixes_identified_from_the_command_line(tmp_path, capsys):
     taken), the poses 2.81 m from the fixes (aligned ATE) and the poses plus the offset on
     them; given as white noise of the receiver's covariance, the gate refuses 378 of them."""
     robot = ["--wheel-radius", "0.165", "--track-width", "0.555"]
-    imu = ["--gyro-topic", "/imu/data", "--imu-rpy", "90", "0", "0", "--gps-topic", "/fix"]
+    imu = ["--gyro-topic", "/imu/data", "--imu-mount", "1.5707963", "0", "0", "--gps-topic", "/fix"]
     argv = ["odometry", HUSKY, "--wheel-topic", "/husky_velocity_controller/odom", *robot, *imu]
     out = tmp_path / "fused.csv"
     code, printed, err = run([*argv, "--smooth", "-o", out], capsys)
@@ -511,15 +511,16 @@ def test_bag_errors_come_in_the_order_a_user_needs_them(capsys, tmp_path, monkey
 def test_a_wrong_imu_mounting_is_named_when_the_gyro_and_wheels_disagree_that_often(
     capsys, tmp_path, monkeypatch
 ):
-    """--imu-rpy 90 0 0 on the TurtleBot3 exited 0, 34 m off with half the intervals flagged
+    """--imu-mount 1.5707963 0 0 (--imu-rpy 90 0 0 before) on the TurtleBot3 exited 0, 34 m
+    off with half the intervals flagged
     as slip, and said nothing."""
     monkeypatch.chdir(tmp_path)
     argv = ["odometry", str(TB3), "--left-joint", "wheel_left_joint", "--right-joint"]
     argv += ["wheel_right_joint", "--gyro-topic", "/imu", "-q"]
-    assert main([*argv, "--imu-rpy", "90", "0", "0", "-o", "x.csv"]) == 0
+    assert main([*argv, "--imu-mount", "1.5707963", "0", "0", "-o", "x.csv"]) == 0
     err = capsys.readouterr().err
     assert "% of the intervals flagged as slip" in err
-    assert "A wrong IMU mounting (--imu-rpy)" in err
+    assert "A wrong IMU mounting (--imu-mount)" in err
     assert main([*argv, "-o", "y.csv"]) == 0  # the right mounting: no such warning
     assert "flagged as slip" not in capsys.readouterr().err
 

@@ -69,11 +69,11 @@ def add_to(command: Command, parents: Parents) -> None:
         help="nav_msgs/Odometry or PoseWithCovarianceStamped: a camera's or localiser's poses",
     )
     group.add_argument(
-        "--reference-sigma",
+        "--reference-noise",
         type=float,
         nargs="+",
         metavar="SIGMA",
-        help="the reference's noise, held: M for GPS; M DEG for poses (default: identified "
+        help="the reference's noise, held: M for GPS; M RAD for poses (default: identified "
         "from the log, starting at the median of the covariances the readings report)",
     )
     group.add_argument(
@@ -93,7 +93,8 @@ def add_to(command: Command, parents: Parents) -> None:
 
 EPILOG = """examples:
   diffdrive calibrate-driving husky.bag --wheel-topic /husky_velocity_controller/odom \\
-      --robot husky.toml --gps-topic /fix --gyro-topic /imu/data --imu-rpy 90 0 0 -o robot.toml
+      --robot husky.toml --gps-topic /fix --gyro-topic /imu/data --imu-mount 1.5707963 0 0 \\
+      -o robot.toml
 
 From ordinary driving: the wheels' scale and track, the antenna's or camera's lever arm and
 clock offset, the gyro's scale and bias, each noise identified from the drive unless held. A
@@ -104,8 +105,8 @@ def run_calibrate_driving(args: argparse.Namespace) -> int:
     """Calibrate one bag's wheels (and gyro) against its GPS or pose topic; write the robot,
     print the report. A parameter the drive did not determine is refused, nothing written."""
     refuse_assumed_robot(args, "calibration from driving starts from the nominal geometry")
-    for value in args.reference_sigma or ():  # before any file is read
-        positive("--reference-sigma (m, and deg for poses)", value)
+    for value in args.reference_noise or ():  # before any file is read
+        positive("--reference-noise (m, and rad for poses)", value)
     nominal, ticks = robot_from(args)
     path = args.input
     if not is_bag(path):
@@ -127,7 +128,7 @@ def run_calibrate_driving(args: argparse.Namespace) -> int:
     lines.append(line)
     # What no flag gave is found from the log: no noise figure set by hand.
     held = {"wheels": args.k is not None, "gyro": gyro_held}
-    held["reference"] = held["reference_heading"] = args.reference_sigma is not None
+    held["reference"] = held["reference_heading"] = args.reference_noise is not None
     held["gyro"] |= gyro is None  # what the log has not, nothing to find
     held["reference_heading"] |= args.gps_topic is not None
     unknown = tuple(name for name, given in held.items() if not given)
@@ -186,13 +187,13 @@ def _reference(args, path):
     """The reference's stamps, readings (positions or poses), noise and a line on it."""
     from diffdrive.io import ros
 
-    given = args.reference_sigma
+    given = args.reference_noise
     if args.gps_topic:
         fixes = ros.read_navsatfix(path, args.gps_topic, args.datum)
         if given is not None:
             if len(given) != 1:
-                raise ValueError(f"--reference-sigma for GPS is one noise (m), got {given}")
-            sigma, source = given[0], "given by --reference-sigma, held"
+                raise ValueError(f"--reference-noise for GPS is one noise (m), got {given}")
+            sigma, source = given[0], "given by --reference-noise, held"
         else:
             reported = fixes.variance[np.isfinite(fixes.variance) & (fixes.variance > 0)]
             if len(reported) < len(fixes.variance) / 2:
@@ -206,9 +207,9 @@ def _reference(args, path):
     topic = ros.read_odometry(path, args.pose_topic)
     if given is not None:
         if len(given) != 2:
-            raise ValueError(f"--reference-sigma for poses is M DEG, got {given}")
-        sigma3 = (given[0], given[0], math.radians(given[1]))
-        source = "given by --reference-sigma, held"
+            raise ValueError(f"--reference-noise for poses is M RAD, got {given}")
+        sigma3 = (given[0], given[0], given[1])
+        source = "given by --reference-noise, held"
     else:
         diagonal = topic.covariances[:, [0, 1, 2], [0, 1, 2]]
         usable = np.all(np.isfinite(diagonal) & (diagonal > 0), axis=1)

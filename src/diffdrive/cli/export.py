@@ -129,7 +129,7 @@ def _refuse_misplaced(args) -> None:
     else:
         refuse_unused(
             {
-                "--reference-sigma": args.reference_sigma is not None,
+                "--reference-noise": args.reference_noise is not None,
                 "--accept-inconsistent": args.accept_inconsistent,
             },
             "used only with runs, which identify the noise model and hold it to them",
@@ -214,16 +214,16 @@ def _identified(args, robot, ticks, notes: list[str], lines: list[str]):
     writing it (``export.refusals``) and the line of its score on them."""
     read = [_calibration_run(args, path, ticks, robot)[0] for path in args.runs]
     fixed = None
-    stated = args.reference_sigma
+    stated = args.reference_noise
     if stated is None and not any(is_bag(path) for path in args.runs):
-        stated = (MOTION_CAPTURE[0], math.degrees(MOTION_CAPTURE[1]))  # --reference-sigma's
+        stated = MOTION_CAPTURE  # m and rad, as --reference-noise takes them
         source = "motion capture's (a table's ground truth), by default"
     else:
-        source = "as stated (--reference-sigma)" if stated is not None else "identified"
+        source = "as stated (--reference-noise)" if stated is not None else "identified"
     if stated is not None:
-        meters, degrees = stated
-        fixed = {"reference_sigma": meters, "reference_heading_sigma": math.radians(degrees)}
-        source = f"{1000 * meters:g} mm and {degrees:g} deg, {source}"
+        meters, radians = stated
+        fixed = {"reference_sigma": meters, "reference_heading_sigma": radians}
+        source = f"{1000 * meters:g} mm and {math.degrees(radians):g} deg, {source}"
     model, left_out = identify_what_it_can(robot, read, fixed=fixed)
     identified = f"identified on {len(read)} runs" + (
         f" ({', '.join(left_out)} left out: the runs cannot identify them)" if left_out else ""
@@ -256,7 +256,7 @@ EPILOGS = {
       --counter-bits 16 run1.csv run2.csv
 
 The noise model is identified on the runs given (ground truth as the reference, its own
-accuracy held at --reference-sigma: by default motion capture's, 1 mm and 0.1 deg, for tables;
+accuracy held at --reference-noise: by default motion capture's, 1 mm and 0.1 deg, for tables;
 identified for a bag's --reference-topic), then held to them: below 80 % of their poses inside
 its 95 % ellipse, or with its wheel noise k at 0, it is refused (--accept-inconsistent writes
 it, saying so in the file). Or it is taken from --k, --radius-sigma and --track-sigma. How each
@@ -321,11 +321,11 @@ def _common_options(ex: argparse.ArgumentParser) -> None:
     ex.add_argument("--radius-sigma", type=float, metavar="REL", help="per-run radius error")
     ex.add_argument("--track-sigma", type=float, metavar="REL", help="per-run track error")
     ex.add_argument(
-        "--reference-sigma",
+        "--reference-noise",
         type=float,
         nargs=2,
-        metavar=("M", "DEG"),
-        help="the runs' reference's own accuracy, m and degrees (default: 0.001 0.1, motion "
+        metavar=("M", "RAD"),
+        help="the runs' reference's own accuracy, m and rad (default: 0.001 0.00175, motion "
         "capture's, for tables; identified for a bag's --reference-topic)",
     )
     ex.add_argument(

@@ -142,7 +142,7 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
         print(
             f"diffdrive odometry: warning: {100 * share:.0f} % of the intervals flagged as "
             "slip: the gyro and the wheels disagree far more often than a robot slips. A wrong "
-            "IMU mounting (--imu-rpy), a gyro in other units or the wrong gyro axis is the "
+            "IMU mounting (--imu-mount), a gyro in other units or the wrong gyro axis is the "
             "likely cause; check with --heading wheels",
             file=sys.stderr,
         )

@@ -541,22 +541,22 @@ class Parents:
 
 def gyro_of(args: argparse.Namespace, log: Run, path: Path | None = None):
     """The gyro of the command's log (``path``, default its input): a bag's IMU topic (rotated
-    by --imu-rpy), or the log's gyro_z column; None without one."""
+    by --imu-mount), or the log's gyro_z column; None without one."""
     from diffdrive.estimation.gyro import Gyro, rotation_from_rpy
 
     source = args.input if path is None else path
-    if not np.all(np.isfinite(args.imu_rpy)):
-        raise ValueError(f"--imu-rpy must be three finite angles (degrees), got {args.imu_rpy}")
-    if args.gyro_topic is None and any(args.imu_rpy):
+    if not np.all(np.isfinite(args.imu_mount)):
+        raise ValueError(f"--imu-mount must be three finite angles (rad), got {args.imu_mount}")
+    if args.gyro_topic is None and any(args.imu_mount):
         # A gyro_z column is the body's yaw rate already: no mounting is applied to it.
-        raise ValueError("--imu-rpy turns a bag's IMU (--gyro-topic); a gyro_z column has none")
+        raise ValueError("--imu-mount turns a bag's IMU (--gyro-topic); a gyro_z column has none")
     if args.gyro_topic is not None:
         if source is None or not is_bag(source):
             raise TableError("--gyro-topic needs a bag as the log")
         from diffdrive.io import ros
 
         imu = ros.read_imu(source, args.gyro_topic)
-        mounting = rotation_from_rpy(*np.radians(args.imu_rpy))
+        mounting = rotation_from_rpy(*args.imu_mount)
         return Gyro.from_imu(imu.times, imu.angular_velocity, mounting)
     if log.gyro_rates is not None:
         return Gyro(log.times, log.gyro_rates)
@@ -576,16 +576,17 @@ def add_datum_option(group) -> None:
 
 
 def add_imu_options(group, topic: bool = True) -> None:
-    """``--gyro-topic`` (unless ``topic`` is False) and ``--imu-rpy``, the IMU's mounting."""
+    """``--gyro-topic`` (unless ``topic`` is False) and ``--imu-mount``, the IMU's mounting."""
     if topic:
         group.add_argument("--gyro-topic", metavar="TOPIC", help="sensor_msgs/Imu topic of the bag")
     group.add_argument(
-        "--imu-rpy",
+        "--imu-mount",
         type=float,
         nargs=3,
         default=(0.0, 0.0, 0.0),
         metavar=("ROLL", "PITCH", "YAW"),
-        help="the IMU's mounting in the body, degrees (default 0 0 0: z up)",
+        help="the IMU's mounting in the body, rad (default 0 0 0: z up; 1.5707963 0 0: a "
+        "quarter roll)",
     )
 
 

@@ -8,10 +8,13 @@ with measurements or ``--smooth`` became ``estimate``; ``calibrate --track-from-
 Options that came in pairs or threes became one (``--frames``, ``--joints``, ``--k``,
 ``--feedforward``, ``--obstacles``), the rarer robot settings ``--robot KEY=VALUE``, the
 synthetic gyro's and pose sensor's figures ``--gyro`` and ``--pose``, and the estimator's
-tuning ``--settings``. This module goes in the next release."""
+tuning ``--settings``. Every angle the command line takes is in radians: ``--imu-rpy`` (degrees)
+became ``--imu-mount`` and ``--reference-sigma`` (its heading in degrees) ``--reference-noise``,
+their values converted here. This module goes in the next release."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -57,6 +60,12 @@ ESTIMATE = {
     "--turn-scale-sigma": "turn_scale.sigma",
     "--method": "method",
 }
+# Options that took angles in degrees, renamed when they went to radians: today's name, how
+# many values they take at most, and which of them are angles.
+DEGREES = {
+    "--imu-rpy": ("--imu-mount", 3, (0, 1, 2)),
+    "--reference-sigma": ("--reference-noise", 2, (1,)),
+}
 ALWAYS = ("--twist", "--covariance")  # estimate writes the twist and covariance always
 SWITCHES = ("--twist", "--covariance", "--track-from-gyro", "--smooth")
 LATER = "the old spelling goes in the next release"
@@ -87,10 +96,44 @@ def today(argv: list[str], options_of: Callable[[str], Mapping[str, object]]) ->
     if new_command != command:
         notes.append(f'"{command}" {_why_moved(command, rest)} is now "{new_command}"; {LATER}')
     known = options_of(new_command)
+    rest = _in_radians(rest, notes)
     kept, added = _rewrite(new_command, rest, known, notes, moved=new_command != command)
     if new_command == "estimate" and not {"-o", "--output"} & set(rest):
         added += ["-o", "odometry.csv"]  # odometry's default name, which scripts may read
     return Rewritten([*new_command.split(), *kept, *added], notes)
+
+
+def _in_radians(tokens: list[str], notes: list[str]) -> list[str]:
+    """``tokens`` with each option that took degrees (``DEGREES``) under today's name, its
+    angles converted to radians; what is no number is left for the parser to refuse."""
+    out: list[str] = []
+    index = 0
+    while index < len(tokens):
+        token = tokens[index]
+        index += 1
+        if token not in DEGREES:
+            out.append(token)
+            continue
+        flag, most, angles = DEGREES[token]
+        values: list[str] = []
+        while index < len(tokens) and len(values) < most and _is_number(tokens[index]):
+            values.append(tokens[index])
+            index += 1
+        today_values = [
+            repr(math.radians(float(v))) if k in angles else v for k, v in enumerate(values)
+        ]
+        shown = " ".join(f"{float(v):.6g}" for v in today_values)
+        notes.append(f'"{" ".join([token, *values])}" is now "{flag} {shown}" (radians); {LATER}')
+        out += [flag, *today_values]
+    return out
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
 
 
 def _split_equals(tokens: list[str]) -> list[str]:

@@ -143,7 +143,7 @@ def _gyro_model(args: argparse.Namespace) -> sensors.GyroModel:
         bias=given.pop("bias", 0.0),
         scale=given.pop("scale", 0.0),
         noise=GyroNoise(**given),
-        mounting=rotation_from_rpy(*(math.radians(a) for a in args.imu_rpy)),
+        mounting=rotation_from_rpy(*args.imu_mount),
     )
 
 
