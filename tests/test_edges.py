@@ -283,15 +283,17 @@ def test_an_interrupted_write_leaves_no_temporary_file_and_no_traceback(tmp_path
     again (it failed a suite at load 4 on 2 cores). The child takes Ctrl-C as a terminal
     gives it even where the suite was started in the background, whose shell hands its
     children SIGINT ignored (and Python then installs no handler for it)."""
-    command = [sys.executable, "-m", "diffdrive", "simulate", "--dt", "1e-5", "-o", "big.csv"]
+    # Python's own Ctrl-C handler first (a preexec_fn would fork a threaded process)
+    command = [
+        sys.executable,
+        "-c",
+        "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "sys.argv = ['diffdrive', 'simulate', '--dt', '1e-5', '-o', 'big.csv']; "
+        "runpy.run_module('diffdrive', run_name='__main__')",
+    ]
     for _ in range(3):
         with subprocess.Popen(
-            command,
-            cwd=tmp_path,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+            command, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
         ) as process:
             deadline = time.monotonic() + 60
             while not list(tmp_path.glob(".big.*")) and time.monotonic() < deadline:
