@@ -291,3 +291,26 @@ def test_mppi_refuses_a_bad_map_or_footprint_and_follow_has_no_map(files, capsys
     assert main([*argv, "-o", str(out)]) == 1
     assert "bad.yaml: the map's origin is missing" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_mppi_checks_nav2s_figures_before_the_run_and_q_skips_the_margin(tmp_path, capsys):
+    """``--nav2-mppi`` without a wheel limit was refused after the whole run (27 minutes on a
+    long plan, 89 % of it the delay-margin search, with its CSV written): it is refused
+    first, nothing written; and -q leaves the margin's search out."""
+    from unittest import mock
+
+    waypoints = tmp_path / "w.csv"
+    waypoints.write_text("x,y\n0,0\n1,0\n2,1\n")
+    robot = ["--robot", "wheel_radius=0.05,track_width=0.3", "--max-velocity", "0.5"]
+    out, nav2 = tmp_path / "m.csv", tmp_path / "n.yaml"
+    argv = ["mppi", str(waypoints), *robot, "-o", str(out), "--nav2-mppi", str(nav2)]
+    with mock.patch("diffdrive.cli.plan.follow") as run:
+        assert main(argv) == 1
+    assert not run.called
+    assert "need a wheel limit" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["w.csv"]
+    with mock.patch("diffdrive.cli.plan.delay_margin") as margin:
+        argv = ["follow", str(waypoints), *robot, "-o", str(out), "-q"]
+        assert main(argv) == 0
+    assert not margin.called
+    assert out.exists()

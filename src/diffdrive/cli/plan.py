@@ -199,6 +199,10 @@ def run_follow(args: argparse.Namespace) -> int:
     avoid = _avoidance_of(args)
     robot, result = _plan_of(args)
     tracker = _tracker(args, drive, avoid)
+    if getattr(args, "nav2_mppi", None):  # refused now, not after the run
+        from diffdrive.export.nav2_mppi import nav2_mppi_parameters
+
+        nav2_mppi_parameters(tracker, robot, result.limits)
     noise = args.wheel_noise  # k (m), both wheels
     run = follow(
         result,
@@ -211,7 +215,6 @@ def run_follow(args: argparse.Namespace) -> int:
     )
     errors = run.errors()
     known = args.delay if args.predict or args.tracker == "mppi" else 0.0
-    margin = delay_margin(result, tracker, dt=args.dt, lag=args.lag, known=known, drive=drive)
     columns = {
         "cross_track": errors.cross_track[0],
         "along_track": errors.along_track[0],
@@ -226,7 +229,8 @@ def run_follow(args: argparse.Namespace) -> int:
         from diffdrive.plot import plot_plan
 
         plot_plan(result, args.plot, followed=run)
-    if not args.quiet:
+    if not args.quiet:  # the report; -q leaves out its delay-margin search, the longest part
+        margin = delay_margin(result, tracker, dt=args.dt, lag=args.lag, known=known, drive=drive)
         name = f"{args.tracker}{' (predictive)' if args.predict else ''}"
         print(
             f"follow: {name}, delay {float(run.delays[0]):g} s, {_response(args, drive)}, "
@@ -280,14 +284,18 @@ written rows use.""",
   diffdrive follow waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
       --robots 200 --wheel-noise 1e-4 --seed 1 -o follow.csv
 
-Written: robot 0's true poses with its cross-track, along-track and heading errors. Around
-obstacles: diffdrive mppi.""",
+Written: robot 0's true poses with its cross-track, along-track and heading errors. Printed:
+the errors and the delay margin, found by simulation (-q prints nothing and leaves that search
+out). Around obstacles: diffdrive mppi.""",
     "mppi": """examples:
   diffdrive mppi waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
       --delay 0.1 --lag 0.1 --obstacles map.yaml 0.2 --nav2-mppi mppi.yaml --plot mppi.png
 
 It rolls its samples out through the delay and the lag itself. Written: robot 0's true poses
-with its cross-track, along-track and heading errors.""",
+with its cross-track, along-track and heading errors. Printed: the errors and the delay margin
+beyond the known delay, found by simulating the controller again (the longest part: -q prints
+nothing and leaves it out). --nav2-mppi's figures are checked before the run (a wheel limit
+is needed).""",
 }
 
 
