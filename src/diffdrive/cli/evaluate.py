@@ -94,7 +94,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
         metrics = evaluation_metrics(args, times, estimate, truth)
     if covariances is not None:
         found = consistency(estimate, covariances, truth, aligned=args.align)
-        if not args.align:
+        if args.align:
+            _warn_of_one_frame(estimate, covariances, truth, found)
+        else:
             _warn_of_other_frames(estimate, covariances, truth, found)
         metrics.update(
             consistency_poses=found.used,
@@ -164,6 +166,26 @@ def _warn_of_other_frames(estimate, covariances, truth, found) -> None:
         f"{math.degrees(motion[2]):.1f} deg, shifted {math.hypot(*motion[:2]):.3g} m): if the "
         "two do not share a frame (odometry against GPS, say), --align scores the covariance "
         "after that motion",
+        file=sys.stderr,
+    )
+
+
+def _warn_of_one_frame(estimate, covariances, truth, found) -> None:
+    """Say why --align made the ANEES far larger: the estimate shares the truth's frame, and
+    the rigid motion moved poses whose covariance is all but zero (an exactly known start)
+    by the fit's own residual, an error their covariance cannot hold."""
+    unmoved = consistency(estimate, covariances, truth, aligned=False)
+    if not found.anees > 10.0 * unmoved.anees:
+        return
+    worst = int(np.nanargmax(found.nees))
+    motion = alignment(estimate, truth)
+    print(
+        f"evaluate: warning: --align makes the ANEES {found.anees:.4g}, against "
+        f"{unmoved.anees:.4g} as the trajectory is: it is in the truth's frame already, and "
+        "the rigid motion "
+        f"(turned {math.degrees(motion[2]):.3g} deg, shifted {math.hypot(*motion[:2]):.3g} m) "
+        f"moves poses whose covariance is all but zero (pose {worst}'s NEES is "
+        f"{found.nees[worst]:.3g}: an exactly known start); leave --align out",
         file=sys.stderr,
     )
 
