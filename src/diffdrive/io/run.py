@@ -48,7 +48,8 @@ class Run:
     unknown), for messages; ``ticks_per_revolution`` is the encoders' resolution when the
     format fixes it; ``gyro_rates`` ``(T+1,)`` the body yaw rate (rad/s) of a gyro, and
     ``commands`` ``(T+1, 2)`` the commanded wheel velocities (rad/s, held until the next
-    row), or None.
+    row), or None; ``reported`` ``(T+1, 2)`` the body's ``(v, omega)`` (m/s, rad/s) the source
+    states at each row (a drive controller's ``Odometry``), or None.
     """
 
     times: np.ndarray
@@ -61,6 +62,7 @@ class Run:
     gyro_rates: np.ndarray | None = None
     commands: np.ndarray | None = None
     voltages: np.ndarray | None = None
+    reported: np.ndarray | None = None
 
     @classmethod
     def from_increments(
@@ -109,6 +111,7 @@ class Run:
             gyro_rates=cut(self.gyro_rates),
             commands=cut(self.commands),
             voltages=cut(self.voltages),
+            reported=cut(self.reported),
         )
 
     def increments(

@@ -398,7 +398,8 @@ def read_wheel_motion(path: str | Path, topic: str, robot) -> Run:
         increments = batch.to_wheel_velocities(robot, motion)
         angles = np.concatenate([np.zeros((1, 2)), np.cumsum(increments, axis=0)])
         where = f"{path} {topic} (the controller's poses, {odometry.stamp_source} stamps)"
-        return Run(odometry.times, "angle", angles, None, where)
+        reported = odometry.twists[:, [0, 2]]  # what the controller says it drove
+        return Run(odometry.times, "angle", angles, None, where, reported=reported)
     twists = read_twists(path, topic)  # names a topic of another type, or a missing one
     if len(twists.times) < 2:
         raise BagError(f"{path}: {topic} needs 2 or more messages")
