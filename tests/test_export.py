@@ -302,6 +302,15 @@ def test_amcl_alphas_give_the_models_covariance_through_nav2s_sampler(robot, sca
             sampled = np.array([sampled[:2].sum(), sampled[2]])
             wanted = np.array([wanted[:2].sum(), wanted[2]])
         np.testing.assert_allclose(sampled, wanted, rtol=fit.worst + 0.05, err_msg=name)
+    # The fit's own linearisation of the sampler, against the sampler on its own motions.
+    from diffdrive.export.amcl import reference_motions
+
+    for motion, predicted in zip(reference_motions(robot, at), fit.sampler, strict=True):
+        particles = np.zeros((40_000, 3))
+        for before, after in zip(motion.poses[:-1], motion.poses[1:], strict=True):
+            _nav2_sampler(particles, before, after, alphas, rng)
+        sampled = np.diag(np.cov(particles.T))
+        np.testing.assert_allclose(sampled, np.diag(predicted), rtol=0.1, err_msg=motion.name)
 
 
 def test_an_alpha_the_fit_leaves_at_zero_is_refused_by_the_motion_it_misses():
