@@ -19,6 +19,7 @@ import numpy as np
 from diffdrive._validate import positive
 from diffdrive.calibration.reference import (
     PARAMETERS,
+    ReferenceCalibration,
     ReferenceSettings,
     UndeterminedError,
     calibrate_to_reference,
@@ -154,8 +155,9 @@ def run_calibrate_driving(args: argparse.Namespace) -> int:
     if ticks is not None:
         settings["ticks_per_revolution"] = ticks
     source = args.gps_topic or args.pose_topic
+    noise, said = _noise_found(found, wheels if args.k is not None else None, gyro_noise, gyro_held)
     comment = [f"calibrated by diffdrive from driving: {path} against {source}", *found.report]
-    write_robot(args.output, settings, "\n".join(comment))
+    write_robot(args.output, settings, "\n".join([*comment, said]), noise)
     if not args.quiet:
         for line in lines:
             print(line)
@@ -165,6 +167,7 @@ def run_calibrate_driving(args: argparse.Namespace) -> int:
         )
         for line in found.report:
             print(f"  {line}")
+        print(said)
         print(f"calibrate: wrote the robot to {args.output}")
     return 0
 
@@ -260,6 +263,37 @@ def _gyro_noise(args, log, gyro, ticks) -> tuple[GyroNoise, bool, str]:
             f"standing stretch ({standing.longest:.3g} s), held"
         ),
     )
+
+
+def _noise_found(
+    found: ReferenceCalibration,
+    wheels: WheelNoise | None,
+    gyro: GyroNoise | None,
+    gyro_held: bool,
+) -> tuple[dict[str, WheelNoise | GyroNoise], str]:
+    """The noise a robot file keeps for the other commands (``odometry``, ``estimate``,
+    ``export``), and a line saying what: each term the drive determined, or held at a figure
+    given (``wheels`` from --k; the ``gyro`` from --gyro-arw or a standing stretch). A term
+    the drive left undetermined is not written: its figure only weighed the fit. The gyro's
+    bias prior is the library's default, not this log's: a bias is each run's own."""
+    identified = {} if found.noise is None else dict(found.noise.values)
+    for name in () if found.noise is None else found.noise.undetermined:
+        identified.pop(name)
+    noise: dict[str, WheelNoise | GyroNoise] = {}
+    if "wheels" in identified:
+        noise["wheel_noise"] = WheelNoise.symmetric(identified["wheels"])
+    elif wheels is not None:
+        noise["wheel_noise"] = wheels
+    if gyro is not None and ("gyro" in identified or gyro_held):
+        noise["gyro_noise"] = GyroNoise(
+            angle_random_walk=identified.get("gyro", gyro.angle_random_walk),
+            rate_random_walk=gyro.rate_random_walk or DEFAULT_GYRO.rate_random_walk,
+            initial_bias_sigma=DEFAULT_GYRO.initial_bias_sigma,
+            bias_instability=gyro.bias_instability,
+            correlation_time=gyro.correlation_time,
+        )
+    kept = ", ".join(f"[noise.{name}]" for name in noise) or "no noise"
+    return noise, f"kept for odometry, estimate and export: {kept}"
 
 
 def _wheel_noise(args) -> tuple[WheelNoise, str]:

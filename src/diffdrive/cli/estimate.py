@@ -37,6 +37,7 @@ from diffdrive.cli.options import (
     estimate_columns,
     gyro_of,
     key_values,
+    noise_changes,
     output_options,
     read_log_of,
     refuse_unused,
@@ -279,7 +280,9 @@ def run_estimate(args: argparse.Namespace) -> int:
             "column"
         )
     noise, assumed = wheel_noise(args, robot, log, increments)
-    note += assumed
+    from_files, said = noise_changes(args)
+    note += assumed + said
+    changes = {**from_files, **changes}  # --settings over the robot files' noise
     # A receiver's fixes (--gps-topic) report its whole error: identified by default, given
     # enough of them; a covariance the user wrote (a table's sigmas) is taken as given.
     positions = sum(m.kind == "position" for m in inside)

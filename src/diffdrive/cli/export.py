@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from diffdrive.calibration.noise import (
@@ -22,6 +23,7 @@ from diffdrive.cli.options import (
     refuse_assumed_robot,
     refuse_unused,
     robot_from,
+    robot_noise,
 )
 from diffdrive.estimation.settings import Encoders
 from diffdrive.export import (
@@ -35,6 +37,7 @@ from diffdrive.export import (
     refusals,
 )
 from diffdrive.io import TableError, is_bag, read_drive, read_robot, robot_from_settings
+from diffdrive.sensor_noise import WheelNoise
 
 
 def run_export(args: argparse.Namespace) -> int:
@@ -54,9 +57,14 @@ def run_export(args: argparse.Namespace) -> int:
     score = ""
     if args.runs:
         model, held, score = _identified(args, robot, ticks, notes, lines)
+        if "wheel_noise" in robot_noise(args):
+            lines.append(
+                f"the wheel noise in {robot_noise(args)['wheel_noise'][1]} left aside: the runs "
+                "identify the noise model"
+            )
     else:
-        model = NoiseModel.symmetric(args.k, args.radius_sigma or 0.0, args.track_sigma or 0.0)
-        notes.append("noise model given by hand (--k, --radius-sigma, --track-sigma): not checked")
+        model, given = _by_hand(args)
+        notes.append(f"noise model {given}: not checked")
         held = []
     if held and not args.accept_inconsistent:
         raise ValueError(
@@ -134,11 +142,26 @@ def _refuse_misplaced(args) -> None:
             },
             "used only with runs, which identify the noise model and hold it to them",
         )
-    if not args.runs and args.k is None:
+
+
+def _by_hand(args) -> tuple[NoiseModel, str]:
+    """The noise model without runs, and where it came from: the wheels' k from --k, else
+    from a robot file's ``[noise.wheel_noise]`` (what ``calibrate-driving`` identified), each
+    radius and the track spread by --radius-sigma and --track-sigma."""
+    spread = NoiseModel.symmetric(0.0, args.radius_sigma or 0.0, args.track_sigma or 0.0)
+    if args.k is not None:
+        wheels, given = WheelNoise.symmetric(args.k), "given by hand (--k"
+    elif "wheel_noise" in robot_noise(args):
+        part, source = robot_noise(args)["wheel_noise"]
+        wheels, given = WheelNoise.coerce(part), f"with the wheels' k from {source} ("
+    else:
         raise ValueError(
-            "export needs a noise model: runs with ground truth to identify it on, or --k (m) "
-            "with --radius-sigma and --track-sigma"
+            "export needs a noise model: runs with ground truth to identify it on, --k (m), or "
+            "a robot file with the noise calibrate-driving found ([noise.wheel_noise]); with "
+            "--radius-sigma and --track-sigma"
         )
+    given += ", --radius-sigma, --track-sigma)"
+    return replace(spread, wheel_noise=wheels), given
 
 
 def _wheel_names(args) -> tuple[str, str] | None:

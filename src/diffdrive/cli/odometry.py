@@ -20,6 +20,7 @@ from diffdrive.cli.options import (
     add_wheel_noise_option,
     estimate_columns,
     gyro_of,
+    noise_changes,
     output_format,
     output_options,
     read_log_of,
@@ -132,13 +133,14 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
     log, note = within_gyro(log, gyro, note)
     increments = log.increments(ticks, args.counter_bits)
     noise, assumed = wheel_noise(args, robot, log, increments)
-    note += assumed
+    from_files, said = noise_changes(args)
+    note += assumed + said
     result = gyro_odometry(
         robot,
         log.times,
         increments,
         gyro,
-        estimator_settings(noise, "given", True, _gyro_settings(args)),
+        estimator_settings(noise, "given", True, {**from_files, **_gyro_settings(args)}),
         initial_pose=log.start_pose(),
         commanded=wheel_commands(args, robot, log),
     )

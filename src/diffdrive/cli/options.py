@@ -31,6 +31,7 @@ from diffdrive.io import (
     is_bag,
     overridden,
     read_robot,
+    read_robot_noise,
     read_run,
     read_trajectory,
     robot_from_settings,
@@ -260,6 +261,27 @@ def robot_settings(args: argparse.Namespace) -> dict[str, float]:
     return overridden(settings, given, named)
 
 
+def robot_noise(args: argparse.Namespace) -> dict[str, tuple[object, str]]:
+    """The noise the robot files given hold (``read_robot_noise``), each part with the file it
+    came from: a later file's part over an earlier's."""
+    found: dict[str, tuple[object, str]] = {}
+    for entry in args.robot or ():
+        if "=" not in entry:
+            found.update({name: (part, entry) for name, part in read_robot_noise(entry).items()})
+    return found
+
+
+def noise_changes(args: argparse.Namespace) -> tuple[dict[str, object], str]:
+    """The robot files' noise parts other than the wheels' (``wheel_noise`` takes those) as
+    ``EstimatorSettings`` changes by name, and a report's line on them (with its newline), or
+    nothing."""
+    parts = {name: found for name, found in robot_noise(args).items() if name != "wheel_noise"}
+    lines = "".join(
+        f"\n{name.replace('_', ' ')}: from {source}" for name, (_, source) in parts.items()
+    )
+    return {name: part for name, (part, _) in parts.items()}, lines
+
+
 def robot_files(args: argparse.Namespace) -> str:
     """`` (in FILE, ...)`` of the robot files given, for a message; else nothing."""
     files = [entry for entry in args.robot or () if "=" not in entry]
@@ -431,34 +453,43 @@ def wheel_noise(
     args: argparse.Namespace, robot: Robot | None = None, log=None, increments=None
 ) -> tuple[WheelNoise, str]:
     """``--k`` (m; one for both wheels, or left and right) as a ``WheelNoise`` and a report's
-    line (with its newline) on what was assumed, or nothing. Not given, the wheels' noise is
-    identified from the log's ground truth where it has one (``log.truth``;
-    ``noise.identify`` of ``increments`` against it, the reference held at motion capture's
-    accuracy), else the library's default (``diffdrive.sensor_noise.DEFAULT``). Both 0 are
-    refused for a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which a filter
-    reads as exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
+    line (with its newline) on what was assumed, or nothing. Not given, a robot file's
+    ``[noise.wheel_noise]``; else identified from the log's ground truth where it has one
+    (``log.truth``; ``noise.identify`` of ``increments`` against it, the reference held at
+    motion capture's accuracy), else the library's default (``diffdrive.sensor_noise.DEFAULT``).
+    Both 0 are refused for a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which
+    a filter reads as exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
     given = wheel_pair(args)
+    in_file = robot_noise(args).get("wheel_noise")
     if given is not None:
-        noise, line = WheelNoise(*given), ""
+        return _refuse_zero(args, WheelNoise(*given)), ""
+    if in_file is not None:
+        part, source = in_file
+        noise, why = WheelNoise.coerce(part), f"from {source}; --k to give them"
     else:
-        noise, line = DEFAULT_WHEEL_NOISE, "a default where not given: --k K or --k LEFT RIGHT"
+        noise, why = DEFAULT_WHEEL_NOISE, "a default where not given: --k K or --k LEFT RIGHT"
         truth = None if log is None else log.truth
         if truth is not None and robot is not None:
             from diffdrive.calibration.noise import identify_wheel_noise
 
-            found, why = identify_wheel_noise(robot, increments, truth)
-            noise, line = (
-                (DEFAULT_WHEEL_NOISE, f"the default: {why}")
+            found, how = identify_wheel_noise(robot, increments, truth)
+            noise, why = (
+                (DEFAULT_WHEEL_NOISE, f"the default: {how}")
                 if found is None
-                else (found, f"{why}; --k to give them")
+                else (found, f"{how}; --k to give them")
             )
-        line = f"\nwheel noise: k = {noise.left:.3g} m left, {noise.right:.3g} m right ({line})"
+    line = f"\nwheel noise: k = {noise.left:.3g} m left, {noise.right:.3g} m right ({why})"
+    return _refuse_zero(args, noise), line
+
+
+def _refuse_zero(args: argparse.Namespace, noise: WheelNoise) -> WheelNoise:
+    """``noise``, refused where both are 0 and the output is a bag (see ``wheel_noise``)."""
     if noise.left == 0.0 and noise.right == 0.0 and output_format(args) in ("mcap", "ros2"):
         raise ValueError(
             "--k 0: the /odom messages would carry zero covariances, which ROS filters read as "
             "exact; give the wheels' noise (k > 0, m)"
         )
-    return noise, line
+    return noise
 
 
 def example_trajectory(robot: Robot, dt: float = 0.01, method: Method = "exact"):

@@ -30,9 +30,11 @@ from diffdrive.io.optiodom import (
 )
 from diffdrive.io.read import read_commands, read_run
 from diffdrive.io.robots import (
+    NOISE_PARTS,
     ROBOT_KEYS,
     overridden,
     read_robot,
+    read_robot_noise,
     robot_from_settings,
     write_robot,
 )
@@ -44,6 +46,7 @@ from diffdrive.io.trajectories import FORMATS, read_trajectory, write_trajectory
 
 __all__ = [
     "FORMATS",
+    "NOISE_PARTS",
     "OPTIODOM_TICKS_PER_REVOLUTION",
     "RIM_SPEED_LIMIT",
     "ROBOT_KEYS",
@@ -65,6 +68,7 @@ __all__ = [
     "read_log",
     "read_optiodom_run",
     "read_robot",
+    "read_robot_noise",
     "read_run",
     "read_table",
     "read_trajectory",

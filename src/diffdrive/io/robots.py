@@ -1,19 +1,35 @@
-"""Robot files: the geometry of a robot (and its encoders' resolution) as TOML."""
+"""Robot files: the geometry of a robot (and its encoders' resolution) as TOML, and the noise a
+calibration found for it.
+
+The noise is an optional table ``[noise]`` of ``EstimatorSettings``' noise parts by their names,
+each with all its fields (``[noise.wheel_noise]`` ``left``, ``right`` in m;
+``[noise.gyro_noise]`` the ``GyroNoise`` fields): what ``calibrate-driving`` identified, which
+``odometry``, ``estimate`` and ``export`` then use where no flag gives the same figure."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 from diffdrive.atomic import atomic_write
 from diffdrive.io.tables import TableError
 from diffdrive.model import DiffDrive, Robot
+from diffdrive.sensor_noise import GyroNoise, WheelNoise
 from diffdrive.skid_steer import SkidSteer
 
-__all__ = ["ROBOT_KEYS", "overridden", "read_robot", "robot_from_settings", "write_robot"]
+__all__ = [
+    "NOISE_PARTS",
+    "ROBOT_KEYS",
+    "overridden",
+    "read_robot",
+    "read_robot_noise",
+    "robot_from_settings",
+    "write_robot",
+]
 
 ROBOT_KEYS = (
     "wheel_radius",
@@ -30,6 +46,10 @@ ROBOT_KEYS = (
 """What a robot file may set: the ``DiffDrive``'s (or ``SkidSteer``'s) arguments, and the encoders'
 resolution."""
 
+NOISE_PARTS: dict[str, type] = {"wheel_noise": WheelNoise, "gyro_noise": GyroNoise}
+"""What a robot file's ``[noise]`` table may hold: ``EstimatorSettings``' parts by name."""
+NoisePart = WheelNoise | GyroNoise
+
 
 def read_robot(path: str | Path) -> dict[str, float]:
     """The settings of a robot file (TOML): ``ROBOT_KEYS``, lengths in m.
@@ -39,12 +59,40 @@ def read_robot(path: str | Path) -> dict[str, float]:
     """
     path = Path(path)
     settings = load_toml(path, "a robot file")
+    settings.pop("noise", None)  # read_robot_noise's
     unknown = sorted(set(settings) - set(ROBOT_KEYS))
     if unknown:
         raise TableError(
             f"{path}: unknown setting {unknown[0]!r}; a robot file may set {', '.join(ROBOT_KEYS)}"
         )
     return {key: toml_number(path, key, value) for key, value in settings.items()}
+
+
+def read_robot_noise(path: str | Path) -> dict[str, NoisePart]:
+    """The noise a robot file's ``[noise]`` table holds (see the module), by part name
+    (``"wheel_noise"``: a ``WheelNoise``, ``"gyro_noise"``: a ``GyroNoise``); none, an empty
+    dict. ``TableError`` names the file and the part of anything wrong."""
+    path = Path(path)
+    table = load_toml(path, "a robot file").get("noise", {})
+    if not isinstance(table, dict):
+        raise TableError(f"{path}: noise must be a table ([noise.wheel_noise], ...)")
+    found: dict[str, NoisePart] = {}
+    for name, fields in table.items():
+        kind = NOISE_PARTS.get(name)
+        if kind is None:
+            raise TableError(
+                f"{path}: unknown noise part {name!r}; a robot file's noise may hold "
+                f"{', '.join(NOISE_PARTS)}"
+            )
+        wanted = [item.name for item in dataclasses.fields(kind)]
+        if not isinstance(fields, dict) or set(fields) != set(wanted):
+            raise TableError(f"{path}: noise.{name} must give each of {', '.join(wanted)}")
+        numbers = {key: toml_number(path, f"noise.{name}.{key}", fields[key]) for key in wanted}
+        try:
+            found[name] = kind(**numbers)
+        except ValueError as exc:
+            raise TableError(f"{path}: noise.{name}: {exc}") from None
+    return found
 
 
 def toml_value(text: str) -> object:
@@ -97,14 +145,28 @@ def toml_number(path: Path, key: str, value: object) -> float:
     return number
 
 
-def write_robot(path: str | Path, settings: dict[str, float], comment: str = "") -> None:
-    """Write a robot file (TOML) that ``read_robot`` reads back: ``ROBOT_KEYS`` only."""
+def write_robot(
+    path: str | Path,
+    settings: dict[str, float],
+    comment: str = "",
+    noise: Mapping[str, NoisePart] | None = None,
+) -> None:
+    """Write a robot file (TOML) that ``read_robot`` reads back: ``ROBOT_KEYS`` only, and
+    ``noise`` (parts by ``NOISE_PARTS`` name) that ``read_robot_noise`` reads back."""
     unknown = sorted(set(settings) - set(ROBOT_KEYS))
     if unknown:
         raise ValueError(f"not a robot setting: {unknown[0]!r}")
+    parts = dict(noise or {})
+    for name, part in parts.items():
+        if not isinstance(part, NOISE_PARTS.get(name, ())):
+            raise ValueError(f"not a robot file's noise part: {name!r} = {part!r}")
     with atomic_write(path) as stream:
         stream.writelines(f"# {line}\n" for line in comment.splitlines())
         stream.writelines(f"{key} = {float(value)!r}\n" for key, value in settings.items())
+        for name, part in parts.items():
+            stream.write(f"\n[noise.{name}]\n")
+            fields = dataclasses.asdict(part).items()
+            stream.writelines(f"{key} = {value!r}\n" for key, value in fields)
 
 
 # Settings that say the same thing in two ways: an override of one replaces the other too.
