@@ -564,20 +564,23 @@ def test_info_names_the_options_each_topic_is_given_by():
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("command", ["odometry", "estimate"])
 @pytest.mark.parametrize("gyro", [False, True], ids=["wheels", "gyro heading"])
-def test_wheels_from_a_controllers_odometry_publish_the_speed_it_reports(tmp_path, capsys, gyro):
+def test_wheels_from_a_controllers_odometry_publish_the_speed_it_reports(
+    tmp_path, capsys, gyro, command
+):
     """With the wheels taken from the Husky's controller odometry, the twist written was each
     interval's pose difference over its stamps: 0.81 / 1.18 / 1.34 m/s alternating where the
     controller says about 1.0 (its poses are sampled off their stamps). It is the speed the
     controller reports, read back from the bag as a consumer reads it, and the command says
-    so."""
+    so: odometry's, and the estimator's over the same wheels."""
     from diffdrive.io import ros
 
-    argv = ["odometry", str(HUSKY), "--wheel-topic", "/husky_velocity_controller/odom"]
+    argv = [command, str(HUSKY), "--wheel-topic", "/husky_velocity_controller/odom"]
     argv += ["--robot", "wheel_radius=0.165,track_width=0.555", "-o", str(tmp_path / "o.mcap")]
     if gyro:
         argv += ["--gyro-topic", "/imu/data", "--imu-mount", "1.5707963", "0", "0"]
-        argv += ["--heading", "gyro"]
+        argv += ["--heading", "gyro"] if command == "odometry" else ["--settings", "heading=gyro"]
     assert main(argv) == 0
     assert "the controller reports at each stamp" in capsys.readouterr().out
     written = ros.read_odometry(tmp_path / "o.mcap", "/odom")

@@ -41,6 +41,7 @@ from diffdrive.cli.options import (
     output_options,
     read_log_of,
     refuse_unused,
+    reported_twists,
     robot_from,
     robot_note,
     wheel_commands,
@@ -333,7 +334,9 @@ def run_estimate(args: argparse.Namespace) -> int:
         smooth=args.smooth,
         **common,
     )
-    twists, twist_covariances = result.twists, result.twist_covariances
+    twists, reported = reported_twists(log, result.twists, omega=heading == "wheels")
+    note += reported
+    twist_covariances = result.twist_covariances
     columns = estimate_columns(result.covariances, twists, twist_covariances, twist=True)
     if heading != "wheels":
         columns.update(slip=result.slip.astype(float), gyro_bias=result.states[:, 3])

@@ -142,6 +142,12 @@ def _refuse_misplaced(args) -> None:
             },
             "used only with runs, which identify the noise model and hold it to them",
         )
+    if not args.runs and args.k is None and "wheel_noise" not in robot_noise(args):
+        raise ValueError(
+            "export needs a noise model: runs with ground truth to identify it on, --k (m), or "
+            "a robot file with the noise calibrate-driving found ([noise.wheel_noise]); with "
+            "--radius-sigma and --track-sigma"
+        )
 
 
 def _by_hand(args) -> tuple[NoiseModel, str]:
@@ -151,15 +157,9 @@ def _by_hand(args) -> tuple[NoiseModel, str]:
     spread = NoiseModel.symmetric(0.0, args.radius_sigma or 0.0, args.track_sigma or 0.0)
     if args.k is not None:
         wheels, given = WheelNoise.symmetric(args.k), "given by hand (--k"
-    elif "wheel_noise" in robot_noise(args):
+    else:  # _refuse_misplaced has checked that the robot file holds it
         part, source = robot_noise(args)["wheel_noise"]
         wheels, given = WheelNoise.coerce(part), f"with the wheels' k from {source} ("
-    else:
-        raise ValueError(
-            "export needs a noise model: runs with ground truth to identify it on, --k (m), or "
-            "a robot file with the noise calibrate-driving found ([noise.wheel_noise]); with "
-            "--radius-sigma and --track-sigma"
-        )
     given += ", --radius-sigma, --track-sigma)"
     return replace(spread, wheel_noise=wheels), given
 

@@ -25,6 +25,7 @@ from diffdrive.cli.options import (
     output_options,
     read_log_of,
     refuse_unused,
+    reported_twists,
     robot_from,
     robot_note,
     wheel_commands,
@@ -70,7 +71,7 @@ def run_odometry(args: argparse.Namespace) -> int:
         covariance=with_covariance,
     )
     twists, twist_covariances = interval_twists(robot, log.times, increments, noise)
-    twists, reported = _reported(log, twists, omega=True)
+    twists, reported = reported_twists(log, twists, omega=True)
     note += reported
     columns = estimate_columns(
         covariances, twists, twist_covariances, twist=args.twist, covariance=args.covariance
@@ -82,24 +83,6 @@ def run_odometry(args: argparse.Namespace) -> int:
         if log.truth is not None:
             print(error_summary(poses, log.truth))
     return 0
-
-
-def _reported(log: Run, twists: np.ndarray, omega: bool) -> tuple[np.ndarray, str]:
-    """The twists to write and a line on them: where the wheels came from a drive
-    controller's ``Odometry``, the speed (and with ``omega``, the turn rate) it reports at
-    each stamp. Its poses are sampled off their stamps, so their differences over the
-    stamps alternate (0.81 / 1.18 m/s on the Husky bag, where it reports 1.0)."""
-    if log.reported is None:
-        return twists, ""
-    twists = np.array(twists, dtype=float)
-    twists[:, 0] = log.reported[:, 0]
-    if omega:
-        twists[:, 2] = log.reported[:, 1]
-    what = "speed and turn rate" if omega else "speed"
-    return (
-        twists,
-        f"\ntwist: the {what} the controller reports at each stamp (its poses lie off them)",
-    )
 
 
 def _refuse_gyro_options(args) -> None:
@@ -144,7 +127,7 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
         initial_pose=log.start_pose(),
         commanded=wheel_commands(args, robot, log),
     )
-    twists, reported = _reported(log, result.twists, omega=False)
+    twists, reported = reported_twists(log, result.twists, omega=False)
     note += reported
     twist_covariances = result.twist_covariances
     columns = estimate_columns(
