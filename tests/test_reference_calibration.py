@@ -5,6 +5,7 @@ refused before any fit."""
 
 import math
 import re
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -505,3 +506,73 @@ def test_every_calibration_refuses_wheels_that_cannot_be_the_robots(tmp_path, ca
     assert main(argv) == 1
     assert "faster than any wheeled robot drives" in capsys.readouterr().err
     assert not written.exists()
+
+
+@pytest.fixture(scope="module")
+def short_drive():
+    """A 2-minute camera-and-gyro drive."""
+    return scenario.camera_and_gyro(8, seconds=120.0)
+
+
+@pytest.mark.parametrize(
+    ("factor", "cause"),
+    [
+        (-1.0, r"turns -0\.99\d times .*: it turns the other way: its z axis points down"),
+        (180 / math.pi, r"turns 57\.\d times .*: degrees per second read as radians\?"),
+        (0.0, r"turns -?0 times .*: it sees almost none of the turn: the wrong axis"),
+    ],
+    ids=["reversed", "degrees", "another axis"],
+)
+def test_a_gyro_that_is_not_the_wheels_is_refused_by_its_cause(short_drive, factor, cause):
+    """A reversed gyro was refused for a clock offset of -21 s (the fit had gone anywhere):
+    the gyro's turn against the wheels' before any fit names the cause."""
+    from diffdrive.estimation.imu import Gyro
+
+    times, increments, stamps, poses, gyro = short_drive
+    wrong = Gyro(gyro.times, factor * gyro.rates)
+    with pytest.raises(ValueError, match=cause):
+        calibrate_to_reference(
+            scenario.NOMINAL, times, increments, stamps, poses, sigma=scenario.CAMERA,
+            wheel_noise=scenario.K, gyro=wrong, gyro_noise=GYRO_NOISE,
+        )  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_fit_that_diverges_from_a_given_start_names_the_start(short_drive):
+    """An initial lever arm of 50 m was refused as wheels counting backwards."""
+    times, increments, stamps, poses, _ = short_drive
+    with pytest.raises(ValueError, match=r"did not converge from the initial values given "
+                       r"\(lever_x 50\): the radii and track went to .* Start nearer"):  # fmt: skip
+        calibrate_to_reference(
+            scenario.NOMINAL, times, increments, stamps, poses, sigma=scenario.CAMERA,
+            wheel_noise=scenario.K, settings=ReferenceSettings(initial={"lever_x": 50.0}),
+        )  # fmt: skip
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runs", [2, 3])
+def test_a_run_that_fits_none_is_named_among_several(short_drive, runs):
+    """Run 2's poses from another drive (its positions run backwards) was refused as a
+    track the drive did not determine (with two runs) or passed into the others' fit: the
+    run that misfits even alone is named; the same runs with their own poses calibrate."""
+    times, increments, stamps, poses, _ = short_drive
+    cuts = [len(times) * i // runs for i in range(runs + 1)]
+    cuts[-1] = len(times) - 1
+    ats = [int(np.searchsorted(stamps, times[c])) for c in cuts]
+    ats[-1] = len(stamps)
+    parts = {
+        "times": [times[a : b + 1] for a, b in pairwise(cuts)],
+        "increments": [increments[a:b] for a, b in pairwise(cuts)],
+        "stamps": [stamps[a:b] for a, b in pairwise(ats)],
+    }
+    own = [poses[a:b] for a, b in pairwise(ats)]
+    found = calibrate_to_reference(
+        scenario.NOMINAL, *parts.values(), own, sigma=scenario.CAMERA, wheel_noise=scenario.K
+    )
+    assert found.chi2 < 1.5
+    other = [p.copy() for p in own]
+    other[1][:, :2] = other[1][::-1, :2]
+    with pytest.raises(ValueError, match=rf"run 2 of {runs} does not fit, even alone"):
+        calibrate_to_reference(
+            scenario.NOMINAL, *parts.values(), other, sigma=scenario.CAMERA, wheel_noise=scenario.K
+        )

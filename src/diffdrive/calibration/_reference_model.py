@@ -392,6 +392,15 @@ def jacobian(logs: list[Log], values: np.ndarray, fitted: np.ndarray) -> np.ndar
     return np.column_stack(columns)
 
 
+class DivergedError(ValueError):
+    """The fit left the robots there are (a radius or the track at or below 0); ``went``
+    says where it went."""
+
+    def __init__(self, message: str, went: str = "") -> None:
+        super().__init__(message)
+        self.went = went
+
+
 @dataclass(frozen=True)
 class Fit:
     """What ``fit`` found: the ``values``, their ``covariance`` (inflated by ``chi2`` where
@@ -422,11 +431,15 @@ def fit(logs: list[Log], values: np.ndarray, fitted: np.ndarray, iterations: int
         values = values.copy()
         values[fitted] += step
         if np.any(values[:3] <= 0.0):
-            raise ValueError(
-                "the calibration did not converge: the radii and track went to "
-                f"{values[0]:.3g}, {values[1]:.3g} and {values[2]:.3g} m. Do the wheels' "
-                "increments count forward driving as positive, each wheel? Else the log may "
-                "not show them, or its noise is not what is stated"
+            went = (
+                f"the radii and track went to {values[0]:.3g}, {values[1]:.3g} and "
+                f"{values[2]:.3g} m"
+            )
+            raise DivergedError(
+                f"the calibration did not converge: {went}. Do the wheels' increments count "
+                "forward driving as positive, each wheel? Else the log may not show them, or its "
+                "noise is not what is stated",
+                went,
             )
         spread = np.sqrt(np.maximum(np.diag(np.linalg.pinv(information)), 1e-300))
         if round_ >= 2 and np.max(np.abs(step) / spread) < 1e-6:

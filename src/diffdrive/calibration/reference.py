@@ -54,6 +54,7 @@ from diffdrive.calibration._reference_model import (
     NOISES,
     PARAMETERS,
     RELATIVE,
+    DivergedError,
     Log,
     antenna_positions,
     fit,
@@ -329,6 +330,9 @@ def calibrate_to_reference(
     if len({g is None for g in gyros}) > 1:
         raise ValueError("give every run a gyro, or none")
     with_gyro = gyros[0] is not None
+    for number, (run, gyro_of_run) in enumerate(zip(checked, gyros, strict=True), 1):
+        if gyro_of_run is not None:
+            _refuse_a_gyro_against_the_wheels(robot, run[0], run[1], gyro_of_run, number, len(runs))
     allowed = estimable(poses, with_gyro)
     estimate = allowed if estimate is None else tuple(estimate)
     refused = [name for name in estimate if name not in allowed]
@@ -356,10 +360,22 @@ def calibrate_to_reference(
     fitted = np.array([name in estimate for name in PARAMETERS])
     noise = None
     terms = _noise_terms(identify_noise)
-    if terms:
-        logs, result, noise = identify(logs, values, fitted, iterations, terms)
-    else:
-        result = fit(logs, values, fitted, iterations)
+    try:
+        if terms:
+            logs, result, noise = identify(logs, values, fitted, iterations, terms)
+        else:
+            result = fit(logs, values, fitted, iterations)
+    except DivergedError as diverged:
+        if not initial:
+            raise
+        given = ", ".join(f"{name} {float(value):g}" for name, value in initial.items())
+        raise DivergedError(
+            f"the calibration did not converge from the initial values given ({given}): "
+            f"{diverged.went}. Start nearer the robot's own (m, rad, s)",
+            diverged.went,
+        ) from None
+    if len(logs) > 1:
+        _refuse_a_run_that_fits_none(logs, values, fitted, iterations, result)
     values, covariance, information = result.values, result.covariance, result.information
     for name in ("offset", "gyro_offset"):
         if abs(values[PARAMETERS.index(name)]) > CLOCK_MARGIN:
@@ -406,6 +422,75 @@ _NOISE_NAMES = {
     "reference": ("the reference's position noise", "m", ".3g"),
     "reference_heading": ("the reference's heading noise", "rad", ".3g"),
 }
+
+
+# The gyro's turn per the wheels' (nominal geometry) outside which it is not this robot's
+# gyro as read: reversed (below 0), no turn seen (a wrong axis), or degrees for radians (57).
+GYRO_SLOPE = (0.05, 20.0)
+
+
+def _refuse_a_gyro_against_the_wheels(robot, times, increments, gyro, run: int, runs: int):
+    """``ValueError`` where the gyro's turn over the run is not the wheels' (nominal
+    geometry) within ``GYRO_SLOPE``: a fit from there goes anywhere (a clock offset of tens
+    of seconds, say) and its refusal would name the wrong cause."""
+    dl, dr = increments[:, 0], increments[:, 1]
+    wheel_turn = (
+        np.concatenate(
+            [[0.0], np.cumsum(robot.right_wheel_radius * dr - robot.left_wheel_radius * dl)]
+        )
+        / robot.track_width
+    )
+    inside = (times >= gyro.times[0]) & (times <= gyro.times[-1])
+    if np.count_nonzero(inside) < 2 or np.ptp(wheel_turn[inside]) < 1.0:
+        return  # too little turn to tell (the fit's own refusals speak there)
+    gyro_turn = gyro.angles(times[inside])
+    wheel = wheel_turn[inside] - wheel_turn[inside][0]
+    wheel, gyro_turn = wheel - wheel.mean(), gyro_turn - gyro_turn.mean()
+    # The bias drifts the gyro's angle: fit it as a ramp beside the turn.
+    ramp = times[inside] - times[inside].mean()
+    (slope, _), *_ = np.linalg.lstsq(np.column_stack([wheel, ramp]), gyro_turn, rcond=None)
+    if GYRO_SLOPE[0] <= slope <= GYRO_SLOPE[1]:
+        return
+    which = f"run {run} of {runs}: " if runs > 1 else ""
+    cause = (
+        "it turns the other way: its z axis points down or its sign is reversed (a mounting "
+        "turned over, --imu-mount 3.1415927 0 0)"
+        if slope < 0
+        else "it sees almost none of the turn: the wrong axis (the IMU's mounting)"
+        if slope < GYRO_SLOPE[0]
+        else "degrees per second read as radians?"
+    )
+    raise ValueError(
+        f"{which}the gyro turns {slope:.3g} times as far as the wheels say the robot did "
+        f"(nominal geometry): {cause}"
+    )
+
+
+def _refuse_a_run_that_fits_none(logs, values, fitted, iterations: int, result) -> None:
+    """``ValueError`` naming a run that, fitted alone, still misfits (chi-square per degree of
+    freedom past ``MISFIT`` and 10 times the best run's alone): a reference of another drive,
+    or a clock or unit of its own. Looked at only where the runs together misfit; it would
+    otherwise show as parameters the drive left undetermined, or pull the others' fit."""
+    if result.chi2 <= MISFIT:
+        return
+    alone = []
+    for log in logs:
+        try:
+            alone.append(fit([log], values, fitted, iterations).chi2)
+        except ValueError:  # diverged alone: as misfit as a run can be
+            alone.append(np.inf)
+    worst, best = int(np.argmax(alone)), min(alone)
+    if alone[worst] > MISFIT and alone[worst] > 10 * best:
+        misfit = (
+            "its fit alone diverges"
+            if np.isinf(alone[worst])
+            else f"its residuals' chi-square per degree of freedom alone is {alone[worst]:.3g}"
+        )
+        raise ValueError(
+            f"run {worst + 1} of {len(logs)} does not fit, even alone: {misfit}, the best "
+            f"run's {best:.3g} (together {result.chi2:.3g}). Is its reference from another "
+            "drive, or on a clock or in units of its own? Calibrate without it"
+        )
 
 
 def _noise_terms(identify_noise: object) -> tuple[str, ...]:
