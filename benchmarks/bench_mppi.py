@@ -73,7 +73,7 @@ def cycle_times(repeats: int, libraries: list[str]) -> None:
             tracker = MPPI(
                 drive=DRIVE,
                 backend=backend,
-                sampling=MPPISampling(samples=samples, horizon=100, seed=0),
+                sampling=MPPISampling(samples=samples, horizon=100 * DT, seed=0),
                 avoid=Avoidance(course.obstacles, footprint=FOOTPRINT),
             )
             pose = np.array([[0.0, 0.0, 0.0]])

@@ -236,7 +236,7 @@ def test_it_goes_around_the_clutter_of_a_corridor_without_touching(seed):
 
 def test_a_batch_of_robots_each_gets_its_own_sequence_and_the_count_is_kept() -> None:
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, PathLimits(max_velocity=1, max_acceleration=1))
-    tracker = MPPI(sampling=MPPISampling(horizon=10, seed=0))
+    tracker = MPPI(sampling=MPPISampling(horizon=0.5, seed=0))
     poses = np.array([[0.0, 0.0, 0.0], [0.0, 0.3, 0.0]])
     turns = np.array([tracker.command(path, 0.05 * k, poses)[:, 1] for k in range(10)])
     assert turns.shape == (10, 2)
@@ -252,7 +252,7 @@ def test_an_array_library_runs_the_controller(library):
     """On an array library's own generator: a few cycles steer a robot left of the path back."""
     LIBRARIES[library].module()
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, PathLimits(max_velocity=1, max_acceleration=1))
-    tracker = MPPI(backend=library, sampling=MPPISampling(horizon=10, samples=256, seed=0))
+    tracker = MPPI(backend=library, sampling=MPPISampling(horizon=0.5, samples=256, seed=0))
     turns = [tracker.command(path, 0.05 * k, np.array([[0.0, 0.3, 0.0]]))[0, 1] for k in range(6)]
     assert np.all(np.isfinite(turns))
     assert np.mean(turns) < -0.1
@@ -346,10 +346,16 @@ def test_a_map_missing_what_it_needs_is_refused_by_name(tmp_path, meta, message)
         (lambda: MPPI(delay=0.07, dt=0.05), "delay must be a whole number of dt"),
         (lambda: MPPI(sampling=MPPISampling(sigma=(0.1, 0.0))), "sigma must be"),
         (
-            lambda: MPPI(sampling=MPPISampling(samples=10**6, horizon=10**4)),
+            lambda: MPPI(sampling=MPPISampling(samples=10**6, horizon=500.0)),
             "MPPI's samples x horizon",
         ),
         (lambda: MPPI(backend="cupy"), "backend must be one of"),
+        (
+            lambda: MPPISampling(horizon=20),
+            r"MPPISampling\.horizon is in seconds; 20 is an int, as its count of steps was "
+            r"before: give seconds as a float \(20 steps at 0\.05 s: 1\)",
+        ),
+        (lambda: MPPISampling(smoothing=-0.1), r"MPPISampling\.smoothing \(s\) must be > 0"),
         (
             lambda: Avoidance(Obstacles(np.ones((3, 3)), (0.0, 0.0), 0.1), footprint=-0.1),
             r"Avoidance\.footprint must be >= 0",
@@ -386,7 +392,7 @@ def test_nav2_parameters_carry_what_corresponds():
         dt=0.04,
         delay=0.08,
         max_wheel_acceleration=30.0,
-        sampling=MPPISampling(samples=2000, horizon=50, sigma=(0.2, 0.5)),
+        sampling=MPPISampling(samples=2000, horizon=2.0, sigma=(0.2, 0.5)),
     )
     limits = PathLimits(max_wheel_velocity=12.0)
     figures = nav2_mppi_parameters(tracker, ROBOT, limits)
@@ -406,11 +412,11 @@ def test_nav2_parameters_carry_what_corresponds():
 
 def test_sampled_shows_candidates_and_leaves_the_controller_as_it_was():
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, LIMITS)
-    tracker = MPPI(sampling=MPPISampling(horizon=10, seed=3))
+    tracker = MPPI(sampling=MPPISampling(horizon=0.5, seed=3))
     with pytest.raises(ValueError, match="call command first"):
         tracker.sampled(path, np.zeros(3))
     tracker.command(path, 0.0, np.zeros((1, 3)))
-    twin = MPPI(sampling=MPPISampling(horizon=10, seed=3))
+    twin = MPPI(sampling=MPPISampling(horizon=0.5, seed=3))
     twin.command(path, 0.0, np.zeros((1, 3)))
     candidates = tracker.sampled(path, np.zeros(3), count=5)
     assert candidates.shape == (5, 10, 2)
@@ -445,7 +451,7 @@ def test_a_refused_cycle_changes_nothing(backend, time, shift, costs, message):
     if backend == "numba":
         compiled()
     planned = plan(np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 1.0], [3.0, 1.0]]), ROBOT, LIMITS)
-    sampling = MPPISampling(horizon=10, samples=128, seed=3)
+    sampling = MPPISampling(horizon=0.5, samples=128, seed=3)
     made = [MPPI(dt=0.05, backend=backend, sampling=sampling, costs=costs) for _ in range(2)]
     start = planned.poses[:1] + np.array([[0.05, 0.02, 0.0]])
     for tracker in made:
@@ -456,3 +462,52 @@ def test_a_refused_cycle_changes_nothing(backend, time, shift, costs, message):
     after = [tracker.command(planned, 0.05, start) for tracker in made]
     assert np.all(np.isfinite(after[0]))
     np.testing.assert_array_equal(after[0], after[1])
+
+
+@pytest.mark.parametrize(("running", "free"), [(1, 2), (2, 1), (9, 1)])
+def test_the_compiled_cycle_runs_on_the_cores_no_other_task_holds(monkeypatch, running, free):
+    """A cycle's blocks wait for the slowest thread: with the other core busy, 2,048 x 100
+    took 95 ms on two threads and 29 ms on one. It counts the tasks running now as
+    ``simulate``'s kernel does (this one among them) and leaves numba's own count as it
+    was."""
+    import numba
+
+    from diffdrive.backends import simulate_kernel
+
+    kernel = compiled()
+    monkeypatch.setattr(simulate_kernel, "threads", lambda: 2)
+    monkeypatch.setattr(simulate_kernel, "_running_tasks", lambda: running)
+    monkeypatch.setattr(simulate_kernel, "_own_running", lambda: 1)
+    expected = min(free, numba.config.NUMBA_NUM_THREADS)
+    assert kernel.free_threads() == expected
+    seen = []
+    cycle = kernel.cycle
+
+    def spy(*args):
+        seen.append(numba.get_num_threads())
+        return cycle(*args)
+
+    monkeypatch.setattr(kernel, "cycle", spy)
+    before = numba.get_num_threads()
+    path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, LIMITS)
+    MPPI(backend="numba", sampling=MPPISampling(horizon=0.25, samples=64, seed=0)).command(
+        path, 0.0, np.zeros((1, 3))
+    )
+    assert seen == [expected]
+    assert numba.get_num_threads() == before
+
+
+@pytest.mark.parametrize("dt", [0.02, 0.05, 0.1])
+def test_the_horizon_and_smoothing_are_times_converted_at_the_period(dt):
+    """The same settings at 20, 50 and 100 ms: the horizon (by default the delay, three lag
+    time constants and a stop from full speed, at least 1 s) and the smoothing span the same
+    time, however many steps that is."""
+    drive = DriveModel(delay=0.1, time_constant=0.1)
+    plain = MPPI(dt=dt, drive=drive)
+    assert plain.horizon == round(1.0 / dt)
+    assert plain.smoothing == max(1, round(0.25 / dt))
+    limited = MPPI(dt=dt, drive=drive, max_wheel_velocity=14.0, max_wheel_acceleration=10.0)
+    assert limited.horizon * dt == pytest.approx(0.1 + 0.3 + 1.4, abs=dt / 2)
+    given = MPPI(dt=dt, drive=drive, sampling=MPPISampling(horizon=2.0, smoothing=0.1))
+    assert given.horizon * dt == pytest.approx(2.0)
+    assert given.smoothing == max(1, round(0.1 / dt))

@@ -198,9 +198,18 @@ def test_one_sinc_in_every_layer():
         assert abs(float(batch.sinc(np.float64(u))) - want) <= math.ulp(1.0), u
 
 
-@pytest.mark.parametrize(("running", "idle"), [(1, 4), (2, 3), (4, 1), (9, 1), (None, 4)])
-def test_a_robot_is_cut_only_for_the_threads_no_other_task_holds(monkeypatch, running, idle):
-    """Linux's count of runnable tasks includes this thread; where it cannot be read, every
-    thread counts as idle."""
+@pytest.mark.parametrize(
+    ("running", "own", "idle"),
+    [(1, 1, 4), (2, 1, 3), (4, 1, 1), (9, 1, 1), (None, 1, 4), (3, 2, 3), (3, 3, 4)],
+)
+def test_a_robot_is_cut_only_for_the_threads_no_other_task_holds(monkeypatch, running, own, idle):
+    """Linux's count of runnable tasks includes this process's own (this thread, and a
+    parallel pool's threads spinning after a pass, which are no other task's); where it
+    cannot be read, every thread counts as idle."""
     monkeypatch.setattr(simulate_kernel, "_running_tasks", lambda: running)
+    monkeypatch.setattr(simulate_kernel, "_own_running", lambda: own)
     assert simulate_kernel.idle_threads(4) == idle
+
+
+def test_this_process_counts_at_least_its_running_thread():
+    assert simulate_kernel._own_running() >= 1

@@ -27,9 +27,10 @@ import numba
 import numpy as np
 
 from diffdrive._step import TAYLOR_LIMIT
+from diffdrive.backends import simulate_kernel
 from diffdrive.backends.numba_simulate import STEP
 
-__all__ = ["LANES", "cycle", "in_flight", "update"]
+__all__ = ["LANES", "cycle", "free_threads", "in_flight", "update"]
 
 _sinc_cos_small, _sinc_cos = STEP["sinc_cos_small"], STEP["sinc_cos"]
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -309,6 +310,16 @@ def _block(first, mean, q, state, reference, grid, seed, draw, noise, costs):
         dx, dy = st[_X, j] - reference[steps - 1, 0], st[_Y, j] - reference[steps - 1, 1]
         behind = max(-(dx * reference[steps - 1, 2] + dy * reference[steps - 1, 3]), 0.0)
         costs[first + j] = st[_TOTAL, j] + q.goal * (gx * gx + gy * gy) + q.progress * behind
+
+
+def free_threads() -> int:
+    """The threads a cycle runs on: the CPUs no other task is running on now
+    (``simulate_kernel.idle_threads``, as ``simulate``'s kernel counts them), within numba's
+    pool. A cycle's blocks wait for the slowest thread, so a thread on a CPU another process
+    holds slows the whole cycle: 95 ms on two threads against 29 ms on one for 2,048 x 100
+    with the other core busy."""
+    pool = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+    return min(simulate_kernel.idle_threads(simulate_kernel.threads()), pool)
 
 
 @numba.njit(cache=True, parallel=True)

@@ -109,7 +109,8 @@ def idle_threads(threads: int) -> int:
     running = _running_tasks()
     if running is None:
         return threads
-    return max(1, min(threads, threads - (running - 1)))  # less this thread itself
+    others = running - _own_running()
+    return max(1, min(threads, threads - others))
 
 
 def _running_tasks() -> int | None:
@@ -120,6 +121,20 @@ def _running_tasks() -> int | None:
             return int(file.read().split()[3].split("/")[0])
     except (OSError, ValueError, IndexError):
         return None
+
+
+def _own_running() -> int:
+    """This process's threads running or ready to run now (this one at least): a parallel
+    pool's threads spin a while after each pass (numba's OpenMP layer), and counted as other
+    tasks they would halve the next pass's threads."""
+    count = 0
+    for stat in Path("/proc/self/task").glob("*/stat"):
+        try:
+            state = stat.read_text(encoding="ascii").rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            continue  # a thread that ended meanwhile
+        count += state == "R"
+    return max(1, count)
 
 
 def integrate_history(

@@ -1,15 +1,16 @@
 """Model predictive path integral control (MPPI; Williams et al., "Information theoretic MPC
 for model-based reinforcement learning", ICRA 2017): a ``Tracker`` that plans by sampling.
 
-Each cycle, for each robot, ``samples`` sequences of ``horizon`` twist commands ``(v, omega)``
-are drawn around the mean sequence (Gaussian, standard deviations ``sigma``) and rolled out
-through the drive: first the commands already in flight (``delay``, whole periods), then the
-candidate's; each period the command becomes wheel targets (inverse kinematics, times the
-drive's ``gain``), each wheel follows its target as the drive's first-order lag (time
-constant tau: over ``dt`` it ends at ``u + (w - u) exp(-dt/tau)`` and moves with the lag's
-mean over the period) within its acceleration limit, the robot moves with the wheels' mean
-(forward kinematics) by the exact SE(2) step. That is ``dynamics.DriveModel.step``; a
-voltage-driven model is rolled out as its lag ``kA/kV`` with static friction left out.
+Each cycle, for each robot, ``samples`` sequences of twist commands ``(v, omega)``, one a
+period over the ``horizon`` (s; ``MPPISampling``), are drawn around the mean sequence
+(Gaussian, standard deviations ``sigma``) and rolled out through the drive: first the commands
+already in flight (``delay``, whole periods), then the candidate's; each period the command
+becomes wheel targets (inverse kinematics, times the drive's ``gain``), each wheel follows its
+target as the drive's first-order lag (time constant tau: over ``dt`` it ends at ``u + (w - u)
+exp(-dt/tau)`` and moves with the lag's mean over the period) within its acceleration limit,
+the robot moves with the wheels' mean (forward kinematics) by the exact SE(2) step. That is
+``dynamics.DriveModel.step``; a voltage-driven model is rolled out as its lag ``kA/kV`` with
+static friction left out.
 
 Every candidate's cost is the sum over its steps of named terms, each with its weight in
 ``MPPICosts`` (>= 0):
@@ -36,8 +37,8 @@ robot's own place on it, so a robot held back is led along the path, not pulled 
 corner to where it should have been.
 
 The update is the information-theoretic weighted average of the perturbations (weights
-``exp(-(S - min S) / temperature)``), the result smoothed by a moving average of
-``smoothing`` steps (the average of noisy samples is noisy, and a wheel would follow its
+``exp(-(S - min S) / temperature)``), the result smoothed by a moving average over
+``smoothing`` s (the average of noisy samples is noisy, and a wheel would follow its
 jitter); its first twist is sent, and shifted one period it warm starts the next cycle.
 
 Backends: ``"numba"`` runs the whole cycle (sampling, rollouts, costs, update) as one
@@ -112,24 +113,33 @@ def weighted_update(
 
 @dataclass(frozen=True, eq=False)
 class MPPISampling:
-    """How MPPI samples: ``samples`` candidates of ``horizon`` steps a cycle (None: 20 steps,
-    30 among obstacles: on the benchmark's cluttered corridors 20 steps left 4 runs of 150
-    stalled or late, 30 left 1, while on an open plan 30 steps track worse, 2.8 against 1.3 mm
-    behind a delay and lag), the perturbations' standard deviations ``sigma`` ``(v m/s, omega
-    rad/s)``, the update's ``temperature``, the mean sequence's moving average over
-    ``smoothing`` steps, and the ``seed`` of the draws. Each is checked when made."""
+    """How MPPI samples: ``samples`` candidates a cycle, each ``horizon`` s long (None: long
+    enough for the delay, the lag's settling and a stop from full speed, ``default_horizon``),
+    the perturbations' standard deviations ``sigma`` ``(v m/s, omega rad/s)``, the update's
+    ``temperature``, the mean sequence's moving average over ``smoothing`` s, and the ``seed``
+    of the draws. Both times are seconds, converted to steps at the controller's period, so
+    the same settings hold at 20, 50 and 100 ms; an int there is refused, as it counted steps
+    before. Each is checked when made."""
 
     samples: int = 1024
-    horizon: int | None = None
+    horizon: float | None = None
     sigma: tuple[float, float] = (0.15, 0.4)
     temperature: float = 0.05
-    smoothing: int = 5
+    smoothing: float = 0.25
     seed: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "samples", whole("MPPISampling.samples", self.samples, 1))
-        if self.horizon is not None:
-            object.__setattr__(self, "horizon", whole("MPPISampling.horizon", self.horizon, 1))
+        for name in ("horizon", "smoothing"):
+            value = getattr(self, name)
+            if isinstance(value, int | np.integer) and not isinstance(value, bool):
+                raise TypeError(
+                    f"MPPISampling.{name} is in seconds; {value!r} is an int, as its count of "
+                    f"steps was before: give seconds as a float ({value} steps at 0.05 s: "
+                    f"{value * 0.05:g})"
+                )
+            if value is not None:
+                object.__setattr__(self, name, positive(f"MPPISampling.{name} (s)", value))
         sigma = floats("MPPISampling.sigma", self.sigma)
         if sigma.shape != (2,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
             raise ValueError(
@@ -138,8 +148,19 @@ class MPPISampling:
         object.__setattr__(self, "sigma", (float(sigma[0]), float(sigma[1])))
         temperature = positive("MPPISampling.temperature", self.temperature)
         object.__setattr__(self, "temperature", temperature)
-        object.__setattr__(self, "smoothing", whole("MPPISampling.smoothing", self.smoothing, 1))
         rng_of(self.seed)  # a seed, or the refusal that names what is wrong
+
+
+def default_horizon(drive: DriveModel, stop: float | None, obstacles: bool) -> float:
+    """The horizon (s) when none is given: the delay, three of the lag's time constants
+    (95 % settled), and ``stop``, the time to stop from full speed (s; None: half a second),
+    at least a second; half as long again among obstacles (on the benchmark's cluttered
+    corridors 1 s left 4 runs of 150 stalled or late, 1.5 s left 1)."""
+    tau = drive.time_constant
+    if drive.feedforward is not None:
+        tau = drive.feedforward.ka / drive.feedforward.kv
+    seen = max(1.0, drive.delay + 3.0 * tau + (0.5 if stop is None else stop))
+    return 1.5 * seen if obstacles else seen
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,13 +218,7 @@ class MPPI:
         if avoid is not None and not isinstance(avoid, Avoidance):
             raise TypeError(f"avoid must be an Avoidance, got {type(avoid).__name__}")
         self.sampling, self.avoid = sampling, avoid
-        horizon = sampling.horizon
-        if horizon is None:  # among obstacles, a longer look: see MPPISampling
-            horizon = 20 if avoid is None else 30
-        self.samples, self.horizon = sampling.samples, horizon
-        check_samples(self.samples * self.horizon, "MPPI's samples x horizon", "fewer samples")
         self.dt, self.temperature = positive("dt", dt), sampling.temperature
-        self.smoothing = sampling.smoothing
         self.sigma = np.array(sampling.sigma)
         self.costs = MPPICosts() if costs is None else costs
         if not isinstance(self.costs, MPPICosts):
@@ -218,6 +233,15 @@ class MPPI:
         self.delay_steps = round(steps)
         self.max_wheel_velocity = _limit("max_wheel_velocity", max_wheel_velocity)
         self.max_wheel_acceleration = _limit("max_wheel_acceleration", max_wheel_acceleration)
+        horizon = sampling.horizon
+        if horizon is None:
+            stop = None
+            if self.max_wheel_velocity is not None and self.max_wheel_acceleration is not None:
+                stop = self.max_wheel_velocity / self.max_wheel_acceleration
+            horizon = default_horizon(self.drive, stop, avoid is not None)
+        self.samples, self.horizon = sampling.samples, max(1, round(horizon / self.dt))
+        check_samples(self.samples * self.horizon, "MPPI's samples x horizon", "fewer samples")
+        self.smoothing = max(1, round(sampling.smoothing / self.dt))
         # Without obstacles nothing reads the footprint, inflation or guide.
         self.obstacles = None if avoid is None else avoid.obstacles
         self.footprint = 0.0 if avoid is None else avoid.footprint
@@ -355,6 +379,8 @@ class MPPI:
         """The update ``(T, 2)`` of robot ``n``'s mean sequence."""
         grid = None if self.obstacles is None else self.obstacles.clearance
         if self.backend == "numba":
+            import numba
+
             from diffdrive.backends import numba_mppi
 
             padded = -(-self.samples // LANES) * LANES
@@ -362,21 +388,26 @@ class MPPI:
             costs = np.empty(padded)
             state = numba_mppi.in_flight(pose, self._wheels[n], self._sent[n], q)
             seed = np.uint64(self._rng.integers(0, 2**63))
-            numba_mppi.cycle(
-                self._mean[n],
-                q,
-                state,
-                reference,
-                np.zeros((2, 2)) if grid is None else grid,
-                seed,
-                True,
-                noise,
-                costs,
-            )
             step = np.empty((self.horizon, 2))
-            numba_mppi.update(
-                costs[: self.samples], noise[:, :, : self.samples], self.temperature, step
-            )
+            pool = numba.get_num_threads()
+            numba.set_num_threads(numba_mppi.free_threads())  # the cores no one else holds
+            try:
+                numba_mppi.cycle(
+                    self._mean[n],
+                    q,
+                    state,
+                    reference,
+                    np.zeros((2, 2)) if grid is None else grid,
+                    seed,
+                    True,
+                    noise,
+                    costs,
+                )
+                numba_mppi.update(
+                    costs[: self.samples], noise[:, :, : self.samples], self.temperature, step
+                )
+            finally:
+                numba.set_num_threads(pool)
             return step
         arrays = self._arrays
         assert arrays is not None  # made by reset for every backend but numba
