@@ -49,6 +49,7 @@ from diffdrive.control import (
     Predictive,
     PurePursuit,
     Ramsete,
+    WheelLimits,
     cluttered_corridor,
     follow,
     guide,
@@ -91,7 +92,9 @@ def trackers(wheels: float | None) -> dict[str, object]:
     """Each tracker's maker; ``wheels``: MPPI's wheel limit (rad/s; None: the plan's)."""
     return {
         "MPPI (delay and lag known)": lambda: MPPI(
-            drive=DRIVE, max_wheel_velocity=wheels, sampling=MPPISampling(seed=1)
+            drive=DRIVE,
+            limits=WheelLimits(max_velocity=wheels),
+            sampling=MPPISampling(seed=1),
         ),
         "Ramsete": Ramsete,
         "LTVUnicycle": lambda: LTVUnicycle(dt=DT),

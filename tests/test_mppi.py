@@ -21,13 +21,14 @@ from diffdrive.control import (
     MPPISampling,
     Obstacles,
     PathLimits,
+    WheelLimits,
     cluttered_corridor,
     follow,
     guide,
     plan,
     read_map,
 )
-from diffdrive.control._mppi_arrays import ArrayCycle, drive_period, to_numpy
+from diffdrive.control._mppi_arrays import ArrayCycle, drive_period, feasible_commands, to_numpy
 from diffdrive.control.mppi import settings as mppi_settings
 from diffdrive.control.mppi import weighted_update
 from diffdrive.dynamics import DriveModel, Feedforward
@@ -176,7 +177,7 @@ def test_the_drive_rolled_out_is_drive_model_step(wheels, command, tau, limit):
     """One period of the rollout's drive is ``DriveModel.step`` on the wheel commands."""
     drive = DriveModel(time_constant=tau, max_acceleration=limit)
     tracker = MPPI(drive=drive, dt=0.05)
-    path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, LIMITS)
+    path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, PathLimits(max_velocity=1.0))  # no wheel limit
     q = mppi_settings(tracker, path)
     targets = ROBOT.to_wheel_velocities((command[0], 0.0, command[1])).to_array()
     expected, mean = drive.step(np.array(wheels), targets, 0.05)
@@ -202,7 +203,10 @@ def test_it_follows_a_plan_through_a_known_delay_and_lag_within_the_wheels_limit
     path = plan([(0, 0, 0), (3, 1, 0.5), (5, 3, 1.5)], ROBOT, limits)
     drive = DriveModel(delay=0.1, time_constant=0.1)
     tracker = MPPI(
-        drive=drive, max_wheel_velocity=12.0, backend=backend, sampling=MPPISampling(seed=1)
+        drive=drive,
+        limits=WheelLimits(max_velocity=12.0),
+        backend=backend,
+        sampling=MPPISampling(seed=1),
     )
     result = follow(path, tracker, dt=0.05, drive=drive)
     cross = np.abs(result.errors().cross_track)
@@ -391,7 +395,7 @@ def test_nav2_parameters_carry_what_corresponds():
     tracker = MPPI(
         dt=0.04,
         delay=0.08,
-        max_wheel_acceleration=30.0,
+        limits=WheelLimits(max_acceleration=30.0),
         sampling=MPPISampling(samples=2000, horizon=2.0, sigma=(0.2, 0.5)),
     )
     limits = PathLimits(max_wheel_velocity=12.0)
@@ -506,8 +510,71 @@ def test_the_horizon_and_smoothing_are_times_converted_at_the_period(dt):
     plain = MPPI(dt=dt, drive=drive)
     assert plain.horizon == round(1.0 / dt)
     assert plain.smoothing == max(1, round(0.25 / dt))
-    limited = MPPI(dt=dt, drive=drive, max_wheel_velocity=14.0, max_wheel_acceleration=10.0)
+    wheels = WheelLimits(max_velocity=14.0, max_acceleration=10.0)
+    limited = MPPI(dt=dt, drive=drive, limits=wheels)
     assert limited.horizon * dt == pytest.approx(0.1 + 0.3 + 1.4, abs=dt / 2)
     given = MPPI(dt=dt, drive=drive, sampling=MPPISampling(horizon=2.0, smoothing=0.1))
     assert given.horizon * dt == pytest.approx(2.0)
     assert given.smoothing == max(1, round(0.1 / dt))
+
+
+FEEDFORWARD = Feedforward(0.5, 0.78, 0.06)  # the issue's robot: kS V, kV V s/rad, kA V s^2/rad
+
+
+def _limited(tau: float, velocity, acceleration, voltage):
+    """The cycle's numbers for wheels limited as given (voltage through FEEDFORWARD)."""
+    limits = WheelLimits(velocity, acceleration, voltage, None if voltage is None else FEEDFORWARD)
+    tracker = MPPI(drive=DriveModel(time_constant=tau), dt=0.02, limits=limits)
+    return mppi_settings(tracker, plan([(0, 0, 0), (2, 0, 0)], ROBOT, PathLimits(1.0)))
+
+
+def _within(q, before: np.ndarray, after: np.ndarray) -> None:
+    """Each wheel's velocity, acceleration and voltage over the period within the limits."""
+    acceleration = (after - before) / q.dt
+    assert np.all(np.abs(after) <= q.max_wheel_velocity * (1 + 1e-9))
+    assert np.all(np.abs(acceleration) <= q.max_wheel_acceleration * (1 + 1e-9))
+    moving = np.where(after != 0.0, after, before)  # friction opposes the motion
+    volts = FEEDFORWARD.ks * np.sign(moving) + FEEDFORWARD.kv * after
+    volts += FEEDFORWARD.ka * acceleration
+    assert np.all(np.abs(volts) <= q.max_voltage * (1 + 1e-9) + 1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    commands=st.lists(st.tuples(st.floats(-3, 3), st.floats(-12, 12)), min_size=1, max_size=40),
+    tau=st.sampled_from([0.0, 0.02, 0.1]),
+    velocity=st.sampled_from([14.0, 6.0, None]),
+    acceleration=st.sampled_from([20.0, 200.0, None]),
+    voltage=st.sampled_from([12.0, 4.0, None]),
+)
+def test_no_rollout_leaves_the_drives_limits(commands, tau, velocity, acceleration, voltage):
+    """Any sequence of commands, rolled out from rest as the cycle does (compiled and in
+    arrays) and as the controller sends them (``feasible_commands``), keeps every wheel within
+    its velocity, acceleration and voltage limits in every period."""
+    q = _limited(tau, velocity, acceleration, voltage)
+    sent = feasible_commands(q, np.zeros(2), np.array(commands))
+    before = state = np.zeros(2)
+    for command, raw in zip(sent, commands, strict=True):
+        after = drive_period(q, before, command)  # as the drive answers what was sent
+        _within(q, before, after)
+        # The compiled rollout of the raw candidate ends where the arrays' does.
+        state = compiled().in_flight(np.zeros(3), before, np.array([raw]), q)[4:6]
+        assert np.allclose(state, drive_period(q, before, np.array(raw)), atol=1e-9)
+        _within(q, before, state)
+        before = after
+    # Commands within the limits already are sent as given.
+    again = feasible_commands(q, np.zeros(2), sent)
+    np.testing.assert_allclose(again, sent, rtol=1e-9, atol=1e-9)
+
+
+def test_the_command_does_not_depend_on_how_many_threads_the_cycle_had(monkeypatch):
+    """The update's weights are summed in one thread: the same seed, the same command on one
+    thread as on every one."""
+    kernel = compiled()
+    path = plan([(0, 0, 0), (3, 1, 0.5)], ROBOT, LIMITS)
+    sent = []
+    for threads in (1, kernel.free_threads()):
+        monkeypatch.setattr(kernel, "free_threads", lambda threads=threads: threads)
+        tracker = MPPI(backend="numba", sampling=MPPISampling(samples=4096, seed=2))
+        sent.append(tracker.command(path, 0.0, np.array([[0.05, -0.02, 0.1]])))
+    np.testing.assert_array_equal(sent[0], sent[1])

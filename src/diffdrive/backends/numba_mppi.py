@@ -126,18 +126,46 @@ def _over(value, limit):
 def _wheel_cost(w0, w1, ks, kv, ka, q):
     """The limit terms of one wheel over one period, from ``w0`` to ``w1`` (rad/s)."""
     acceleration = (w1 - w0) / q.dt
-    sign = (1.0 if w1 > 0.0 else 0.0) - (1.0 if w1 < 0.0 else 0.0)
+    # Friction opposes the motion, that of the period's start where the wheel ends at rest.
+    moving = w1 if w1 != 0.0 else w0
+    sign = (1.0 if moving > 0.0 else 0.0) - (1.0 if moving < 0.0 else 0.0)
     cost = q.wheel_limit * _over(w1, q.max_wheel_velocity)
     cost += q.acceleration_limit * _over(acceleration, q.max_wheel_acceleration)
     return cost + q.voltage_limit * _over(ks * sign + kv * w1 + ka * acceleration, q.max_voltage)
 
 
 @numba.njit(cache=True, inline="always")
-def _lag(w, target, q):
+def _target(w, target, ks, kv, ka, q):
+    """A command projected into what the drive can do (see ``control.mppi``): the lag's end
+    over the period from ``w`` toward ``target`` (rad/s), brought within the wheel's velocity
+    limit, then within its acceleration limit and its voltage limit (``kS sgn w + kV w + kA a``
+    through the feedforward ``ks, kv, ka``), which win where the velocity is past its limit
+    already; and the target whose lag ends there (``target`` itself where it was within)."""
+    free = target + (w - target) * q.decay
+    step = q.max_wheel_acceleration * q.dt
+    end = min(max(free, -q.max_wheel_velocity), q.max_wheel_velocity)
+    low, high = w - step, w + step
+    k = kv + ka / q.dt
+    if k > 0.0 and q.max_voltage < math.inf:
+        base = ka * w / q.dt
+        top = (q.max_voltage - ks + base) / k
+        # No forward end holds: a backward one (kS then on the other side), at most 0.
+        top = min((q.max_voltage + ks + base) / k, 0.0) if top < 0.0 else top
+        bottom = (-q.max_voltage + ks + base) / k
+        bottom = max((-q.max_voltage - ks + base) / k, 0.0) if bottom > 0.0 else bottom
+        low, high = max(low, bottom), min(high, top)
+    end = min(max(end, low), high)
+    if q.decay > 0.0 and end != free:
+        return end, (end - w * q.decay) / (1.0 - q.decay)
+    return end, target if q.decay > 0.0 else end
+
+
+@numba.njit(cache=True, inline="always")
+def _lag(w, target, ks, kv, ka, q):
     """A wheel's velocity at the period's end and its mean over it (rad/s), as
-    ``DriveModel.step``: the lag toward ``target``, the change limited (then the mean is the
-    ends' mean)."""
-    end = target + (w - target) * q.decay
+    ``DriveModel.step``: the lag toward ``target`` projected by ``_target``, the change
+    limited by the drive (then the mean is the ends' mean)."""
+    end, target = _target(w, target, ks, kv, ka, q)
     moved = min(max(end - w, -q.wheel_step), q.wheel_step)
     mean = target + (w - target) * q.lag_mean
     return w + moved, mean if moved == end - w else w + 0.5 * moved
@@ -147,8 +175,8 @@ def _lag(w, target, q):
 def _drive(wl, wr, cv, cw, q):
     """One period of the drive under the twist command ``(cv, cw)``: the wheels' velocities
     at its end, then the body twist (forward, sideways, turn) they move with."""
-    wl, ml = _lag(wl, q.gain * (q.a00 * cv + q.a01 * cw), q)
-    wr, mr = _lag(wr, q.gain * (q.a10 * cv + q.a11 * cw), q)
+    wl, ml = _lag(wl, q.gain * (q.a00 * cv + q.a01 * cw), q.ks_left, q.kv_left, q.ka_left, q)
+    wr, mr = _lag(wr, q.gain * (q.a10 * cv + q.a11 * cw), q.ks_right, q.kv_right, q.ka_right, q)
     return wl, wr, q.b00 * ml + q.b01 * mr, q.b10 * ml + q.b11 * mr, q.b20 * ml + q.b21 * mr
 
 
@@ -333,13 +361,20 @@ def cycle(mean, q, state, reference, grid, seed, draw, noise, costs):
         _block(b * LANES, mean, q, state, reference, grid, seed, draw, noise, costs)
 
 
+@numba.njit(cache=True)
+def _weights(costs, temperature):
+    """``exp(-(cost - min) / temperature)``, their sum 1: in one thread, so that the sum's
+    rounding, and the command, do not depend on how many threads the cycle had."""
+    weights = np.exp(-(costs - costs.min()) / temperature)
+    return weights / weights.sum()
+
+
 @numba.njit(cache=True, parallel=True)
 def update(costs, noise, temperature, step):
     """The information-theoretic update into ``step`` ``(T, 2)``: ``noise`` ``(T, 2, K)``
     averaged with weights ``exp(-(cost - min) / temperature)``; returns the weights (their
     sum 1)."""
-    weights = np.exp(-(costs - costs.min()) / temperature)
-    weights /= weights.sum()
+    weights = _weights(costs, temperature)
     for t in numba.prange(noise.shape[0]):
         for c in range(2):
             total = 0.0

@@ -13,8 +13,8 @@
 - ``candidates``: ``rollouts``, many candidate command sequences through a delay and
   acceleration limits;
 - ``mppi``: ``MPPI``, a tracker that samples them (model predictive path integral control),
-  with its ``MPPICosts``, ``MPPISampling`` and ``Avoidance``; ``_mppi_arrays`` runs its
-  cycle in an array library;
+  with its ``MPPICosts``, ``MPPISampling``, ``WheelLimits`` and ``Avoidance``;
+  ``_mppi_arrays`` runs its cycle in an array library;
 - ``obstacles``: ``Obstacles``, a clearance field from circles, an occupancy grid or a ROS map
   (``read_map``); ``clearance``: ``guide``, a plan made to clear them; ``courses``:
   ``cluttered_corridor``, a random course to test a controller on.
@@ -33,7 +33,7 @@ _NAMES = {
     **dict.fromkeys(["from_segments", "from_waypoints"], "path"),
     **dict.fromkeys(["PathLimits", "Plan", "limit_ratios", "plan"], "planning"),
     "rollouts": "candidates",
-    **dict.fromkeys(["MPPI", "Avoidance", "MPPICosts", "MPPISampling"], "mppi"),
+    **dict.fromkeys(["MPPI", "Avoidance", "MPPICosts", "MPPISampling", "WheelLimits"], "mppi"),
     **dict.fromkeys(["Obstacles", "read_map"], "obstacles"),
     "guide": "clearance",
     **dict.fromkeys(["Course", "cluttered_corridor"], "courses"),
@@ -60,6 +60,7 @@ __all__ = [
     "PurePursuit",
     "Ramsete",
     "Tracker",
+    "WheelLimits",
     "cluttered_corridor",
     "delay_margin",
     "desaturate",
@@ -81,7 +82,7 @@ if TYPE_CHECKING:  # what the names are, for type checkers
     from diffdrive.control.commands import KEEP, desaturate
     from diffdrive.control.courses import Course, cluttered_corridor
     from diffdrive.control.limiter import Limiter, Limits
-    from diffdrive.control.mppi import MPPI, Avoidance, MPPICosts, MPPISampling
+    from diffdrive.control.mppi import MPPI, Avoidance, MPPICosts, MPPISampling, WheelLimits
     from diffdrive.control.obstacles import Obstacles, read_map
     from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
     from diffdrive.control.path import from_segments, from_waypoints

@@ -10,6 +10,7 @@ a JAX key split every cycle), so a GPU draws its own.
 
 from __future__ import annotations
 
+import math
 from types import ModuleType
 from typing import Any
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from diffdrive.backends.settings import MPPISettings
 
-__all__ = ["ArrayCycle", "drive_period"]
+__all__ = ["ArrayCycle", "drive_period", "feasible_commands"]
 
 
 class ArrayCycle:
@@ -185,16 +186,65 @@ def _has_float64(library: str) -> bool:
     return bool(getattr(jax.config, "jax_enable_x64"))  # noqa: B009 (no stubs for it)
 
 
+def feasible_commands(q: MPPISettings, wheels: np.ndarray, commands: np.ndarray) -> np.ndarray:
+    """The twist ``commands`` ``(T, 2)`` ``(v, omega)``, from the wheels' velocities
+    ``wheels`` (rad/s) when the first takes effect, each projected into what the drive can
+    do (``numba_mppi._lag``): the commands the rollouts move with, and the one sent."""
+    out = np.array(commands, dtype=float)
+    wl, wr = np.float64(wheels[0]), np.float64(wheels[1])
+    det = q.a00 * q.a11 - q.a01 * q.a10
+    for t, (cv, cw) in enumerate(out):
+        _, tl = _target(np, q, wl, q.gain * (q.a00 * cv + q.a01 * cw), _left(q))
+        _, tr = _target(np, q, wr, q.gain * (q.a10 * cv + q.a11 * cw), _right(q))
+        ul, ur = tl / q.gain, tr / q.gain  # the wheel commands back to the twist
+        out[t] = ((q.a11 * ul - q.a01 * ur) / det, (q.a00 * ur - q.a10 * ul) / det)
+        wl, wr, *_ = _drive(np, q, wl, wr, *out[t])
+    return out
+
+
+def _left(q: MPPISettings) -> tuple[float, float, float]:
+    """The left wheel's feedforward (kS, kV, kA) for its voltage limit."""
+    return q.ks_left, q.kv_left, q.ka_left
+
+
+def _right(q: MPPISettings) -> tuple[float, float, float]:
+    """The right wheel's feedforward (kS, kV, kA) for its voltage limit."""
+    return q.ks_right, q.kv_right, q.ka_right
+
+
 def _drive(xp: ModuleType, q: MPPISettings, wl: Any, wr: Any, cv: Any, cw: Any) -> tuple:
     """``numba_mppi._drive`` over arrays."""
-    wl, ml = _lag(xp, q, wl, q.gain * (q.a00 * cv + q.a01 * cw))
-    wr, mr = _lag(xp, q, wr, q.gain * (q.a10 * cv + q.a11 * cw))
+    wl, ml = _lag(xp, q, wl, q.gain * (q.a00 * cv + q.a01 * cw), _left(q))
+    wr, mr = _lag(xp, q, wr, q.gain * (q.a10 * cv + q.a11 * cw), _right(q))
     return wl, wr, q.b00 * ml + q.b01 * mr, q.b10 * ml + q.b11 * mr, q.b20 * ml + q.b21 * mr
 
 
-def _lag(xp: ModuleType, q: MPPISettings, w: Any, target: Any) -> tuple[Any, Any]:
+def _target(xp: ModuleType, q: MPPISettings, w: Any, target: Any, ff: tuple) -> tuple[Any, Any]:
+    """``numba_mppi._target`` over arrays: the lag's end and the target that gives it, within
+    the limits."""
+    free = target + (w - target) * q.decay
+    step = q.max_wheel_acceleration * q.dt
+    end = xp.clip(free, min=-q.max_wheel_velocity, max=q.max_wheel_velocity)
+    low, high = w - step, w + step
+    k = ff[1] + ff[2] / q.dt
+    if k > 0.0 and q.max_voltage < math.inf:
+        base = ff[2] * w / q.dt
+        top = (q.max_voltage - ff[0] + base) / k
+        backward = xp.minimum((q.max_voltage + ff[0] + base) / k, 0.0)
+        top = xp.where(top < 0.0, backward, top)
+        bottom = (-q.max_voltage + ff[0] + base) / k
+        forward = xp.maximum((-q.max_voltage - ff[0] + base) / k, 0.0)
+        bottom = xp.where(bottom > 0.0, forward, bottom)
+        low, high = xp.maximum(low, bottom), xp.minimum(high, top)
+    end = xp.minimum(xp.maximum(end, low), high)
+    if q.decay > 0.0:  # the target whose lag ends there (the given one where it was free)
+        return end, xp.where(end == free, target, (end - w * q.decay) / (1.0 - q.decay))
+    return end, end
+
+
+def _lag(xp: ModuleType, q: MPPISettings, w: Any, target: Any, ff: tuple) -> tuple[Any, Any]:
     """``numba_mppi._lag`` over arrays."""
-    end = target + (w - target) * q.decay
+    end, target = _target(xp, q, w, target, ff)
     moved = xp.clip(end - w, min=-q.wheel_step, max=q.wheel_step)
     mean = target + (w - target) * q.lag_mean
     return w + moved, xp.where(moved == end - w, mean, w + 0.5 * moved)
@@ -222,7 +272,8 @@ def _wheel_cost(xp: ModuleType, q: MPPISettings, w0: Any, w1: Any, ff: tuple) ->
     cost = q.wheel_limit * _over(xp, w1, q.max_wheel_velocity)
     cost = cost + q.acceleration_limit * _over(xp, acceleration, q.max_wheel_acceleration)
     if q.voltage_limit > 0.0:
-        voltage = ff[0] * xp.sign(w1) + ff[1] * w1 + ff[2] * acceleration
+        moving = xp.where(w1 != 0.0, w1, w0)  # numba_mppi._wheel_cost's friction
+        voltage = ff[0] * xp.sign(moving) + ff[1] * w1 + ff[2] * acceleration
         cost = cost + q.voltage_limit * _over(xp, voltage, q.max_voltage)
     return cost
 

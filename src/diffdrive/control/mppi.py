@@ -21,12 +21,22 @@ Every candidate's cost is the sum over its steps of named terms, each with its w
 - ``effort``: ``v^2 + omega^2`` of the twist moved with; ``rate``: the square of its change;
 - ``wheel_limit``, ``acceleration_limit`` and ``voltage_limit``: the square of each wheel's
   velocity (rad/s), acceleration (rad/s^2) and feedforward voltage (V, ``kS sgn w + kV w + kA
-  a``) beyond its limit (the controller's, else the plan's ``PathLimits``);
+  a``, the sign that of the period's start where the wheel ends at rest) beyond its limit
+  (the controller's ``WheelLimits``, else the plan's ``PathLimits``): what is left of them
+  where a candidate is projected, below;
 - with ``obstacles`` (``control.Obstacles``) and a circular ``footprint`` of that radius (m):
   ``collision`` each step the footprint touches an obstacle, ``clearance`` times the square of
   how far the footprint is inside the ``inflation`` band (m) around them;
 - ``goal`` per m^2: the distance from the plan's last pose at the horizon's end;
   ``progress`` per m: how far the horizon's end falls behind the plan's pose there.
+
+Limits that hold: every command a candidate rolls out, and the one sent, is first projected
+into what the drive can do from where its wheels are: each wheel's lag end over the period
+brought within its velocity limit, then within its acceleration limit and its voltage limit
+(which win where the wheel is past its velocity limit already, as physics would), and the
+command that gives those ends (``_mppi_arrays.feasible_commands``). The sent command is
+projected from the wheels' state when it takes effect, after the commands in flight; so a
+drive that answers as its model says never leaves the limits.
 
 Among obstacles the controller follows ``control.guide``'s plan: the given plan with every
 stretch that comes too close to an obstacle replaced by the cheapest way around, made once. A
@@ -67,13 +77,14 @@ from diffdrive._validate import (
     whole,
 )
 from diffdrive.backends.settings import MPPISettings
-from diffdrive.control._mppi_arrays import ArrayCycle, drive_period
+from diffdrive.control._mppi_arrays import ArrayCycle, drive_period, feasible_commands
 from diffdrive.control.clearance import guide
 from diffdrive.control.obstacles import Obstacles
-from diffdrive.control.planning import Plan
+from diffdrive.control.planning import PathLimits, Plan
 from diffdrive.dynamics.drive import DriveModel
+from diffdrive.dynamics.voltage import Feedforward
 
-__all__ = ["MPPI", "Avoidance", "MPPICosts", "MPPISampling", "weighted_update"]
+__all__ = ["MPPI", "Avoidance", "MPPICosts", "MPPISampling", "WheelLimits", "weighted_update"]
 
 BACKENDS = ("auto", "numba", "numpy", "jax", "torch")
 LANES = 16  # the compiled cycle's block of candidates (numba_mppi.LANES)
@@ -163,6 +174,39 @@ def default_horizon(drive: DriveModel, stop: float | None, obstacles: bool) -> f
     return 1.5 * seen if obstacles else seen
 
 
+@dataclass(frozen=True)
+class WheelLimits:
+    """The wheels' limits MPPI keeps, whatever the plan says: ``max_velocity`` (rad/s),
+    ``max_acceleration`` (rad/s^2) and ``max_voltage`` (V) through ``feedforward`` (one
+    ``Feedforward`` on wheel velocities in rad/s for both wheels, or ``(left, right)``; given
+    with ``max_voltage`` or not at all). A limit left None is the plan's."""
+
+    max_velocity: float | None = None
+    max_acceleration: float | None = None
+    max_voltage: float | None = None
+    feedforward: Feedforward | tuple[Feedforward, Feedforward] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("max_velocity", "max_acceleration", "max_voltage"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, positive(f"WheelLimits.{name}", value))
+        if (self.max_voltage is None) != (self.feedforward is None):
+            raise ValueError(
+                "WheelLimits.max_voltage and feedforward go together: give both or neither"
+            )
+        for ff in self.feedforwards():
+            if ff is not None and not isinstance(ff, Feedforward):
+                raise TypeError(f"WheelLimits.feedforward must be Feedforward, got {ff!r}")
+            if ff is not None and not (ff.ks >= 0.0 and ff.kv > 0.0 and ff.ka > 0.0):
+                raise ValueError(f"WheelLimits.feedforward needs kS >= 0, kV > 0, kA > 0: {ff}")
+
+    def feedforwards(self) -> tuple[Feedforward | None, Feedforward | None]:
+        """``(left, right)``."""
+        ff = self.feedforward
+        return ff if isinstance(ff, tuple) else (ff, ff)
+
+
 @dataclass(frozen=True, eq=False)
 class Avoidance:
     """What MPPI steers clear of: the ``obstacles`` (an ``Obstacles`` clearance grid), the
@@ -193,8 +237,9 @@ class MPPI:
     ``dt`` (s): its period and step; ``costs``: the cost terms' weights (``MPPICosts``);
     ``drive``: the wheels' response it rolls out (a ``DriveModel``; None: the wheels take each
     command at once); ``delay`` (s, whole periods; None: the drive's): the commands in flight
-    it accounts for; ``max_wheel_velocity`` (rad/s) and ``max_wheel_acceleration`` (rad/s^2):
-    the limits its costs watch (None: the plan's); ``lead`` (s): how far the plan's time may
+    it accounts for; ``limits``: the wheels' limits it keeps, whatever the plan says
+    (``WheelLimits``; a limit not given: the plan's), every command it rolls out or sends
+    projected into them; ``lead`` (s): how far the plan's time may
     run ahead of the robot's place on it; ``backend``: see the module; ``sampling``: how it
     samples (``MPPISampling``); ``avoid``: the obstacles it steers clear of (``Avoidance``;
     None: none).
@@ -207,8 +252,7 @@ class MPPI:
         costs: MPPICosts | None = None,
         drive: DriveModel | None = None,
         delay: float | None = None,
-        max_wheel_velocity: float | None = None,
-        max_wheel_acceleration: float | None = None,
+        limits: WheelLimits | None = None,
         lead: float = 1.0,
         backend: str = "auto",
         sampling: MPPISampling | None = None,
@@ -231,8 +275,11 @@ class MPPI:
         if not (math.isfinite(steps) and steps >= 0 and abs(steps - round(steps)) < 1e-9):
             raise ValueError(f"delay must be a whole number of dt ({dt} s) >= 0, got {delay!r}")
         self.delay_steps = round(steps)
-        self.max_wheel_velocity = _limit("max_wheel_velocity", max_wheel_velocity)
-        self.max_wheel_acceleration = _limit("max_wheel_acceleration", max_wheel_acceleration)
+        self.limits = WheelLimits() if limits is None else limits
+        if not isinstance(self.limits, WheelLimits):
+            raise TypeError(f"limits must be WheelLimits, got {type(limits).__name__}")
+        self.max_wheel_velocity = self.limits.max_velocity
+        self.max_wheel_acceleration = self.limits.max_acceleration
         horizon = sampling.horizon
         if horizon is None:
             stop = None
@@ -317,7 +364,12 @@ class MPPI:
                     f"robot {n}: every candidate's cost overflows float64 (its pose is {far:.3g} "
                     f"m from the plan; the largest cost weight is {weight:.3g}): no command"
                 )
+            # What the drive can do from where the wheels will be when it takes effect.
+            at_effect = self._wheels[n]
+            for command in self._sent[n]:
+                at_effect = drive_period(q, at_effect, command)
             mean = _moving_average(self._mean[n] + step, self.smoothing)
+            mean = feasible_commands(q, at_effect, mean)
             sent[n] = mean[0]
             taking_effect = self._sent[n, :1] if self.delay_steps else sent[n : n + 1]
             self._wheels[n] = drive_period(q, self._wheels[n], taking_effect[0])
@@ -460,7 +512,10 @@ def settings(mppi: MPPI, plan: Plan):
     else:
         tau, gain, step = drive.time_constant, drive.gain, drive.max_acceleration * dt
     decay = math.exp(-dt / tau) if tau > 0 else 0.0
-    feedforwards = limits.feedforwards() if limits.max_voltage is not None else (None, None)
+    voltage: WheelLimits | PathLimits = mppi.limits
+    if voltage.max_voltage is None:
+        voltage = limits
+    feedforwards = voltage.feedforwards() if voltage.max_voltage is not None else (None, None)
     volts = [(ff.ks, ff.kv, ff.ka) if ff is not None else (0.0, 0.0, 0.0) for ff in feedforwards]
     w, obstacles = mppi.costs, mppi.obstacles
     return MPPISettings(
@@ -488,8 +543,8 @@ def settings(mppi: MPPI, plan: Plan):
         max_wheel_velocity=_first(mppi.max_wheel_velocity, limits.max_wheel_velocity),
         acceleration_limit=w.acceleration_limit,
         max_wheel_acceleration=_first(mppi.max_wheel_acceleration, limits.max_wheel_acceleration),
-        voltage_limit=w.voltage_limit if limits.max_voltage is not None else 0.0,
-        max_voltage=_first(limits.max_voltage),
+        voltage_limit=w.voltage_limit if voltage.max_voltage is not None else 0.0,
+        max_voltage=_first(voltage.max_voltage),
         ks_left=volts[0][0],
         kv_left=volts[0][1],
         ka_left=volts[0][2],
@@ -516,10 +571,6 @@ def settings(mppi: MPPI, plan: Plan):
 def _first(*limits: float | None) -> float:
     """The first limit given, inf if none."""
     return float(next((limit for limit in limits if limit is not None), math.inf))
-
-
-def _limit(name: str, value: float | None) -> float | None:
-    return None if value is None else positive(name, value)
 
 
 def _progress(plan: Plan, point: np.ndarray, since: float, window: float) -> float:
