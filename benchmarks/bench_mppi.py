@@ -20,12 +20,23 @@ Obstacles: ``--runs`` seeded corridors (``control.cluttered_corridor``: 12 m x 3
 of radius 0.15-0.4 m, a way through for a robot of radius 0.45 m), a straight plan from one end
 to the other at 1 m/s (wheels 12 rad/s), the robot of radius 0.35 m, the same delay and lag.
 Counted: runs that touch (judged on the exact circles and walls), runs that do not reach the
-goal within 0.1 m, and the time to the goal against the straight plan's. Side by side, on the
-first ``--compare`` seeds: MPPI on the plan as given (no guide), and Predictive(Ramsete) on
-the guide's plan (no obstacle costs).
+goal within 0.05 m (each run simulated until the guide's plan ends and 2 s more, at least
+1.5 times the straight plan), and the time to the goal against the straight plan's. Side by
+side, on the first ``--compare`` seeds: MPPI on the plan as given (no guide), and
+Predictive(Ramsete) on the guide's plan (no obstacle costs).
+
+Busy: the compiled cycle with one core kept busy by another process, on the cores it finds
+free against forced onto one thread and onto every thread.
+
+Robots and rates: three robots the controller was not tuned on (``OTHERS``: the issue's 0.075
+m wheels with 12 V through a feedforward, the tracking robot given a drive, a Husky-sized
+one), at 20, 50 and 100 ms, ``--other-paths`` random paths planned at 90 % of each wheel
+limit, the same delay and lag: cross-track mean and max, periods with a wheel past a limit by
+over 1 %, the end's distance 1 s after the plan, and CPU time per period, MPPI (defaults, the
+robot's ``WheelLimits``) beside Predictive(LTVUnicycle).
 
     python benchmarks/bench_mppi.py [--runs 1000] [--paths 20] [--repeats 15]
-        [--libraries numba numpy torch jax]
+        [--other-paths 10] [--libraries numba numpy torch jax]
 """
 
 from __future__ import annotations
@@ -33,6 +44,8 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import platform
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -55,37 +68,75 @@ from diffdrive.control import (
     guide,
     plan,
 )
-from diffdrive.dynamics import DriveModel
+from diffdrive.dynamics import DriveModel, Feedforward
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
 DT, DELAY, LAG, WHEELS = 0.05, 0.1, 0.1, 12.0
+GOAL = 0.05  # m: the goal counts as reached within it
 DRIVE = DriveModel(delay=DELAY, time_constant=LAG)
 FOOTPRINT = 0.35
 
 
-def cycle_times(repeats: int, libraries: list[str]) -> None:
+def _cycle_time(samples: int, backend: str, count: int) -> tuple[float, float]:
+    """Median wall and CPU time (ms) of one cycle, after a first that compiles."""
     course = cluttered_corridor(np.random.default_rng(3), footprint=FOOTPRINT)
     path = plan([course.start, course.goal], ROBOT, PathLimits(1.0, 1.0, max_wheel_velocity=12))
-    print("one MPPI cycle (one robot, clearance grid on; median):")
+    tracker = MPPI(
+        drive=DRIVE,
+        backend=backend,
+        sampling=MPPISampling(samples=samples, horizon=100 * DT, seed=0),
+        avoid=Avoidance(course.obstacles, footprint=FOOTPRINT),
+    )
+    pose = np.array([[0.0, 0.0, 0.0]])
+    tracker.command(path, 0.0, pose)  # compiles, makes the guide
+    walls, cpus = [], []
+    for k in range(count):
+        wall, cpu = time.perf_counter(), time.process_time()
+        tracker.command(path, DT * (k + 1), pose)
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+    return 1e3 * float(np.median(walls)), 1e3 * float(np.median(cpus))
+
+
+def cycle_times(repeats: int, libraries: list[str]) -> None:
+    print("one MPPI cycle (one robot, clearance grid on; median wall / CPU):")
     for samples in (2048, 16384):
         for backend in libraries:
             if backend in ("torch", "jax") and samples > 2048:
                 continue
-            tracker = MPPI(
-                drive=DRIVE,
-                backend=backend,
-                sampling=MPPISampling(samples=samples, horizon=100 * DT, seed=0),
-                avoid=Avoidance(course.obstacles, footprint=FOOTPRINT),
-            )
-            pose = np.array([[0.0, 0.0, 0.0]])
-            tracker.command(path, 0.0, pose)  # compiles, makes the guide
             count = repeats if backend == "numba" else min(repeats, 3)
-            times = []
-            for k in range(count):
-                start = time.perf_counter()
-                tracker.command(path, DT * (k + 1), pose)
-                times.append(time.perf_counter() - start)
-            print(f"  {samples:,} x 100, {backend}: {1e3 * np.median(times):.2f} ms")
+            wall, cpu = _cycle_time(samples, backend, count)
+            print(f"  {samples:,} x 100, {backend}: {wall:.2f} / {cpu:.2f} ms")
+
+
+def busy_cycle_times(repeats: int) -> None:
+    """The compiled cycle with one core kept busy by another process: on the cores it finds
+    free, against forced onto one thread and onto every thread, side by side."""
+    import numba
+
+    from diffdrive.backends import numba_mppi
+
+    free = numba_mppi.free_threads
+    every = numba.config.NUMBA_NUM_THREADS
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(1.0)
+        print(f"one MPPI cycle with one of {every} cores busy (median wall / CPU):")
+        for samples in (2048, 16384):
+            row = []
+            forced = (("free cores", None), ("one thread", 1), ("every thread", every))
+            for label, threads in forced:
+                if threads is not None:
+                    numba_mppi.free_threads = lambda threads=threads: threads
+                try:
+                    wall, cpu = _cycle_time(samples, "numba", repeats)
+                finally:
+                    numba_mppi.free_threads = free
+                row.append(f"{label} {wall:.2f} / {cpu:.2f} ms")
+            print(f"  {samples:,} x 100: " + "; ".join(row))
+    finally:
+        busy.kill()
+        busy.wait()
 
 
 def trackers(wheels: float | None) -> dict[str, object]:
@@ -140,10 +191,12 @@ def corridor_run(seed: int, kind: str) -> dict[str, object]:
             avoid=Avoidance(course.obstacles, footprint=FOOTPRINT, around=kind == "MPPI"),
         )
         reference = straight
-    settle = FollowSettings(settle=0.5 * straight.duration)
+    # Time to finish the way around: MPPI follows guide's plan, longer than the straight one.
+    around = guide(straight, course.obstacles, FOOTPRINT).duration - straight.duration
+    settle = FollowSettings(settle=max(0.5 * straight.duration, around + 2.0))
     result = follow(reference, tracker, dt=DT, drive=DRIVE, settings=settle)
     poses = result.poses[0]
-    reached = np.flatnonzero(np.hypot(*(poses[:, :2] - course.goal[:2]).T) < 0.1)
+    reached = np.flatnonzero(np.hypot(*(poses[:, :2] - course.goal[:2]).T) < GOAL)
     ratio = (
         (result.times[reached[0]] - result.times[0]) / straight.duration if len(reached) else None
     )
@@ -173,19 +226,115 @@ def obstacles(runs: int, compare: int) -> None:
                 print(f"    {label}: seeds {seeds[:12]}{' ...' if len(seeds) > 12 else ''}")
 
 
+# Robots the controller was not tuned on: (robot, wheel limits, footprint m). The issue's: a
+# 50 Hz loop's robot with 12 V through a feedforward; the tracking benchmark's robot given a
+# drive; a Husky-sized one, slow and heavy.
+OTHERS = {
+    "0.075 m wheels, 0.38 m track": (
+        dd.DiffDrive(wheel_radius=0.075, track_width=0.38),
+        WheelLimits(14.0, 20.0, 12.0, Feedforward(0.5, 0.78, 0.06)),
+        0.25,
+    ),
+    "0.1 m wheels, 0.6 m track": (
+        dd.DiffDrive(wheel_radius=0.1, track_width=0.6),
+        WheelLimits(12.0, 15.0, 24.0, Feedforward(0.3, 1.2, 0.1)),
+        0.35,
+    ),
+    "0.165 m wheels, 0.555 m track": (
+        dd.DiffDrive(wheel_radius=0.165, track_width=0.555),
+        WheelLimits(6.0, 6.0, 24.0, Feedforward(1.0, 3.0, 0.4)),
+        0.4,
+    ),
+}
+PERIODS = (0.02, 0.05, 0.1)
+SHARE = 0.9  # the plans use 90 % of each wheel limit
+
+
+def planned_within(limits: WheelLimits) -> PathLimits:
+    """The plan's limits: ``SHARE`` of the wheels'."""
+    assert limits.max_velocity is not None
+    assert limits.max_acceleration is not None
+    assert limits.max_voltage is not None
+    return PathLimits(
+        max_wheel_velocity=SHARE * limits.max_velocity,
+        max_wheel_acceleration=SHARE * limits.max_acceleration,
+        max_voltage=SHARE * limits.max_voltage,
+        feedforward=limits.feedforward,
+    )
+
+
+def over_limits(result, limits: WheelLimits, period: float) -> int:
+    """Periods in which a wheel's velocity, acceleration or voltage is past its limit by more
+    than 1 %."""
+    wheels = result.wheel_velocities[0]
+    acceleration = np.diff(wheels, axis=0) / period
+    (ff, _) = limits.feedforwards()
+    assert ff is not None
+    assert limits.max_voltage is not None
+    moving = np.where(wheels[1:] != 0.0, wheels[1:], wheels[:-1])
+    volts = ff.ks * np.sign(moving) + ff.kv * wheels[1:] + ff.ka * acceleration
+    past = (np.abs(wheels[1:]) > 1.01 * limits.max_velocity).any(axis=1)
+    past |= (np.abs(acceleration) > 1.01 * limits.max_acceleration).any(axis=1)
+    past |= (np.abs(volts) > 1.01 * limits.max_voltage).any(axis=1)
+    return int(past.sum())
+
+
+def robots_and_rates(paths: int) -> None:
+    """Each robot of ``OTHERS`` at each period of ``PERIODS``: random paths planned at 90 % of
+    its limits, followed 1 s past their end behind 0.1 s of delay and a 0.1 s lag known to
+    the trackers (MPPI with its defaults and the robot's limits; Predictive(LTVUnicycle))."""
+    print(
+        f"robots and rates: {paths} random paths each, planned at {SHARE:.0%} of the wheels' "
+        "limits, 0.1 s delay and 0.1 s lag known (cross-track mean / max mm, periods over a "
+        "limit, largest end distance mm 1 s after the plan, CPU per period ms):"
+    )
+    for name, (robot, limits, _) in OTHERS.items():
+        for period in PERIODS:
+            makers = {
+                "MPPI": lambda period=period, limits=limits: MPPI(
+                    dt=period, drive=DRIVE, limits=limits, sampling=MPPISampling(seed=1)
+                ),
+                "Predictive(LTVUnicycle)": lambda period=period: Predictive(
+                    LTVUnicycle(dt=period), DELAY, period, LAG
+                ),
+            }
+            for label, make in makers.items():
+                rng = np.random.default_rng(1)
+                cross, over, ends, cpu = [], 0, [], []
+                for _ in range(paths):
+                    reference = plan(random_waypoints(rng), robot, planned_within(limits))
+                    start = time.process_time()
+                    result = follow(reference, make(), dt=period, drive=DRIVE)
+                    cpu.append((time.process_time() - start) / len(result.times))
+                    cross.append(np.abs(result.errors().cross_track).ravel())
+                    over += over_limits(result, limits, period)
+                    ends.append(np.hypot(*(result.poses[0, -1, :2] - reference.poses[-1, :2])))
+                every = np.concatenate(cross)
+                print(
+                    f"  {name}, {1e3 * period:.0f} ms, {label}: {1e3 * every.mean():.1f} / "
+                    f"{1e3 * every.max():.1f} mm, over {over}, end {1e3 * max(ends):.1f} mm, "
+                    f"{1e3 * np.median(cpu):.1f} ms"
+                )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=1000)
     parser.add_argument("--compare", type=int, default=100)
     parser.add_argument("--paths", type=int, default=20)
     parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--other-paths", type=int, default=10,
+                        help="random paths per robot and period in robots_and_rates")  # fmt: skip
     installed = ["numba", "numpy"] + [n for n in ("torch", "jax") if importlib.util.find_spec(n)]
     parser.add_argument("--libraries", nargs="+", default=installed, choices=installed,
                         help="the cycle's back ends (default: every one installed)")  # fmt: skip
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}")
     cycle_times(args.repeats, args.libraries)
+    if "numba" in args.libraries:
+        busy_cycle_times(args.repeats)
     tracking(args.paths)
+    robots_and_rates(args.other_paths)
     obstacles(args.runs, args.compare)
 
 

@@ -48,6 +48,8 @@ SMALL = {
         "1",
         "--repeats",
         "1",
+        "--other-paths",
+        "1",
         "--libraries",
         "numba",
         "numpy",
