@@ -578,3 +578,35 @@ def test_the_command_does_not_depend_on_how_many_threads_the_cycle_had(monkeypat
         tracker = MPPI(backend="numba", sampling=MPPISampling(samples=4096, seed=2))
         sent.append(tracker.command(path, 0.0, np.array([[0.05, -0.02, 0.1]])))
     np.testing.assert_array_equal(sent[0], sent[1])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("period", [0.02, 0.05, 0.1])
+def test_the_same_defaults_track_within_the_limits_at_three_periods(period):
+    """The issue's robot (0.075 m wheels, 0.38 m track; 14 rad/s, 20 rad/s^2 and 12 V through
+    a feedforward) on a path planned at 90 % of those limits, 0.1 s of delay and lag known:
+    with the same defaults at 20, 50 and 100 ms, no period with a wheel past a limit by over
+    1 %, the cross-track error 10 mm on average, and the robot within 0.05 m of the plan's end
+    1 s after it. (At 20 ms it had been 183 mm on average, a wheel's acceleration 1.9 times its
+    limit.)"""
+    robot = dd.DiffDrive(wheel_radius=0.075, track_width=0.38)
+    limits = WheelLimits(14.0, 20.0, 12.0, FEEDFORWARD)
+    planned = PathLimits(
+        max_wheel_velocity=12.6, max_wheel_acceleration=18.0, max_voltage=10.8,
+        feedforward=FEEDFORWARD,
+    )  # fmt: skip
+    path = plan([(0, 0, 0), (2.5, 1.0, 0.6), (4.0, 3.0, 1.4)], robot, planned)
+    drive = DriveModel(delay=0.1, time_constant=0.1)
+    tracker = MPPI(dt=period, drive=drive, limits=limits, sampling=MPPISampling(seed=1))
+    result = follow(path, tracker, dt=period, drive=drive)
+    wheels = result.wheel_velocities[0]
+    acceleration = np.diff(wheels, axis=0) / period
+    moving = np.where(wheels[1:] != 0.0, wheels[1:], wheels[:-1])
+    volts = FEEDFORWARD.ks * np.sign(moving) + FEEDFORWARD.kv * wheels[1:]
+    volts += FEEDFORWARD.ka * acceleration
+    assert np.abs(wheels).max() <= 14.0 * 1.01
+    assert np.abs(acceleration).max() <= 20.0 * 1.01
+    assert np.abs(volts).max() <= 12.0 * 1.01
+    cross = np.abs(result.errors().cross_track)
+    assert cross.mean() < 0.010
+    assert np.hypot(*(result.poses[0, -1, :2] - path.poses[-1, :2])) < 0.05

@@ -30,7 +30,7 @@ from diffdrive._step import TAYLOR_LIMIT
 from diffdrive.backends import simulate_kernel
 from diffdrive.backends.numba_simulate import STEP
 
-__all__ = ["LANES", "cycle", "free_threads", "in_flight", "update"]
+__all__ = ["LANES", "cycle", "feasible", "free_threads", "in_flight", "update"]
 
 _sinc_cos_small, _sinc_cos = STEP["sinc_cos_small"], STEP["sinc_cos"]
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -135,37 +135,34 @@ def _wheel_cost(w0, w1, ks, kv, ka, q):
 
 
 @numba.njit(cache=True, inline="always")
-def _target(w, target, ks, kv, ka, q):
+def _target(w, target, ks, ka_dt, per_volt, q):
     """A command projected into what the drive can do (see ``control.mppi``): the lag's end
     over the period from ``w`` toward ``target`` (rad/s), brought within the wheel's velocity
-    limit, then within its acceleration limit and its voltage limit (``kS sgn w + kV w + kA a``
-    through the feedforward ``ks, kv, ka``), which win where the velocity is past its limit
-    already; and the target whose lag ends there (``target`` itself where it was within)."""
+    limit, then within its acceleration limit and its voltage limit (``kS sgn w + kV w + kA a``:
+    ``ks``, ``ka_dt`` = kA / dt, ``per_volt`` = 1 / (kV + kA / dt)), which win where the
+    velocity is past its limit already; and the target whose lag ends there (``target``
+    itself where it was within). Branch-free, and with no division, for the vector loop."""
     free = target + (w - target) * q.decay
     step = q.max_wheel_acceleration * q.dt
+    base = ka_dt * w
+    top = (q.max_voltage - ks + base) * per_volt
+    # No forward end holds: a backward one (kS then on the other side), at most 0.
+    top = min((q.max_voltage + ks + base) * per_volt, 0.0) if top < 0.0 else top
+    bottom = (-q.max_voltage + ks + base) * per_volt
+    bottom = max((-q.max_voltage - ks + base) * per_volt, 0.0) if bottom > 0.0 else bottom
+    top = top if q.voltage_bound > 0.0 else math.inf
+    bottom = bottom if q.voltage_bound > 0.0 else -math.inf
     end = min(max(free, -q.max_wheel_velocity), q.max_wheel_velocity)
-    low, high = w - step, w + step
-    k = kv + ka / q.dt
-    if k > 0.0 and q.max_voltage < math.inf:
-        base = ka * w / q.dt
-        top = (q.max_voltage - ks + base) / k
-        # No forward end holds: a backward one (kS then on the other side), at most 0.
-        top = min((q.max_voltage + ks + base) / k, 0.0) if top < 0.0 else top
-        bottom = (-q.max_voltage + ks + base) / k
-        bottom = max((-q.max_voltage - ks + base) / k, 0.0) if bottom > 0.0 else bottom
-        low, high = max(low, bottom), min(high, top)
-    end = min(max(end, low), high)
-    if q.decay > 0.0 and end != free:
-        return end, (end - w * q.decay) / (1.0 - q.decay)
-    return end, target if q.decay > 0.0 else end
+    end = min(max(end, max(w - step, bottom)), min(w + step, top))
+    return end, target if end == free else (end - w * q.decay) * q.undecay
 
 
 @numba.njit(cache=True, inline="always")
-def _lag(w, target, ks, kv, ka, q):
+def _lag(w, target, ks, ka_dt, per_volt, q):
     """A wheel's velocity at the period's end and its mean over it (rad/s), as
     ``DriveModel.step``: the lag toward ``target`` projected by ``_target``, the change
     limited by the drive (then the mean is the ends' mean)."""
-    end, target = _target(w, target, ks, kv, ka, q)
+    end, target = _target(w, target, ks, ka_dt, per_volt, q)
     moved = min(max(end - w, -q.wheel_step), q.wheel_step)
     mean = target + (w - target) * q.lag_mean
     return w + moved, mean if moved == end - w else w + 0.5 * moved
@@ -175,8 +172,10 @@ def _lag(w, target, ks, kv, ka, q):
 def _drive(wl, wr, cv, cw, q):
     """One period of the drive under the twist command ``(cv, cw)``: the wheels' velocities
     at its end, then the body twist (forward, sideways, turn) they move with."""
-    wl, ml = _lag(wl, q.gain * (q.a00 * cv + q.a01 * cw), q.ks_left, q.kv_left, q.ka_left, q)
-    wr, mr = _lag(wr, q.gain * (q.a10 * cv + q.a11 * cw), q.ks_right, q.kv_right, q.ka_right, q)
+    wl, ml = _lag(wl, q.gain * (q.a00 * cv + q.a01 * cw), q.ks_left, q.ka_dt_left, q.volts_left, q)
+    wr, mr = _lag(
+        wr, q.gain * (q.a10 * cv + q.a11 * cw), q.ks_right, q.ka_dt_right, q.volts_right, q
+    )
     return wl, wr, q.b00 * ml + q.b01 * mr, q.b10 * ml + q.b11 * mr, q.b20 * ml + q.b21 * mr
 
 
@@ -338,6 +337,27 @@ def _block(first, mean, q, state, reference, grid, seed, draw, noise, costs):
         dx, dy = st[_X, j] - reference[steps - 1, 0], st[_Y, j] - reference[steps - 1, 1]
         behind = max(-(dx * reference[steps - 1, 2] + dy * reference[steps - 1, 3]), 0.0)
         costs[first + j] = st[_TOTAL, j] + q.goal * (gx * gx + gy * gy) + q.progress * behind
+
+
+@numba.njit(cache=True)
+def feasible(mean, q, wheels):
+    """``_mppi_arrays.feasible_commands`` compiled: the twist commands ``mean`` ``(T, 2)``
+    each projected into what the drive can do, from the wheels' velocities ``wheels`` when
+    the first takes effect."""
+    out = np.empty_like(mean)
+    wl, wr = wheels[0], wheels[1]
+    det = q.a00 * q.a11 - q.a01 * q.a10
+    for t in range(mean.shape[0]):
+        cv, cw = mean[t, 0], mean[t, 1]
+        left = q.gain * (q.a00 * cv + q.a01 * cw)
+        _, tl = _target(wl, left, q.ks_left, q.ka_dt_left, q.volts_left, q)
+        right = q.gain * (q.a10 * cv + q.a11 * cw)
+        _, tr = _target(wr, right, q.ks_right, q.ka_dt_right, q.volts_right, q)
+        ul, ur = tl / q.gain, tr / q.gain  # the wheel commands back to the twist
+        out[t, 0] = (q.a11 * ul - q.a01 * ur) / det
+        out[t, 1] = (q.a00 * ur - q.a10 * ul) / det
+        wl, wr, _, _, _ = _drive(wl, wr, out[t, 0], out[t, 1], q)
+    return out
 
 
 def free_threads() -> int:

@@ -156,6 +156,14 @@ class MPPISettings(NamedTuple):
     ks_right: float
     kv_right: float
     ka_right: float
+    # The projection's constants (control.mppi): 1 where a voltage limit holds (0: none),
+    # each wheel's kA / dt and 1 / (kV + kA / dt) (0 without a voltage limit), 1 / (1 - decay).
+    voltage_bound: float
+    ka_dt_left: float
+    ka_dt_right: float
+    volts_left: float
+    volts_right: float
+    undecay: float
     collision: float
     clearance: float
     footprint: float

@@ -10,7 +10,6 @@ a JAX key split every cycle), so a GPU draws its own.
 
 from __future__ import annotations
 
-import math
 from types import ModuleType
 from typing import Any
 
@@ -203,13 +202,13 @@ def feasible_commands(q: MPPISettings, wheels: np.ndarray, commands: np.ndarray)
 
 
 def _left(q: MPPISettings) -> tuple[float, float, float]:
-    """The left wheel's feedforward (kS, kV, kA) for its voltage limit."""
-    return q.ks_left, q.kv_left, q.ka_left
+    """The left wheel's projection constants (kS, kA / dt, 1 / (kV + kA / dt))."""
+    return q.ks_left, q.ka_dt_left, q.volts_left
 
 
 def _right(q: MPPISettings) -> tuple[float, float, float]:
-    """The right wheel's feedforward (kS, kV, kA) for its voltage limit."""
-    return q.ks_right, q.kv_right, q.ka_right
+    """The right wheel's projection constants."""
+    return q.ks_right, q.ka_dt_right, q.volts_right
 
 
 def _drive(xp: ModuleType, q: MPPISettings, wl: Any, wr: Any, cv: Any, cw: Any) -> tuple:
@@ -221,25 +220,24 @@ def _drive(xp: ModuleType, q: MPPISettings, wl: Any, wr: Any, cv: Any, cw: Any) 
 
 def _target(xp: ModuleType, q: MPPISettings, w: Any, target: Any, ff: tuple) -> tuple[Any, Any]:
     """``numba_mppi._target`` over arrays: the lag's end and the target that gives it, within
-    the limits."""
+    the limits (``ff``: kS, kA / dt, 1 / (kV + kA / dt))."""
     free = target + (w - target) * q.decay
     step = q.max_wheel_acceleration * q.dt
     end = xp.clip(free, min=-q.max_wheel_velocity, max=q.max_wheel_velocity)
     low, high = w - step, w + step
-    k = ff[1] + ff[2] / q.dt
-    if k > 0.0 and q.max_voltage < math.inf:
-        base = ff[2] * w / q.dt
-        top = (q.max_voltage - ff[0] + base) / k
-        backward = xp.minimum((q.max_voltage + ff[0] + base) / k, 0.0)
+    if q.voltage_bound > 0.0:
+        ks, ka_dt, per_volt = ff
+        base = ka_dt * w
+        top = (q.max_voltage - ks + base) * per_volt
+        backward = xp.minimum((q.max_voltage + ks + base) * per_volt, 0.0)
         top = xp.where(top < 0.0, backward, top)
-        bottom = (-q.max_voltage + ff[0] + base) / k
-        forward = xp.maximum((-q.max_voltage - ff[0] + base) / k, 0.0)
+        bottom = (-q.max_voltage + ks + base) * per_volt
+        forward = xp.maximum((-q.max_voltage - ks + base) * per_volt, 0.0)
         bottom = xp.where(bottom > 0.0, forward, bottom)
         low, high = xp.maximum(low, bottom), xp.minimum(high, top)
     end = xp.minimum(xp.maximum(end, low), high)
-    if q.decay > 0.0:  # the target whose lag ends there (the given one where it was free)
-        return end, xp.where(end == free, target, (end - w * q.decay) / (1.0 - q.decay))
-    return end, end
+    # The target whose lag ends there (the given one where it was free).
+    return end, xp.where(end == free, target, (end - w * q.decay) * q.undecay)
 
 
 def _lag(xp: ModuleType, q: MPPISettings, w: Any, target: Any, ff: tuple) -> tuple[Any, Any]:

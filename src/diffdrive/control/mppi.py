@@ -364,12 +364,7 @@ class MPPI:
                     f"robot {n}: every candidate's cost overflows float64 (its pose is {far:.3g} "
                     f"m from the plan; the largest cost weight is {weight:.3g}): no command"
                 )
-            # What the drive can do from where the wheels will be when it takes effect.
-            at_effect = self._wheels[n]
-            for command in self._sent[n]:
-                at_effect = drive_period(q, at_effect, command)
-            mean = _moving_average(self._mean[n] + step, self.smoothing)
-            mean = feasible_commands(q, at_effect, mean)
+            mean = self._feasible(q, n, _moving_average(self._mean[n] + step, self.smoothing))
             sent[n] = mean[0]
             taking_effect = self._sent[n, :1] if self.delay_steps else sent[n : n + 1]
             self._wheels[n] = drive_period(q, self._wheels[n], taking_effect[0])
@@ -377,6 +372,19 @@ class MPPI:
         if self.delay_steps:
             self._sent = np.concatenate([self._sent[:, 1:], sent[:, None]], axis=1)
         return sent
+
+    def _feasible(self, q, n: int, mean: np.ndarray) -> np.ndarray:
+        """Robot ``n``'s mean sequence ``(T, 2)`` projected into what the drive can do from
+        where its wheels will be when the first takes effect, after the commands in flight."""
+        if self.backend == "numba":
+            from diffdrive.backends import numba_mppi
+
+            flight = numba_mppi.in_flight(np.zeros(3), self._wheels[n], self._sent[n], q)
+            return numba_mppi.feasible(mean, q, flight[4:6])
+        at_effect = self._wheels[n]
+        for command in self._sent[n]:
+            at_effect = drive_period(q, at_effect, command)
+        return feasible_commands(q, at_effect, mean)
 
     def _cycle_state(self) -> tuple:
         """What a cycle changes: the robots' mean sequences, commands in flight, wheels,
@@ -551,6 +559,12 @@ def settings(mppi: MPPI, plan: Plan):
         ks_right=volts[1][0],
         kv_right=volts[1][1],
         ka_right=volts[1][2],
+        voltage_bound=1.0 if voltage.max_voltage is not None else 0.0,
+        ka_dt_left=volts[0][2] / dt,
+        ka_dt_right=volts[1][2] / dt,
+        volts_left=_per_volt(volts[0], dt),
+        volts_right=_per_volt(volts[1], dt),
+        undecay=1.0 / (1.0 - decay),
         collision=w.collision,
         clearance=w.clearance,
         footprint=mppi.footprint,
@@ -566,6 +580,13 @@ def settings(mppi: MPPI, plan: Plan):
         sigma_v=mppi.sigma[0],
         sigma_omega=mppi.sigma[1],
     )
+
+
+def _per_volt(gains: tuple[float, float, float], dt: float) -> float:
+    """``1 / (kV + kA / dt)``: a wheel's velocity at a period's end per volt, from rest; 0
+    without a feedforward (no voltage limit)."""
+    _, kv, ka = gains
+    return 1.0 / (kv + ka / dt) if kv > 0.0 else 0.0
 
 
 def _first(*limits: float | None) -> float:
