@@ -47,6 +47,7 @@ LIBRARIES = {"torch": Library("torch"), "jax": Library("jax")}
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.6)
 FOOTPRINT = 0.35
 LIMITS = PathLimits(max_velocity=1.0, max_acceleration=1.0, max_wheel_velocity=12.0)
+FEEDFORWARD = Feedforward(0.5, 0.78, 0.06)  # the robot: kS V, kV V s/rad, kA V s^2/rad
 
 
 def test_the_update_is_the_weighted_mean_a_gaussian_works_out_to():
@@ -360,6 +361,13 @@ def test_a_map_missing_what_it_needs_is_refused_by_name(tmp_path, meta, message)
             r"before: give seconds as a float \(20 steps at 0\.05 s: 1\)",
         ),
         (lambda: MPPISampling(smoothing=-0.1), r"MPPISampling\.smoothing \(s\) must be > 0"),
+        (lambda: WheelLimits(max_voltage=12.0), "max_voltage and feedforward go together"),
+        (
+            lambda: WheelLimits(max_voltage=0.4, feedforward=FEEDFORWARD),
+            "max_voltage 0.4 V does not exceed the left wheel's kS 0.5 V",
+        ),
+        (lambda: WheelLimits(max_velocity=-1.0), r"WheelLimits\.max_velocity must be > 0"),
+        (lambda: MPPI(limits=PathLimits(max_velocity=1.0)), "limits must be WheelLimits"),
         (
             lambda: Avoidance(Obstacles(np.ones((3, 3)), (0.0, 0.0), 0.1), footprint=-0.1),
             r"Avoidance\.footprint must be >= 0",
@@ -516,9 +524,6 @@ def test_the_horizon_and_smoothing_are_times_converted_at_the_period(dt):
     given = MPPI(dt=dt, drive=drive, sampling=MPPISampling(horizon=2.0, smoothing=0.1))
     assert given.horizon * dt == pytest.approx(2.0)
     assert given.smoothing == max(1, round(0.1 / dt))
-
-
-FEEDFORWARD = Feedforward(0.5, 0.78, 0.06)  # the robot: kS V, kV V s/rad, kA V s^2/rad
 
 
 def _limited(tau: float, velocity, acceleration, voltage):

@@ -49,6 +49,7 @@ from typing import Any
 
 import numpy as np
 
+from diffdrive import batch
 from diffdrive._validate import finite, settings_of, whole
 from diffdrive.calibration._reference_model import (
     NOISES,
@@ -433,13 +434,7 @@ def _refuse_a_gyro_against_the_wheels(robot, times, increments, gyro, run: int, 
     """``ValueError`` where the gyro's turn over the run is not the wheels' (nominal
     geometry) within ``GYRO_SLOPE``: a fit from there goes anywhere (a clock offset of tens
     of seconds, say) and its refusal would name the wrong cause."""
-    dl, dr = increments[:, 0], increments[:, 1]
-    wheel_turn = (
-        np.concatenate(
-            [[0.0], np.cumsum(robot.right_wheel_radius * dr - robot.left_wheel_radius * dl)]
-        )
-        / robot.track_width
-    )
+    wheel_turn = np.concatenate([[0.0], np.cumsum(batch.to_twist(robot, increments)[:, 2])])
     inside = (times >= gyro.times[0]) & (times <= gyro.times[-1])
     if np.count_nonzero(inside) < 2 or np.ptp(wheel_turn[inside]) < 1.0:
         return  # too little turn to tell (the fit's own refusals speak there)

@@ -41,7 +41,8 @@ from diffdrive.sensor_noise import WheelNoise
 
 
 def run_export(args: argparse.Namespace) -> int:
-    _refuse_misplaced(args)
+    in_file = robot_noise(args).get("wheel_noise")  # (WheelNoise, its file) or None
+    _refuse_misplaced(args, in_file is not None)
     refuse_assumed_robot(
         args, f"export {args.to} writes the robot's geometry and the noise it implies"
     )
@@ -57,13 +58,12 @@ def run_export(args: argparse.Namespace) -> int:
     score = ""
     if args.runs:
         model, held, score = _identified(args, robot, ticks, notes, lines)
-        if "wheel_noise" in robot_noise(args):
+        if in_file is not None:
             lines.append(
-                f"the wheel noise in {robot_noise(args)['wheel_noise'][1]} left aside: the runs "
-                "identify the noise model"
+                f"the wheel noise in {in_file[1]} left aside: the runs identify the noise model"
             )
     else:
-        model, given = _by_hand(args)
+        model, given = _by_hand(args, in_file)
         notes.append(f"noise model {given}: not checked")
         held = []
     if held and not args.accept_inconsistent:
@@ -125,7 +125,7 @@ def run_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _refuse_misplaced(args) -> None:
+def _refuse_misplaced(args, noise_in_file: bool) -> None:
     """The options that cannot apply to this export, by name."""
     if args.runs:
         by_hand = {
@@ -142,7 +142,7 @@ def _refuse_misplaced(args) -> None:
             },
             "used only with runs, which identify the noise model and hold it to them",
         )
-    if not args.runs and args.k is None and "wheel_noise" not in robot_noise(args):
+    if not args.runs and args.k is None and not noise_in_file:
         raise ValueError(
             "export needs a noise model: runs with ground truth to identify it on, --k (m), or "
             "a robot file with the noise calibrate-driving found ([noise.wheel_noise]); with "
@@ -150,7 +150,7 @@ def _refuse_misplaced(args) -> None:
         )
 
 
-def _by_hand(args) -> tuple[NoiseModel, str]:
+def _by_hand(args, in_file) -> tuple[NoiseModel, str]:
     """The noise model without runs, and where it came from: the wheels' k from --k, else
     from a robot file's ``[noise.wheel_noise]`` (what ``calibrate-driving`` identified), each
     radius and the track spread by --radius-sigma and --track-sigma."""
@@ -158,7 +158,7 @@ def _by_hand(args) -> tuple[NoiseModel, str]:
     if args.k is not None:
         wheels, given = WheelNoise.symmetric(args.k), "given by hand (--k"
     else:  # _refuse_misplaced has checked that the robot file holds it
-        part, source = robot_noise(args)["wheel_noise"]
+        part, source = in_file
         wheels, given = WheelNoise.coerce(part), f"with the wheels' k from {source} ("
     given += ", --radius-sigma, --track-sigma)"
     return replace(spread, wheel_noise=wheels), given

@@ -80,7 +80,7 @@ from diffdrive.backends.settings import MPPISettings
 from diffdrive.control._mppi_arrays import ArrayCycle, drive_period, feasible_commands
 from diffdrive.control.clearance import guide
 from diffdrive.control.obstacles import Obstacles
-from diffdrive.control.planning import PathLimits, Plan
+from diffdrive.control.planning import PathLimits, Plan, wheel_feedforwards
 from diffdrive.dynamics.drive import DriveModel
 from diffdrive.dynamics.voltage import Feedforward
 
@@ -167,10 +167,7 @@ def default_horizon(drive: DriveModel, stop: float | None, obstacles: bool) -> f
     (95 % settled), and ``stop``, the time to stop from full speed (s; None: half a second),
     at least a second; half as long again among obstacles (on the benchmark's cluttered
     corridors 1 s left 4 runs of 150 stalled or late, 1.5 s left 1)."""
-    tau = drive.time_constant
-    if drive.feedforward is not None:
-        tau = drive.feedforward.ka / drive.feedforward.kv
-    seen = max(1.0, drive.delay + 3.0 * tau + (0.5 if stop is None else stop))
+    seen = max(1.0, drive.delay + 3.0 * _rolled_lag(drive) + (0.5 if stop is None else stop))
     return 1.5 * seen if obstacles else seen
 
 
@@ -191,20 +188,11 @@ class WheelLimits:
             value = getattr(self, name)
             if value is not None:
                 object.__setattr__(self, name, positive(f"WheelLimits.{name}", value))
-        if (self.max_voltage is None) != (self.feedforward is None):
-            raise ValueError(
-                "WheelLimits.max_voltage and feedforward go together: give both or neither"
-            )
-        for ff in self.feedforwards():
-            if ff is not None and not isinstance(ff, Feedforward):
-                raise TypeError(f"WheelLimits.feedforward must be Feedforward, got {ff!r}")
-            if ff is not None and not (ff.ks >= 0.0 and ff.kv > 0.0 and ff.ka > 0.0):
-                raise ValueError(f"WheelLimits.feedforward needs kS >= 0, kV > 0, kA > 0: {ff}")
+        wheel_feedforwards(self.max_voltage, self.feedforward)
 
     def feedforwards(self) -> tuple[Feedforward | None, Feedforward | None]:
         """``(left, right)``."""
-        ff = self.feedforward
-        return ff if isinstance(ff, tuple) else (ff, ff)
+        return wheel_feedforwards(self.max_voltage, self.feedforward)
 
 
 @dataclass(frozen=True, eq=False)
@@ -515,10 +503,11 @@ def settings(mppi: MPPI, plan: Plan):
     robot, limits, drive, dt = plan.robot, plan.limits, mppi.drive, mppi.dt
     to_wheels = batch.to_wheel_velocities(robot, np.array([[1.0, 0, 0], [0, 0, 1.0]]))
     to_body = batch.to_twist(robot, np.eye(2))  # (wheel, (forward, sideways, turn))
+    tau = _rolled_lag(drive)
     if drive.feedforward is not None:  # rolled out as its lag, static friction left out
-        tau, gain, step = drive.feedforward.ka / drive.feedforward.kv, 1.0, math.inf
+        gain, step = 1.0, math.inf
     else:
-        tau, gain, step = drive.time_constant, drive.gain, drive.max_acceleration * dt
+        gain, step = drive.gain, drive.max_acceleration * dt
     decay = math.exp(-dt / tau) if tau > 0 else 0.0
     voltage: WheelLimits | PathLimits = mppi.limits
     if voltage.max_voltage is None:
@@ -580,6 +569,12 @@ def settings(mppi: MPPI, plan: Plan):
         sigma_v=mppi.sigma[0],
         sigma_omega=mppi.sigma[1],
     )
+
+
+def _rolled_lag(drive: DriveModel) -> float:
+    """The lag's time constant (s) the rollouts use: a voltage-driven model's kA / kV."""
+    ff = drive.feedforward
+    return drive.time_constant if ff is None else ff.ka / ff.kv
 
 
 def _per_volt(gains: tuple[float, float, float], dt: float) -> float:

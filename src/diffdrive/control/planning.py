@@ -67,16 +67,7 @@ class PathLimits:
                 raise TypeError(f"{name} must be a number > 0 or None, got {value!r}")
             # NumPy's scalars are numbers too; text is not (positive refuses it by name).
             object.__setattr__(self, name, positive(name, value))
-        if (self.max_voltage is None) != (self.feedforward is None):
-            raise ValueError("max_voltage and feedforward go together: give both or neither")
-        for side, ff in zip(("left", "right"), self.feedforwards(), strict=True):
-            if ff is not None and not (ff.ks >= 0.0 and ff.kv > 0.0 and ff.ka > 0.0):
-                raise ValueError(f"the {side} feedforward needs kS >= 0, kV > 0, kA > 0: {ff}")
-            if ff is not None and self.max_voltage is not None and ff.ks >= self.max_voltage:
-                raise ValueError(
-                    f"max_voltage {self.max_voltage} V does not exceed the {side} wheel's kS "
-                    f"{ff.ks} V: the wheel could never start"
-                )
+        wheel_feedforwards(self.max_voltage, self.feedforward)
         if (
             self.max_velocity is None
             and self.max_wheel_velocity is None
@@ -88,13 +79,39 @@ class PathLimits:
 
     def feedforwards(self) -> tuple[Feedforward | None, Feedforward | None]:
         """``(left, right)``."""
-        ff = self.feedforward
-        return ff if isinstance(ff, tuple) else (ff, ff)
+        return wheel_feedforwards(self.max_voltage, self.feedforward)
 
     def array(self) -> np.ndarray:
         """The kernel's limits, inf for none."""
         values = [getattr(self, name) for name in _NUMBERS]
         return np.array([math.inf if value is None else float(value) for value in values])
+
+
+def wheel_feedforwards(
+    max_voltage: float | None, feedforward: object
+) -> tuple[Feedforward | None, Feedforward | None]:
+    """A voltage limit's ``feedforward`` (one ``Feedforward`` for both wheels, or ``(left,
+    right)``) as ``(left, right)``, checked: given with ``max_voltage`` or not at all, each
+    a ``Feedforward`` with kS >= 0, kV > 0 and kA > 0, and kS below the limit (else the wheel
+    could never start)."""
+    if (max_voltage is None) != (feedforward is None):
+        raise ValueError("max_voltage and feedforward go together: give both or neither")
+    pair = feedforward if isinstance(feedforward, tuple) else (feedforward, feedforward)
+    if len(pair) != 2:
+        raise ValueError(f"feedforward must be one Feedforward or (left, right), got {pair!r}")
+    for side, ff in zip(("left", "right"), pair, strict=True):
+        if ff is None:
+            continue
+        if not isinstance(ff, Feedforward):
+            raise TypeError(f"the {side} feedforward must be a Feedforward, got {ff!r}")
+        if not (ff.ks >= 0.0 and ff.kv > 0.0 and ff.ka > 0.0):
+            raise ValueError(f"the {side} feedforward needs kS >= 0, kV > 0, kA > 0: {ff}")
+        if max_voltage is not None and ff.ks >= max_voltage:
+            raise ValueError(
+                f"max_voltage {max_voltage} V does not exceed the {side} wheel's kS "
+                f"{ff.ks} V: the wheel could never start"
+            )
+    return pair[0], pair[1]
 
 
 # The numeric limits in the order of the kernel's indices (``_timing.VMAX`` ... ``VOLTAGE``).
