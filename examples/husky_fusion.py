@@ -3,11 +3,12 @@ with no noise figure set by hand: every setting comes from the log.
 
 - The gyro's noise and bias, identified from the log's standing stretches, and each heading's
   error as a filter and smoothed against GPS (positions, SE(2)-aligned ATE).
-- GPS across gaps: the fixes' white noise, their offset's wander, the wheels' distance scale
-  and the start, identified from the receiver's stream (``estimation.fixes``); then one fix in
-  every 0.8, 2, 5, 10, 20 and 50 s fused (the smoother, the offset a state) against the fixes
-  left out, beside interpolating the fixes used in time and the dead reckoning plus the used
-  fixes' residuals interpolated. The same identified from the thinned fixes alone.
+- GPS across gaps: one fix in every 0.8, 2, 4, 10, 20 and 50 s fused by the smoother with no
+  setting given (``WholeLog(fixes="identified")``: the fixes' noise, their offset's wander,
+  the wheels' distance scale and the start identified from the used fixes alone,
+  ``estimation.fixes``) against the fixes left out, beside interpolating the fixes used in
+  time, the dead reckoning plus the used fixes' residuals interpolated, and the smoother with
+  the settings identified from the receiver's whole stream.
 - The distance scale: the fit's, and the filter's distance-scale state; gyro-heading dead
   reckoning with the wheels so scaled.
 - How honest the gyro estimate's covariance is against the fixes (ANEES and the shares inside
@@ -24,6 +25,7 @@ from ``/imu/data`` (mounted with its y axis up: roll 90 degrees), the fixes from
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 
@@ -42,14 +44,17 @@ from diffdrive.estimation import (
     rotation_from_rpy,
 )
 from diffdrive.estimation import filter as ekf
-from diffdrive.evaluation import align, ate, interpolate
+from diffdrive.evaluation import align, ate, interpolate, through_fixes
 from diffdrive.io import ros
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "ros-bags"
 # A Husky's nominal geometry: 0.165 m wheels, 0.555 m between the wheel centres.
 HUSKY = dd.DiffDrive(wheel_radius=0.165, track_width=0.555)
 # One fix used every this many seconds (the receiver gives one every 0.4 s).
-GAPS = (0.8, 2.0, 5.0, 10.0, 20.0, 50.0)
+GAPS = (0.8, 2.0, 4.0, 10.0, 20.0, 50.0)
+# At this gap the smoother also runs with these white noises of the fixes (m), the rest as
+# identified from the used fixes.
+SWEPT, WHITES = 10.0, (0.001, 0.1, 0.3, 0.7)
 
 
 def read(bags: Path) -> dict:
@@ -110,11 +115,11 @@ def dead_reckoning(data: dict):
 
 def fix_gaps(data: dict) -> dict:
     """One fix used every ``GAPS`` s, the rest left out: the mean distance (m) to the fixes
-    left out of the smoother's fix (its position plus the offset), with the fixes' settings
-    identified from the receiver's whole stream and from the used fixes alone, of
-    interpolating the fixes used in time, and of the dead reckoning fitted onto the used fixes
-    plus their residuals interpolated (the bound of fusing with the wheels trusted between
-    fixes)."""
+    left out of the smoother's fix (its position plus the offset) with no setting given (what
+    the fixes are worth identified from the used fixes alone), of interpolating the fixes used
+    in time, of the dead reckoning fitted onto the used fixes plus their residuals
+    interpolated (the bound of fusing with the wheels trusted between fixes), and of the
+    smoother with the settings identified from the receiver's whole stream."""
     stamps, fixes, times = data["fix_times"], data["fixes"], data["times"]
     dead = dead_reckoning(data)
     fit = identify_fixes(times, dead.poses, stamps, fixes, reported=data["sigma"])
@@ -123,24 +128,36 @@ def fix_gaps(data: dict) -> dict:
         used = np.arange(len(stamps)) % round(gap / 0.4) == 0
         used[-1] = True
         left = ~used
-        whole = _smoothed(
-            data, left, fit.measurements(stamps[used], fixes[used]),
-            fit.settings(EstimatorSettings()), initial_pose=fit.start,
-            initial_covariance=fit.start_covariance,
-        )  # fmt: skip
-        row = {"smoothed": whole[0], "refused": whole[1], "used": int(used.sum())}
-        if used.sum() >= 10:  # enough to identify from the used fixes alone
-            alone = measurements_of("position", stamps[used], fixes[used], data["sigma"])
-            identified = EstimatorSettings(whole_log=WholeLog(fixes="identified"))
-            row["alone"] = _smoothed(data, left, alone, identified)[0]
-            row["alone_white"] = identify_fixes(times, dead.poses, stamps[used], fixes[used]).white
+        given = measurements_of("position", stamps[used], fixes[used], data["sigma"])
+        plain = EstimatorSettings(whole_log=WholeLog(fixes="identified"))
+        smoothed, refused = _smoothed(data, left, given, plain)
+        row = {"smoothed": smoothed, "refused": refused, "used": int(used.sum())}
+        alone = identify_fixes(times, dead.poses, stamps[used], fixes[used])
+        row["white"] = alone.white
+        if gap == SWEPT:  # the smoother with the white noise taken otherwise
+            row["sweep"] = {
+                white: _fitted(data, used, dataclasses.replace(alone, white=white))
+                for white in WHITES
+            }
+        row["whole"] = _fitted(data, used, fit)
         between = np.column_stack(
             [np.interp(stamps[left], stamps[used], fixes[used, i]) for i in (0, 1)]
         )
         row["interpolated"] = _away(between, fixes[left])
-        row["residuals"] = _away(_dead_plus_residuals(dead, data, used), fixes[left])
+        carried = through_fixes(times, dead.poses, stamps[used], fixes[used], stamps[left])
+        row["residuals"] = _away(carried, fixes[left])
         rows[gap] = row
     return {"fit": fit, "rows": rows}
+
+
+def _fitted(data: dict, used: np.ndarray, fit) -> float:
+    """The smoother's mean distance (m) to the fixes left out, the ``used`` fixes' settings
+    those of ``fit`` (a ``FixFit``)."""
+    stamps, fixes = data["fix_times"][used], data["fixes"][used]
+    return _smoothed(
+        data, ~used, fit.measurements(stamps, fixes), fit.settings(EstimatorSettings()),
+        initial_pose=fit.start, initial_covariance=fit.start_covariance,
+    )[0]  # fmt: skip
 
 
 def _away(points: np.ndarray, fixes: np.ndarray) -> float:
@@ -161,22 +178,6 @@ def _smoothed(
     at = np.column_stack([np.interp(stamps, times, run.states[:, k]) for k in range(ekf.N)])
     placed = at[:, :2] + at[:, ekf.OFFSET : ekf.OFFSET + 2]
     return _away(placed, data["fixes"][left]), run.rejected
-
-
-def _dead_plus_residuals(dead, data: dict, used: np.ndarray) -> np.ndarray:
-    """The dead reckoning moved onto the used fixes by the rigid motion that best fits them,
-    plus their residuals interpolated in time, at the fixes left out ``(L, 2)``."""
-    stamps, fixes = data["fix_times"], data["fixes"]
-    path = interpolate(data["times"], dead.poses, stamps)
-    flat = np.column_stack([path[:, :2], np.zeros(len(path))])
-    fitted = align(flat[used], np.column_stack([fixes[used], np.zeros(int(used.sum()))]))
-    moved = batch.compose(fitted[0], batch.inverse(flat[used][0]))
-    carried = batch.compose(np.broadcast_to(moved, flat.shape), flat)[:, :2]
-    left = ~used
-    residual = np.column_stack(
-        [np.interp(stamps[left], stamps[used], (fixes - carried)[used, i]) for i in (0, 1)]
-    )
-    return carried[left] + residual
 
 
 def distance_scale(data: dict, fit) -> dict:
@@ -263,18 +264,22 @@ def main(argv: list[str] | None = None) -> None:
     for line in gaps["fit"].report:
         print(f"  {line}")
     print(
-        "one fix used every g s: mean distance (m) to the fixes left out, smoothed | "
-        "interpolating the used fixes | dead reckoning plus their residuals | smoothed, "
-        "identified from the used fixes alone"
+        "one fix used every g s, no setting given: mean distance (m) to the fixes left out, "
+        "smoothed (the white noise taken) | interpolating the used fixes | dead reckoning plus "
+        "their residuals | smoothed with the whole stream's settings"
     )
     for gap, row in gaps["rows"].items():
-        alone = f"{row['alone']:.3f} (white {row['alone_white']:.2f} m)" if "alone" in row else "-"
         print(
             f"  {gap:g} s ({row['used']} used, {row['refused']} refused): "
-            f"{row['smoothed']:.3f} | {row['interpolated']:.3f} "
+            f"{row['smoothed']:.3f} (white {row['white']:.3f} m) | {row['interpolated']:.3f} "
             f"({row['smoothed'] / row['interpolated']:.3f}x) | {row['residuals']:.3f} "
-            f"({row['smoothed'] / row['residuals']:.3f}x) | {alone}"
+            f"({row['smoothed'] / row['residuals']:.3f}x) | {row['whole']:.3f}"
         )
+    sweep = gaps["rows"][SWEPT]["sweep"]
+    print(
+        f"at {SWEPT:g} s, the smoother with the fixes' white noise taken as "
+        + ", ".join(f"{white:g} m: {away:.3f}" for white, away in sweep.items())
+    )
     scale = distance_scale(data, gaps["fit"])
     (fitted, error, fitted_ate), (state, sigma, state_ate) = scale["fit"], scale["state"]
     print(

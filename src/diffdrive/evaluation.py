@@ -26,6 +26,8 @@
 - ``associate`` pairs the poses of two trajectories by time, as evo does (nearest stamp
   within ``max_diff``, after shifting one by ``offset``); ``interpolate`` samples a trajectory
   at given times along the arc between its poses (the SE(2) geodesic).
+- ``through_fixes``: the baseline a fusion of sparse position fixes must beat, the dead
+  reckoning fitted onto the fixes plus their residuals interpolated in time between them.
 
 Trajectories are pose arrays ``(T+1, 3)`` ``[x, y, theta]`` sampled at the same times; all
 inputs must be finite.
@@ -57,6 +59,7 @@ __all__ = [
     "path_errors",
     "rpe",
     "run_errors",
+    "through_fixes",
     "worst",
 ]
 
@@ -287,6 +290,32 @@ def interpolate(times: object, poses: object, at: object) -> np.ndarray:
         return poses[step] + fraction[:, None] * (poses[step + 1] - poses[step])
     motion = batch.log(batch.relative_to(poses[step + 1], poses[step]))
     return batch.compose(poses[step], batch.exp(motion, fraction))
+
+
+def through_fixes(
+    times: object, poses: object, fix_times: object, fixes: object, at: object
+) -> np.ndarray:
+    """Positions ``(L, 2)`` m at the stamps ``at`` ``(L,)`` s (inside the fixes' span) of the
+    dead reckoning ``poses`` ``(N, 3)`` at ``times`` ``(N,)`` s moved onto position ``fixes``
+    ``(M, 2)`` at ``fix_times`` ``(M,)`` s by the rigid motion that best fits them, plus the
+    fixes' residuals from it interpolated in time: the path passes through every fix and keeps
+    the dead reckoning's shape between them. What fusing sparse fixes with wheels trusted
+    between them gives at best, and what a smoother across gaps must not do worse than."""
+    fix_times, fixes = floats("fix_times", fix_times), floats("fixes", fixes)
+    if fixes.shape != (len(fix_times), 2) or len(fix_times) < 2:
+        raise ValueError(
+            f"fix_times (M,) and fixes (M, 2) with M >= 2 must match, got {fix_times.shape} "
+            f"and {fixes.shape}"
+        )
+    increasing("fix_times", fix_times)
+    stamps = np.concatenate([fix_times, np.asarray(at, dtype=float)])
+    path = interpolate(times, poses, stamps)
+    flat = np.column_stack([path[:, :2], np.zeros(len(path))])
+    seen = np.column_stack([fixes, np.zeros(len(fixes))])
+    carried = batch.compose(alignment(flat[: len(fixes)], seen), flat)[:, :2]
+    residual = fixes - carried[: len(fixes)]
+    between = np.column_stack([np.interp(stamps[len(fixes) :], fix_times, r) for r in residual.T])
+    return carried[len(fixes) :] + between
 
 
 def interpolate_covariances(times: object, covariances: object, at: object) -> np.ndarray:

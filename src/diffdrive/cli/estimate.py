@@ -396,7 +396,7 @@ a part (heading=gyro, bias=0.002, method=rk2) or a part's field (gate.probabilit
 gate.outliers=inflate, turn_scale.sigma=0.05, fix_offset.rate=0.01, slip.threshold=20,
 whole_log.slip_episodes=false), or a TOML file of them, a part's fields in a table of its
 name ([gate] probability = 0.99). What is not given keeps the library's default; --fixes says
-what the fixes are worth (identified from 10 or more --gps-topic fixes by default; a gate
+what the fixes are worth (identified from {LEAST_FIXES} or more --gps-topic fixes by default; a gate
 beside identified fixes inflates its outliers)."""
 
 
@@ -464,8 +464,8 @@ def add_to(command: Command, parents: Parents) -> None:
         "--fixes",
         choices=("identified", "given"),
         help="what position fixes are worth: identified from the fixes themselves (white noise, "
-        "the offset's wander, the wheels' distance scale, the start; the default for 10 or more "
-        "--gps-topic fixes) or given (their covariance, white; the default for a table's)",
+        f"the offset's wander, the wheels' distance scale, the start; the default for {LEAST_FIXES} "
+        "or more --gps-topic fixes) or given (their covariance, white; the default for a table's)",
     )
     est.add_argument(
         "--smooth",

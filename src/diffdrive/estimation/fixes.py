@@ -16,10 +16,20 @@ way ``estimate_trajectory``'s fix offset state takes it (``diffdrive.estimation.
   do a mean of squares, and the line through it gives ``w^2`` and ``q``.
 
 The dead reckoning's own drift lands in the wander too: the offset then carries what the
-wheels and gyro got wrong between fixes as well, which is what a smoother needs of it. What is
-identified is what the fixes show at their own spacing: fixes far apart (one every 10 s) see
-neither the receiver's short jumps nor how smoothly it wanders between them, and take more of
-their spread as white noise; identify on the receiver's whole stream where there is one.
+wheels and gyro got wrong between fixes as well, which is what a smoother needs of it.
+
+Fixes far apart cannot tell white noise from wander: their first lag already spans more time
+than a receiver's white noise shows apart from its wander in (``SPAN``), and a wander that
+bends back (a receiver's multipath, the dead reckoning's own errors over tens of seconds)
+reads there as white noise. On the Husky, one fix every 10 s gives a line through 0.69 m of
+white noise where the receiver's whole stream shows 0.001 m, and the smoother that believes it
+places the fixes left out 30 % worse than one that does not. So where fewer than two lags fall
+within ``SPAN`` the white noise is held at a stated prior, ``WHITE_PRIOR`` (a receiver's fixes
+come out of its own filter and are smooth from one to the next: centimetres to a decimetre),
+and the wander is the line through that intercept. Were the fixes' noise white after all, the
+smoother passes close to each fix rather than averaging them: as good as interpolating them,
+not better. As few as ``LEAST_FIXES`` fixes are taken: the fit of four numbers leaves a
+residual, and the wander is what the lags there show.
 """
 
 from __future__ import annotations
@@ -35,14 +45,15 @@ from diffdrive.estimation.settings import EstimatorSettings, FixOffset, Gate, Pr
 
 __all__ = ["FixFit", "identify_fixes"]
 
-# The fewest fixes to identify anything from: a fit of 4 numbers, then a line through the
-# variogram at LAGS lags.
-LEAST_FIXES = 10
+# The fewest fixes to identify anything from: a fit of 4 numbers leaves a residual from 3.
+LEAST_FIXES = 3
 # The variogram's lags: from one fix to LAGS fixes or SPAN seconds, whichever is more (fixes
 # at 100 Hz five apart span too little time to show a wander), LAG_COUNT of them at most.
 LAGS, SPAN, LAG_COUNT = 5, 2.5, 8
 # The white noise's floor, m: a fix is never taken as exact.
 WHITE_FLOOR = 1e-3
+# The white noise held where the fixes are too far apart to show it (see the module), m.
+WHITE_PRIOR = 0.1
 # The wander's floor, m/sqrt(s): the offset state stays on.
 WANDER_FLOOR = 1e-4
 # The gate for identified fixes (a probability): wide, with outliers inflated.
@@ -129,8 +140,9 @@ def identify_fixes(
     times, poses, fix_times, fixes = _checked(times, poses, fix_times, fixes)
     if len(fix_times) < LEAST_FIXES:
         raise ValueError(
-            f"{len(fix_times)} position fixes: at least {LEAST_FIXES} are needed to identify "
-            "their noise (give the fixes' covariance, a FixOffset, and WholeLog(fixes='given'))"
+            f"{len(fix_times)} position fixes: at least {LEAST_FIXES} are needed to fit the dead "
+            "reckoning onto them and see what is left (give the fixes' covariance, a FixOffset, "
+            "and WholeLog(fixes='given'))"
         )
     along = np.column_stack([np.interp(fix_times, times, poses[:, i]) for i in (0, 1)])
     z, seen = along @ (1.0, 1j), fixes @ (1.0, 1j)
@@ -154,11 +166,14 @@ def identify_fixes(
     spacing = float(np.median(np.diff(fix_times)))
     reach = max(LAGS, round(SPAN / spacing) if spacing > 0.0 else LAGS)
     short = np.unique(np.round(np.geomspace(1, reach, LAG_COUNT)).astype(int))
-    white, wander = _variogram_line(fix_times, flat, short)
+    # See the module: two lags within SPAN to tell white noise from wander, and fixes enough.
+    told = 2.0 * spacing <= SPAN and np.count_nonzero(short <= len(fix_times) // 2) >= 2
+    held = None if told else WHITE_PRIOR
+    white, wander = _variogram_line(fix_times, flat, short, held)
     # The fit's errors see the whole log: the wander over lags up to a quarter of it too.
     longest = max(len(fix_times) // 4, 2)
     lags = np.unique(np.geomspace(1, longest, 10).astype(int))
-    slow = _variogram_line(fix_times, flat, lags)[1]
+    slow = _variogram_line(fix_times, flat, lags, held)[1]
     fitted, rotation = abs(turn), float(np.angle(turn))
     scale_error, heading_sigma = _fit_errors(fix_times, z, turn, white, max(wander, slow))
     # A scale the fit cannot tell from 1 (within two standard errors) is left at 1.
@@ -168,11 +183,20 @@ def identify_fixes(
     start = np.array([first.real, first.imag, poses[0, 2] + rotation])
     covariance = np.diag([white * white, white * white, heading_sigma * heading_sigma])
     quoted = "" if reported is None else f" (the receiver reports {reported:.3g} m)"
+    shown = min(int(short[-1]), len(fix_times) // 2)
+    source = (
+        f"the robust variogram of the {len(fixes)} fixes' residuals from the dead reckoning "
+        f"fitted onto them, at lags of 1 to {shown} fixes ({shown * spacing:.3g} s)"
+    )
+    if held is not None:
+        source = (
+            f"the white noise held at its prior: {len(fixes)} fixes {spacing:.3g} s apart "
+            f"cannot tell it from the wander (that takes two lags within {SPAN:g} s); the "
+            f"wander from {source}"
+        )
     report = (
         f"fixes: white noise {white:.3g} m each axis{quoted}, their offset wandering "
-        f"{wander:.3g} m/sqrt(s): the robust variogram of the {len(fixes)} fixes' residuals "
-        f"from the dead reckoning fitted onto them, at lags of 1 to {short[-1]} fixes "
-        f"({short[-1] * spacing:.3g} s)",
+        f"{wander:.3g} m/sqrt(s): {source}",
         f"distance scale {scale:.4f}: "
         + (
             f"the dead reckoning's scale fitted onto the fixes, +- {scale_error:.4f}"
@@ -225,12 +249,12 @@ def _fit_errors(
 
 
 def _variogram_line(
-    stamps: np.ndarray, residuals: np.ndarray, lags: np.ndarray
+    stamps: np.ndarray, residuals: np.ndarray, lags: np.ndarray, white: float | None = None
 ) -> tuple[float, float]:
     """The white noise (m) and random walk (m/sqrt(s)) of residuals ``(M, 2)`` at ``stamps``
     ``(M,)``: the line ``w^2 + q tau / 2`` through their robust semivariogram (each axis,
     averaged) at ``lags`` (in fixes; those past half the fixes left out), by least squares
-    (see the module)."""
+    (see the module); ``white`` (m): the intercept held there, only the slope fitted."""
     taus, values = [], []
     for lag in lags[lags <= len(stamps) // 2]:
         steps = residuals[lag:] - residuals[:-lag]
@@ -238,7 +262,11 @@ def _variogram_line(
         robust = np.mean(np.sqrt(np.abs(steps)), axis=0) ** 4 / (0.457 + 0.494 / n) / 2.0
         taus.append(float(np.mean(stamps[lag:] - stamps[:-lag])))
         values.append(float(np.mean(robust)))
-    design = np.column_stack([np.ones(len(taus)), taus])
-    (white2, half_rate), *_ = np.linalg.lstsq(design, np.array(values), rcond=None)
-    white = max(math.sqrt(max(float(white2), 0.0)), WHITE_FLOOR)
-    return white, max(math.sqrt(max(2.0 * float(half_rate), 0.0)), WANDER_FLOOR)
+    tau, value = np.array(taus), np.array(values)
+    if white is not None:
+        half_rate = float(tau @ (value - white * white) / (tau @ tau))
+        return white, max(math.sqrt(max(2.0 * half_rate, 0.0)), WANDER_FLOOR)
+    design = np.column_stack([np.ones(len(taus)), tau])
+    (white2, half_rate), *_ = np.linalg.lstsq(design, value, rcond=None)
+    found = max(math.sqrt(max(float(white2), 0.0)), WHITE_FLOOR)
+    return found, max(math.sqrt(max(2.0 * float(half_rate), 0.0)), WANDER_FLOOR)
