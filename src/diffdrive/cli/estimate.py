@@ -464,8 +464,9 @@ def add_to(command: Command, parents: Parents) -> None:
         "--fixes",
         choices=("identified", "given"),
         help="what position fixes are worth: identified from the fixes themselves (white noise, "
-        f"the offset's wander, the wheels' distance scale, the start; the default for {LEAST_FIXES} "
-        "or more --gps-topic fixes) or given (their covariance, white; the default for a table's)",
+        "the offset's wander, the wheels' distance scale, the start; the default for "
+        f"{LEAST_FIXES} or more --gps-topic fixes) or given (their covariance, white; the "
+        "default for a table's)",
     )
     est.add_argument(
         "--smooth",
