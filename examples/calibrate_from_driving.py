@@ -5,10 +5,12 @@
 its ``/fix`` positions and its IMU's yaw rate (30 Hz), no noise figure given: the wheels' and
 the fixes' noise identified from the drive (``identify_noise``), the gyro's from the log's
 standing stretch; what the log does not determine (``UndeterminedError``) left out, and
-why. It prints the calibration's report, the wheels' distance scale, the gyro's clock
-against the wheels, and the gyro-heading dead reckoning's SE(2)-aligned ATE against the
-fixes (m) with the nominal wheels, the calibrated ones, and those with the gyro's clock
-corrected, all over the same span.
+why. It prints the calibration's report, the gyro's clock against the wheels, the
+estimator's settings the calibration gives in one call (``estimator_settings``: the wheels'
+scales, the gyro's bias, clock and scale, the antenna's lever arm), and the gyro-heading dead
+reckoning's SE(2)-aligned ATE against the fixes (m) with the nominal wheels, the calibrated
+ones, and the nominal ones with the estimator started from the calibration, all over the
+same span.
 
     python examples/calibrate_from_driving.py [--bags ../shared/data/ros-bags]
 """
@@ -27,7 +29,7 @@ from diffdrive.calibration.reference import (
     calibrate_to_reference,
     estimable,
 )
-from diffdrive.estimation import EstimatorSettings, Gyro, estimate_trajectory
+from diffdrive.estimation import EstimatorSettings, estimate_trajectory
 from diffdrive.estimation.standing import warm_up
 from diffdrive.sensor_noise import DEFAULT
 
@@ -63,16 +65,20 @@ def calibrated(data: dict):
                 start = dict(sigma=found_noise["reference"], wheel_noise=found_noise["wheels"])
 
 
-def dead_reckoning_ate(data: dict, robot: dd.DiffDrive, gyro: Gyro, span) -> float:
+def dead_reckoning_ate(
+    data: dict, robot: dd.DiffDrive, span, settings: EstimatorSettings | None = None
+) -> float:
     """The gyro-heading dead reckoning's SE(2)-aligned ATE against the fixes inside ``span``
-    (the wheel indices ``first, last``), m."""
+    (the wheel indices ``first, last``), m; ``settings``: the estimator's, its heading made
+    the gyro's."""
     from husky_fusion import against_gps
 
     first, last = span
     times = data["times"][first : last + 1]
+    settings = (settings or EstimatorSettings()).replace(heading="gyro")
     run = estimate_trajectory(
-        robot, times, data["increments"][first:last], gyro=gyro,
-        settings=EstimatorSettings("gyro"), initial_pose=data["start"], smooth=False,
+        robot, times, data["increments"][first:last], gyro=data["gyro"], settings=settings,
+        initial_pose=data["start"], smooth=False,
     )  # fmt: skip
     inside = (data["fix_times"] >= times[0]) & (data["fix_times"] <= times[-1])
     part = {"times": times, "fix_times": data["fix_times"][inside], "fixes": data["fixes"][inside]}
@@ -97,24 +103,31 @@ def main(argv: list[str] | None = None) -> None:
     print(f"calibration (chi-square per degree of freedom {found.chi2:.2f}):")
     for line in found.report:
         print(f"  {line}")
-    radius = 0.5 * (found.value("left_radius") + found.value("right_radius"))
-    errors = found.standard_errors()
-    spread = 0.5 * np.hypot(errors["left_radius"], errors["right_radius"])
-    print(f"distance scale {radius / HUSKY.wheel_radius:.4f} +- {spread / HUSKY.wheel_radius:.4f}")
-    offset, offset_error = found.value("gyro_offset"), errors["gyro_offset"]
+    offset, offset_error = found.value("gyro_offset"), found.standard_errors()["gyro_offset"]
     print(f"gyro clock against the wheels {offset:.3f} +- {offset_error:.3f} s")
-    gyro = data["gyro"]
-    shifted = Gyro(gyro.times - offset, gyro.rates)  # on the wheels' clock
+    # The span the gyro covers once on the wheels' clock, for every run alike.
+    shifted = data["gyro"].calibrated(offset)
     kept = np.flatnonzero(
         (data["times"] >= shifted.times[0]) & (data["times"] <= shifted.times[-1])
     )
     span = (int(kept[0]), int(kept[-1]))
-    wheels = found.robot
-    nominal = dead_reckoning_ate(data, HUSKY, gyro, span)
-    scaled = dead_reckoning_ate(data, wheels, gyro, span)
-    timed = dead_reckoning_ate(data, wheels, shifted, span)
+    nominal = dead_reckoning_ate(data, HUSKY, span)
+    scaled = dead_reckoning_ate(data, found.robot, span)
+    # The whole calibration in the estimator's settings, the nominal robot given.
+    started = found.estimator_settings(HUSKY)
+    sensors = started.sensors
+    print(
+        f"the estimator's settings from it (one call), for the nominal robot: distance scale "
+        f"{started.distance.start:.4f} +- {started.distance.sigma:.4f}, turn scale "
+        f"{started.turn_scale.start:.4f} +- {started.turn_scale.sigma:.4f}, bias "
+        f"{started.bias_start:.3g} rad/s, gyro clock {sensors.gyro_offset:.3f} s and scale "
+        f"{sensors.gyro_scale:.4f}, lever arm ({sensors.lever_arm[0]:.3f}, "
+        f"{sensors.lever_arm[1]:.3f}) m"
+    )
+    timed = dead_reckoning_ate(data, HUSKY, span, started)
     print(f"gyro-heading ATE: nominal wheels {nominal:.3f} m, calibrated wheels {scaled:.3f} m, "
-          f"and the gyro's clock corrected {timed:.3f} m (target at most 2.62 m)")  # fmt: skip
+          f"and the estimator started from the calibration {timed:.3f} m (target at most "
+          "2.62 m)")  # fmt: skip
 
 
 if __name__ == "__main__":

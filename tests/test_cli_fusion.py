@@ -358,7 +358,8 @@ def test_gps_fixes_without_a_covariance_are_identified_or_refused_by_name(
 ):
     """Fixes that come without a covariance (a NavSatFix with none): identified from
     themselves, and the command says so; too few to identify, or given, it names what to give
-    and writes nothing."""
+    and writes nothing. Six fixes 4 s apart are enough, their white noise held at its prior;
+    two are not."""
     pytest.importorskip("rosbags")
     monkeypatch.chdir(tmp_path)
     joints = ["--left-joint", "left_wheel_joint", "--right-joint", "right_wheel_joint"]
@@ -374,11 +375,15 @@ def test_gps_fixes_without_a_covariance_are_identified_or_refused_by_name(
     assert "fixes identified" in printed
     assert main([*base, "520", "--fixes", "given", "-o", "given.csv"]) == 1
     assert "has no positive definite covariance: give --gps-sigma M" in capsys.readouterr().err
-    synth = ["synth", "--gps", "48.1", "11.6", "520", "--pose-period", "4", "--seed", "4"]
-    assert main([*synth, "-o", "few.mcap", "-q"]) == 0
+    synth = ["synth", "--gps", "48.1", "11.6", "520", "--seed", "4"]
+    assert main([*synth, "--pose-period", "4", "-o", "sparse.mcap", "-q"]) == 0
+    sparse = ["odometry", "sparse.mcap", *joints, "--gps-topic", "/fix", "-o", "sparse.csv"]
+    assert main(sparse) == 0  # 6 fixes 4 s apart: identified, their white noise at its prior
+    assert "white noise held at its prior: 6 fixes 4 s apart" in capsys.readouterr().out
+    assert main([*synth, "--pose-period", "15", "-o", "few.mcap", "-q"]) == 0
     few = ["odometry", "few.mcap", *joints, "--gps-topic", "/fix", "-o", "few.csv"]
     assert main(few) == 1
-    assert "6 fixes are too few to identify their noise from (at least 10): give --gps-sigma" in (
+    assert "2 fixes are too few to identify their noise from (at least 3): give --gps-sigma" in (
         capsys.readouterr().err
     )
     assert not (tmp_path / "few.csv").exists()

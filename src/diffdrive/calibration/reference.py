@@ -44,6 +44,7 @@ before any fit.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -62,6 +63,7 @@ from diffdrive.calibration._reference_model import (
 )
 from diffdrive.calibration._reference_noise import UNDETERMINED, IdentifiedNoise, identify
 from diffdrive.estimation.imu import Gyro
+from diffdrive.estimation.settings import EstimatorSettings, Prior
 from diffdrive.integrate import Method, check_method
 from diffdrive.model import DiffDrive, geometry_of
 from diffdrive.sensor_noise import DEFAULT, GyroNoise, WheelNoise
@@ -149,6 +151,69 @@ class ReferenceCalibration:
         """The estimated parameters' correlation matrix ``(E, E)``."""
         spread = np.sqrt(np.diag(self.covariance))
         return self.covariance / np.outer(spread, spread)
+
+    def estimator_settings(
+        self, robot: DiffDrive, given: EstimatorSettings | None = None
+    ) -> EstimatorSettings:
+        """``given`` (default ``EstimatorSettings()``) started from this calibration, for an
+        estimator that runs with ``robot`` (``self.robot``, or the geometry it was started
+        from): the wheels' ``distance_scale`` and ``turn_scale``, the calibrated geometry's
+        against ``robot``'s (1 for ``self.robot``), each a ``Prior`` whose spread is its
+        standard error; the gyro's ``bias``; and ``sensors``, a ``SensorCalibration`` of the
+        gyro's clock and scale and the reference sensor's clock, lever arm and yaw. What the
+        calibration did not estimate is left as ``given`` has it. ``ValueError`` where
+        ``robot``'s wheels differ left from right otherwise than the calibration's by more
+        than two standard errors: scales carry no such difference (run with ``self.robot``)."""
+        given = settings_of(given, EstimatorSettings)
+        full = np.zeros((len(PARAMETERS), len(PARAMETERS)))
+        at = [PARAMETERS.index(name) for name in self.estimated]
+        full[np.ix_(at, at)] = self.covariance
+        left, right, track = self.values[:3]
+        ours = geometry_of(robot)[:3]
+
+        def spread(gradient: dict[str, float]) -> float:
+            g = np.zeros(len(PARAMETERS))
+            for name, value in gradient.items():
+                g[PARAMETERS.index(name)] = value
+            return float(np.sqrt(g @ full @ g))
+
+        ratio = (right / left) / (ours[1] / ours[0])
+        error = spread({"left_radius": -ratio / left, "right_radius": ratio / right})
+        if abs(ratio - 1.0) > 2.0 * error:
+            raise ValueError(
+                f"the calibrated wheels differ right from left by {ratio - 1.0:+.3%} against "
+                f"the robot's (+- {error:.2%}), which the estimator's scales cannot carry: run "
+                "it with the calibration's robot"
+            )
+        mean = ours[0] + ours[1]
+        distance = (left + right) / mean
+        turn = ((left + right) / track) / (mean / ours[2])
+        by_radius = turn / (left + right)
+        changes: dict[str, object] = {
+            "distance_scale": Prior(
+                distance, spread({"left_radius": 1.0 / mean, "right_radius": 1.0 / mean})
+            ),
+            "turn_scale": Prior(
+                turn,
+                spread(
+                    {"left_radius": by_radius, "right_radius": by_radius, "track": -turn / track}
+                ),
+            ),
+        }
+        estimated = set(self.estimated)
+        scale = self.value("gyro_scale") if "gyro_scale" in estimated else 0.0
+        if "gyro_bias" in estimated:
+            changes["bias"] = self.value("gyro_bias") / (1.0 + scale)  # on the wheels' scale
+        # SensorCalibration's fields are the parameters' own names.
+        found: dict[str, Any] = {
+            name: self.value(name) for name in ("gyro_offset", "offset", "yaw") if name in estimated
+        }
+        if "gyro_scale" in estimated:
+            found["gyro_scale"] = scale
+        if {"lever_x", "lever_y"} & estimated:
+            found["lever_arm"] = (self.value("lever_x"), self.value("lever_y"))
+        changes["sensors"] = dataclasses.replace(given.sensors, **found)
+        return given.replace(**changes)
 
 
 def _checked(times, increments, stamps, reference, sigma, gyro, least=LEAST_READINGS) -> tuple:

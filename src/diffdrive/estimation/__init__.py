@@ -4,7 +4,7 @@
   core in C, ``diffdrive.backends``);
 - ``settings``: ``EstimatorSettings``, everything the pose estimator is set up with, one value
   of small checked parts (``Prior``, ``FixOffset``, ``Gate``, ``SlipTest``, ``Window``,
-  ``Encoders``, ``WholeLog``);
+  ``Encoders``, ``SensorCalibration``, ``WholeLog``);
 - ``fusion``: ``PoseEstimator``, one extended Kalman filter for wheels, a gyro and absolute
   measurements that arrive late (``measurements``: ``Measurement``), on ``filter``'s step;
 - ``smoother``: ``estimate_trajectory``, a whole log forward and a Rauch-Tung-Striebel smoother
@@ -53,6 +53,7 @@ _NAMES = {
             "FixOffset",
             "Gate",
             "Prior",
+            "SensorCalibration",
             "SlipTest",
             "WholeLog",
             "Window",
@@ -80,6 +81,7 @@ __all__ = [
     "PoseEstimator",
     "Prior",
     "RefusedUpdateError",
+    "SensorCalibration",
     "SlipTest",
     "StandingFit",
     "WholeLog",
@@ -114,6 +116,7 @@ if TYPE_CHECKING:  # what the names are, for type checkers
         FixOffset,
         Gate,
         Prior,
+        SensorCalibration,
         SlipTest,
         WholeLog,
         Window,

@@ -78,6 +78,14 @@ class _EstimatorMethods(_Base):
     ) -> None:
         check_robot(robot)
         settings = settings_of(settings, EstimatorSettings)
+        if settings.sensors.gyro_calibrated:
+            raise ValueError(
+                "a streaming estimator takes each interval's gyro angle as given, so it cannot "
+                "move the gyro onto the wheels' clock or scale (SensorCalibration.gyro_offset "
+                f"{settings.sensors.gyro_offset:g} s, gyro_scale {settings.sensors.gyro_scale:g}): "
+                "integrate the readings of Gyro.calibrated(offset, scale), or run the whole log "
+                "through estimate_trajectory"
+            )
         self.robot, self.settings, self.heading = robot, settings, settings.heading
         encoders = settings.encoders
         wheels = Odometry(
@@ -192,6 +200,8 @@ class _EstimatorMethods(_Base):
         """A pose ``(x, y, theta)`` (m, m, rad) measured at stamp ``t`` (s), ``covariance`` 3x3
         or 3 standard deviations; True if the gate took it (False also while it waits for
         the wheels)."""
+        if self.settings.sensors.measurements_calibrated:  # moved by the calibration found
+            return self.add(Measurement.make("pose", t, pose, covariance, lever_arm))
         taken = self._add_fast(0, t, pose, covariance, lever_arm)
         if taken is None:  # anything but plain numbers: checked, and named if wrong
             taken = self._add(Measurement.make("pose", t, pose, covariance, lever_arm))
@@ -200,6 +210,8 @@ class _EstimatorMethods(_Base):
     def add_position(self, t, position, covariance, lever_arm=None) -> bool:
         """A position ``(x, y)`` (m) measured at stamp ``t`` (s), ``covariance`` 2x2, 2 or 1
         standard deviations; True if the gate took it."""
+        if self.settings.sensors.measurements_calibrated:
+            return self.add(Measurement.make("position", t, position, covariance, lever_arm))
         taken = self._add_fast(1, t, position, covariance, lever_arm)
         if taken is None:
             taken = self._add(Measurement.make("position", t, position, covariance, lever_arm))
@@ -208,6 +220,8 @@ class _EstimatorMethods(_Base):
     def add_heading(self, t, heading, sigma) -> bool:
         """A heading (rad) measured at stamp ``t`` (s) with standard deviation ``sigma``
         (rad); True if the gate took it."""
+        if self.settings.sensors.measurements_calibrated:
+            return self.add(Measurement.make("heading", t, [heading], sigma))
         taken = self._add_fast(2, t, heading, sigma, None)
         if taken is None:
             taken = self._add(Measurement.make("heading", t, [heading], sigma))
@@ -217,7 +231,7 @@ class _EstimatorMethods(_Base):
         """A ``Measurement`` made elsewhere (``Measurement.make``)."""
         if not isinstance(measurement, Measurement):
             raise TypeError(f"measurement must be a Measurement, got {type(measurement).__name__}")
-        return self._add(measurement)
+        return self._add(self.settings.sensors.placed(measurement))
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.robot!r}, {self.heading!r}, pose={self.pose!r})"

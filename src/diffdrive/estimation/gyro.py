@@ -20,7 +20,7 @@ from diffdrive._validate import positive, settings_of
 from diffdrive.estimation.fusion import HEADINGS, GyroNoise, PoseEstimator
 from diffdrive.estimation.imu import Gyro, rotation_from_rpy
 from diffdrive.estimation.settings import EstimatorSettings
-from diffdrive.estimation.smoother import checked_log, estimate_trajectory
+from diffdrive.estimation.smoother import calibrated_log, estimate_trajectory
 from diffdrive.estimation.standing import identify_standing
 from diffdrive.model import Robot
 from diffdrive.types import Pose
@@ -114,7 +114,9 @@ def gyro_odometry(
     if not isinstance(gyro, Gyro):
         raise TypeError(f"gyro must be a Gyro (Gyro, Gyro.from_imu), got {type(gyro).__name__}")
     settings = settings_of(settings, EstimatorSettings)
-    times, increments, turned, commanded = checked_log(times, increments, gyro, commanded)
+    times, increments, turned, commanded = calibrated_log(
+        times, increments, gyro, commanded, settings.sensors
+    )
     assert turned is not None  # a gyro was given
     if (
         settings.heading == "gyro"

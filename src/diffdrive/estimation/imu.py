@@ -116,6 +116,14 @@ class Gyro:
             rates = np.diff(yaw) / np.diff(times)
         return cls(times, np.concatenate([rates, rates[-1:]]), max_gap, yaw)
 
+    def calibrated(self, offset: float = 0.0, scale: float = 0.0) -> Gyro:
+        """The stream on the wheels' clock and scale: a gyro whose reading taken at ``t`` on
+        the wheels' clock is stamped ``t + offset`` (s), and that reads ``(1 + scale)`` times
+        the turn rate (``calibrate_to_reference``'s ``gyro_offset`` and ``gyro_scale``)."""
+        turn = 1.0 / (1.0 + scale)
+        yaw = None if self.yaw is None else self.yaw * turn
+        return Gyro(self.times - offset, self.rates * turn, self.max_gap, yaw)
+
     def angles(self, at: np.ndarray) -> np.ndarray:
         """The angle turned (rad) from ``times[0]`` to each time ``at`` ``(N,)``, the rate linear
         between samples; every time must lie within the gyro's span."""

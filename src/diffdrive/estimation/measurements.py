@@ -26,7 +26,13 @@ from diffdrive._stats import chi2_quantile
 from diffdrive._validate import finite, floats
 from diffdrive.evaluation import align, interpolate
 
-__all__ = ["MEASUREMENT_KINDS", "Measurement", "chi2_quantile", "measurements_of", "start_in_frame"]
+__all__ = [
+    "MEASUREMENT_KINDS",
+    "Measurement",
+    "chi2_quantile",
+    "measurements_of",
+    "start_in_frame",
+]
 
 MeasurementKind = Literal["pose", "position", "heading"]
 MEASUREMENT_KINDS: tuple[MeasurementKind, ...] = ("pose", "position", "heading")

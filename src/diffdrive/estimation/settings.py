@@ -28,6 +28,9 @@ changes a part, checked again. The parts:
   None (default): the identity;
 - ``encoders``: the wheel readings' ``Encoders`` (counts per revolution, counter width, top
   speed), as ``Odometry`` takes them;
+- ``sensors``: what a calibration found of the other sensors (``SensorCalibration``): the
+  gyro's clock and scale, the absolute measurements' lever arm; default: none of them
+  (``ReferenceCalibration.estimator_settings`` fills it, with the scales and the bias);
 - ``whole_log``: what only a whole log does (``WholeLog``): the slip episodes, the fixes'
   identification, the smoother's records.
 """
@@ -47,6 +50,7 @@ from diffdrive.backends.settings import HEADINGS
 from diffdrive.encoders import check_counter_bits
 from diffdrive.estimation.filter import SLIP_THRESHOLD
 from diffdrive.estimation.imu import mounting_yaw_row
+from diffdrive.estimation.measurements import Measurement
 from diffdrive.integrate import Method, check_method
 from diffdrive.sensor_noise import DEFAULT, DEFAULT_GYRO, GyroNoise, WheelNoise
 
@@ -59,6 +63,7 @@ __all__ = [
     "FixOffset",
     "Gate",
     "Prior",
+    "SensorCalibration",
     "SlipTest",
     "WholeLog",
     "Window",
@@ -204,6 +209,79 @@ class Encoders:
 
 
 @dataclass(frozen=True)
+class SensorCalibration:
+    """What a calibration found of the sensors beside the wheels, as ``calibrate_to_reference``
+    names it. The gyro: its clock ``gyro_offset`` (s; a reading taken at ``t`` on the wheels'
+    clock is stamped ``t + gyro_offset``) and ``gyro_scale`` (it reads ``(1 + gyro_scale)``
+    times the turn rate, > -1). The absolute measurements' sensor: its clock ``offset`` (s,
+    likewise), its ``lever_arm`` (m, body frame; None: each measurement's own), where it sits
+    (a GPS antenna, a camera), and a pose sensor's ``yaw`` on the body (rad: it reads the
+    body's heading plus ``yaw``).
+
+    A whole log (``estimate_trajectory``) moves the gyro's stamps onto the wheels' clock and
+    divides its rates by the scale before integrating them; every estimator moves each
+    measurement's stamp back by ``offset``, turns a pose's heading back by ``yaw`` and gives
+    the lever arm to one made without its own (one with another is refused). A streaming
+    estimator takes each interval's gyro angle as given, so it refuses a gyro offset or scale
+    (integrate the readings of ``Gyro.calibrated`` instead)."""
+
+    gyro_offset: float = 0.0
+    gyro_scale: float = 0.0
+    offset: float = 0.0
+    lever_arm: tuple[float, float] | None = None
+    yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("gyro_offset", "gyro_scale", "offset", "yaw"):
+            object.__setattr__(self, name, finite(f"SensorCalibration.{name}", getattr(self, name)))
+        if not self.gyro_scale > -1.0:
+            raise ValueError(
+                f"SensorCalibration.gyro_scale must be > -1 (a gyro that reads the turn's "
+                f"sign), got {self.gyro_scale!r}"
+            )
+        if self.lever_arm is not None:
+            arm = np.asarray(self.lever_arm, dtype=float)
+            if arm.shape != (2,) or not np.all(np.isfinite(arm)):
+                raise ValueError(
+                    f"SensorCalibration.lever_arm must be two finite numbers (m), got "
+                    f"{self.lever_arm!r}"
+                )
+            object.__setattr__(self, "lever_arm", (float(arm[0]), float(arm[1])))
+
+    @property
+    def gyro_calibrated(self) -> bool:
+        """Whether the gyro's clock or scale is other than the wheels' own."""
+        return self.gyro_offset != 0.0 or self.gyro_scale != 0.0
+
+    @property
+    def measurements_calibrated(self) -> bool:
+        """Whether the absolute measurements are moved (clock, lever arm, yaw)."""
+        return self.offset != 0.0 or self.lever_arm is not None or self.yaw != 0.0
+
+    def placed(self, measurement: Measurement) -> Measurement:
+        """``measurement`` on the wheels' clock, with the sensor's lever arm where it has
+        none and a pose's heading the body's; ``ValueError`` naming it where it carries a
+        lever arm other than ``lever_arm``."""
+        if not self.measurements_calibrated:
+            return measurement
+        m = measurement
+        arm = m.lever_arm
+        if self.lever_arm is not None and m.kind != "heading" and arm != self.lever_arm:
+            if arm != (0.0, 0.0):
+                raise ValueError(
+                    f"{m.kind} measurement at t = {m.t!r} s carries the lever arm {arm} m and "
+                    f"the settings another, {self.lever_arm} m (SensorCalibration.lever_arm): "
+                    "give one of them"
+                )
+            arm = self.lever_arm
+        value = m.value
+        if m.kind == "pose" and self.yaw != 0.0:
+            value = value.copy()
+            value[2] -= self.yaw
+        return Measurement.make(m.kind, m.t - self.offset, value, m.covariance, arm)
+
+
+@dataclass(frozen=True)
 class WholeLog:
     """What only a whole log (``estimate_trajectory``) does. ``slip_episodes``: besides the
     intervals the streaming test flags, flag the runs of intervals one slipping wheel explains
@@ -244,6 +322,7 @@ class EstimatorSettings:
     method: Method = "exact"
     mounting: tuple[tuple[float, float, float], ...] | None = None
     encoders: Encoders = field(default_factory=Encoders)
+    sensors: SensorCalibration = field(default_factory=SensorCalibration)
     whole_log: WholeLog = field(default_factory=WholeLog)
 
     def __post_init__(self) -> None:
@@ -338,5 +417,6 @@ PARTS: dict[str, tuple[type, bool]] = {
     "slip": (SlipTest, False),
     "window": (Window, False),
     "encoders": (Encoders, False),
+    "sensors": (SensorCalibration, False),
     "whole_log": (WholeLog, False),
 }

@@ -28,7 +28,7 @@ from diffdrive.estimation.fixes import IDENTIFIED_GATE, identify_fixes
 from diffdrive.estimation.fusion import PoseEstimator, body_covariances, body_poses
 from diffdrive.estimation.imu import Gyro
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement
-from diffdrive.estimation.settings import EstimatorSettings, Gate, Window
+from diffdrive.estimation.settings import EstimatorSettings, Gate, SensorCalibration, Window
 from diffdrive.estimation.standing import identify_standing
 from diffdrive.estimation.twists import interval_twists
 from diffdrive.model import Robot
@@ -156,7 +156,10 @@ def estimate_trajectory(
     whole = settings.whole_log
     if settings.heading != "wheels" and gyro is None:
         raise ValueError(f"heading {settings.heading!r} needs a gyro")
-    times, increments, turned, wanted = checked_log(times, increments, gyro, commanded)
+    # The sensors' calibration is applied here, once: the estimator then runs without it.
+    sensors = settings.sensors
+    settings = settings.replace(sensors=SensorCalibration())
+    times, increments, turned, wanted = calibrated_log(times, increments, gyro, commanded, sensors)
     given = list(measurements)
     for m in given:
         if not isinstance(m, Measurement):
@@ -164,11 +167,13 @@ def estimate_trajectory(
                 f"measurements must be Measurements (Measurement.make, measurements_of), got "
                 f"{type(m).__name__}"
             )
+    given = [sensors.placed(m) for m in given]
     ordered = sorted(given, key=lambda m: m.order)
+    moved = f" (moved by {-sensors.offset:g} s: SensorCalibration.offset)" if sensors.offset else ""
     for m in ordered:
         if not times[0] <= m.t <= times[-1]:
             raise ValueError(
-                f"{m.kind} measurement at t = {m.t!r} s lies outside the log "
+                f"{m.kind} measurement at t = {m.t!r} s{moved} lies outside the log "
                 f"[{times[0]:g}, {times[-1]:g}] s"
             )
     if whole.records and not smooth:
@@ -176,6 +181,8 @@ def estimate_trajectory(
     window = settings.window  # the streaming estimator's, given back in ``used``
     settings = settings.replace(window=Window(math.inf, 0.0))  # the whole log, no waiting
     settings, lines = _gyro_settings(times, increments, turned, gyro, settings)
+    if sensors != SensorCalibration():
+        lines += (_sensor_line(sensors),)
     _check_log(times, increments, turned, settings.encoders.max_wheel_speed)
     start: dict = {"initial_pose": initial_pose, "initial_covariance": initial_covariance}
     gyro_turns = np.full(len(increments), np.nan) if turned is None else turned
@@ -222,8 +229,43 @@ def estimate_trajectory(
         run.records,
         lines,
         run.out.log_dets,
-        settings.replace(window=window),
+        settings.replace(window=window, sensors=sensors),
     )
+
+
+def _sensor_line(sensors: SensorCalibration) -> str:
+    """What the settings' ``SensorCalibration`` moved, in words."""
+    parts = [
+        f"the gyro's clock {sensors.gyro_offset:g} s and scale {sensors.gyro_scale:g}",
+        f"the measurements' clock {sensors.offset:g} s",
+        f"a pose sensor's yaw {sensors.yaw:g} rad",
+    ]
+    if sensors.lever_arm is not None:
+        parts.append(f"the lever arm ({sensors.lever_arm[0]:g}, {sensors.lever_arm[1]:g}) m")
+    return "sensors, as given (SensorCalibration): " + ", ".join(parts)
+
+
+def calibrated_log(
+    times: object,
+    increments: object,
+    gyro: Gyro | None,
+    commanded: object,
+    sensors: SensorCalibration,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """``checked_log`` with the gyro moved onto the wheels' clock and scale by ``sensors``;
+    a wheel log the moved gyro no longer covers is refused, naming the offset."""
+    if gyro is None or not sensors.gyro_calibrated:
+        return checked_log(times, increments, gyro, commanded)
+    moved = gyro.calibrated(sensors.gyro_offset, sensors.gyro_scale)
+    try:
+        return checked_log(times, increments, moved, commanded)
+    except ValueError as refused:
+        if "the gyro only" not in str(refused):
+            raise
+        raise ValueError(
+            f"{refused}, its stamps moved by {-sensors.gyro_offset:g} s onto the wheels' clock "
+            "(SensorCalibration.gyro_offset): keep the wheel log inside that span"
+        ) from None
 
 
 def _identified_fixes(
