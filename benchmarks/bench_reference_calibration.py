@@ -18,10 +18,12 @@ standard error an unbiased calibration of that drive can have (the model's, whic
 the gyro heading's own random walk). Last, one 10-minute log at 100 Hz with each reference,
 timed (median of 3). Then the noise identified from the log (``identify_noise``): a camera
 at 10 Hz and a gyro, every figure started 2-10 times off; each term and each parameter under
-it against the truth, and a 10-minute log's time.
+it against the truth, and a 10-minute log's time. Last, the track beside a gyro with wheels of
+random walk 1e-7, 1e-5 and 4e-5 m: its error in standard errors, with the wheels-against-gyro
+weights moving with the track and, side by side, held.
 
     python benchmarks/bench_reference_calibration.py [--seeds 100] [--noise-seeds 40]
-        [--log-seconds 600] [--repeats 3]
+        [--track-seeds 40] [--log-seconds 600] [--repeats 3]
 """
 
 from __future__ import annotations
@@ -196,10 +198,50 @@ def noise_table(seeds: int, seconds: float = 600.0, repeats: int = 3) -> None:
           f"{spent:.2f} s (median of {repeats})")  # fmt: skip
 
 
+TRACK_KS = (1e-7, 1e-5, 4e-5)  # m: nearly exact wheels, the scenario's, four times noisier
+
+
+def _track_z(seed: int, k: float) -> float:
+    """The camera-and-gyro drive with wheels of random walk ``k``, calibrated under that
+    noise: the track's error in its reported standard errors."""
+    scenario.K = k  # the scenario's wheels read it when drawn
+    try:
+        times, increments, stamps, poses, gyro = scenario.camera_and_gyro(seed)
+    finally:
+        scenario.K = 1e-5
+    found = reference.calibrate_to_reference(
+        scenario.NOMINAL, times, increments, stamps, poses, sigma=scenario.CAMERA,
+        wheel_noise=k, gyro=gyro, gyro_noise=GyroNoise(angle_random_walk=scenario.GYRO_ARW),
+    )  # fmt: skip
+    return (found.value("track") - GEOMETRY["track"]) / found.standard_errors()["track"]
+
+
+def track_table(seeds: int) -> None:
+    """The track beside a gyro at each of ``TRACK_KS``: its mean error and how often it lies
+    within two standard errors, with the wheels-against-gyro weights moving with the track
+    (the fit's) and, side by side, held where they were taken (the errors-in-variables
+    bias the fit removes: its variances made constant here)."""
+    from diffdrive.calibration import _reference_model as model
+
+    print(f"\nthe track beside a gyro (camera at 10 Hz and a gyro), {seeds} seeds:\n")
+    print("| wheels' k | weights | mean error, SE | within 2 SE |")
+    print("|---|---|---|---|")
+    moving = model.turn_variances
+    for k in TRACK_KS:
+        for label, variances in (("moving with the track", moving), ("held", None)):
+            model.turn_variances = variances or (lambda log, values: np.ones(len(log.stamps) - 1))
+            try:
+                z = np.array([_track_z(seed, k) for seed in range(seeds)])
+            finally:
+                model.turn_variances = moving
+            print(f"| {k:g} m | {label} | {z.mean():+.2f} | {np.mean(np.abs(z) < 2):.0%} |")
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=100)
     parser.add_argument("--noise-seeds", type=int, default=40)
+    parser.add_argument("--track-seeds", type=int, default=40)
     parser.add_argument("--log-seconds", type=float, default=600.0, help="the timed logs' length")
     parser.add_argument("--repeats", type=int, default=3, help="timed runs of each log")
     args = parser.parse_args(argv)
@@ -208,6 +250,7 @@ def main(argv: list[str] | None = None) -> None:
     for gps in (False, True):
         table(gps, args.seeds, args.log_seconds, args.repeats)
     noise_table(args.noise_seeds, args.log_seconds, args.repeats)
+    track_table(args.track_seeds)
 
 
 if __name__ == "__main__":

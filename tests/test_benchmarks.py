@@ -62,6 +62,8 @@ SMALL = {
         "1",
         "--noise-seeds",
         "1",
+        "--track-seeds",
+        "1",
         "--log-seconds",
         "120",
         "--repeats",

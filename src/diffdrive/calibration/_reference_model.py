@@ -108,8 +108,25 @@ def antenna_positions(log: Log, values: np.ndarray) -> np.ndarray:
     return _interpolated(log.times, antenna, log.stamps - values[_OFFSET])
 
 
-def _residuals(log: Log, values: np.ndarray, shrink: float) -> np.ndarray:
-    """Each stretch's residual ``(K-1, m)``, measured less predicted."""
+def turn_variances(log: Log, values: np.ndarray) -> np.ndarray:
+    """Each stretch's wheels-against-gyro turn residual's variance ``(K-1,)`` rad^2 at
+    ``values``: the wheels' turn (each wheel's ``k |arc|`` over the track squared) and the
+    gyro's angle random walk over the stretch, its scale taken off."""
+    drive = _drive(log, values)
+    radii = np.array([drive.left_wheel_radius, drive.right_wheel_radius])
+    arcs = np.abs(log.increments) * radii @ np.array([log.wheels.left, log.wheels.right])
+    summed = np.concatenate([[0.0], np.cumsum(arcs)])
+    cut = np.clip(np.searchsorted(log.times, log.stamps), 0, len(log.times) - 1)
+    wheels = np.diff(summed[cut]) / drive.track_width**2
+    return wheels + log.gyro_noise**2 * np.diff(log.stamps) / (1.0 + values[_SCALE]) ** 2
+
+
+def _residuals(
+    log: Log, values: np.ndarray, shrink: float, anchor: np.ndarray | None = None
+) -> np.ndarray:
+    """Each stretch's residual ``(K-1, m)``, measured less predicted. ``anchor``: the values
+    the weights were taken at; the wheels-against-gyro rows are then scaled by their standard
+    deviation there over their standard deviation at ``values`` (see ``fit``)."""
     parts = []
     if log.poses:
         sensor = _sensor_poses(log, values)
@@ -131,7 +148,12 @@ def _residuals(log: Log, values: np.ndarray, shrink: float) -> np.ndarray:
         # and the reference's own turn would tie its noise to the gyro's comparison.
         wheels = np.diff(np.interp(log.stamps, log.times, _wheel_poses(log, values)[:, 2]))
         turned = _gyro_turn(log, values, log.stamps[:-1], log.stamps[1:])
-        parts.append((wheels - turned)[:, None])
+        compared = wheels - turned
+        if anchor is not None:
+            there, here = turn_variances(log, anchor), turn_variances(log, values)
+            known = (there > 0.0) & (here > 0.0)
+            compared[known] *= np.sqrt(there[known] / here[known])
+        parts.append(compared[:, None])
     return np.concatenate(parts, axis=1)
 
 
@@ -346,14 +368,15 @@ class Runs:
     """Each run's residual covariance by its terms (``components``) and its factor: runs are
     independent, so their covariance is block diagonal."""
 
-    def __init__(self, terms: list[dict[str, Part]]) -> None:
+    def __init__(self, terms: list[dict[str, Part]], anchor: np.ndarray) -> None:
         self.components = terms
         self.parts = [_Weights(_total(parts)) for parts in terms]
+        self.anchor = anchor  # the values the covariance was taken at
 
     @classmethod
     def of(cls, logs: list[Log], values: np.ndarray) -> Runs:
         """The runs' covariance at ``values``, the noise at each log's figures."""
-        return cls([components(log, values) for log in logs])
+        return cls([components(log, values) for log in logs], values.copy())
 
     def solve(self, right: np.ndarray) -> np.ndarray:
         """The covariance's inverse times ``right`` ``(n, ...)``."""
@@ -373,13 +396,17 @@ class Runs:
         return np.split(right, np.cumsum([part.size for part in self.parts])[:-1], axis=0)
 
 
-def residuals(logs: list[Log], values: np.ndarray) -> np.ndarray:
-    """Every run's stretches' residuals, flattened ``(n,)``."""
-    parts = [_residuals(log, values, float(np.exp(-0.5 * log.sigma[2] ** 2))) for log in logs]
+def residuals(logs: list[Log], values: np.ndarray, anchor: np.ndarray | None = None) -> np.ndarray:
+    """Every run's stretches' residuals, flattened ``(n,)`` (``anchor``: ``_residuals``')."""
+    parts = [
+        _residuals(log, values, float(np.exp(-0.5 * log.sigma[2] ** 2)), anchor) for log in logs
+    ]
     return np.concatenate([part.ravel() for part in parts])
 
 
-def jacobian(logs: list[Log], values: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+def jacobian(
+    logs: list[Log], values: np.ndarray, fitted: np.ndarray, anchor: np.ndarray | None = None
+) -> np.ndarray:
     """The residuals' derivatives ``(n, E)`` in the ``fitted`` parameters, by central
     differences: the interpolation in time has kinks."""
     columns = []
@@ -388,7 +415,8 @@ def jacobian(logs: list[Log], values: np.ndarray, fitted: np.ndarray) -> np.ndar
         ahead, behind = values.copy(), values.copy()
         ahead[index] += step
         behind[index] -= step
-        columns.append((residuals(logs, ahead) - residuals(logs, behind)) / (2 * step))
+        change = residuals(logs, ahead, anchor) - residuals(logs, behind, anchor)
+        columns.append(change / (2 * step))
     return np.column_stack(columns)
 
 
@@ -419,15 +447,25 @@ class Fit:
 
 def fit(logs: list[Log], values: np.ndarray, fitted: np.ndarray, iterations: int) -> Fit:
     """Gauss-Newton on the generalised least squares over the runs' ``logs``, the weights
-    taken at the first and the once-improved values."""
+    taken at the first and the once-improved values.
+
+    The wheels-against-gyro rows regress the gyro's turn on the wheels' noisy one, whose
+    noise grows as the track shrinks: with their weights held where they were taken, the fit
+    is ordinary least squares on a noisy regressor and the track comes out high (errors in
+    variables). So those rows are scaled by their standard deviation where the weights were
+    taken over their standard deviation at the values tried, and their weight moves with the
+    track: the objective is then Deming's (Deming 1943; ``track_from_gyro`` does the same
+    for the gyro alone), and Gauss-Newton's derivatives carry the weight's change too."""
     weights = Runs.of(logs, values)
     for round_ in range(iterations):
         if round_ == 1:
             weights = Runs.of(logs, values)
-        slope = jacobian(logs, values, fitted)
+        anchor = weights.anchor
+        slope = jacobian(logs, values, fitted, anchor)
         weighted = weights.solve(slope)
         information = slope.T @ weighted
-        step = np.linalg.lstsq(information, -weighted.T @ residuals(logs, values), rcond=None)[0]
+        moved = -weighted.T @ residuals(logs, values, anchor)
+        step = np.linalg.lstsq(information, moved, rcond=None)[0]
         values = values.copy()
         values[fitted] += step
         if np.any(values[:3] <= 0.0):
@@ -444,7 +482,8 @@ def fit(logs: list[Log], values: np.ndarray, fitted: np.ndarray, iterations: int
         spread = np.sqrt(np.maximum(np.diag(np.linalg.pinv(information)), 1e-300))
         if round_ >= 2 and np.max(np.abs(step) / spread) < 1e-6:
             break
-    base, slope = residuals(logs, values), jacobian(logs, values, fitted)
+    base = residuals(logs, values, weights.anchor)
+    slope = jacobian(logs, values, fitted, weights.anchor)
     information = slope.T @ weights.solve(slope)
     chi2 = float(base @ weights.solve(base)) / max(1, len(base) - int(fitted.sum()))
     covariance = np.linalg.pinv(information) * max(1.0, chi2)

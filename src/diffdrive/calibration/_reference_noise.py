@@ -127,7 +127,7 @@ def _score(result: Fit, names: list[str]) -> tuple[dict[str, float], dict[str, f
     scales = np.ones(len(names))
     for _ in range(SCORINGS):
         factors = dict(zip(names, scales.tolist(), strict=True))
-        weights = Runs([_scaled_terms(parts, factors) for parts in terms])
+        weights = Runs([_scaled_terms(parts, factors) for parts in terms], result.weights.anchor)
         slopes = [_slope(result.weights, names, scales, name) for name in names]
         project = _projector(weights, result.slope)
         seen = project(result.residual[:, None])[:, 0]
