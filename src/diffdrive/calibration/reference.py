@@ -161,7 +161,8 @@ class ReferenceCalibration:
         against ``robot``'s (1 for ``self.robot``), each a ``Prior`` whose spread is its
         standard error; the gyro's ``bias``; and ``sensors``, a ``SensorCalibration`` of the
         gyro's clock and scale and the reference sensor's clock, lever arm and yaw. What the
-        calibration did not estimate is left as ``given`` has it. ``ValueError`` where
+        calibration did not estimate is left as ``given`` has it; the GPS frame's ``heading``
+        belongs to the start, not the settings (an ``initial_pose``). ``ValueError`` where
         ``robot``'s wheels differ left from right otherwise than the calibration's by more
         than two standard errors: scales carry no such difference (run with ``self.robot``)."""
         given = settings_of(given, EstimatorSettings)
