@@ -229,7 +229,9 @@ def track_table(seeds: int) -> None:
     moving = model.turn_variances
     for k in TRACK_KS:
         for label, variances in (("moving with the track", moving), ("held", None)):
-            model.turn_variances = variances or (lambda log, values: np.ones(len(log.stamps) - 1))
+            model.turn_variances = variances or (
+                lambda log, values, angles_at=None: np.ones(len(log.stamps) - 1)
+            )
             try:
                 z = np.array([_track_z(seed, k) for seed in range(seeds)])
             finally:

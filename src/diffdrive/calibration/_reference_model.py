@@ -108,13 +108,19 @@ def antenna_positions(log: Log, values: np.ndarray) -> np.ndarray:
     return _interpolated(log.times, antenna, log.stamps - values[_OFFSET])
 
 
-def turn_variances(log: Log, values: np.ndarray) -> np.ndarray:
+def turn_variances(log: Log, values: np.ndarray, angles_at: np.ndarray | None = None) -> np.ndarray:
     """Each stretch's wheels-against-gyro turn residual's variance ``(K-1,)`` rad^2 at
     ``values``: the wheels' turn (each wheel's ``k |arc|`` over the track squared) and the
-    gyro's angle random walk over the stretch, its scale taken off."""
+    gyro's angle random walk over the stretch, its scale taken off. ``angles_at``: the values
+    whose radii make the wheels' noise (``k`` m of travel) their angles' (default
+    ``values``): the noise is the encoders', whatever radius the fit tries, so only the
+    radius over the track that turns it into a turn moves with the fit."""
     drive = _drive(log, values)
+    measured = drive if angles_at is None else _drive(log, angles_at)
     radii = np.array([drive.left_wheel_radius, drive.right_wheel_radius])
-    arcs = np.abs(log.increments) * radii @ np.array([log.wheels.left, log.wheels.right])
+    their = np.array([measured.left_wheel_radius, measured.right_wheel_radius])
+    k = np.array([log.wheels.left, log.wheels.right])
+    arcs = np.abs(log.increments) @ (k * radii * radii / their)
     summed = np.concatenate([[0.0], np.cumsum(arcs)])
     cut = np.clip(np.searchsorted(log.times, log.stamps), 0, len(log.times) - 1)
     wheels = np.diff(summed[cut]) / drive.track_width**2
@@ -150,7 +156,7 @@ def _residuals(
         turned = _gyro_turn(log, values, log.stamps[:-1], log.stamps[1:])
         compared = wheels - turned
         if anchor is not None:
-            there, here = turn_variances(log, anchor), turn_variances(log, values)
+            there, here = turn_variances(log, anchor), turn_variances(log, values, anchor)
             known = (there > 0.0) & (here > 0.0)
             compared[known] *= np.sqrt(there[known] / here[known])
         parts.append(compared[:, None])
