@@ -71,9 +71,8 @@ def parts(times, increments, gyro, repeats) -> dict[str, float]:
     whole_log = EstimatorSettings(window=Window(np.inf, 0.0))
     estimator = fusion.PoseEstimator(ROBOT, whole_log, initial_time=0.0)
     n = len(times) - 1
-    log_ = whole._Log(
-        times, increments, np.diff(gyro.angles(times)), np.zeros(n, bool), whole._packed([])
-    )
+    turned, spread = np.diff(gyro.angles(times)), gyro.interpolation_variances(times)
+    log_ = whole._Log(times, increments, turned, spread, np.zeros(n, bool), whole._packed([]))
     rng = np.random.default_rng(1)
     scaled, directions = rng.normal(size=n), rng.normal(size=(n, 2))
     work = {

@@ -426,13 +426,14 @@ readings = st.lists(
 
 @pytest.mark.skipif(not fusion.COMPILED, reason="the C core was not built")
 @settings(max_examples=40, deadline=None)
-@given(readings, st.sampled_from(["wheels", "gyro", "fused"]), st.booleans())
-def test_the_c_core_is_its_python_twin(steps, heading, scale):
-    """Any wheel, gyro and measurement sequence, late stamps included: the C core and the
-    pure-Python core give the same state, covariance, counts and pose in the past."""
+@given(readings, st.sampled_from(["wheels", "gyro", "fused"]), st.booleans(), st.booleans())
+def test_the_c_core_is_its_python_twin(steps, heading, scale, counts):
+    """Any wheel, gyro and measurement sequence, late stamps included, with or without the
+    counters' rounding as a floor of the wheels' noise: the C core and the pure-Python core
+    give the same state, covariance, counts and pose in the past."""
     settings = S(
         heading, wheel_noise=(1e-4, 2e-4), turn_scale=Prior(sigma=0.1 if scale else 0.0),
-        window=Window(history=0.5),
+        window=Window(history=0.5), encoders=Encoders(ticks_per_revolution=300 if counts else None),
     )  # fmt: skip
     options = dict(initial_time=0.0, initial_covariance=np.eye(3) * 1e-4)
     pair = [

@@ -209,7 +209,7 @@ def test_husky_gyro_heading_from_the_command_line(tmp_path, capsys):
 @pytest.mark.slow
 def test_husky_gps_fixes_identified_from_the_command_line(tmp_path, capsys):
     """Every Husky fix fused with no setting given: the fixes' noise identified (all 989
-    taken), the poses 2.81 m from the fixes (aligned ATE) and the poses plus the offset on
+    taken), the poses 2.83 m from the fixes (aligned ATE) and the poses plus the offset on
     them; given as white noise of the receiver's covariance, the gate refuses 378 of them."""
     robot = ["--wheel-radius", "0.165", "--track-width", "0.555"]
     imu = ["--gyro-topic", "/imu/data", "--imu-mount", "1.5707963", "0", "0", "--gps-topic", "/fix"]
@@ -226,7 +226,7 @@ def test_husky_gps_fixes_identified_from_the_command_line(tmp_path, capsys):
         capsys,
     )
     assert code == 0
-    assert json.loads(scored)["ate_aligned_m"] == pytest.approx(2.81, abs=0.005)
+    assert json.loads(scored)["ate_aligned_m"] == pytest.approx(2.83, abs=0.005)
     table = np.genfromtxt(out, delimiter=",", names=True)
     gps = ros.read_navsatfix(HUSKY, "/fix")
     placed = np.column_stack(

@@ -55,10 +55,12 @@ def test_every_estimator_assumes_the_one_default_and_every_simulator_none():
     # diffdrive); the value it takes is DEFAULT.
     assert _default(dd.Odometry.__init__) is None
     assert _default(odometry_of_run) is None
-    # The estimators take theirs from EstimatorSettings, whose default is DEFAULT.
-    assert EstimatorSettings().wheel_noise is DEFAULT
-    assert PoseEstimator(dd.DiffDrive(0.05, 0.3)).settings.wheel_noise is DEFAULT
-    assert GyroOdometry(dd.DiffDrive(0.05, 0.3)).settings.wheel_noise is DEFAULT
+    # The estimators take theirs from EstimatorSettings, whose default is None: a whole log
+    # with a gyro identifies it, and everything else takes DEFAULT (``wheels``).
+    assert EstimatorSettings().wheel_noise is None
+    assert EstimatorSettings().wheels is DEFAULT
+    assert PoseEstimator(dd.DiffDrive(0.05, 0.3)).config.k == (DEFAULT.left, DEFAULT.right)
+    assert GyroOdometry(dd.DiffDrive(0.05, 0.3)).config.k == (DEFAULT.left, DEFAULT.right)
     assert dd.Odometry(dd.DiffDrive(0.05, 0.3)).wheel_noise is DEFAULT
     assert "wheel_noise" not in inspect.signature(estimate_trajectory).parameters  # its settings
     assert _default(monte_carlo) is NONE

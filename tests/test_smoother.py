@@ -70,14 +70,18 @@ EXTRA_STATES = (
 
 def log_settings(heading, scale, **extra):
     """The settings the tests here run: a whole log's window, the gyro's noise and the
-    wheels' given, the turn scale estimated if ``scale``, and ``extra``."""
+    wheels' given (with a counter's rounding, 1,000 counts a turn), the turn scale estimated if
+    ``scale``, and ``extra``."""
     return EstimatorSettings(
         heading, wheel_noise=(1e-4, 2e-4), gyro_noise=GyroNoise(2e-2, 1e-3, 5e-2),
-        turn_scale=Prior(sigma=0.1 if scale else 0.0), window=Window(np.inf, 0.0), **extra,
+        turn_scale=Prior(sigma=0.1 if scale else 0.0), window=Window(np.inf, 0.0),
+        encoders=Encoders(ticks_per_revolution=1000), **extra,
     )  # fmt: skip
 
 
-def run_core(kind, heading, scale, log, smooth, extra=None):
+def run_core(kind, heading, scale, log, smooth, extra=None, spread=True):
+    """``log`` through a core's whole-log pass; with ``spread``, a gyro whose samples leave
+    each turn open by a variance that varies with it (a stream given angles has none)."""
     times, increments, turns, forced, ordered = log
     estimator = kind(
         ROBOT, log_settings(heading, scale, **(extra or {})), initial_pose=(0.1, -0.2, 0.3),
@@ -85,7 +89,7 @@ def run_core(kind, heading, scale, log, smooth, extra=None):
     )  # fmt: skip
     log_of = whole._Log(
         times, increments, turns if heading != "wheels" else np.full(len(turns), np.nan),
-        np.zeros(len(turns), dtype=bool), whole._packed(ordered),
+        0.1 * turns**2 * spread, np.zeros(len(turns), dtype=bool), whole._packed(ordered),
     )  # fmt: skip
     return whole._run(estimator, log_of, smooth, forced, records=True)
 
@@ -170,7 +174,7 @@ def test_the_whole_log_filter_is_the_streaming_estimator(steps, seen):
     log = make_log(steps, seen)
     times, increments, turns, _, ordered = log
     unforced = (*log[:3], np.zeros(len(turns), dtype=bool), ordered)
-    run = run_core(fusion.PoseEstimator, "fused", True, unforced, False).out
+    run = run_core(fusion.PoseEstimator, "fused", True, unforced, False, spread=False).out
     streaming = fusion.PoseEstimator(
         ROBOT, log_settings("fused", True), initial_pose=(0.1, -0.2, 0.3),
         initial_covariance=np.eye(3) * 1e-3, initial_time=0.0,
@@ -284,7 +288,7 @@ def test_each_core_is_built_from_one_settings_value_that_names_what_is_wrong():
     np.testing.assert_array_equal(c_core._state_now(), twin._state_now())
     with pytest.raises(ValueError, match="state must have 8 numbers"):
         _odometry.EstimatorCore(wheels, dataclasses.replace(settings, state=(0.0, 1.0)))
-    with pytest.raises(AttributeError, match="no attribute 'arw2'"):
+    with pytest.raises(AttributeError, match="no attribute 'wheel_floor'"):
         _odometry.EstimatorCore(wheels, odometry_settings)
     with pytest.raises(ValueError, match="drive must have 4 numbers"):
         _odometry.OdometryCore(dataclasses.replace(odometry_settings, drive=(0.05, 0.3)))

@@ -67,13 +67,15 @@ def test_the_whole_log_takes_the_identified_settings_unless_given():
     found = estimate_trajectory(ROBOT, times, increments, gyro=gyro, smooth=False)
     turned = np.diff(gyro.angles(times))
     fit = identify_standing(times, increments, turned, samples=(gyro.times, gyro.rates))
-    assert found.settings == fit.report
+    head = len(fit.report)  # then the wheels' noise, against the gyro
+    assert found.settings[:head] == fit.report
+    assert "from their turn against the gyro's" in found.settings[head]
     settings = EstimatorSettings(gyro_noise=fit.noise, bias=fit.bias)
     explicit = estimate_trajectory(
         ROBOT, times, increments, gyro=gyro, smooth=False, settings=settings
     )
     np.testing.assert_array_equal(found.poses, explicit.poses)
-    assert explicit.settings == ("gyro noise and bias: as given",)
+    assert explicit.settings[0] == "gyro noise and bias: as given"
     mine = GyroNoise(angle_random_walk=5e-3, rate_random_walk=1e-4, initial_bias_sigma=1e-2)
     given = estimate_trajectory(
         ROBOT,
@@ -91,14 +93,19 @@ def test_the_whole_log_takes_the_identified_settings_unless_given():
 def test_a_log_that_never_stands_still_says_which_defaults_it_used():
     times, increments, gyro = _log(0.0, 3)
     estimate = estimate_trajectory(ROBOT, times, increments, gyro=gyro, smooth=False)
-    (line,) = estimate.settings
+    line, *wheels_lines = estimate.settings
+    assert wheels_lines[-1].startswith("wheel noise: k ")
     assert line.startswith("no standing stretch of 0.5 s in the log")
     assert f"the gyro noise is the default ({DEFAULT_GYRO})" in line
     assert "the bias starts at 0 rad/s" in line
     with pytest.raises(ValueError, match="heading 'gyro' needs the gyro bias"):
         gyro_odometry(ROBOT, times, increments, gyro, EstimatorSettings("gyro"))
     wheels = EstimatorSettings("wheels")
-    assert estimate_trajectory(ROBOT, times, increments, settings=wheels).settings == ()  # no gyro
+    (default,) = estimate_trajectory(ROBOT, times, increments, settings=wheels).settings
+    assert default == (
+        "wheel noise: k = 0.0001 m on both wheels, the default (no gyro to tell it; "
+        "EstimatorSettings.wheel_noise to give it)"
+    )
 
 
 def test_the_command_line_prints_what_it_used(tmp_path, capsys):
@@ -124,16 +131,19 @@ def test_the_command_line_prints_what_it_used(tmp_path, capsys):
     assert "bias prior" in printed
 
 
-def test_a_streaming_estimator_starts_from_a_warm_up():
+def test_a_streaming_estimator_starts_from_a_warm_up(monkeypatch):
     """The first 20 s (the robot standing) identify the gyro; the streaming estimator then
-    fed the whole log is the whole-log filter given the same settings."""
-    from diffdrive.estimation import PoseEstimator, warm_up
+    fed the whole log is the whole-log filter given the same settings (the wheels' noise
+    given, and without what a stream given angles cannot know: how far the gyro's samples
+    leave each turn open)."""
+    from diffdrive.estimation import Gyro, PoseEstimator, warm_up
 
+    monkeypatch.setattr(Gyro, "interpolation_variances", lambda self, at: np.zeros(len(at) - 1))
     times, increments, gyro = _log(20.0, 5)
     head = times <= 20.0
     fit = warm_up(times[head], increments[: np.count_nonzero(head) - 1], gyro)
     assert fit.noise.angle_random_walk == pytest.approx(ARW, rel=0.05)
-    settings = fit.settings()
+    settings = fit.settings(EstimatorSettings(wheel_noise=1e-4))
     assert (settings.gyro_noise, settings.bias) == (fit.noise, fit.bias)
     whole = estimate_trajectory(
         ROBOT,

@@ -47,8 +47,8 @@ __attribute__((noinline)) static void offset_update(int k) {
 
 __attribute__((noinline)) static void filter_step(int k) {
     /* 0.01 s of wheels (about 50 counts) and a gyro's turn, fused */
-    dd_filter_predict(&filter, x, P, 0.08f + 0.0001f * (dd_real)(k & 7), 0.09f, 0.0052f, 0.01f, 0,
-                      0);
+    dd_filter_predict(&filter, x, P, 0.08f + 0.0001f * (dd_real)(k & 7), 0.09f, 0.0052f, 0.0f,
+                      0.01f, 0, 0);
 }
 
 /* Instructions per call of f, the loop's own cost taken off. */

@@ -43,11 +43,13 @@ static dd_real wrap(dd_real a) {
 }
 
 dd_real dd_filter_slip_score(const dd_filter *f, const dd_real *x, const dd_real *P, dd_real dl, dd_real dr,
-                         dd_real g, dd_real dt) {
+                         dd_real g, dd_real gv, dd_real dt) {
     dd_real wheel_turn = (f->config.drive.r_right * dr - f->config.drive.r_left * dl) / f->config.drive.track, scale = x[SCALE];
-    dd_real spread = f->config.k_left * dd_fabs(f->config.drive.r_left * dl) + f->config.k_right * dd_fabs(f->config.drive.r_right * dr);
+    const dd_drive *d = &f->config.drive;
+    dd_real spread = f->config.k_left * dd_fabs(d->r_left * dl) + f->config.k_right * dd_fabs(d->r_right * dr) +
+                     f->config.wheel_floor * (d->r_left * d->r_left + d->r_right * d->r_right);
     dd_real innovation = scale * wheel_turn - (g - x[BIAS] * dt);
-    dd_real variance = scale * scale * spread / (f->config.drive.track * f->config.drive.track) + f->config.arw2 * dt +
+    dd_real variance = scale * scale * spread / (f->config.drive.track * f->config.drive.track) + f->config.arw2 * dt + gv +
                       dt * dt * P[BIAS * N + BIAS] + wheel_turn * wheel_turn * P[SCALE * N + SCALE] +
                       1e-18;
     return innovation * innovation / variance;
@@ -62,17 +64,18 @@ typedef struct {
 } Move;
 
 static ALWAYS_INLINE void
-move_terms(const dd_filter *f, const dd_real *x, dd_real dl, dd_real dr, dd_real g, dd_real dt, int slip,
+move_terms(const dd_filter *f, const dd_real *x, dd_real dl, dd_real dr, dd_real g, dd_real gv, dd_real dt, int slip,
            Move *m) {
     dd_real left = f->config.drive.r_left * dl, right = f->config.drive.r_right * dr;
     dd_real travelled = 0.5 * (left + right), scale = x[SCALE], distance = x[DISTANCE];
     dd_real forward = distance * travelled;
     dd_real inflation = slip ? f->config.slip_inflation : 1.0;
     m->wheel_turn = (right - left) / f->config.drive.track;
-    /* k |r dl| / r^2 = (k / r) |dl|: the radii are positive (checked in __init__) */
-    m->noise[0] = inflation * f->k_per_r_left * dd_fabs(dl);
-    m->noise[1] = inflation * f->k_per_r_right * dd_fabs(dr);
-    m->noise[2] = f->config.heading != WHEELS ? f->config.arw2 * dt : 0.0;
+    /* k |r dl| / r^2 = (k / r) |dl|: the radii are positive (checked in __init__); the floor
+     * keeps an interval in which a counter did not move from reading as no turn, exactly */
+    m->noise[0] = inflation * (f->k_per_r_left * dd_fabs(dl) + f->config.wheel_floor);
+    m->noise[1] = inflation * (f->k_per_r_right * dd_fabs(dr) + f->config.wheel_floor);
+    m->noise[2] = f->config.heading != WHEELS ? f->config.arw2 * dt + gv : 0.0;
     dd_real bnf[3] = {0.5 * distance * f->config.drive.r_left, 0.5 * distance * f->config.drive.r_right, 0.0}, bnt[3],
            bst[N] = {0};
     if (f->config.heading == WHEELS) {
@@ -150,10 +153,10 @@ static void record_of(const dd_filter *f, Step *r, const dd_real *x, const dd_re
  * zero rows and columns in P and keep them, untouched. Always inlined into dd_filter_predict
  * with n a constant, so every loop has fixed bounds the compiler unrolls. */
 static ALWAYS_INLINE void advance_n(const dd_filter *f, dd_real *x, dd_real *P, dd_real dl,
-                                    dd_real dr, dd_real g, dd_real dt, int slip, Step *record,
-                                    const int n) {
+                                    dd_real dr, dd_real g, dd_real gv, dd_real dt, int slip,
+                                    Step *record, const int n) {
     Move mv;
-    move_terms(f, x, dl, dr, g, dt, slip, &mv);
+    move_terms(f, x, dl, dr, g, gv, dt, slip, &mv);
     const dd_real wheel_turn = mv.wheel_turn, turn = mv.turn, dx = mv.dx, dy = mv.dy;
     const dd_real *noise = mv.noise, scale = x[SCALE];
     /* A = F - I is zero but for columns 2 to 5 of rows 0 to 2, and G is zero below row 2:
@@ -233,17 +236,17 @@ static ALWAYS_INLINE void advance_n(const dd_filter *f, dd_real *x, dd_real *P, 
 
 
 void dd_filter_predict(const dd_filter *f, dd_real *x, dd_real *P, dd_real dl, dd_real dr,
-                       dd_real g, dd_real dt, int slip, dd_filter_record *record) {
+                       dd_real g, dd_real gv, dd_real dt, int slip, dd_filter_record *record) {
     if (!SPECIALISED) {
-        advance_n(f, x, P, dl, dr, g, dt, slip, record, f->carried);
+        advance_n(f, x, P, dl, dr, g, gv, dt, slip, record, f->carried);
         return;
     }
     switch (f->carried) { /* each with its own constant n */
-    case 8: advance_n(f, x, P, dl, dr, g, dt, slip, record, 8); break;
-    case 6: advance_n(f, x, P, dl, dr, g, dt, slip, record, 6); break;
-    case 5: advance_n(f, x, P, dl, dr, g, dt, slip, record, 5); break;
-    case 4: advance_n(f, x, P, dl, dr, g, dt, slip, record, 4); break;
-    default: advance_n(f, x, P, dl, dr, g, dt, slip, record, 3);
+    case 8: advance_n(f, x, P, dl, dr, g, gv, dt, slip, record, 8); break;
+    case 6: advance_n(f, x, P, dl, dr, g, gv, dt, slip, record, 6); break;
+    case 5: advance_n(f, x, P, dl, dr, g, gv, dt, slip, record, 5); break;
+    case 4: advance_n(f, x, P, dl, dr, g, gv, dt, slip, record, 4); break;
+    default: advance_n(f, x, P, dl, dr, g, gv, dt, slip, record, 3);
     }
 }
 
@@ -531,7 +534,7 @@ void dd_filter_interval(const dd_filter *f, dd_interval *iv, dd_measurement *m, 
             iv->slip = iv->forced;
             iv->score = 0.0;
         } else {
-            iv->score = dd_filter_slip_score(f, x, P, iv->dl, iv->dr, iv->g, (dd_real)duration);
+            iv->score = dd_filter_slip_score(f, x, P, iv->dl, iv->dr, iv->g, iv->gv, (dd_real)duration);
             iv->slip = iv->score > f->config.slip_threshold || iv->forced;
         }
     }
@@ -545,7 +548,7 @@ void dd_filter_interval(const dd_filter *f, dd_interval *iv, dd_measurement *m, 
         dd_real share = cut == iv->t1 || !(duration > 0) ? 1.0 : (dd_real)((cut - iv->t0) / duration);
         dd_real part = share - done;
         if (cut > t)
-            dd_filter_predict(f, x, P, part * iv->dl, part * iv->dr, part * iv->g,
+            dd_filter_predict(f, x, P, part * iv->dl, part * iv->dr, part * iv->g, part * iv->gv,
                               (dd_real)(cut - t), iv->slip, steps ? &steps[(*nsteps)++] : 0);
         done = share;
         t = cut;
@@ -563,8 +566,8 @@ void dd_filter_interval(const dd_filter *f, dd_interval *iv, dd_measurement *m, 
 }
 
 void dd_interval_set(dd_interval *iv, double t0, double t1, dd_real dl, dd_real dr, dd_real g,
-                     int forced) {
-    iv->t0 = t0, iv->t1 = t1, iv->dl = dl, iv->dr = dr, iv->g = g;
+                     dd_real gv, int forced) {
+    iv->t0 = t0, iv->t1 = t1, iv->dl = dl, iv->dr = dr, iv->g = g, iv->gv = gv;
     iv->forced = forced, iv->slip = 0, iv->score = 0.0;
 }
 
@@ -609,7 +612,7 @@ dd_status dd_filter_init(dd_filter *f, const dd_filter_config *config) {
     const dd_filter_config *c = config;
     if (dd_drive_check(&c->drive) != DD_OK || c->method < DD_EULER || c->method > DD_EXACT ||
         c->heading < WHEELS || c->heading > FUSED || !(c->k_left >= 0.0) ||
-        !(c->k_right >= 0.0) || !(c->arw2 >= 0.0) || !(c->rrw2 >= 0.0) ||
+        !(c->k_right >= 0.0) || !(c->wheel_floor >= 0.0) || !(c->arw2 >= 0.0) || !(c->rrw2 >= 0.0) ||
         !(c->offset_rate2 >= 0.0) || !(c->slip_threshold > 0.0) || !(c->slip_inflation >= 1.0) ||
         !(c->gates[0] > 0.0) || !(c->gates[1] > 0.0) || !(c->gates[2] > 0.0) ||
         !isfinite(c->reference_offset))

@@ -162,7 +162,7 @@ dd_status dd_history_wheels(dd_history *h, const dd_filter *f, double t0, double
             tail[at] = b->pending[i];
         }
     dd_interval *iv = &b->intervals[h->first + h->count];
-    dd_interval_set(iv, t0, t1, dl, dr, g, forced);
+    dd_interval_set(iv, t0, t1, dl, dr, g, 0.0, forced); /* a stream's gyro: one angle */
     memcpy(iv->x, h->x, sizeof h->x);
     pack(f, iv->P, h->P);
     dd_real x[N], P[NN];

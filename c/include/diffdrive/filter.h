@@ -31,6 +31,8 @@ typedef struct {
     int heading; /* DD_FROM_WHEELS, DD_FROM_GYRO or DD_FROM_BOTH */
     int estimate_bias, estimate_scale, estimate_distance, estimate_offset; /* 0 or 1 */
     dd_real k_left, k_right;  /* m: each wheel's travel variance per metre */
+    dd_real wheel_floor;      /* rad^2: each wheel angle increment's least variance (its
+                                 counter's rounding, (2 pi / counts)^2 / 6); 0: none */
     dd_real arw2;             /* the gyro's angle random walk, rad^2/s */
     dd_real rrw2;             /* its bias's random walk, (rad/s)^2/s */
     dd_real offset_rate2;     /* the fixes' offset's random walk, m^2/s */
@@ -69,12 +71,13 @@ typedef struct {
 } dd_filter_record;
 
 /* One interval of wheel data: [t0, t1] s, the wheels' angle increments (rad), the gyro's
- * turn (rad; NaN: none), whether the commands declared it slipping (forced), and, once run,
+ * turn (rad; NaN: none) and its variance beyond the angle random walk's (gv, rad^2: how far
+ * its samples leave the turn between them open; 0 where unknown), whether the commands declared it slipping (forced), and, once run,
  * the slip test's outcome and score. x and P: the state at its start, where a history keeps
  * it (P packed: the carried block, n x n). */
 typedef struct {
     double t0, t1;
-    dd_real dl, dr, g;
+    dd_real dl, dr, g, gv;
     int forced, slip;
     dd_real score;
     dd_real x[DD_STATES], P[DD_STATES * DD_STATES];
@@ -82,21 +85,21 @@ typedef struct {
 
 /* An interval's data, its state and outcomes left unset (a history fills them). */
 void dd_interval_set(dd_interval *iv, double t0, double t1, dd_real dl, dd_real dr, dd_real g,
-                     int forced);
+                     dd_real gv, int forced);
 
 /* DD_OK, DD_NULL, or DD_BAD_SETTING (a radius, gate or noise out of range). */
 dd_status dd_filter_init(dd_filter *filter, const dd_filter_config *config);
 
 /* The slip test's score: the squared, normalised gap between the wheels' turn (scaled) and
- * the gyro's over an interval. */
+ * the gyro's over an interval (gv: the gyro turn's variance beyond its random walk's). */
 dd_real dd_filter_slip_score(const dd_filter *filter, const dd_real *x, const dd_real *P,
-                             dd_real dl, dd_real dr, dd_real g, dd_real dt);
+                             dd_real dl, dd_real dr, dd_real g, dd_real gv, dd_real dt);
 
-/* One step of dt s by wheel increments dl, dr (rad) and gyro turn g (rad), in place on x and
- * P; slip: the interval slips (its wheels' noise inflated, their turn not fused). record:
+/* One step of dt s by wheel increments dl, dr (rad) and gyro turn g (rad; of variance gv
+ * beyond its random walk's, rad^2), in place on x and P; slip: the interval slips (its wheels' noise inflated, their turn not fused). record:
  * NULL, or where the smoother's record of the step goes. */
 void dd_filter_predict(const dd_filter *filter, dd_real *x, dd_real *P, dd_real dl, dd_real dr,
-                       dd_real g, dd_real dt, int slip, dd_filter_record *record);
+                       dd_real g, dd_real gv, dd_real dt, int slip, dd_filter_record *record);
 
 /* Apply an absolute measurement to x, P (unchanged when the gate refuses it); sets its
  * accepted, score and log_det. */

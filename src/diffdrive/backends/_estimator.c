@@ -579,6 +579,7 @@ static int est_init(Est *e, PyObject *args, PyObject *kwargs) {
     double drive[4], k[2], span, ahead, x[N], P[NN];
     dd_filter_config c;
     if (attribute_into(s, "drive", drive, 4) < 0 || attribute_into(s, "k", k, 2) < 0 ||
+        attribute_double(s, "wheel_floor", &c.wheel_floor) < 0 ||
         attribute_double(s, "arw2", &c.arw2) < 0 || attribute_double(s, "rrw2", &c.rrw2) < 0 ||
         attribute_double(s, "offset_rate2", &c.offset_rate2) < 0 ||
         attribute_double(s, "slip_threshold", &c.slip_threshold) < 0 ||
@@ -641,7 +642,7 @@ static int doubles_view(PyObject *obj, Py_buffer *view, Py_ssize_t n, int writab
     return 0;
 }
 
-enum { LOG_TIMES, LOG_LEFT, LOG_RIGHT, LOG_GYRO, LOG_FORCED, LOG_MT, LOG_MKIND, LOG_MVALUE,
+enum { LOG_TIMES, LOG_LEFT, LOG_RIGHT, LOG_GYRO, LOG_GYRO_VAR, LOG_FORCED, LOG_MT, LOG_MKIND, LOG_MVALUE,
        LOG_MCOV, LOG_MLEVER, LOG_STATES, LOG_COVS, LOG_SLIPS, LOG_SCORES, LOG_OK, LOG_MSCORE,
        LOG_MLOGDET, LOG_VIEWS };
 
@@ -665,7 +666,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         return NULL;
     }
     static const char *names[LOG_VIEWS] = {
-        "times", "left", "right", "gyro", "forced", "m_t", "m_kind", "m_value", "m_cov",
+        "times", "left", "right", "gyro", "gyro_variance", "forced", "m_t", "m_kind", "m_value", "m_cov",
         "m_lever", "states", "covariances", "slips", "scores", "accepted", "distances",
         "log_dets"};
     PyObject *objs[LOG_VIEWS] = {NULL}, *records_obj = NULL, *result = NULL;
@@ -686,7 +687,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         PyErr_SetString(PyExc_ValueError, "_run_log: times must hold at least 2 stamps");
         goto done;
     }
-    const Py_ssize_t sizes[LOG_VIEWS] = {n, n - 1, n - 1, n - 1, n - 1, nm, nm, 3 * nm, 9 * nm,
+    const Py_ssize_t sizes[LOG_VIEWS] = {n, n - 1, n - 1, n - 1, n - 1, n - 1, nm, nm, 3 * nm, 9 * nm,
                                          2 * nm, N * n, NN * n, n, n, nm, nm, nm};
     for (; got < LOG_VIEWS; ++got)
         if (doubles_view(objs[got], &views[got], sizes[got], got >= LOG_STATES, names[got]) < 0)
@@ -704,7 +705,8 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
         rows = write = records.len / (Py_ssize_t)sizeof(Step);
     }
     const double *t = views[LOG_TIMES].buf, *dl = views[LOG_LEFT].buf, *dr = views[LOG_RIGHT].buf;
-    const double *g = views[LOG_GYRO].buf, *forced = views[LOG_FORCED].buf;
+    const double *g = views[LOG_GYRO].buf, *gv = views[LOG_GYRO_VAR].buf;
+    const double *forced = views[LOG_FORCED].buf;
     const double *mt = views[LOG_MT].buf, *mkind = views[LOG_MKIND].buf;
     const double *mvalue = views[LOG_MVALUE].buf, *mcov = views[LOG_MCOV].buf;
     const double *mlever = views[LOG_MLEVER].buf;
@@ -760,7 +762,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
     slips[0] = scores[0] = 0.0;
     for (Py_ssize_t k = 1; k < n && failed == -1; ++k) {
         Interval iv;
-        dd_interval_set(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1],
+        dd_interval_set(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], gv[k - 1],
                         forced[k - 1] != 0.0);
         Py_ssize_t lo = j;
         while (j < nm && ms[j].t <= t[k]) ++j;
@@ -787,7 +789,7 @@ static PyObject *run_whole_log(Est *e, PyObject *const *args, Py_ssize_t nargs) 
             Py_ssize_t lo = hi;
             while (lo > 0 && ms[lo - 1].t > t[k - 1]) --lo;
             Interval iv;
-            dd_interval_set(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1],
+            dd_interval_set(&iv, t[k - 1], t[k], dl[k - 1], dr[k - 1], g[k - 1], gv[k - 1],
                         forced[k - 1] != 0.0);
             double fx[N], fP[NN];
             memcpy(fx, states + N * (k - 1), sizeof fx);

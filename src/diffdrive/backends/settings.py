@@ -55,7 +55,8 @@ class OdometrySettings:
 @dataclass(frozen=True)
 class Config:
     """What one interval needs besides its data: the equivalent drive ``(r_l, r_r, track,
-    axle_offset)``, the method's flags, the heading source, the wheel and gyro noise, whether
+    axle_offset)``, the method's flags, the heading source, the wheel noise (``k`` (m) and
+    ``wheel_floor``, rad^2: each wheel angle increment's least variance) and the gyro's, whether
     the bias, turn scale, distance scale and the position fixes' offset are estimated, the
     offset's random walk (m^2/s), and the slip test's threshold and inflation."""
 
@@ -63,6 +64,7 @@ class Config:
     method: str
     heading: str
     k: tuple[float, float]
+    wheel_floor: float
     arw2: float
     rrw2: float
     estimate_bias: bool
@@ -184,16 +186,18 @@ class MPPISettings(NamedTuple):
 class LogArrays(NamedTuple):
     """A whole log as a core's ``_run_log`` reads it, by name, each contiguous float64:
     ``times`` ``(n,)`` s; per interval the wheels' turns ``left`` and ``right`` ``(n-1,)`` rad,
-    the gyro's ``gyro`` ``(n-1,)`` rad (NaN: none) and ``forced`` ``(n-1,)`` (nonzero:
-    slipping whatever its score); the absolute measurements in ``Measurement.order``: ``m_t``
-    ``(M,)`` s inside the log, ``m_kind`` ``(M,)`` (an index into ``MEASUREMENT_KINDS``),
-    ``m_value`` ``(M, 3)``, ``m_cov`` ``(M, 9)`` (the ``k x k`` covariance row by row, first)
-    and ``m_lever`` ``(M, 2)`` m."""
+    the gyro's ``gyro`` ``(n-1,)`` rad (NaN: none) and its ``gyro_variance`` ``(n-1,)`` rad^2
+    beyond the angle random walk's (``imu.Gyro.interpolation_variances``), ``forced``
+    ``(n-1,)`` (nonzero: slipping whatever its score); the absolute measurements in
+    ``Measurement.order``: ``m_t`` ``(M,)`` s inside the log, ``m_kind`` ``(M,)`` (an index
+    into ``MEASUREMENT_KINDS``), ``m_value`` ``(M, 3)``, ``m_cov`` ``(M, 9)`` (the ``k x k``
+    covariance row by row, first) and ``m_lever`` ``(M, 2)`` m."""
 
     times: np.ndarray
     left: np.ndarray
     right: np.ndarray
     gyro: np.ndarray
+    gyro_variance: np.ndarray
     forced: np.ndarray
     m_t: np.ndarray
     m_kind: np.ndarray

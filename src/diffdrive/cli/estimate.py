@@ -187,7 +187,7 @@ def _table_measurements(args) -> list[Measurement]:
 
 
 def estimator_settings(
-    noise: WheelNoise,
+    noise: WheelNoise | None,
     fixes: Literal["given", "identified"],
     with_gyro: bool,
     changes: dict[str, object],
@@ -280,7 +280,7 @@ def run_estimate(args: argparse.Namespace) -> int:
             f"--settings heading={changes['heading']} needs a gyro: --gyro-topic, or a gyro_z "
             "column"
         )
-    noise, assumed = wheel_noise(args, robot, log, increments)
+    noise, assumed = wheel_noise(args, robot, log, increments, gyro=gyro is not None)
     from_files, said = noise_changes(args)
     note += assumed + said
     changes = {**from_files, **changes}  # --settings over the robot files' noise

@@ -59,6 +59,7 @@ def run_odometry(args: argparse.Namespace) -> int:
     if args.heading not in (None, "wheels"):
         raise ValueError(f"--heading {args.heading} needs a gyro: --gyro-topic, or a gyro_z column")
     noise, assumed = wheel_noise(args, robot, log, increments)
+    assert noise is not None  # without a gyro nothing identifies it later: always a figure
     with_covariance = args.covariance or output_format(args) in ("mcap", "ros2")
     poses, covariances = odometry_of_run(
         robot,
@@ -115,7 +116,7 @@ def _gyro_odometry(args, robot: Robot, log: Run, ticks, gyro, note: str) -> int:
 
     log, note = within_gyro(log, gyro, note)
     increments = log.increments(ticks, args.counter_bits)
-    noise, assumed = wheel_noise(args, robot, log, increments)
+    noise, assumed = wheel_noise(args, robot, log, increments, gyro=True)
     from_files, said = noise_changes(args)
     note += assumed + said
     result = gyro_odometry(

@@ -450,13 +450,21 @@ def estimate_columns(
 
 
 def wheel_noise(
-    args: argparse.Namespace, robot: Robot | None = None, log=None, increments=None
-) -> tuple[WheelNoise, str]:
+    args: argparse.Namespace,
+    robot: Robot | None = None,
+    log=None,
+    increments=None,
+    *,
+    gyro: bool = False,
+) -> tuple[WheelNoise | None, str]:
     """``--k`` (m; one for both wheels, or left and right) as a ``WheelNoise`` and a report's
     line (with its newline) on what was assumed, or nothing. Not given, a robot file's
     ``[noise.wheel_noise]``; else identified from the log's ground truth where it has one
     (``log.truth``; ``noise.identify`` of ``increments`` against it, the reference held at
-    motion capture's accuracy), else the library's default (``diffdrive.sensor_noise.DEFAULT``).
+    motion capture's accuracy); else (or where the truth does not tell it), with a ``gyro``,
+    None: the estimator identifies it from the wheels' turn against the gyro's and says so;
+    else the library's default
+    (``diffdrive.sensor_noise.DEFAULT``).
     Both 0 are refused for a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which
     a filter reads as exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
     given = wheel_pair(args)
@@ -473,11 +481,14 @@ def wheel_noise(
             from diffdrive.calibration.noise import identify_wheel_noise
 
             found, how = identify_wheel_noise(robot, increments, truth)
-            noise, why = (
-                (DEFAULT_WHEEL_NOISE, f"the default: {how}")
-                if found is None
-                else (found, f"{how}; --k to give them")
-            )
+            if found is not None:
+                noise, why = found, f"{how}; --k to give them"
+            elif gyro:  # the estimator identifies it from the gyro, and says so
+                return None, f"\nwheel noise: not from the ground truth ({how})"
+            else:
+                noise, why = DEFAULT_WHEEL_NOISE, f"the default: {how}"
+        elif gyro:
+            return None, ""
     line = f"\nwheel noise: k = {noise.left:.3g} m left, {noise.right:.3g} m right ({why})"
     return _refuse_zero(args, noise), line
 

@@ -28,7 +28,9 @@ KINDS = ("update_ticks", "update_positions", "update_increments", "update_veloci
 class Interval:
     """One wheel interval ``(t0, t1]`` in the history: its data, the state and covariance at
     its start, the absolute measurements stamped inside it (in ``Measurement.order``), their
-    outcomes, the slip test's, and the smoother's steps if kept."""
+    outcomes, the slip test's, and the smoother's steps if kept. ``gyro_variance`` (rad^2):
+    the gyro turn's variance beyond its random walk's (a whole log's, from its samples; a
+    stream's one angle: 0)."""
 
     t0: float
     t1: float
@@ -36,6 +38,7 @@ class Interval:
     gyro: float
     forced: bool
     start: tuple[np.ndarray, np.ndarray]
+    gyro_variance: float = 0.0
     measurements: list[Measurement] = field(default_factory=list)
     outcomes: list[tuple[bool, float, float]] = field(default_factory=list)
     slip: bool = False
@@ -293,7 +296,7 @@ class EstimatorCore:
         (``filter.record_steps`` says how many). Measurements stamped at ``times[0]`` are
         applied at the start. Returns -1, or the interval whose state would overflow (-2: the
         start)."""
-        times, left, right, gyro, forced, m_t, m_kind, m_value, m_cov, m_lever = log
+        times, left, right, gyro, gyro_variance, forced, m_t, m_kind, m_value, m_cov, m_lever = log
         states, covariances, slips, scores, accepted, distances, log_dets, records = out
         made = []
         for j in range(len(m_t)):
@@ -325,6 +328,7 @@ class EstimatorCore:
                     float(gyro[k - 1]),
                     bool(forced[k - 1]),
                     (x, P),
+                    float(gyro_variance[k - 1]),
                 )
                 first = j
                 while j < len(made) and made[j].t <= times[k]:
@@ -373,11 +377,12 @@ class EstimatorCore:
         c = self.config
         x, P = interval.start
         (dl, dr), g, duration = interval.wheels, interval.gyro, interval.t1 - interval.t0
+        gv = interval.gyro_variance
         if stop is None:
             if math.isnan(g):
                 interval.slip, interval.slip_score = interval.forced, 0.0
             else:
-                score = ekf.slip_score(c, x, P, dl, dr, g, duration)
+                score = ekf.slip_score(c, x, P, dl, dr, g, gv, duration)
                 interval.slip = bool(score > c.slip_threshold) or interval.forced
                 interval.slip_score = float(score)
         end = interval.t1 if stop is None else stop
@@ -392,7 +397,7 @@ class EstimatorCore:
             part = share - done
             if cut > t:
                 x, P, step = ekf.advance(
-                    c, x, P, part * dl, part * dr, part * g, cut - t, interval.slip, keep
+                    c, x, P, part * dl, part * dr, part * g, part * gv, cut - t, interval.slip, keep
                 )
                 if sink is not None and step is not None:
                     sink.append(step)

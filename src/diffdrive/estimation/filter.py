@@ -11,14 +11,16 @@ wander), added to every ``"position"`` measurement's prediction when estimated. 
 is not estimated has zero variance and stays where it starts.
 
 One interval: the wheels move ``dl``, ``dr`` rad (true = measured + noise ``n_l``, ``n_r``,
-variances ``k |r dl| / r^2`` as ``Odometry``) and the gyro turns ``g`` rad (noise ``n_g``,
-variance ``arw^2 dt``). The turn is ``turn_scale`` times the wheels' (heading ``"wheels"``) or
-the gyro's less ``bias dt`` (``"gyro"``, ``"fused"``). With ``"fused"`` the wheels' turn is
-then a measurement of the heading change: the filter works on the joint of the state after,
-the state before (a clone, as in Roumeliotis and Burdick, ICRA 2002) and the noises, so the
-wheel noise that moved the pose and the wheel noise in that measurement are the same noise.
-That joint, before any absolute measurement, is what the Rauch-Tung-Striebel smoother needs
-(``Step``): the state before given the state after is Gaussian with gain ``C``.
+variances ``k |r dl| / r^2`` as ``Odometry``, plus ``wheel_floor``: a counter's rounding, so
+that an interval in which a counter stood still is not read as an exact zero) and the gyro
+turns ``g`` rad (noise ``n_g``, variance ``arw^2 dt``). The turn is ``turn_scale`` times the
+wheels' (heading ``"wheels"``) or the gyro's less ``bias dt`` (``"gyro"``, ``"fused"``). With
+``"fused"`` the wheels' turn is then a measurement of the heading change: the filter works on
+the joint of the state after, the state before (a clone, as in Roumeliotis and Burdick, ICRA
+2002) and the noises, so the wheel noise that moved the pose and the wheel noise in that
+measurement are the same noise. That joint, before any absolute measurement, is what the
+Rauch-Tung-Striebel smoother needs (``Step``): the state before given the state after is
+Gaussian with gain ``C``.
 """
 
 from __future__ import annotations
@@ -103,20 +105,26 @@ def record_steps(times: np.ndarray, stamps: np.ndarray) -> np.ndarray:
     return 1 + np.bincount(np.searchsorted(times, inside), minlength=len(times))[1:]
 
 
-def slip_innovation(c: Config, x, P, dl, dr, g, dt) -> tuple:
-    """The wheels' turn less the gyro's over one interval (rad), its variance while neither
-    wheel slips (rad^2), and how far it moves per unit of the left and the right wheel's slip
-    fraction (``ratio / (1 + ratio)``: the share of the measured turn the ground did not make).
+def slip_innovation(c: Config, x, P, dl, dr, g, gv, dt) -> tuple:
+    """The wheels' turn less the gyro's over one interval (rad; the gyro's of variance ``gv``
+    beyond its random walk's, rad^2), its variance while neither wheel slips (rad^2), and how
+    far it moves per unit of the left and the right wheel's slip fraction (``ratio / (1 +
+    ratio)``: the share of the measured turn the ground did not make).
     One interval (floats; ``x`` ``(8,)``, ``P`` ``(8, 8)``) or many (arrays ``(n,)``; ``x``
     ``(n, 8)``, ``P`` ``(n, 8, 8)``)."""
     r_l, r_r, track, offset = c.drive
     wheel_turn = wheel_move(r_l, r_r, track, offset, dl, dr)[2]
     scale = x[..., SCALE]
-    spread = c.k[0] * np.abs(r_l * dl) + c.k[1] * np.abs(r_r * dr)
+    spread = (
+        c.k[0] * np.abs(r_l * dl)
+        + c.k[1] * np.abs(r_r * dr)
+        + c.wheel_floor * (r_l * r_l + r_r * r_r)
+    )
     innovation = scale * wheel_turn - (g - x[..., BIAS] * dt)
     variance = (
         scale * scale * spread / (track * track)
         + c.arw2 * dt
+        + gv
         + dt * dt * P[..., BIAS, BIAS]
         + wheel_turn * wheel_turn * P[..., SCALE, SCALE]
         + 1e-18
@@ -124,10 +132,12 @@ def slip_innovation(c: Config, x, P, dl, dr, g, dt) -> tuple:
     return innovation, variance, -scale * r_l * dl / track, scale * r_r * dr / track
 
 
-def slip_score(c: Config, x: np.ndarray, P: np.ndarray, dl: float, dr: float, g: float, dt: float):
+def slip_score(
+    c: Config, x: np.ndarray, P: np.ndarray, dl: float, dr: float, g: float, gv: float, dt: float
+):
     """The wheels' turn against the gyro's over one interval, squared over its variance:
     chi-square with one degree of freedom while neither slips."""
-    innovation, variance, _, _ = slip_innovation(c, x, P, dl, dr, g, dt)
+    innovation, variance, _, _ = slip_innovation(c, x, P, dl, dr, g, gv, dt)
     return innovation * innovation / variance
 
 
@@ -138,12 +148,13 @@ def advance(
     dl: float,
     dr: float,
     g: float,
+    gv: float,
     dt: float,
     slip: bool,
     smoother: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, Step | None]:
-    """The state and covariance after one interval (``g`` is NaN without a gyro), and, if
-    ``smoother``, the smoother's ``Step``."""
+    """The state and covariance after one interval (``g`` is NaN without a gyro; ``gv`` its
+    variance beyond the random walk's, rad^2), and, if ``smoother``, the smoother's ``Step``."""
     r_l, r_r, track, offset = c.drive
     travelled, _, wheel_turn = wheel_move(r_l, r_r, track, offset, dl, dr)
     scale, distance = x[SCALE], x[DISTANCE]
@@ -151,9 +162,9 @@ def advance(
     inflation = c.slip_inflation if slip else 1.0
     noise = np.array(
         [
-            inflation * c.k[0] * abs(r_l * dl) / (r_l * r_l),
-            inflation * c.k[1] * abs(r_r * dr) / (r_r * r_r),
-            c.arw2 * dt if c.heading != "wheels" else 0.0,
+            inflation * (c.k[0] * abs(r_l * dl) / (r_l * r_l) + c.wheel_floor),
+            inflation * (c.k[1] * abs(r_r * dr) / (r_r * r_r) + c.wheel_floor),
+            c.arw2 * dt + gv if c.heading != "wheels" else 0.0,
         ]
     )
     by_noise_forward = np.array([0.5 * distance * r_l, 0.5 * distance * r_r, 0.0])

@@ -296,7 +296,10 @@ def core_settings(
         drive=geometry_of(robot),
         method=settings.method,
         heading=settings.heading,
-        k=(settings.wheel_noise.left, settings.wheel_noise.right),
+        k=(settings.wheels.left, settings.wheels.right),
+        # weighed against a gyro, an interval's rounding counts; a wheels' heading sums the
+        # counts, whose roundings cancel but for the last
+        wheel_floor=settings.encoders.wheel_floor if settings.heading != "wheels" else 0.0,
         arw2=arw * arw,
         rrw2=rrw * rrw,
         estimate_bias=settings.heading == "fused",

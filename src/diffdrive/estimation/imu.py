@@ -145,3 +145,26 @@ class Gyro:
         into = at - self.times[k]
         slope = (self.rates[k + 1] - self.rates[k]) / steps[k]
         return cumulative[k] + self.rates[k] * into + 0.5 * slope * into**2
+
+    def interpolation_variances(self, at: np.ndarray) -> np.ndarray:
+        """How far the samples leave the angle turned over each interval of ``at`` ``(N,)``
+        open: ``(N-1,)`` rad^2. Between two samples the rate is known only at its ends; taken
+        to pass from one to the other without turning back, the angle over a stretch of ``d``
+        s between them lies within ``d |r1 - r0| / 2`` of the linear rate's, and is given the
+        variance of a uniform error there, ``(d (r1 - r0))^2 / 12``, summed over the sample
+        spans each interval holds. A rate that steps (a robot that starts to turn at once)
+        is thereby not taken as exact: linear between samples it is off by up to half a
+        sample's turn. From ``from_yaw``, whose angles are exact at its stamps, a whole span
+        adds nothing, and a part of one the change to the next span's rate as above."""
+        at = np.asarray(at, dtype=float)
+        self.angles(at)  # within the gyro's span, or refused naming it
+        cuts = np.union1d(at, self.times[(self.times > at[0]) & (self.times < at[-1])])
+        pieces = np.diff(cuts)
+        middle = cuts[:-1] + 0.5 * pieces
+        last = len(self.times) - 2
+        span = np.clip(np.searchsorted(self.times, middle, side="right") - 1, 0, last)
+        interval = np.searchsorted(at, middle, side="right") - 1
+        variances = (pieces * np.diff(self.rates)[span]) ** 2 / 12.0
+        if self.yaw is not None:
+            variances[pieces >= np.diff(self.times)[span]] = 0.0
+        return np.bincount(interval, variances, minlength=len(at) - 1)

@@ -7,8 +7,10 @@ changes a part, checked again. The parts:
 
 - ``heading``: the heading's source, ``"wheels"``, ``"gyro"`` or ``"fused"`` (default; the
   filter's maths: ``diffdrive.estimation.filter``);
-- ``wheel_noise``: a ``WheelNoise`` (a number ``k`` (m) or a pair is read as one; default
-  ``sensor_noise.DEFAULT``);
+- ``wheel_noise``: a ``WheelNoise`` (a number ``k`` (m) or a pair is read as one). None, the
+  default: a whole log with a gyro identifies it from the wheels' turn against the gyro's
+  (``wheel_turns.identify_wheel_turns``); without one, and in a streaming estimator,
+  ``sensor_noise.DEFAULT``;
 - ``gyro_noise`` and ``bias``: the gyro's ``GyroNoise`` and its bias's start (rad/s). None, the
   default: a whole log identifies them from its standing stretches
   (``standing.identify_standing``); where it has none, and in a streaming estimator,
@@ -187,7 +189,7 @@ class Encoders:
     """The wheel readings: ``ticks_per_revolution`` (counts per wheel revolution; needed for
     counter readings), ``counter_bits`` (2 to 64; None: counters that never roll over) and
     ``max_wheel_speed`` (rad/s; None: no limit), past which a jump is refused: as ``Odometry``
-    takes them."""
+    takes them. The counts also set the filter's ``wheel_floor``."""
 
     ticks_per_revolution: float | None = None
     counter_bits: int | None = None
@@ -206,6 +208,16 @@ class Encoders:
         if self.max_wheel_speed is not None:
             speed = positive("Encoders.max_wheel_speed", self.max_wheel_speed)
             object.__setattr__(self, "max_wheel_speed", speed)
+
+    @property
+    def wheel_floor(self) -> float:
+        """The least variance (rad^2) of a wheel angle increment read off these counters: the
+        difference of two readings, each rounded to a count, ``(2 pi / counts)^2 / 6`` (two
+        independent roundings, uniform over a count); 0 without the counts."""
+        if self.ticks_per_revolution is None:
+            return 0.0
+        count = 2.0 * math.pi / self.ticks_per_revolution
+        return count * count / 6.0
 
 
 @dataclass(frozen=True)
@@ -310,7 +322,7 @@ class EstimatorSettings:
     module for each part and its default)."""
 
     heading: Heading = "fused"
-    wheel_noise: WheelNoise = DEFAULT
+    wheel_noise: WheelNoise | None = None
     gyro_noise: GyroNoise | None = None
     bias: float | None = None
     turn_scale: Prior = field(default_factory=Prior)
@@ -331,8 +343,9 @@ class EstimatorSettings:
                 f"EstimatorSettings.heading must be one of {', '.join(HEADINGS)}, got "
                 f"{self.heading!r}"
             )
-        noise = WheelNoise.coerce(self.wheel_noise, "EstimatorSettings.wheel_noise")
-        object.__setattr__(self, "wheel_noise", noise)
+        if self.wheel_noise is not None:
+            noise = WheelNoise.coerce(self.wheel_noise, "EstimatorSettings.wheel_noise")
+            object.__setattr__(self, "wheel_noise", noise)
         if self.bias is not None:
             object.__setattr__(self, "bias", finite("EstimatorSettings.bias", self.bias))
         for name, (kind, optional) in PARTS.items():
@@ -347,6 +360,11 @@ class EstimatorSettings:
             object.__setattr__(self, "mounting", rows)
 
     # What a streaming estimator takes where a whole log would identify (see the module).
+
+    @property
+    def wheels(self) -> WheelNoise:
+        """``wheel_noise``, else ``sensor_noise.DEFAULT``."""
+        return DEFAULT if self.wheel_noise is None else self.wheel_noise
 
     @property
     def gyro(self) -> GyroNoise:
@@ -380,8 +398,8 @@ class EstimatorSettings:
     def changed(self, changes: Mapping[str, object]) -> EstimatorSettings:
         """A copy with ``changes`` by name, as a settings file or the command line gives them:
         a part (``"bias"``, ``"heading"``) or one field of a part (``"gate.probability"``; a
-        part that is None starts from its own defaults). ``ValueError`` names an unknown one;
-        each part checks its values as ever."""
+        part that is None starts from its own defaults, the wheels' from ``wheels``).
+        ``ValueError`` names an unknown one; each part checks its values as ever."""
         if not isinstance(changes, Mapping):
             raise TypeError(
                 f"changes must be a mapping of setting names to values, got {changes!r}"
@@ -401,14 +419,16 @@ class EstimatorSettings:
             fields = [item.name for item in dataclasses.fields(kind)]
             if inner not in fields:
                 raise ValueError(f"unknown setting {key!r}; {name}'s fields: {', '.join(fields)}")
-            current: Any = parts.get(name, getattr(self, name)) or kind()
+            current: Any = parts.get(name, getattr(self, name))
+            if current is None:
+                current = self.wheels if name == "wheel_noise" else kind()
             parts[name] = dataclasses.replace(current, **{inner: value})
         return dataclasses.replace(self, **parts)  # type: ignore[arg-type]
 
 
 # The parts that are values of their own, and whether each may be None.
 PARTS: dict[str, tuple[type, bool]] = {
-    "wheel_noise": (WheelNoise, False),
+    "wheel_noise": (WheelNoise, True),
     "gyro_noise": (GyroNoise, True),
     "turn_scale": (Prior, False),
     "distance_scale": (Prior, True),

@@ -31,7 +31,9 @@ from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement
 from diffdrive.estimation.settings import EstimatorSettings, Gate, SensorCalibration, Window
 from diffdrive.estimation.standing import identify_standing
 from diffdrive.estimation.twists import interval_twists
+from diffdrive.estimation.wheel_turns import identify_wheel_turns, wheel_quantum
 from diffdrive.model import Robot
+from diffdrive.sensor_noise import WheelNoise
 
 # measurements as the cores take them: stamps, kinds, values, covariances, lever arms
 _Packed = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
@@ -181,6 +183,11 @@ def estimate_trajectory(
     window = settings.window  # the streaming estimator's, given back in ``used``
     settings = settings.replace(window=Window(math.inf, 0.0))  # the whole log, no waiting
     settings, lines = _gyro_settings(times, increments, turned, gyro, settings)
+    spread = np.zeros(len(increments))  # how far the gyro's samples leave each turn open
+    if gyro is not None:
+        spread = _on_wheels(gyro, sensors).interpolation_variances(times)
+    settings, wheel_lines = _wheel_settings(robot, (times, increments, turned, spread), settings)
+    lines += wheel_lines
     if sensors != SensorCalibration():
         lines += (_sensor_line(sensors),)
     _check_log(times, increments, turned, settings.encoders.max_wheel_speed)
@@ -188,12 +195,12 @@ def estimate_trajectory(
     gyro_turns = np.full(len(increments), np.nan) if turned is None else turned
     if whole.fixes == "identified":
         ordered, settings, identified = _identified_fixes(
-            robot, (times, increments, gyro_turns), ordered, start, settings
+            robot, (times, increments, gyro_turns, spread), ordered, start, settings
         )
         lines += identified
     estimator = PoseEstimator(robot, settings, initial_time=float(times[0]), **start)
     missed = _commands_missed(estimator, times, increments, wanted)
-    log = _Log(times, increments, gyro_turns, missed, _packed(ordered))
+    log = _Log(times, increments, gyro_turns, spread, missed, _packed(ordered))
     episodes = whole.slip_episodes and turned is not None
     records = whole.records
     run = _run(estimator, log, smooth and not episodes, None, records and not episodes)
@@ -256,7 +263,7 @@ def calibrated_log(
     a wheel log the moved gyro no longer covers is refused, naming the offset."""
     if gyro is None or not sensors.gyro_calibrated:
         return checked_log(times, increments, gyro, commanded)
-    moved = gyro.calibrated(sensors.gyro_offset, sensors.gyro_scale)
+    moved = _on_wheels(gyro, sensors)
     try:
         return checked_log(times, increments, moved, commanded)
     except ValueError as refused:
@@ -268,19 +275,27 @@ def calibrated_log(
         ) from None
 
 
+def _on_wheels(gyro: Gyro, sensors: SensorCalibration) -> Gyro:
+    """``gyro`` on the wheels' clock and scale (``SensorCalibration``'s gyro terms)."""
+    if not sensors.gyro_calibrated:
+        return gyro
+    return gyro.calibrated(sensors.gyro_offset, sensors.gyro_scale)
+
+
 def _identified_fixes(
     robot: Robot, wheels: tuple, ordered: list, start: dict, settings: EstimatorSettings
 ) -> tuple[list[Measurement], EstimatorSettings, tuple[str, ...]]:
     """The measurements with the fixes' identified white noise, ``start`` filled and
     ``settings`` completed from ``fixes.identify_fixes`` where not given, and the lines that
-    say what was used. ``wheels``: the log's times, increments and gyro turns."""
-    times, increments, turned = wheels
+    say what was used. ``wheels``: the log's times, increments, gyro turns and their
+    variances beyond the random walk's."""
+    times, increments, turned, spread = wheels
     positions = [m for m in ordered if m.kind == "position"]
     # The dead reckoning the fixes are fitted onto: the same estimator without them.
     reckoner = PoseEstimator(robot, settings.replace(gate=None), initial_time=float(times[0]))
     empty = _packed([])
     still = np.zeros(len(increments), dtype=bool)
-    dead = _run(reckoner, _Log(times, increments, turned, still, empty), False, None)
+    dead = _run(reckoner, _Log(times, increments, turned, spread, still, empty), False, None)
     # The fixes' own covariance is not quoted: it may be a placeholder (fixes without one).
     fit = identify_fixes(
         times,
@@ -338,15 +353,84 @@ def _gyro_settings(
     return fit.settings(settings), tuple(report)
 
 
+def _wheel_settings(
+    robot: Robot, log: tuple, settings: EstimatorSettings
+) -> tuple[EstimatorSettings, tuple[str, ...]]:
+    """``settings`` with the encoders' counts from the step of the wheel angles where they
+    were not given (the floor of the wheels' noise against a gyro) and the wheels' noise
+    where it was not (``_wheels_against_gyro``); the lines that say what was used and where
+    from. ``log``: the times, increments, the gyro's turns (None: no gyro) and their
+    interpolation variances."""
+    increments, turned = log[1], log[2]
+    lines: tuple[str, ...] = ()
+    encoders = settings.encoders
+    step = None
+    if turned is not None and encoders.ticks_per_revolution is None:
+        step = wheel_quantum(increments)
+    if step is not None:
+        counts = 2.0 * math.pi / step
+        settings = settings.replace(
+            encoders=dataclasses.replace(encoders, ticks_per_revolution=counts)
+        )
+        lines = (
+            f"wheel angles: whole steps of {step:.4g} rad ({counts:.6g} counts per "
+            "revolution), each increment's rounding a floor of the wheels' noise against the "
+            "gyro (Encoders.ticks_per_revolution to give it)",
+        )
+    if settings.wheel_noise is not None:
+        return settings, lines
+    noise, said = _wheels_against_gyro(robot, log, settings)
+    return settings.replace(wheel_noise=noise), lines + said
+
+
+def _wheels_against_gyro(
+    robot: Robot, log: tuple, settings: EstimatorSettings
+) -> tuple[WheelNoise, tuple[str, ...]]:
+    """The wheels' noise from their turn against the gyro's (``identify_wheel_turns``), and
+    the lines that say so; ``sensor_noise.DEFAULT`` where there is no gyro, too little
+    driving, or a turn that differs from the gyro's by a scale, saying which."""
+    times, increments, turned, spread = log
+
+    def default(why: str) -> str:
+        return (
+            f"wheel noise: k = {settings.wheels.left:.3g} m on both wheels, the default ({why}; "
+            "EstimatorSettings.wheel_noise to give it)"
+        )
+
+    if turned is None:
+        return settings.wheels, (default("no gyro to tell it"),)
+    arw = settings.gyro.angle_random_walk
+    fit = identify_wheel_turns(robot, times, increments, turned, arw, spread)
+    if fit is None:
+        return settings.wheels, (default("too little driving to tell it"),)
+    if fit.scaled:
+        scaled = (
+            f"the wheels turn {100 * fit.mismatch:+.1f} % (+- {100 * fit.mismatch_error:.1f}) "
+            "against the gyro: a scale, not their noise (a track or radii not the robot's, or "
+            "a skid-steer's turns; diffdrive calibrate-gyro finds the track)"
+        )
+        return settings.wheels, (scaled, default("their turn scaled against the gyro's"))
+    if settings.encoders.wheel_floor == 0.0 and fit.noise.left < fit.k_error:
+        # without counts nothing else keeps the wheels' turn from reading as exact
+        held = (
+            f"wheel noise: k held at its standard error, {fit.k_error:.2g} m: the fit is no "
+            "more, and without the counts' rounding as a floor, 0 would read the wheels as exact"
+        )
+        return WheelNoise.symmetric(fit.k_error), (fit.report, held)
+    return fit.noise, (fit.report,)
+
+
 @dataclass(frozen=True)
 class _Log:
     """A whole log as the cores take it: ``times`` ``(N,)``, ``increments`` ``(N-1, 2)``, the
-    gyro's turns ``(N-1,)`` (NaN: none), the intervals the commands flag ``(N-1,)`` and the
+    gyro's turns ``(N-1,)`` (NaN: none) and their variances beyond the random walk's
+    (``Gyro.interpolation_variances``; 0: none), the intervals the commands flag ``(N-1,)`` and the
     measurements as arrays (``_packed``)."""
 
     times: np.ndarray
     increments: np.ndarray
     turned: np.ndarray
+    gyro_variance: np.ndarray
     commanded: np.ndarray
     measurements: _Packed
 
@@ -384,6 +468,7 @@ def _run(
         np.ascontiguousarray(log.increments[:, 0], dtype=float),
         np.ascontiguousarray(log.increments[:, 1], dtype=float),
         np.ascontiguousarray(log.turned, dtype=float),
+        np.ascontiguousarray(log.gyro_variance, dtype=float),
         flagged.astype(float),
         *log.measurements,
     )
@@ -479,6 +564,7 @@ def _twists(robot: Robot, c: ekf.Config, log: _Log, run: _Run):
             turn_scale=states[1:, ekf.SCALE],
             turn_scale_variances=covariances[1:, ekf.SCALE, ekf.SCALE],
             noise_scale=inflation,
+            wheel_floor=c.wheel_floor,
         )
     dt = np.diff(log.times)
     return interval_twists(
@@ -487,8 +573,11 @@ def _twists(robot: Robot, c: ekf.Config, log: _Log, run: _Run):
         log.increments,
         c.k,
         turns=log.turned - states[1:, ekf.BIAS] * dt,
-        turn_variances=c.arw2 * dt + dt * dt * covariances[1:, ekf.BIAS, ekf.BIAS],
+        turn_variances=c.arw2 * dt
+        + log.gyro_variance
+        + dt * dt * covariances[1:, ekf.BIAS, ekf.BIAS],
         noise_scale=inflation,
+        wheel_floor=c.wheel_floor,
     )
 
 
@@ -499,10 +588,15 @@ def _episodes(c: ekf.Config, log: _Log, run: _Run) -> np.ndarray:
     dl, dr, dt = log.increments[:, 0], log.increments[:, 1], np.diff(log.times)
     starts, start_covariances = run.out.states[:-1], run.out.covariances[:-1]
     innovation, variance, by_left, by_right = ekf.slip_innovation(
-        c, starts, start_covariances, dl, dr, log.turned, dt
+        c, starts, start_covariances, dl, dr, log.turned, log.gyro_variance, dt
     )
     scale = starts[:, ekf.SCALE]
-    wheel_noise = np.column_stack([c.k[0] * np.abs(r_l * dl), c.k[1] * np.abs(r_r * dr)])
+    wheel_noise = np.column_stack(
+        [
+            c.k[0] * np.abs(r_l * dl) + c.wheel_floor * r_l * r_l,
+            c.k[1] * np.abs(r_r * dr) + c.wheel_floor * r_r * r_r,
+        ]
+    )
     deviation = np.sqrt(variance)
     shared = wheel_noise * (scale * scale / (track * track * variance))[:, None]
     return steady_episodes(

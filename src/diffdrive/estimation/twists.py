@@ -10,7 +10,8 @@ turn) / dt``; at the body origin, ``reference_offset`` to the right of it, ``vx`
 ``reference_offset * omega`` (``SkidSteer.to_twist``'s rigid shift).
 
 Covariance, from the same noise model the estimators propagate: each wheel's travel ``s`` in
-the interval has variance ``k |s|`` (times a slipping interval's inflation), so ``var f =
+the interval has variance ``k |s|`` (plus the filter's ``wheel_floor`` times ``r^2``, and
+times a slipping interval's inflation), so ``var f =
 (k_l |s_l| + k_r |s_r|) / 4``, ``var w = (k_l |s_l| + k_r |s_r|) / track^2`` and ``cov(f, w)
 = (k_r |s_r| - k_l |s_l|) / (2 track)``; a turn scale adds ``w^2 var(scale)``; a turn given
 from elsewhere comes with its own variance and no covariance with the wheels (another sensor).
@@ -41,6 +42,7 @@ def interval_twists(
     turn_scale: object = None,
     turn_scale_variances: object = None,
     noise_scale: object = None,
+    wheel_floor: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The body twist ``(N, 3)`` ``[vx, vy, omega]`` (m/s, m/s, rad/s) over the intervals of
     wheel-angle ``increments`` ``(N-1, 2)`` rad between ``times`` ``(N,)`` s, and its
@@ -49,7 +51,8 @@ def interval_twists(
     ``turns`` ``(N-1,)`` rad: the heading source's turn over each interval, with
     ``turn_variances`` (rad^2); None: the wheels' turn, times ``turn_scale`` (default 1) of
     variance ``turn_scale_variances`` (default 0). ``noise_scale`` ``(N-1,)``: a factor on
-    each interval's wheel noise (default 1; a slipping interval's inflation)."""
+    each interval's wheel noise (default 1; a slipping interval's inflation);
+    ``wheel_floor`` (rad^2): each wheel angle increment's least variance, as the filter's."""
     times = np.asarray(times, dtype=float)
     increments = np.asarray(increments, dtype=float)
     if times.ndim != 1 or len(times) < 2 or increments.shape != (len(times) - 1, 2):
@@ -64,8 +67,8 @@ def interval_twists(
     forward, wheel_turn = 0.5 * (left + right), (right - left) / track
     inflation = _per_interval(noise_scale, 1.0, count, "noise_scale")
     noise = WheelNoise.coerce(wheel_noise)
-    var_left = inflation * noise.left * np.abs(left)
-    var_right = inflation * noise.right * np.abs(right)
+    var_left = inflation * (noise.left * np.abs(left) + wheel_floor * r_l * r_l)
+    var_right = inflation * (noise.right * np.abs(right) + wheel_floor * r_r * r_r)
     var_forward = 0.25 * (var_left + var_right)
     if turns is None:
         scale = _per_interval(turn_scale, 1.0, count, "turn_scale")

@@ -64,6 +64,7 @@ _C_FIELDS = {
     "max_wheel_speed": "rad/s past which a reading is refused (INFINITY: none)",
     "k_left": "m: the left wheel's travel variance per metre travelled",
     "k_right": "m: the right wheel's",
+    "wheel_floor": "rad^2: a wheel angle increment's least variance, its counts' rounding",
     "heading": "from the wheels' turn and the gyro's, fused",
     "estimate_bias": "the gyro's bias estimated",
     "estimate_scale": "the turn scale estimated",

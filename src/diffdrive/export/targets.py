@@ -257,6 +257,7 @@ def _c_header(robot: DiffDrive, model: NoiseModel, encoders: Encoders | None):
         "estimate_offset": int(core.estimate_offset),
         "k_left": noise.left,
         "k_right": noise.right,
+        "wheel_floor": encoders.wheel_floor,
         "arw2": core.arw2,
         "rrw2": core.rrw2,
         "offset_rate2": core.offset_rate2,
