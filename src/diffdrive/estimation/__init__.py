@@ -15,6 +15,8 @@
 - ``standing``: the gyro's noise and bias from where the wheels stand still
   (``identify_standing``, what ``estimate_trajectory`` takes when given none; ``warm_up`` for a
   streaming ``PoseEstimator``; ``identify_gyro`` and ``allan_deviation`` for one stretch);
+- ``wheel_turns``: the wheels' noise from their turn against the gyro's
+  (``identify_wheel_turns``, what ``estimate_trajectory`` takes when given none);
 - ``fixes``: what position fixes are worth, from the fixes themselves (``identify_fixes``: their
   white noise, their offset's wander, the wheels' distance scale and the start in their frame;
   what ``estimate_trajectory`` takes with ``WholeLog(fixes="identified")``).
@@ -46,6 +48,7 @@ _NAMES = {
     **dict.fromkeys(["Estimate", "estimate_trajectory"], "smoother"),
     **dict.fromkeys(["StandingFit", "identify_standing", "warm_up"], "standing"),
     **dict.fromkeys(["FixFit", "identify_fixes"], "fixes"),
+    **dict.fromkeys(["WheelTurnFit", "identify_wheel_turns"], "wheel_turns"),
     **dict.fromkeys(
         [
             "Encoders",
@@ -84,6 +87,7 @@ __all__ = [
     "SensorCalibration",
     "SlipTest",
     "StandingFit",
+    "WheelTurnFit",
     "WholeLog",
     "Window",
     "chi2_quantile",
@@ -91,6 +95,7 @@ __all__ = [
     "gyro_odometry",
     "identify_fixes",
     "identify_standing",
+    "identify_wheel_turns",
     "measurements_of",
     "odometry_of_run",
     "rotation_from_rpy",
@@ -123,3 +128,4 @@ if TYPE_CHECKING:  # what the names are, for type checkers
     )
     from diffdrive.estimation.smoother import Estimate, estimate_trajectory
     from diffdrive.estimation.standing import StandingFit, identify_standing, warm_up
+    from diffdrive.estimation.wheel_turns import WheelTurnFit, identify_wheel_turns
