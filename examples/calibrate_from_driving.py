@@ -5,12 +5,12 @@
 its ``/fix`` positions and its IMU's yaw rate (30 Hz), no noise figure given: the wheels' and
 the fixes' noise identified from the drive (``identify_noise``), the gyro's from the log's
 standing stretch; the fixes' clock held (at the limit of what the drive determines), and
-what else the log does not determine (``UndeterminedError``) left out, and why. It prints the calibration's report, the gyro's clock against the wheels, the
-estimator's settings the calibration gives in one call (``estimator_settings``: the wheels'
-scales, the gyro's bias, clock and scale, the antenna's lever arm), and the gyro-heading dead
-reckoning's SE(2)-aligned ATE against the fixes (m) with the nominal wheels, the calibrated
-ones, and the nominal ones with the estimator started from the calibration, all over the
-same span.
+what else the log does not determine (``UndeterminedError``) left out, and why. It prints the
+calibration's report, the gyro's clock against the wheels, the estimator's settings the
+calibration gives in one call (``estimator_settings``: the wheels' scales, the gyro's bias,
+clock and scale, the antenna's lever arm), and the gyro-heading dead reckoning's SE(2)-aligned
+ATE against the fixes (m) with the nominal wheels, the calibrated ones, and the nominal ones
+with the estimator started from the calibration, all over the same span.
 
     python examples/calibrate_from_driving.py [--bags ../shared/data/ros-bags]
 """

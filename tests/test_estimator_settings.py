@@ -9,7 +9,8 @@ to the last bit when the record was taken; the test allows 1e-7 relative so that
 processor's rounding does not fail it. The whole-log cases with a gyro, and the command
 line's, were taken again when a whole log began to weigh how far the gyro's samples leave
 each turn open and to identify the wheels' noise against the gyro (a change of the model,
-measured in ``test_wheel_turns.py``); the streaming cases still hold 54e8c60's."""
+measured in ``test_wheel_turns.py``), and the stream fed rates with them; the other streaming
+cases still hold 54e8c60's."""
 
 from __future__ import annotations
 

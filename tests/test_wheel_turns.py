@@ -208,3 +208,39 @@ def test_the_command_says_what_it_identified(tmp_path, monkeypatch, capsys):
     # given, the wheels' noise is taken as it is and not identified
     assert main(["odometry", "run.mcap", *joints, "--k", "1e-4", "-o", "given.csv"]) == 0
     assert "from their turn against the gyro's" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("core", ["PoseEstimator", "_PythonPoseEstimator"])
+def test_a_stream_of_rates_weighs_their_interpolation_as_a_whole_log_does(core):
+    """A streaming estimator given the gyro's rate with each wheel reading takes the turn
+    between two rates, and how far they leave it open, as a whole log of the same samples
+    does: the two end in the same state (the wheels' noise given, as a stream cannot fit it)."""
+    from diffdrive.estimation import Window, estimate_trajectory, fusion
+
+    t, increments, gyro, _ = _log(1e-5, 2e-3, 7, ramp=0.0)
+    settings = EstimatorSettings(wheel_noise=1e-5, encoders=Encoders(ticks_per_revolution=COUNTS))
+    settings = settings.replace(gyro_noise=GyroNoise(angle_random_walk=2e-3), bias=0.0)
+    whole = estimate_trajectory(ROBOT, t, increments, gyro=gyro, settings=settings, smooth=False)
+    stream = getattr(fusion, core)(ROBOT, settings.replace(window=Window(math.inf, 0.0)),
+                                   initial_time=float(t[0]))  # fmt: skip
+    stream.update_increments(0.0, 0.0, float(t[0]), gyro_rate=float(gyro.rates[0]))
+    for k in range(1, len(t)):
+        stream.update_increments(*increments[k - 1], float(t[k]), gyro_rate=float(gyro.rates[k]))
+    np.testing.assert_allclose(stream.state, whole.states[-1], rtol=1e-9, atol=1e-11)
+    assert np.count_nonzero(gyro.interpolation_variances(t)) > 0.9 * (len(t) - 1)
+
+
+@pytest.mark.parametrize("core", ["PoseEstimator", "_PythonPoseEstimator"])
+def test_rates_whose_interpolation_passes_the_floats_are_refused_and_change_nothing(core):
+    """Two rates 1e300 rad/s apart: their interpolation's variance passes the largest float,
+    and both cores refuse the reading by name, the estimator as it was."""
+    from diffdrive.estimation import fusion
+
+    stream = getattr(fusion, core)(ROBOT, EstimatorSettings("gyro", bias=0.0), initial_time=0.0)
+    stream.update_increments(0.0, 0.0, 0.0, gyro_rate=0.0)
+    stream.update_increments(0.1, 0.1, 0.02, gyro_rate=0.1)
+    before = (stream.state.copy(), stream.state_covariance.copy())
+    with pytest.raises(ValueError, match="overflow the state; refused"):
+        stream.update_increments(0.2, 0.2, 0.04, gyro_rate=1e300)
+    np.testing.assert_array_equal(stream.state, before[0])
+    np.testing.assert_array_equal(stream.state_covariance, before[1])

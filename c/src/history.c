@@ -138,7 +138,7 @@ dd_status dd_history_rebuffer(dd_history *h, dd_history_buffers b) {
 }
 
 dd_status dd_history_wheels(dd_history *h, const dd_filter *f, double t0, double t1,
-                            dd_real dl, dd_real dr, dd_real g, int forced) {
+                            dd_real dl, dd_real dr, dd_real g, dd_real gv, int forced) {
     if (h == 0 || f == 0) return DD_NULL;
     dd_history_buffers *b = &h->buffers;
     long due = 0; /* the measurements that waited for the wheels and are due now */
@@ -162,7 +162,7 @@ dd_status dd_history_wheels(dd_history *h, const dd_filter *f, double t0, double
             tail[at] = b->pending[i];
         }
     dd_interval *iv = &b->intervals[h->first + h->count];
-    dd_interval_set(iv, t0, t1, dl, dr, g, 0.0, forced); /* a stream's gyro: one angle */
+    dd_interval_set(iv, t0, t1, dl, dr, g, gv, forced);
     memcpy(iv->x, h->x, sizeof h->x);
     pack(f, iv->P, h->P);
     dd_real x[N], P[NN];

@@ -44,11 +44,13 @@ dd_status dd_history_init(dd_history *history, dd_history_buffers buffers, doubl
  * DD_FULL if any is smaller than what it must hold. */
 dd_status dd_history_rebuffer(dd_history *history, dd_history_buffers larger);
 
-/* The interval [t0, t1] of wheel increments dl, dr (rad) and gyro turn g (rad; NaN: none),
- * forced: declared slipping by the commands. The measurements waiting for it are applied in
- * it. DD_FULL (give larger buffers), DD_OVERFLOW_POSE (the state would not be finite). */
+/* The interval [t0, t1] of wheel increments dl, dr (rad) and gyro turn g (rad; NaN: none) of
+ * variance gv beyond the angle random walk's (rad^2: how far the gyro's samples leave it
+ * open; 0 for one angle), forced: declared slipping by the commands. The measurements waiting
+ * for it are applied in it. DD_FULL (give larger buffers), DD_OVERFLOW_POSE (the state would
+ * not be finite). */
 dd_status dd_history_wheels(dd_history *history, const dd_filter *filter, double t0, double t1,
-                            dd_real dl, dd_real dr, dd_real g, int forced);
+                            dd_real dl, dd_real dr, dd_real g, dd_real gv, int forced);
 
 /* An absolute measurement, with the newest wheel reading at `now` (s; NaN: none yet).
  * *outcome: 1 accepted by the gate, 0 refused by it, -1 waiting for the wheels. Refused,

@@ -311,11 +311,14 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
     double dt = now - previous;
     odometry_arcs(e->wheels, after);
     double dl = (after[0] - before[0]) / e->f.config.drive.r_left, dr = (after[1] - before[1]) / e->f.config.drive.r_right;
-    double g = NAN;
-    if (have_angle)
+    double g = NAN, gv = 0.0;
+    if (have_angle) {
         g = angle;
-    else if (have_rate)
-        g = 0.5 * ((e->have_rate ? e->rate : rate) + rate) * dt;
+    } else if (have_rate) { /* Gyro.interpolation_variances of the two rates */
+        double held = e->have_rate ? e->rate : rate;
+        g = 0.5 * (held + rate) * dt;
+        gv = (dt * (rate - held)) * (dt * (rate - held)) / 12.0;
+    }
     double command_score = 0.0;
     if (have_wanted && dt > 0.0) {
         double miss[2] = {dl / dt - wanted[0], dr / dt - wanted[1]};
@@ -323,7 +326,7 @@ static PyObject *update(Est *e, int kind, PyObject *const *args, Py_ssize_t narg
         command_score = (miss[0] * miss[0] + miss[1] * miss[1]) / sigma2;
     }
     dd_status status;
-    while ((status = dd_history_wheels(&e->h, &e->f, previous, now, dl, dr, g,
+    while ((status = dd_history_wheels(&e->h, &e->f, previous, now, dl, dr, g, gv,
                                        command_score > SLIP_COMMAND_THRESHOLD)) == DD_FULL)
         if (enlarge(e) < 0) {
             odometry_restore(e->wheels, saved);

@@ -184,14 +184,15 @@ class EstimatorCore:
         after = self._wheels._wheel_arcs()
         r_l, r_r = self.config.drive[0], self.config.drive[1]
         dl, dr = (after[0] - before[0]) / r_l, (after[1] - before[1]) / r_r
-        gyro = self._gyro_angle(gyro_angle, rate, dt)
+        gyro, gyro_variance = self._gyro_angle(gyro_angle, rate, dt)
         command_score = 0.0
         if wanted is not None and dt > 0.0:
             miss = (dl / dt - wanted.left, dr / dt - wanted.right)
             sigma2 = self._command_sigma * self._command_sigma
             command_score = (miss[0] * miss[0] + miss[1] * miss[1]) / sigma2
         forced = command_score > ekf.COMMAND_THRESHOLD or self._forced
-        interval = Interval(previous, now, (dl, dr), gyro, forced, (self._state, self._P))
+        start = (self._state, self._P)
+        interval = Interval(previous, now, (dl, dr), gyro, forced, start, gyro_variance)
         due = [m for m in self._pending if m.t <= now]
         interval.measurements = sorted(due, key=lambda m: m.order)
         try:
@@ -222,14 +223,19 @@ class EstimatorCore:
             raise ValueError(f"gyro_rate must be a finite yaw rate or 3 IMU rates, got {rate!r}")
         return float(values)
 
-    def _gyro_angle(self, angle: float | None, rate: float | None, dt: float) -> float:
-        """The angle the gyro turned over the interval (NaN: no gyro)."""
+    def _gyro_angle(
+        self, angle: float | None, rate: float | None, dt: float
+    ) -> tuple[float, float]:
+        """The angle the gyro turned over the interval (NaN: no gyro) and its variance beyond
+        the random walk's: from two rates, how far they leave the angle between them open
+        (``Gyro.interpolation_variances``); from an angle, 0."""
         if angle is not None:
-            return angle
+            return angle, 0.0
         if rate is not None:
             held = rate if self._rate is None else self._rate
-            return 0.5 * (held + rate) * dt
-        return math.nan
+            opened = dt * (rate - held)  # a product, as C's: inf past the floats, not an error
+            return 0.5 * (held + rate) * dt, opened * opened / 12.0
+        return math.nan, 0.0
 
     # -- absolute measurements ------------------------------------------------------------
 
