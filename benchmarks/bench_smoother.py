@@ -3,7 +3,8 @@
 
 The log: a 0.1 m / 0.5 m drive at 100 Hz along a winding path, wheel noise ``k`` = 1e-4 m, a
 gyro with a bias of 2e-3 rad/s and white rate noise, heading ``"fused"`` (the bias a state,
-the slip test and its episodes on), and, in a second variant, a position fix every second.
+the slip test and its episodes on, the wheels' noise identified against the gyro as with no
+setting given), and, in a second variant, a position fix every second.
 Timed: the filter (``smooth=False``) and the filter with the smoother, in microseconds per
 wheel interval, medians of ``--repeats`` runs; the C core on ``--intervals`` (10^6: 2.8 hours
 of driving), the Python twin on ``--twin-intervals``. Targets (issue 40): on 10^6 intervals
@@ -30,6 +31,7 @@ from diffdrive.estimation import (
 )
 from diffdrive.estimation import smoother as whole
 from diffdrive.estimation.episodes import EDGE_COST, EPISODE_PENALTY, LONGEST, partition
+from diffdrive.estimation.wheel_turns import identify_wheel_turns
 from timing import median_time  # benchmarks/timing.py
 
 ROBOT = dd.DiffDrive(wheel_radius=0.1, track_width=0.5)
@@ -56,18 +58,20 @@ def log(intervals: int, fixes: bool, seed: int = 0):
     return times, increments, Gyro(times, rate), measured
 
 
-def per_interval(times, increments, gyro, measured, smooth, repeats) -> float:
+def per_interval(times, increments, gyro, measured, smooth, repeats, settings=None) -> float:
     def run():
         return estimate_trajectory(
-            ROBOT, times, increments, gyro=gyro, measurements=measured, smooth=smooth
-        )
+            ROBOT, times, increments, gyro=gyro, measurements=measured, smooth=smooth,
+            settings=settings,
+        )  # fmt: skip
 
     return median_time(run, repeats) / (len(times) - 1) * 1e6
 
 
 def parts(times, increments, gyro, repeats) -> dict[str, float]:
-    """us per interval of the pieces: the C pass alone, forward and with the smoother, and
-    the episodes' partition."""
+    """us per interval of the pieces: the C pass alone, forward and with the smoother, the
+    episodes' partition, and what a whole log reads from itself before the pass: the gyro's
+    interpolation and the wheels' noise against the gyro."""
     whole_log = EstimatorSettings(window=Window(np.inf, 0.0))
     estimator = fusion.PoseEstimator(ROBOT, whole_log, initial_time=0.0)
     n = len(times) - 1
@@ -80,6 +84,10 @@ def parts(times, increments, gyro, repeats) -> dict[str, float]:
         "the C pass, forward and back": lambda: whole._run(estimator, log_, True, None),
         "the episodes' partition": lambda: partition(
             scaled, directions, EPISODE_PENALTY, EDGE_COST, LONGEST
+        ),
+        "the gyro's interpolation": lambda: gyro.interpolation_variances(times),
+        "the wheels' noise against the gyro": lambda: identify_wheel_turns(
+            ROBOT, times, increments, turned, 0.02, spread
         ),
     }
     return {name: median_time(run, repeats) / n * 1e6 for name, run in work.items()}
@@ -113,6 +121,16 @@ def main() -> None:
                 f"| {name} | {passes} | {c:.2f} | {twin:.0f} | {twin / c:.0f} | "
                 f"<= {TARGETS[smooth]:.0f} |"
             )
+    big = log(args.intervals, False)
+    given = EstimatorSettings(wheel_noise=1e-4)
+    print("\nthe wheels' noise given (k = 1e-4 m) against identified, C core, side by side:")
+    for smooth in (False, True):
+        identified = per_interval(*big, smooth, args.repeats)
+        held = per_interval(*big, smooth, args.repeats, given)
+        passes = "filter and smoother" if smooth else "filter"
+        print(
+            f"  {passes}: {held:.2f} given, {identified:.2f} identified ({identified / held:.2f}x)"
+        )
     print("\nits pieces, gyro log, us per interval:")
     for piece, cost in parts(*log(args.intervals, False)[:3], args.repeats).items():
         print(f"  {piece}: {cost:.2f}")

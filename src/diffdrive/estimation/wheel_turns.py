@@ -139,9 +139,7 @@ def identify_wheel_turns(
     weights = np.ones(len(squares))
     fitted = np.full(2, np.nan)
     for _ in range(ROUNDS):  # reweighted until the fit and the pairs it keeps hold still
-        found = nonnegative_least_squares(
-            design[kept] / weights[kept, None], excess[kept] / weights[kept]
-        )
+        found = nonnegative_least_squares(*_square(design, excess, kept / (weights * weights)))
         predicted = held + design @ found
         # a perfect log predicts 0 somewhere: the smallest positive prediction instead
         least = float(predicted[predicted > 0].min()) if np.any(predicted > 0) else 1.0
@@ -177,6 +175,22 @@ def identify_wheel_turns(
     )
 
 
+def _square(
+    design: np.ndarray, target: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The weighted ``sum(weights (design x - target)^2)`` as a square problem with the same
+    minimiser over any set of ``x`` (the triangular factor of the weighted normal matrix, and
+    ``target`` turned into it): the non-negative fit then solves 2 x 2 systems, not thousands
+    of rows. The rows themselves, weighted, where that matrix is singular."""
+    weighted = design.T * weights
+    try:
+        upper = np.linalg.cholesky(weighted @ design).T
+    except np.linalg.LinAlgError:
+        root = np.sqrt(weights)
+        return design * root[:, None], target * root
+    return upper, np.linalg.solve(upper.T, weighted @ target)
+
+
 def _mismatch(wheel_turn, disagreement, dt) -> tuple[float, float]:
     """The disagreement per radian of the wheels' turn (least squares beside a bias over
     windows of a second or more, where the gyro's clock against the wheels' matters little;
@@ -207,12 +221,19 @@ def wheel_quantum(increments: object, largest: int = 4) -> float | None:
     1 to ``largest`` is tried (a log whose wheels never move by one count alone)."""
     moves = np.abs(np.asarray(increments, dtype=float)).ravel()
     moves = moves[np.isfinite(moves) & (moves > 0.0)]
-    if len(moves) < 10 or len(np.unique(moves)) < 5:
+    if len(moves) < 10:
         return None
     smallest = float(moves.min())
     for divisor in range(1, largest + 1):
         step = smallest / divisor
-        counts = moves / step
-        if np.all(np.abs(counts - np.round(counts)) <= 1e-6 * np.maximum(1.0, counts)):
-            return step
+        # the first moves first: angles that are not counts fail there, at once
+        if _whole(moves[:1000], step) and _whole(moves, step):
+            sizes = len(np.unique(np.round(moves / step)))
+            return step if sizes >= 5 else None
     return None
+
+
+def _whole(moves: np.ndarray, step: float) -> bool:
+    """Whether every move is a whole number of ``step`` (to 1e-6 of a step)."""
+    counts = moves / step
+    return bool(np.all(np.abs(counts - np.round(counts)) <= 1e-6 * np.maximum(1.0, counts)))
