@@ -11,7 +11,8 @@
    counted under QEMU (``-icount shift=0``: one instruction a nanosecond of the virtual clock,
    read off the board's SysTick, c/cortex-m4/step_cost.c).
 5. The Python extension before and after the core moved into ``c/``: one
-   ``Odometry.update_ticks`` and a smoothed ``estimate_trajectory`` of 20,000 readings, each
+   ``Odometry.update_ticks`` and a smoothed ``estimate_trajectory`` of 20,000 readings (the
+   wheels' noise given, so that both revisions run the same model), each
    revision's extension built in a clone of its own and timed in alternating rounds (medians,
    wall and processor time).
 
@@ -222,7 +223,12 @@ w1, c1 = clocks()
 increments = rng.uniform(0.05, 0.1, (m - 1, 2))
 stamps = np.arange(m) * 0.01
 rates = np.concatenate([[0.0], (increments[:, 1] - increments[:, 0]) * 0.033 / 0.16 / 0.01])
-estimate_trajectory(robot, stamps, increments, gyro=Gyro(stamps, rates), smooth=True)
+try:  # the wheels' noise given, as both revisions spell it: the same model in both
+    from diffdrive.estimation import EstimatorSettings
+    given = {"settings": EstimatorSettings(wheel_noise=noise)}
+except ImportError:
+    given = {"wheel_noise": noise}
+estimate_trajectory(robot, stamps, increments, gyro=Gyro(stamps, rates), smooth=True, **given)
 w2, c2 = clocks()
 print(json.dumps({"update": [(w1 - w0) / n, (c1 - c0) / n], "smoother": [w2 - w1, c2 - c1]}))
 """
