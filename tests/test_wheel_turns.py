@@ -15,8 +15,9 @@ from hypothesis import strategies as st
 
 import diffdrive as dd
 from diffdrive.cli import main
+from diffdrive.encoders import rounding_variance, wheel_quantum
 from diffdrive.estimation import Encoders, EstimatorSettings, Gyro, PoseEstimator, gyro_odometry
-from diffdrive.estimation.wheel_turns import LEAST, identify_wheel_turns, wheel_quantum
+from diffdrive.estimation.wheel_turns import LEAST, identify_wheel_turns
 from diffdrive.sensor_noise import GyroNoise, WheelNoise
 from diffdrive.sensors import EncoderModel, GyroModel, Slip, encoder_readings, gyro_readings
 
@@ -105,6 +106,7 @@ def test_the_counters_step_is_found_in_their_angles():
 
 def test_the_floor_is_the_rounding_of_two_readings():
     assert Encoders(ticks_per_revolution=COUNTS).wheel_floor == pytest.approx(STEP**2 / 6)
+    assert rounding_variance(COUNTS) == Encoders(ticks_per_revolution=COUNTS).wheel_floor
     assert Encoders().wheel_floor == 0.0
 
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from diffdrive._validate import increasing, positive
+from diffdrive.encoders import rounding_variance
 from diffdrive.model import DiffDrive
 from diffdrive.sensor_noise import DEFAULT_GYRO, GyroNoise, WheelNoise, WheelNoiseLike
 from diffdrive.sensor_noise import NONE as NO_WHEEL_NOISE
@@ -117,9 +118,8 @@ def track_from_gyro(
             "(20 intervals or more, and a turn of a few degrees or more in all)"
         )
     wheel = float(np.mean(np.abs(arcs) @ k))  # each wheel's travel variance, summed
-    if ticks_per_revolution is not None:  # a count's quantisation on each wheel: q^2 / 6
-        q = 2 * math.pi / ticks_per_revolution
-        wheel += (r_l * r_l + r_r * r_r) * q * q / 6.0
+    if ticks_per_revolution is not None:  # a count's quantisation on each wheel
+        wheel += (r_l * r_l + r_r * r_r) * rounding_variance(ticks_per_revolution)
     gyro = gyro_noise.angle_random_walk**2 * float(np.mean(dt))
     ratio = math.inf if wheel == 0 else gyro / wheel  # var(y noise) / var(x noise), rad^2/m^2
     slope = _deming(u, y, ratio)

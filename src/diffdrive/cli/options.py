@@ -463,10 +463,9 @@ def wheel_noise(
     (``log.truth``; ``noise.identify`` of ``increments`` against it, the reference held at
     motion capture's accuracy); else (or where the truth does not tell it), with a ``gyro``,
     None: the estimator identifies it from the wheels' turn against the gyro's and says so;
-    else the library's default
-    (``diffdrive.sensor_noise.DEFAULT``).
-    Both 0 are refused for a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which
-    a filter reads as exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
+    else the library's default (``diffdrive.sensor_noise.DEFAULT``). Both 0 are refused for
+    a bag: its ``nav_msgs/Odometry`` would carry zero covariances, which a filter reads as
+    exact (robot_localization floors them to 1e-9 and holds the robot to them)."""
     given = wheel_pair(args)
     in_file = robot_noise(args).get("wheel_noise")
     if given is not None:

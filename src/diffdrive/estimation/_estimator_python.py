@@ -18,6 +18,7 @@ import numpy as np
 from diffdrive._validate import finite
 from diffdrive.backends.settings import CoreSettings, LogArrays, PassArrays
 from diffdrive.estimation import filter as ekf
+from diffdrive.estimation.imu import _interpolation_variance
 from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement, _floats
 from diffdrive.types import WheelVelocities
 
@@ -233,8 +234,7 @@ class EstimatorCore:
             return angle, 0.0
         if rate is not None:
             held = rate if self._rate is None else self._rate
-            opened = dt * (rate - held)  # a product, as C's: inf past the floats, not an error
-            return 0.5 * (held + rate) * dt, opened * opened / 12.0
+            return 0.5 * (held + rate) * dt, _interpolation_variance(dt, rate - held)
         return math.nan, 0.0
 
     # -- absolute measurements ------------------------------------------------------------

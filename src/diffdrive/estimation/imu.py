@@ -130,11 +130,7 @@ class Gyro:
         at = np.asarray(at, dtype=float)
         if at.size == 0:
             return np.zeros(at.shape)
-        if at.min() < self.times[0] or at.max() > self.times[-1]:
-            raise ValueError(
-                f"the wheel log spans [{at.min():g}, {at.max():g}] s, the gyro only "
-                f"[{self.times[0]:g}, {self.times[-1]:g}] s"
-            )
+        self._within(at)
         if self.yaw is not None:  # the yaw itself: exact at its stamps, linear between
             return np.interp(at, self.times, self.yaw) - self.yaw[0]
         steps = np.diff(self.times)
@@ -157,14 +153,31 @@ class Gyro:
         sample's turn. From ``from_yaw``, whose angles are exact at its stamps, a whole span
         adds nothing, and a part of one the change to the next span's rate as above."""
         at = np.asarray(at, dtype=float)
-        self.angles(at)  # within the gyro's span, or refused naming it
+        self._within(at)
         cuts = np.union1d(at, self.times[(self.times > at[0]) & (self.times < at[-1])])
         pieces = np.diff(cuts)
         middle = cuts[:-1] + 0.5 * pieces
         last = len(self.times) - 2
         span = np.clip(np.searchsorted(self.times, middle, side="right") - 1, 0, last)
         interval = np.searchsorted(at, middle, side="right") - 1
-        variances = (pieces * np.diff(self.rates)[span]) ** 2 / 12.0
+        variances = _interpolation_variance(pieces, np.diff(self.rates)[span])
         if self.yaw is not None:
             variances[pieces >= np.diff(self.times)[span]] = 0.0
         return np.bincount(interval, variances, minlength=len(at) - 1)
+
+    def _within(self, at: np.ndarray) -> None:
+        """``ValueError`` unless every time ``at`` lies within the gyro's span, naming both."""
+        if at.min() < self.times[0] or at.max() > self.times[-1]:
+            raise ValueError(
+                f"the wheel log spans [{at.min():g}, {at.max():g}] s, the gyro only "
+                f"[{self.times[0]:g}, {self.times[-1]:g}] s"
+            )
+
+
+def _interpolation_variance(duration, change):
+    """The variance (rad^2) of the angle turned over ``duration`` s between two samples whose
+    rates differ by ``change`` (rad/s), read linearly: a uniform error within half of
+    ``duration * change`` either way (``Gyro.interpolation_variances``). Floats or arrays;
+    past the largest float, inf (a product, not a power, which would raise)."""
+    opened = duration * change
+    return opened * opened / 12.0

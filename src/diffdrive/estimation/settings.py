@@ -49,7 +49,7 @@ import numpy as np
 
 from diffdrive._validate import finite, nonnegative, positive
 from diffdrive.backends.settings import HEADINGS
-from diffdrive.encoders import check_counter_bits
+from diffdrive.encoders import check_counter_bits, rounding_variance
 from diffdrive.estimation.filter import SLIP_THRESHOLD
 from diffdrive.estimation.imu import mounting_yaw_row
 from diffdrive.estimation.measurements import Measurement
@@ -212,12 +212,11 @@ class Encoders:
     @property
     def wheel_floor(self) -> float:
         """The least variance (rad^2) of a wheel angle increment read off these counters: the
-        difference of two readings, each rounded to a count, ``(2 pi / counts)^2 / 6`` (two
-        independent roundings, uniform over a count); 0 without the counts."""
+        difference of two readings, each rounded to a count (``encoders.rounding_variance``);
+        0 without the counts."""
         if self.ticks_per_revolution is None:
             return 0.0
-        count = 2.0 * math.pi / self.ticks_per_revolution
-        return count * count / 6.0
+        return rounding_variance(self.ticks_per_revolution)
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ import numpy as np
 
 from diffdrive._validate import increasing, settings_of
 from diffdrive.backends.settings import LogArrays, PassArrays
+from diffdrive.encoders import wheel_quantum
 from diffdrive.estimation import filter as ekf
 from diffdrive.estimation.episodes import steady_episodes
 from diffdrive.estimation.fixes import IDENTIFIED_GATE, identify_fixes
@@ -31,7 +32,7 @@ from diffdrive.estimation.measurements import MEASUREMENT_KINDS, Measurement
 from diffdrive.estimation.settings import EstimatorSettings, Gate, SensorCalibration, Window
 from diffdrive.estimation.standing import identify_standing
 from diffdrive.estimation.twists import interval_twists
-from diffdrive.estimation.wheel_turns import identify_wheel_turns, wheel_quantum
+from diffdrive.estimation.wheel_turns import identify_wheel_turns
 from diffdrive.model import Robot
 from diffdrive.sensor_noise import WheelNoise
 
@@ -357,10 +358,10 @@ def _wheel_settings(
     robot: Robot, log: tuple, settings: EstimatorSettings
 ) -> tuple[EstimatorSettings, tuple[str, ...]]:
     """``settings`` with the encoders' counts from the step of the wheel angles where they
-    were not given (the floor of the wheels' noise against a gyro) and the wheels' noise
-    where it was not (``_wheels_against_gyro``); the lines that say what was used and where
-    from. ``log``: the times, increments, the gyro's turns (None: no gyro) and their
-    interpolation variances."""
+    were not given (``encoders.wheel_quantum``: the floor of the wheels' noise against a
+    gyro) and the wheels' noise where it was not (``_wheels_against_gyro``); the lines that
+    say what was used and where from. ``log``: the times, increments, the gyro's turns
+    (None: no gyro) and their interpolation variances."""
     increments, turned = log[1], log[2]
     lines: tuple[str, ...] = ()
     encoders = settings.encoders

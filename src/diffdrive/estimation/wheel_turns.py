@@ -27,9 +27,8 @@ or radii that are not the robot's, a skid-steer's turns), the difference is the 
 scale, not their noise, and the caller takes the default instead and says why. The fit is one
 ``k`` for both wheels: their turn tells the sum of their noises, not each one's.
 
-``wheel_quantum``: the step of wheel angles read off counters (a ``JointState`` of an
-encoder-driven wheel reports whole counts as radians), which sets the estimator's
-``Encoders.wheel_floor`` where the counts per revolution were not given.
+The counters' rounding under the wheels' noise, and the step that tells their counts where a
+log gives wheel angles, are ``diffdrive.encoders``' (``rounding_variance``, ``wheel_quantum``).
 """
 
 from __future__ import annotations
@@ -43,7 +42,7 @@ from diffdrive._stats import nonnegative_least_squares
 from diffdrive.model import Robot, geometry_of
 from diffdrive.sensor_noise import WheelNoise
 
-__all__ = ["LEAST", "WheelTurnFit", "identify_wheel_turns", "wheel_quantum"]
+__all__ = ["LEAST", "WheelTurnFit", "identify_wheel_turns"]
 
 LEAST = 50
 """The fewest intervals in which a wheel moves that ``identify_wheel_turns`` fits."""
@@ -78,17 +77,21 @@ class WheelTurnFit:
         return abs(self.mismatch) > 3.0 * self.mismatch_error
 
 
+def _windows(n: int, *per_interval: np.ndarray) -> list[np.ndarray]:
+    """Each of ``per_interval`` ``(N,)`` summed over consecutive windows of ``n`` intervals
+    (the last ``N mod n`` left out): ``(N // n,)`` each."""
+    m = len(per_interval[0]) // n
+    return [values[: m * n].reshape(m, n).sum(axis=1) for values in per_interval]
+
+
 def _pairs(dt, disagreement, travel, spread) -> tuple[np.ndarray, np.ndarray, int]:
     """The regressors ``(P, 4)`` ``[time, spread, travel, ends]`` and ``E^2`` ``(P,)`` of
     neighbouring windows at every scale (see the module), and how many scales there were."""
     rows, squares = [], []
     for n in SCALES:
-        m = len(dt) // n
-        if m < 4:
+        if len(dt) // n < 4:
             break
-        durations, turns, moved, open_ = (
-            v[: m * n].reshape(m, n).sum(axis=1) for v in (dt, disagreement, travel, spread)
-        )
+        durations, turns, moved, open_ = _windows(n, dt, disagreement, travel, spread)
         ratio = durations[:-1] / durations[1:]
         e = turns[:-1] - ratio * turns[1:]
         ratio2 = ratio * ratio
@@ -197,10 +200,7 @@ def _mismatch(wheel_turn, disagreement, dt) -> tuple[float, float]:
     the windows past five robust standard deviations of the first fit left out: slips) and
     its standard error."""
     n = max(1, min(len(dt) // 8, math.ceil(MISMATCH_WINDOW / float(np.median(dt)))))
-    m = len(dt) // n
-    wheel_turn, disagreement, dt = (
-        v[: m * n].reshape(m, n).sum(axis=1) for v in (wheel_turn, disagreement, dt)
-    )
+    wheel_turn, disagreement, dt = _windows(n, wheel_turn, disagreement, dt)
     design = np.column_stack([wheel_turn, dt])
     kept = np.ones(len(dt), dtype=bool)
     for _ in range(2):
@@ -211,29 +211,3 @@ def _mismatch(wheel_turn, disagreement, dt) -> tuple[float, float]:
     variance = float(np.mean(residuals[kept] ** 2))
     covariance = np.linalg.pinv(design[kept].T @ design[kept]) * variance
     return float(found[0]), math.sqrt(float(covariance[0, 0]))
-
-
-def wheel_quantum(increments: object, largest: int = 4) -> float | None:
-    """The step (rad) every wheel-angle increment ``(N-1, 2)`` is a whole multiple of (to
-    1e-6 of a step), counters read as radians; None where there is none: angles that are not
-    counts, fewer than 10 increments that move, or fewer than 5 sizes of move among them (a
-    drive at one speed, whose one size tells no counter's step). The smallest move divided by
-    1 to ``largest`` is tried (a log whose wheels never move by one count alone)."""
-    moves = np.abs(np.asarray(increments, dtype=float)).ravel()
-    moves = moves[np.isfinite(moves) & (moves > 0.0)]
-    if len(moves) < 10:
-        return None
-    smallest = float(moves.min())
-    for divisor in range(1, largest + 1):
-        step = smallest / divisor
-        # the first moves first: angles that are not counts fail there, at once
-        if _whole(moves[:1000], step) and _whole(moves, step):
-            sizes = len(np.unique(np.round(moves / step)))
-            return step if sizes >= 5 else None
-    return None
-
-
-def _whole(moves: np.ndarray, step: float) -> bool:
-    """Whether every move is a whole number of ``step`` (to 1e-6 of a step)."""
-    counts = moves / step
-    return bool(np.all(np.abs(counts - np.round(counts)) <= 1e-6 * np.maximum(1.0, counts)))
