@@ -33,10 +33,13 @@ m wheels with 12 V through a feedforward, the tracking robot given a drive, a Hu
 one), at 20, 50 and 100 ms, ``--other-paths`` random paths planned at 90 % of each wheel
 limit, the same delay and lag: cross-track mean and max, periods with a wheel past a limit by
 over 1 %, the end's distance 1 s after the plan, and CPU time per period, MPPI (defaults, the
-robot's ``WheelLimits``) beside Predictive(LTVUnicycle).
+robot's ``WheelLimits``) beside Predictive(LTVUnicycle). And ``--other-runs`` corridors on each
+of them at each period (the footprint theirs, the straight plan at 90 % of their limits):
+touched, goal missed, stalls found, periods past a limit, time to the goal against the
+straight plan; run a process per core, each cycle on one thread.
 
     python benchmarks/bench_mppi.py [--runs 1000] [--paths 20] [--repeats 15]
-        [--other-paths 10] [--libraries numba numpy torch jax]
+        [--other-paths 10] [--other-runs 200] [--libraries numba numpy torch jax]
 """
 
 from __future__ import annotations
@@ -317,6 +320,81 @@ def robots_and_rates(paths: int) -> None:
                 )
 
 
+def corridor_on_robot(name: str, period: float, seed: int) -> dict[str, object]:
+    """One corridor of ``seed`` for robot ``name`` of ``OTHERS`` at ``period`` s: MPPI with
+    its defaults and the robot's limits, on the straight plan at 90 % of them."""
+    robot, limits, footprint = OTHERS[name]
+    course = cluttered_corridor(np.random.default_rng(seed), footprint=footprint)
+    straight = plan([course.start, course.goal], robot, planned_within(limits))
+    tracker = MPPI(
+        dt=period,
+        drive=DRIVE,
+        limits=limits,
+        sampling=MPPISampling(seed=seed),
+        avoid=Avoidance(course.obstacles, footprint=footprint),
+    )
+    way = guide(straight, course.obstacles, footprint).duration
+    settle = FollowSettings(settle=max(0.5 * straight.duration, way - straight.duration + 2.0))
+    result = follow(straight, tracker, dt=period, drive=DRIVE, settings=settle)
+    poses = result.poses[0]
+    distance = np.hypot(*(poses[:, :2] - course.goal[:2]).T)
+    reached = np.flatnonzero(distance < GOAL)
+    return {
+        "touch": bool(course.touches(poses, footprint).any()),
+        "ratio": (result.times[reached[0]] - result.times[0]) / straight.duration
+        if len(reached)
+        else None,
+        "guide": way / straight.duration,
+        "stalls": len(tracker.stalls),
+        "over": over_limits(result, limits, period),
+    }
+
+
+def _one_thread_corridor(task: tuple[str, float, int]) -> dict[str, object]:
+    return corridor_on_robot(*task)
+
+
+def corridors_on_robots(runs: int) -> None:
+    """``runs`` corridors for each robot of ``OTHERS`` at each period of ``PERIODS``, spread
+    over a process per core, each cycle on one thread (only outcomes are counted here)."""
+    import multiprocessing
+    import os
+
+    print(
+        f"cluttered corridors on each robot and period, {runs} runs each, MPPI with its "
+        "defaults, planned at 90 % of the limits, 0.1 s delay and lag known:"
+    )
+    os.environ["NUMBA_NUM_THREADS"] = "1"  # read by the workers as they start
+    with multiprocessing.get_context("spawn").Pool(os.cpu_count()) as pool:
+        for name in OTHERS:
+            for period in PERIODS:
+                start = time.perf_counter()
+                tasks = [(name, period, seed) for seed in range(runs)]
+                outcomes = pool.map(_one_thread_corridor, tasks)
+                touched = [s for s, o in enumerate(outcomes) if o["touch"]]
+                missed = [s for s, o in enumerate(outcomes) if o["ratio"] is None]
+                ratios = np.array([o["ratio"] for o in outcomes if o["ratio"] is not None])
+                slow = int(np.count_nonzero(ratios > 1.3))
+                stalls = sum(int(o["stalls"]) for o in outcomes)  # type: ignore[call-overload]
+                over = sum(int(o["over"]) for o in outcomes)  # type: ignore[call-overload]
+                guides = np.mean([o["guide"] for o in outcomes])
+                spread = (
+                    f"time / straight plan median {np.median(ratios):.3f}, mean "
+                    f"{ratios.mean():.3f} (the guide's own plan {guides:.3f}), max "
+                    f"{ratios.max():.3f}, over 1.3x {slow}"
+                    if len(ratios)
+                    else "no run reached the goal"
+                )
+                print(
+                    f"  {name}, {1e3 * period:.0f} ms ({time.perf_counter() - start:.0f} s): "
+                    f"touched {len(touched)}, goal missed {len(missed)}, stalls {stalls}, "
+                    f"periods over a limit {over}; {spread}"
+                )
+                for label, seeds in (("touched", touched), ("missed", missed)):
+                    if seeds:
+                        print(f"    {label}: seeds {seeds[:12]}{' ...' if len(seeds) > 12 else ''}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=1000)
@@ -325,6 +403,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--other-paths", type=int, default=10,
                         help="random paths per robot and period in robots_and_rates")  # fmt: skip
+    parser.add_argument("--other-runs", type=int, default=200,
+                        help="corridors per robot and period in corridors_on_robots")  # fmt: skip
     installed = ["numba", "numpy"] + [n for n in ("torch", "jax") if importlib.util.find_spec(n)]
     parser.add_argument("--libraries", nargs="+", default=installed, choices=installed,
                         help="the cycle's back ends (default: every one installed)")  # fmt: skip
@@ -336,6 +416,7 @@ def main() -> None:
     tracking(args.paths)
     robots_and_rates(args.other_paths)
     obstacles(args.runs, args.compare)
+    corridors_on_robots(args.other_runs)
 
 
 if __name__ == "__main__":

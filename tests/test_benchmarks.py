@@ -50,6 +50,8 @@ SMALL = {
         "1",
         "--other-paths",
         "1",
+        "--other-runs",
+        "1",
         "--libraries",
         "numba",
         "numpy",

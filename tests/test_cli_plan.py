@@ -261,6 +261,10 @@ def test_follow_steers_mppi_around_a_ros_map_and_writes_nav2_parameters(files, c
     assert gaps.min() > 0.35
     assert f"closest {1e3 * (gaps.min() - 0.35):.0f} mm beyond the footprint" in printed
     assert "touching at 0 of" in printed
+    end = 1e3 * np.hypot(table["x"][-1] - 5.0, table["y"][-1])
+    assert f"end: robot 0 {end:.1f} mm from the plan's last pose" in printed
+    assert end < 50.0
+    assert "stalled" not in printed
     parameters = yaml.safe_load(nav2.read_text())["controller_server"]["ros__parameters"]
     follow_path = parameters["FollowPath"]
     assert follow_path["plugin"] == "nav2_mppi_controller::MPPIController"

@@ -328,9 +328,10 @@ def _block(first, mean, q, state, reference, grid, seed, draw, noise, costs):
             st[_WL, j], st[_WR, j], st[_PV, j], st[_PW, j] = el, er, vx, omega
             st[_TOTAL, j] += (wheels + effort) + tracking
         if obstacles:
+            band = reference[t, 4]
             for j in range(LANES):
                 gap = _clearance(grid, st[_X, j], st[_Y, j], q) - q.footprint
-                near = max(q.inflation - gap, 0.0)
+                near = max(band - gap, 0.0)
                 st[_TOTAL, j] += q.clearance * near * near + (q.collision if gap < 0.0 else 0.0)
     for j in range(LANES):
         gx, gy = st[_X, j] - q.goal_x, st[_Y, j] - q.goal_y
@@ -375,8 +376,8 @@ def cycle(mean, q, state, reference, grid, seed, draw, noise, costs):
     """Each candidate's cost ``costs`` ``(K,)``, ``K`` a multiple of ``LANES``: its
     perturbations ``noise`` ``(T, 2, K)`` (drawn here when ``draw``, from ``seed``; read
     otherwise) added to ``mean`` ``(T, 2)``, rolled out from ``state`` (``in_flight``'s) and
-    scored against ``reference`` ``(T, 4)`` (x, y, cos, sin at each step's end) and the
-    clearance ``grid`` (see ``control.mppi``)."""
+    scored against ``reference`` ``(T, 5)`` (x, y, cos, sin at each step's end, and the
+    clearance band there, m) and the clearance ``grid`` (see ``control.mppi``)."""
     for b in numba.prange(costs.shape[0] // LANES):
         _block(b * LANES, mean, q, state, reference, grid, seed, draw, noise, costs)
 

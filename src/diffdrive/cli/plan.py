@@ -213,6 +213,7 @@ def run_follow(args: argparse.Namespace) -> int:
         drive=drive,
         settings=FollowSettings(robots=args.robots, wheel_noise=noise, seed=args.seed),
     )
+    stalls = list(getattr(tracker, "stalls", []))  # before delay_margin runs it again
     errors = run.errors()
     known = args.delay if args.predict or args.tracker == "mppi" else 0.0
     columns = {
@@ -258,6 +259,17 @@ def run_follow(args: argparse.Namespace) -> int:
                 f"  obstacles ({args.obstacles[0]}): closest {1e3 * float(gaps.min()):.0f} mm "
                 f"beyond the footprint; touching at {touching} of {gaps.size} poses"
             )
+        ends = np.hypot(*(run.poses[:, -1, :2] - result.poses[-1, :2]).T)
+        print(
+            f"  end: robot 0 {1e3 * float(ends[0]):.1f} mm from the plan's last pose"
+            + (f", every robot within {1e3 * float(ends.max()):.1f} mm" if args.robots > 1 else "")
+        )
+        for stall in stalls:
+            outcome = "a way from there followed" if stall.detour else f"no way: {stall.why}"
+            print(
+                f"  stalled: robot {stall.robot} at {stall.t:.2f} s, {stall.distance:.3f} m "
+                f"from the goal; {outcome}"
+            )
         if getattr(args, "nav2_mppi", None):
             print(f"  Nav2 MPPI parameters: {args.nav2_mppi}")
         beyond = " beyond the known delay" if known else ""
@@ -285,17 +297,18 @@ written rows use.""",
       --robots 200 --wheel-noise 1e-4 --seed 1 -o follow.csv
 
 Written: robot 0's true poses with its cross-track, along-track and heading errors. Printed:
-the errors and the delay margin, found by simulation (-q prints nothing and leaves that search
-out). Around obstacles: diffdrive mppi.""",
+the errors, how far from the plan's last pose the robots end, and the delay margin, found by
+simulation (-q prints nothing and leaves that search out). Around obstacles: diffdrive mppi.""",
     "mppi": """examples:
   diffdrive mppi waypoints.csv --robot robot.toml --max-velocity 1 --max-acceleration 1 \\
       --delay 0.1 --lag 0.1 --obstacles map.yaml 0.2 --nav2-mppi mppi.yaml --plot mppi.png
 
 It rolls its samples out through the delay and the lag itself. Written: robot 0's true poses
-with its cross-track, along-track and heading errors. Printed: the errors and the delay margin
-beyond the known delay, found by simulating the controller again (the longest part: -q prints
-nothing and leaves it out). --nav2-mppi's figures are checked before the run (a wheel limit
-is needed).""",
+with its cross-track, along-track and heading errors. Printed: the errors, how far from the
+plan's last pose the robots end, each stall found short of the goal (and whether a way from
+there was followed), and the delay margin beyond the known delay, found by simulating the
+controller again (the longest part: -q prints nothing and leaves it out). --nav2-mppi's
+figures are checked before the run (a wheel limit is needed).""",
 }
 
 

@@ -13,7 +13,8 @@
 - ``candidates``: ``rollouts``, many candidate command sequences through a delay and
   acceleration limits;
 - ``mppi``: ``MPPI``, a tracker that samples them (model predictive path integral control),
-  with its ``MPPICosts``, ``MPPISampling``, ``WheelLimits`` and ``Avoidance``;
+  with its ``MPPICosts``, ``MPPISampling``, ``WheelLimits``, ``Avoidance`` and ``Arrival``
+  (a ``Stall`` each time a robot stops short of the goal);
   ``_mppi_arrays`` runs its cycle in an array library;
 - ``obstacles``: ``Obstacles``, a clearance field from circles, an occupancy grid or a ROS map
   (``read_map``); ``clearance``: ``guide``, a plan made to clear them; ``courses``:
@@ -33,7 +34,10 @@ _NAMES = {
     **dict.fromkeys(["from_segments", "from_waypoints"], "path"),
     **dict.fromkeys(["PathLimits", "Plan", "limit_ratios", "plan"], "planning"),
     "rollouts": "candidates",
-    **dict.fromkeys(["MPPI", "Avoidance", "MPPICosts", "MPPISampling", "WheelLimits"], "mppi"),
+    **dict.fromkeys(
+        ["MPPI", "Arrival", "Avoidance", "MPPICosts", "MPPISampling", "Stall", "WheelLimits"],
+        "mppi",
+    ),
     **dict.fromkeys(["Obstacles", "read_map"], "obstacles"),
     "guide": "clearance",
     **dict.fromkeys(["Course", "cluttered_corridor"], "courses"),
@@ -43,6 +47,7 @@ __getattr__, __dir__ = attach(__name__, _NAMES)
 __all__ = [
     "KEEP",
     "MPPI",
+    "Arrival",
     "Avoidance",
     "Course",
     "FollowResult",
@@ -59,6 +64,7 @@ __all__ = [
     "Predictive",
     "PurePursuit",
     "Ramsete",
+    "Stall",
     "Tracker",
     "WheelLimits",
     "cluttered_corridor",
@@ -82,7 +88,15 @@ if TYPE_CHECKING:  # what the names are, for type checkers
     from diffdrive.control.commands import KEEP, desaturate
     from diffdrive.control.courses import Course, cluttered_corridor
     from diffdrive.control.limiter import Limiter, Limits
-    from diffdrive.control.mppi import MPPI, Avoidance, MPPICosts, MPPISampling, WheelLimits
+    from diffdrive.control.mppi import (
+        MPPI,
+        Arrival,
+        Avoidance,
+        MPPICosts,
+        MPPISampling,
+        Stall,
+        WheelLimits,
+    )
     from diffdrive.control.obstacles import Obstacles, read_map
     from diffdrive.control.open_loop import OpenLoopOdometry, drive_commands
     from diffdrive.control.path import from_segments, from_waypoints

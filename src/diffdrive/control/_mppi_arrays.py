@@ -139,7 +139,7 @@ class ArrayCycle:
             total = total + q.heading * 2.0 * (1.0 - (c * ref[t, 2] + s * ref[t, 3]))
             if table is not None:
                 gap = _clearance(xp, q, table, x, y, self.index) - q.footprint
-                near = xp.clip(q.inflation - gap, min=0.0)
+                near = xp.clip(ref[t, 4] - gap, min=0.0)
                 total = total + q.clearance * near * near + q.collision * xp.astype(gap < 0, dtype)
         end = ref[mean.shape[0] - 1]
         behind = xp.clip(-((x - end[0]) * end[2] + (y - end[1]) * end[3]), min=0.0)

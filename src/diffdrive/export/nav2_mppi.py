@@ -18,8 +18,9 @@ Carried over:
 
 Not carried over, and said so in the file: the temperature and the cost weights (Nav2's critics
 score other quantities, to the first power, so no number maps onto another), the drive's delay
-and lag (Nav2 has no model of them, navigation2#5214), the smoothing, and the guide around
-obstacles (Nav2's planner server makes the path).
+and lag (Nav2 has no model of them, navigation2#5214), the smoothing, the guide around
+obstacles (Nav2's planner server makes the path), and the arrival tolerance and the way made
+for a stalled robot (``controller_server``'s goal and progress checkers are other plugins).
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ _NOT_CARRIED = [
     "the first power: keep Nav2's defaults and tune there)",
     "not carried over: the drive's delay and lag (Nav2 does not roll them out), the smoothing, "
     "and the guide around obstacles (Nav2's planner server makes the path)",
+    "not carried over: the arrival tolerance and the way made for a stalled robot (the "
+    "controller server's goal checker and progress checker are plugins of their own)",
 ]
 
 
