@@ -180,6 +180,32 @@ def tracking(paths: int) -> None:
         print(f"  {name}: " + "; ".join(row))
 
 
+def corridor_outcome(course, straight, reference, tracker, footprint: float, period: float):
+    """``tracker`` driving ``reference`` through ``course`` at ``period`` s, until the guide's
+    way around ends and 2 s more (at least 1.5 times the ``straight`` plan): whether it
+    touched, its time to the goal against the straight plan (None: not reached), the
+    guide's own plan against it, and the run."""
+    way = guide(straight, course.obstacles, footprint).duration
+    settle = FollowSettings(settle=max(0.5 * straight.duration, way - straight.duration + 2.0))
+    result = follow(reference, tracker, dt=period, drive=DRIVE, settings=settle)
+    poses = result.poses[0]
+    reached = np.flatnonzero(np.hypot(*(poses[:, :2] - course.goal[:2]).T) < GOAL)
+    first = result.times[reached[0]] - result.times[0] if len(reached) else None
+    return {
+        "touch": bool(course.touches(poses, footprint).any()),
+        "ratio": None if first is None else first / straight.duration,
+        "guide": way / straight.duration,
+        "result": result,
+    }
+
+
+def _seeds(*lists: tuple[str, list[int]]) -> None:
+    """Print each non-empty list of seeds under its label."""
+    for label, seeds in lists:
+        if seeds:
+            print(f"    {label}: seeds {seeds[:12]}{' ...' if len(seeds) > 12 else ''}")
+
+
 def corridor_run(seed: int, kind: str) -> dict[str, object]:
     course = cluttered_corridor(np.random.default_rng(seed), footprint=FOOTPRINT)
     limits = PathLimits(max_velocity=1.0, max_acceleration=1.0, max_wheel_velocity=WHEELS)
@@ -194,17 +220,9 @@ def corridor_run(seed: int, kind: str) -> dict[str, object]:
             avoid=Avoidance(course.obstacles, footprint=FOOTPRINT, around=kind == "MPPI"),
         )
         reference = straight
-    # Time to finish the way around: MPPI follows guide's plan, longer than the straight one.
-    around = guide(straight, course.obstacles, FOOTPRINT).duration - straight.duration
-    settle = FollowSettings(settle=max(0.5 * straight.duration, around + 2.0))
-    result = follow(reference, tracker, dt=DT, drive=DRIVE, settings=settle)
-    poses = result.poses[0]
-    reached = np.flatnonzero(np.hypot(*(poses[:, :2] - course.goal[:2]).T) < GOAL)
-    ratio = (
-        (result.times[reached[0]] - result.times[0]) / straight.duration if len(reached) else None
-    )
-    return {"touch": bool(course.touches(poses, FOOTPRINT).any()), "ratio": ratio,
-            "closest": float(np.hypot(*(poses[:, :2] - course.goal[:2]).T).min())}  # fmt: skip
+    outcome = corridor_outcome(course, straight, reference, tracker, FOOTPRINT, DT)
+    del outcome["result"]
+    return outcome
 
 
 def obstacles(runs: int, compare: int) -> None:
@@ -224,9 +242,7 @@ def obstacles(runs: int, compare: int) -> None:
             f"  {kind}, {count} runs ({time.perf_counter() - start:.0f} s): touched "
             f"{len(touched)}, goal missed {len(missed)}, over 1.3x {len(slow)}; {spread}"
         )
-        for label, seeds in (("touched", touched), ("missed", missed), ("over 1.3x", slow)):
-            if seeds:
-                print(f"    {label}: seeds {seeds[:12]}{' ...' if len(seeds) > 12 else ''}")
+        _seeds(("touched", touched), ("missed", missed), ("over 1.3x", slow))
 
 
 # Robots the controller was not tuned on: (robot, wheel limits, footprint m). The issue's: a
@@ -333,21 +349,9 @@ def corridor_on_robot(name: str, period: float, seed: int) -> dict[str, object]:
         sampling=MPPISampling(seed=seed),
         avoid=Avoidance(course.obstacles, footprint=footprint),
     )
-    way = guide(straight, course.obstacles, footprint).duration
-    settle = FollowSettings(settle=max(0.5 * straight.duration, way - straight.duration + 2.0))
-    result = follow(straight, tracker, dt=period, drive=DRIVE, settings=settle)
-    poses = result.poses[0]
-    distance = np.hypot(*(poses[:, :2] - course.goal[:2]).T)
-    reached = np.flatnonzero(distance < GOAL)
-    return {
-        "touch": bool(course.touches(poses, footprint).any()),
-        "ratio": (result.times[reached[0]] - result.times[0]) / straight.duration
-        if len(reached)
-        else None,
-        "guide": way / straight.duration,
-        "stalls": len(tracker.stalls),
-        "over": over_limits(result, limits, period),
-    }
+    outcome = corridor_outcome(course, straight, straight, tracker, footprint, period)
+    result = outcome.pop("result")
+    return {**outcome, "stalls": len(tracker.stalls), "over": over_limits(result, limits, period)}
 
 
 def _one_thread_corridor(task: tuple[str, float, int]) -> dict[str, object]:
@@ -390,9 +394,7 @@ def corridors_on_robots(runs: int) -> None:
                     f"touched {len(touched)}, goal missed {len(missed)}, stalls {stalls}, "
                     f"periods over a limit {over}; {spread}"
                 )
-                for label, seeds in (("touched", touched), ("missed", missed)):
-                    if seeds:
-                        print(f"    {label}: seeds {seeds[:12]}{' ...' if len(seeds) > 12 else ''}")
+                _seeds(("touched", touched), ("missed", missed))
 
 
 def main() -> None:

@@ -398,9 +398,9 @@ class MPPI:
         sent = np.empty((len(poses), 2))
         ahead = self.dt * np.arange(self.delay_steps + 1, self.delay_steps + self.horizon + 1)
         for n, pose in enumerate(poses):
-            if self._stalled(given, n, pose, t):
-                self._make_detour(given, n, pose, t)
             start, plan, q = self._detours.get(n, (0.0, given, given_q))
+            if self._stalled(plan, start, n, pose, t):
+                start, plan, q = self._make_detour(given, n, pose, t) or (start, plan, q)
             window = self.lead + ahead[-1]
             with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below
                 self._progress[n] = _progress(plan, pose[:2], self._progress[n], window)
@@ -423,10 +423,9 @@ class MPPI:
             self._sent = np.concatenate([self._sent[:, 1:], sent[:, None]], axis=1)
         return sent
 
-    def _stalled(self, given: Plan, n: int, pose: np.ndarray, t: float) -> bool:
-        """Whether robot ``n`` at ``pose`` has stalled by ``t`` (``Arrival``); it notes where
-        a robot that moves was last seen."""
-        start, plan, _ = self._detours.get(n, (0.0, given, None))
+    def _stalled(self, plan: Plan, start: float, n: int, pose: np.ndarray, t: float) -> bool:
+        """Whether robot ``n`` at ``pose`` has stalled by ``t`` (``Arrival``) on ``plan``, which
+        it follows from ``start`` s; it notes where a robot that moves was last seen."""
         tolerance, still = self.arrival.tolerance, self._still[n]
         if np.hypot(*(pose[:2] - still[:2])) >= 0.25 * tolerance:
             self._still[n] = (pose[0], pose[1], t)
@@ -437,22 +436,26 @@ class MPPI:
         now = plan.sample(np.array([t - start]))["pose"][0]
         return min(np.hypot(*(pose[:2] - at[:2])) for at in (now, plan.poses[-1])) > tolerance
 
-    def _make_detour(self, given: Plan, n: int, pose: np.ndarray, t: float) -> None:
+    def _make_detour(
+        self, given: Plan, n: int, pose: np.ndarray, t: float
+    ) -> tuple[float, Plan, MPPISettings] | None:
         """Robot ``n``, stalled at ``pose`` at ``t``, given a way of its own to the plan's last
-        pose (around the obstacles), or the reason it has none; the stall kept in ``stalls``."""
+        pose (around the obstacles): when it starts, the way and its cycle's numbers; or None
+        where there is none (the reason kept with the stall in ``stalls``)."""
         goal = given.poses[-1]
         distance = float(np.hypot(*(pose[:2] - goal[:2])))
+        self._still[n] = (pose[0], pose[1], t)  # the next stall is a second from now
         try:
             way = _way_to(pose, goal, given)
             if self.obstacles is not None:
                 way = guide(way, self.obstacles, self.footprint, inflation=self.inflation)
         except ValueError as error:
             self.stalls.append(Stall(n, t, distance, False, str(error)))
-        else:
-            self.stalls.append(Stall(n, t, distance, True))
-            self._detours[n] = (t, way, settings(self, way))
-            self._progress[n] = way.times[0]
-        self._still[n] = (pose[0], pose[1], t)
+            return None
+        self.stalls.append(Stall(n, t, distance, True))
+        self._detours[n] = (t, way, settings(self, way))
+        self._progress[n] = way.times[0]
+        return self._detours[n]
 
     def _feasible(self, q, n: int, mean: np.ndarray) -> np.ndarray:
         """Robot ``n``'s mean sequence ``(T, 2)`` projected into what the drive can do from
