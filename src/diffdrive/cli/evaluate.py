@@ -15,6 +15,7 @@ from diffdrive.cli.options import (
     Command,
     Parents,
     add_datum_option,
+    refuse_truth_topic_alone,
     refuse_unused,
 )
 from diffdrive.demo import (
@@ -40,8 +41,7 @@ from diffdrive.simulation import dead_reckon
 
 def _check_options(args: argparse.Namespace) -> None:
     """The pairing and window options, refused by their own names before any file is read."""
-    if args.truth is None and args.truth_topic is not None:
-        raise ValueError("--truth-topic names the truth's topic in the bag --truth gives")
+    refuse_truth_topic_alone(args)
     refuse_unused({"--align": args.align and not args.consistency}, "used only with --consistency")
     for option, value, allowed, rule in (
         ("--t-max-diff", args.t_max_diff, args.t_max_diff >= 0, "finite and >= 0"),

@@ -557,6 +557,13 @@ def refuse_unused(options: dict[str, bool], why: str) -> None:
         raise ValueError(f"{', '.join(given)}: {why}")
 
 
+def refuse_truth_topic_alone(args: argparse.Namespace) -> None:
+    """``--truth-topic`` (the pictures' and ``evaluate``'s shared option) without ``--truth``,
+    refused by name: the topic names one in the bag ``--truth`` gives."""
+    if args.truth is None and args.truth_topic is not None:
+        raise ValueError("--truth-topic names the truth's topic in the bag --truth gives")
+
+
 def between(smallest: int, largest: int):
     """An argparse type: a whole number from ``smallest`` to ``largest``."""
 

@@ -14,6 +14,7 @@ from diffdrive.cli.options import (
     Parents,
     assumed_robot,
     at_least,
+    refuse_truth_topic_alone,
     robot_from,
     trajectory_or_example,
 )
@@ -23,8 +24,7 @@ from diffdrive.io import TableError, atomic_output, read_trajectory
 def run_plot(args: argparse.Namespace) -> int:
     from diffdrive.plot import plot_trajectory
 
-    if args.truth is None and args.truth_topic is not None:
-        raise TableError("--truth-topic names the truth's topic in the bag --truth gives")
+    refuse_truth_topic_alone(args)
     robot, _ = robot_from(args)
     times, poses, what = trajectory_or_example(args, robot)
     truth = None
