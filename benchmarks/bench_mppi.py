@@ -26,7 +26,8 @@ side, on the first ``--compare`` seeds: MPPI on the plan as given (no guide), an
 Predictive(Ramsete) on the guide's plan (no obstacle costs).
 
 Busy: the compiled cycle with one core kept busy by another process, on the cores it finds
-free against forced onto one thread and onto every thread.
+free against forced onto one thread (twice, for the noise between two runs of one cycle), a
+cycle of each in turn; then forced onto every thread.
 
 Robots and rates: three robots the controller was not tuned on (``OTHERS``: the issue's 0.075
 m wheels with 12 V through a feedforward, the tracking robot given a drive, a Husky-sized
@@ -80,8 +81,12 @@ DRIVE = DriveModel(delay=DELAY, time_constant=LAG)
 FOOTPRINT = 0.35
 
 
-def _cycle_time(samples: int, backend: str, count: int) -> tuple[float, float]:
-    """Median wall and CPU time (ms) of one cycle, after a first that compiles."""
+_START = np.array([[0.0, 0.0, 0.0]])  # the pose every timed cycle is given
+
+
+def _cycle_tracker(samples: int, backend: str) -> tuple[MPPI, object]:
+    """A tracker on the benchmark's corridor after a first cycle (which compiles and makes
+    the guide), and the plan it follows."""
     course = cluttered_corridor(np.random.default_rng(3), footprint=FOOTPRINT)
     path = plan([course.start, course.goal], ROBOT, PathLimits(1.0, 1.0, max_wheel_velocity=12))
     tracker = MPPI(
@@ -90,15 +95,27 @@ def _cycle_time(samples: int, backend: str, count: int) -> tuple[float, float]:
         sampling=MPPISampling(samples=samples, horizon=100 * DT, seed=0),
         avoid=Avoidance(course.obstacles, footprint=FOOTPRINT),
     )
-    pose = np.array([[0.0, 0.0, 0.0]])
-    tracker.command(path, 0.0, pose)  # compiles, makes the guide
-    walls, cpus = [], []
-    for k in range(count):
-        wall, cpu = time.perf_counter(), time.process_time()
-        tracker.command(path, DT * (k + 1), pose)
-        walls.append(time.perf_counter() - wall)
-        cpus.append(time.process_time() - cpu)
+    tracker.command(path, 0.0, _START)
+    return tracker, path
+
+
+def _timed_cycle(tracker: MPPI, path, k: int) -> tuple[float, float]:
+    """Wall and CPU time (s) of the tracker's cycle ``k`` (from 1, a period apart)."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    tracker.command(path, DT * k, _START)
+    return time.perf_counter() - wall, time.process_time() - cpu
+
+
+def _medians(times: list[tuple[float, float]]) -> tuple[float, float]:
+    """Median wall and CPU time (ms)."""
+    walls, cpus = zip(*times, strict=True)
     return 1e3 * float(np.median(walls)), 1e3 * float(np.median(cpus))
+
+
+def _cycle_time(samples: int, backend: str, count: int) -> tuple[float, float]:
+    """Median wall and CPU time (ms) of one cycle, after a first that compiles."""
+    tracker, path = _cycle_tracker(samples, backend)
+    return _medians([_timed_cycle(tracker, path, k + 1) for k in range(count)])
 
 
 def cycle_times(repeats: int, libraries: list[str]) -> None:
@@ -112,31 +129,48 @@ def cycle_times(repeats: int, libraries: list[str]) -> None:
             print(f"  {samples:,} x 100, {backend}: {wall:.2f} / {cpu:.2f} ms")
 
 
-def busy_cycle_times(repeats: int) -> None:
-    """The compiled cycle with one core kept busy by another process: on the cores it finds
-    free, against forced onto one thread and onto every thread, side by side."""
-    import numba
-
+def _forced_cycles(
+    samples: int, modes: dict[str, int | None], repeats: int
+) -> dict[str, tuple[float, float]]:
+    """Median wall and CPU time (ms) of a tracker per mode (its threads; None: the free-core
+    rule), a cycle of each in turn, the order reversed every other round so that each mode
+    follows the others as often."""
     from diffdrive.backends import numba_mppi
 
     free = numba_mppi.free_threads
+    runs = {label: _cycle_tracker(samples, "numba") for label in modes}
+    times: dict[str, list[tuple[float, float]]] = {label: [] for label in modes}
+    for k in range(repeats):
+        for label in list(modes)[:: 1 if k % 2 else -1]:
+            threads = modes[label]
+            if threads is not None:
+                numba_mppi.free_threads = lambda threads=threads: threads
+            try:
+                times[label].append(_timed_cycle(*runs[label], k + 1))
+            finally:
+                numba_mppi.free_threads = free
+    return {label: _medians(times[label]) for label in modes}
+
+
+def busy_cycle_times(repeats: int) -> None:
+    """The compiled cycle with one core kept busy by another process: on the cores it finds
+    free against forced onto one thread (twice: the noise between two runs of the same cycle),
+    side by side; then forced onto every thread, apart (a cycle just after one on every
+    thread runs slower while that one's threads spin)."""
+    import numba
+
     every = numba.config.NUMBA_NUM_THREADS
     busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
         time.sleep(1.0)
         print(f"one MPPI cycle with one of {every} cores busy (median wall / CPU):")
         for samples in (2048, 16384):
-            row = []
-            forced = (("free cores", None), ("one thread", 1), ("every thread", every))
-            for label, threads in forced:
-                if threads is not None:
-                    numba_mppi.free_threads = lambda threads=threads: threads
-                try:
-                    wall, cpu = _cycle_time(samples, "numba", repeats)
-                finally:
-                    numba_mppi.free_threads = free
-                row.append(f"{label} {wall:.2f} / {cpu:.2f} ms")
-            print(f"  {samples:,} x 100: " + "; ".join(row))
+            # One thread twice: how far two runs of the same cycle differ here.
+            paired = {"free cores": None, "one thread": 1, "one thread again": 1}
+            medians = _forced_cycles(samples, paired, repeats)
+            medians |= _forced_cycles(samples, {"every thread": every}, repeats)
+            row = "; ".join(f"{label} {w:.2f} / {c:.2f} ms" for label, (w, c) in medians.items())
+            print(f"  {samples:,} x 100: {row}")
     finally:
         busy.kill()
         busy.wait()

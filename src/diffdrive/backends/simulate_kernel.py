@@ -127,13 +127,19 @@ def _own_running() -> int:
     """This process's threads running or ready to run now (this one at least): a parallel
     pool's threads spin a while after each pass (numba's OpenMP layer), and counted as other
     tasks they would halve the next pass's threads."""
+    # os, not pathlib: this runs every MPPI cycle, and pathlib's glob took 60 us of it.
     count = 0
-    for stat in Path("/proc/self/task").glob("*/stat"):
+    try:
+        tasks = os.listdir("/proc/self/task")
+    except OSError:
+        return 1
+    for task in tasks:
         try:
-            state = stat.read_text(encoding="ascii").rsplit(")", 1)[1].split()[0]
+            with open(f"/proc/self/task/{task}/stat", "rb") as file:
+                state = file.read().rsplit(b")", 1)[1].split()[0]
         except (OSError, IndexError):
             continue  # a thread that ended meanwhile
-        count += state == "R"
+        count += state == b"R"
     return max(1, count)
 
 
