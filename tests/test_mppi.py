@@ -517,6 +517,51 @@ def test_the_compiled_cycle_runs_on_the_cores_no_other_task_holds(monkeypatch, r
     assert numba.get_num_threads() == before
 
 
+def test_the_free_cores_are_counted_again_only_after_recount_seconds(monkeypatch):
+    """Just after a cycle the count takes 0.1 to 0.4 ms, which had made a cycle on a busy
+    machine slower than one forced onto one thread: a controller counts at its first cycle,
+    keeps the count for ``RECOUNT`` s, then counts again; a new controller counts anew."""
+    import numba
+
+    from diffdrive.control import mppi as module
+
+    kernel = compiled()
+    pool = numba.config.NUMBA_NUM_THREADS
+    now, counts = [100.0], [1, min(2, pool), 1]
+    asked = []
+
+    def count():
+        asked.append(now[0])
+        return counts[len(asked) - 1]
+
+    class Clock:
+        @staticmethod
+        def monotonic():
+            return now[0]
+
+    monkeypatch.setattr(kernel, "free_threads", count)
+    monkeypatch.setattr(module, "time", Clock)
+    seen = []
+    cycle = kernel.cycle
+
+    def spy(*args):
+        seen.append(numba.get_num_threads())
+        return cycle(*args)
+
+    monkeypatch.setattr(kernel, "cycle", spy)
+    path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, LIMITS)
+    tracker = MPPI(backend="numba", sampling=MPPISampling(horizon=0.25, samples=64, seed=0))
+    times = [100.0 + share * module.RECOUNT for share in (0.0, 0.5, 0.9, 1.1)]
+    for step, now[0] in enumerate(times):
+        tracker.command(path, 0.05 * step, np.zeros((1, 3)))
+    assert asked == [times[0], times[3]]
+    assert seen == [1, 1, 1, min(2, pool)]
+    MPPI(backend="numba", sampling=MPPISampling(horizon=0.25, samples=64, seed=0)).command(
+        path, 0.0, np.zeros((1, 3))
+    )
+    assert len(asked) == 3
+
+
 @pytest.mark.parametrize("dt", [0.02, 0.05, 0.1])
 def test_the_horizon_and_smoothing_are_times_converted_at_the_period(dt):
     """The same settings at 20, 50 and 100 ms: the horizon (by default the delay, three lag
