@@ -484,6 +484,21 @@ def test_a_refused_cycle_changes_nothing(backend, time, shift, costs, message):
     np.testing.assert_array_equal(after[0], after[1])
 
 
+def _threads_of_cycles(monkeypatch, kernel) -> list[int]:
+    """The threads each compiled cycle runs on from now, as the test goes on."""
+    import numba
+
+    seen: list[int] = []
+    cycle = kernel.cycle
+
+    def spy(*args):
+        seen.append(numba.get_num_threads())
+        return cycle(*args)
+
+    monkeypatch.setattr(kernel, "cycle", spy)
+    return seen
+
+
 @pytest.mark.parametrize(("running", "free"), [(1, 2), (2, 1), (9, 1)])
 def test_the_compiled_cycle_runs_on_the_cores_no_other_task_holds(monkeypatch, running, free):
     """A cycle's blocks wait for the slowest thread: with the other core busy, 2,048 x 100
@@ -500,14 +515,7 @@ def test_the_compiled_cycle_runs_on_the_cores_no_other_task_holds(monkeypatch, r
     monkeypatch.setattr(simulate_kernel, "_own_running", lambda: 1)
     expected = min(free, numba.config.NUMBA_NUM_THREADS)
     assert kernel.free_threads() == expected
-    seen = []
-    cycle = kernel.cycle
-
-    def spy(*args):
-        seen.append(numba.get_num_threads())
-        return cycle(*args)
-
-    monkeypatch.setattr(kernel, "cycle", spy)
+    seen = _threads_of_cycles(monkeypatch, kernel)
     before = numba.get_num_threads()
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, LIMITS)
     MPPI(backend="numba", sampling=MPPISampling(horizon=0.25, samples=64, seed=0)).command(
@@ -541,14 +549,7 @@ def test_the_free_cores_are_counted_again_only_after_recount_seconds(monkeypatch
 
     monkeypatch.setattr(kernel, "free_threads", count)
     monkeypatch.setattr(module, "time", Clock)
-    seen = []
-    cycle = kernel.cycle
-
-    def spy(*args):
-        seen.append(numba.get_num_threads())
-        return cycle(*args)
-
-    monkeypatch.setattr(kernel, "cycle", spy)
+    seen = _threads_of_cycles(monkeypatch, kernel)
     path = plan([(0, 0, 0), (2, 0, 0)], ROBOT, LIMITS)
     tracker = MPPI(backend="numba", sampling=MPPISampling(horizon=0.25, samples=64, seed=0))
     times = [100.0 + share * module.RECOUNT for share in (0.0, 0.5, 0.9, 1.1)]
