@@ -420,7 +420,7 @@ class MPPI:
             mean = self._feasible(q, n, _moving_average(self._mean[n] + step, self.smoothing))
             sent[n] = mean[0]
             taking_effect = self._sent[n, :1] if self.delay_steps else sent[n : n + 1]
-            self._wheels[n] = self._drive_period(q, n, taking_effect[0])
+            self._wheels[n] = self._wheels_after(q, n, taking_effect)
             self._mean[n] = np.concatenate([mean[1:], mean[-1:]])  # the next cycle's start
         if self.delay_steps:
             self._sent = np.concatenate([self._sent[:, 1:], sent[:, None]], axis=1)
@@ -460,25 +460,26 @@ class MPPI:
         self._progress[n] = way.times[0]
         return self._detours[n]
 
-    def _drive_period(self, q, n: int, command: np.ndarray) -> np.ndarray:
-        """Robot ``n``'s wheels (rad/s) a period on under the twist ``command`` ``(2,)``."""
+    def _wheels_after(self, q, n: int, commands: np.ndarray) -> np.ndarray:
+        """Robot ``n``'s wheels (rad/s) after the twist ``commands`` ``(D, 2)``, a period
+        each, by the drive the cycle rolls out."""
         if self.backend == "numba":
             from diffdrive.backends import numba_mppi
 
-            return numba_mppi.in_flight(np.zeros(3), self._wheels[n], command[None], q)[4:6]
-        return drive_period(q, self._wheels[n], command)
+            return numba_mppi.in_flight(np.zeros(3), self._wheels[n], commands, q)[4:6]
+        wheels = self._wheels[n]
+        for command in commands:
+            wheels = drive_period(q, wheels, command)
+        return wheels
 
     def _feasible(self, q, n: int, mean: np.ndarray) -> np.ndarray:
         """Robot ``n``'s mean sequence ``(T, 2)`` projected into what the drive can do from
         where its wheels will be when the first takes effect, after the commands in flight."""
+        at_effect = self._wheels_after(q, n, self._sent[n])
         if self.backend == "numba":
             from diffdrive.backends import numba_mppi
 
-            flight = numba_mppi.in_flight(np.zeros(3), self._wheels[n], self._sent[n], q)
-            return numba_mppi.feasible(mean, q, flight[4:6])
-        at_effect = self._wheels[n]
-        for command in self._sent[n]:
-            at_effect = drive_period(q, at_effect, command)
+            return numba_mppi.feasible(mean, q, at_effect)
         return feasible_commands(q, at_effect, mean)
 
     def _cycle_state(self) -> tuple:
